@@ -1,0 +1,1 @@
+"""Pure numpy math: conventions, quaternions and TRS, two-bone IK. No baker types here."""

@@ -1,0 +1,85 @@
+"""Quaternion (xyzw) and frame helpers, vectorized over leading axes."""
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+
+def normalize(v: np.ndarray, eps: float = 1e-12) -> np.ndarray:
+    """Unit vectors along the last axis. Zero vectors stay zero.
+
+    v : (..., n) float
+    """
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.maximum(n, eps)
+
+
+def frames_to_quat(forward: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """Rotations that map the rest frame (+Z forward, +Y up) onto the given frame.
+
+    forward : (..., 3) float, need not be unit
+    up      : (..., 3) float, approximate up; made orthogonal to forward
+    returns : (..., 4) float, xyzw unit quaternions
+    """
+    f = normalize(forward)
+    left = normalize(np.cross(up, f))
+    u = np.cross(f, left)
+    m = np.stack([left, u, f], axis=-1)  # columns: images of X, Y, Z
+    shape = m.shape[:-2]
+    q = Rotation.from_matrix(m.reshape(-1, 3, 3)).as_quat()
+    return q.reshape(*shape, 4)
+
+
+def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product a*b of xyzw quaternions, broadcast over leading axes."""
+    ax, ay, az, aw = np.moveaxis(a, -1, 0)
+    bx, by, bz, bw = np.moveaxis(b, -1, 0)
+    return np.stack(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ],
+        axis=-1,
+    )
+
+
+def quat_conj(q: np.ndarray) -> np.ndarray:
+    """Conjugate (inverse for unit quaternions), xyzw."""
+    return q * np.array([-1.0, -1.0, -1.0, 1.0])
+
+
+def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors v (..., 3) by unit quaternions q (..., 4), xyzw."""
+    qv = q[..., :3]
+    w = q[..., 3:4]
+    t = 2.0 * np.cross(qv, v)
+    return v + w * t + np.cross(qv, t)
+
+
+def make_sign_continuous(q: np.ndarray, axis: int = 0) -> np.ndarray:
+    """Flip quaternion signs so consecutive keys along `axis` have a non-negative dot product.
+
+    q : (F, ..., 4) quaternions; returns a copy.
+    """
+    q = np.moveaxis(np.array(q, copy=True), axis, 0)
+    for i in range(1, q.shape[0]):
+        d = np.sum(q[i] * q[i - 1], axis=-1)
+        q[i][d < 0] *= -1.0
+    return np.moveaxis(q, 0, axis)
+
+
+def trs_to_matrix(t: np.ndarray, q: np.ndarray, s: np.ndarray | None = None) -> np.ndarray:
+    """4x4 matrices (row-major, column vectors) from translation, xyzw rotation, scale.
+
+    t : (..., 3), q : (..., 4), s : (..., 3) or None -> (..., 4, 4)
+    """
+    shape = t.shape[:-1]
+    r = Rotation.from_quat(q.reshape(-1, 4)).as_matrix().reshape(*shape, 3, 3)
+    if s is not None:
+        r = r * s[..., None, :]
+    m = np.zeros(shape + (4, 4))
+    m[..., :3, :3] = r
+    m[..., :3, 3] = t
+    m[..., 3, 3] = 1.0
+    return m

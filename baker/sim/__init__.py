@@ -1,0 +1,1 @@
+"""Fixed-step clock and the step loop."""

@@ -1,0 +1,33 @@
+"""The simulation's output: world-space frames of the creature, sampled at the export fps."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """World-space motion of the spine, one row per exported frame.
+
+    times           : (F,) float64, seconds, starts at 0, strictly increasing
+    spine_positions : (F, S, 3) float64, metres, world; joint origins head (0) to tail (S-1)
+    spine_rotations : (F, S, 4) float64, xyzw, world; local +Z points toward the segment ahead
+                      (the head's toward its heading), local +Y along the surface normal
+    head_surface_normal : (F, 3) float64, unit normal of the surface under the head
+    ground_heights  : (F, S) float64, metres, height of the surface below each spine joint
+                      (NaN where nothing is below)
+    events          : behaviour timeline, list of dicts {start, end, state, details}
+    """
+
+    times: np.ndarray
+    spine_positions: np.ndarray
+    spine_rotations: np.ndarray
+    head_surface_normal: np.ndarray
+    ground_heights: np.ndarray
+    events: tuple[dict, ...] = field(default_factory=tuple)
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.times)
