@@ -52,7 +52,6 @@ class LocomotionConfig:
     stopping_distance: float = 0.15  # [>=0] [m] slow down within this distance of the target
     head_turn_rate: float = 4.0     # [>=0] [rad/s] slither angular frequency at max speed
     slither_amplitude: float = math.radians(25.0)  # [0..pi/2] [rad] heading swing at max speed
-    trail_resolution: float = 0.00125  # [>0] [m] head movement between trail points
 
 
 @dataclass(frozen=True)
@@ -174,7 +173,7 @@ def load_rig_config(path: Path | str) -> RigConfig:
     deg = math.pi / 180.0
     loco = _section(LocomotionConfig, data.get("locomotion", {}), f"{path} [locomotion]",
                     {"max_speed": length, "acceleration": length, "stopping_distance": length,
-                     "trail_resolution": length, "slither_amplitude": deg})
+                     "slither_amplitude": deg})
     wander = _section(WanderConfig, data.get("wander", {}), f"{path} [wander]", {"radius": length})
     nav_t = dict(data.get("navigation", {}))
     nav_t = {{"agent_radius": "radius", "agent_height": "height"}.get(k, k): v for k, v in nav_t.items()}
@@ -202,7 +201,6 @@ def validate_rig(rig: RigConfig, where: str = "rig") -> RigConfig:
     checks = [
         (rig.locomotion.max_speed > 0, "locomotion.max_speed must be > 0"),
         (rig.locomotion.acceleration > 0, "locomotion.acceleration must be > 0"),
-        (rig.locomotion.trail_resolution > 0, "locomotion.trail_resolution must be > 0"),
         (rig.wander.interval > 0, "wander.interval must be > 0"),
         (rig.wander.radius > 0, "wander.radius must be > 0"),
         (rig.navigation.radius > 0, "navigation.agent_radius must be > 0"),
@@ -228,8 +226,7 @@ def scale_rig(rig: RigConfig, factor: float) -> RigConfig:
     return replace(
         rig,
         body=sc(rig.body, ["length", "width_profile", "clearance", "leg_stub_length"]),
-        locomotion=sc(rig.locomotion, ["max_speed", "acceleration", "stopping_distance",
-                                       "trail_resolution"]),
+        locomotion=sc(rig.locomotion, ["max_speed", "acceleration", "stopping_distance"]),
         wander=sc(rig.wander, ["radius"]),
         navigation=sc(rig.navigation, ["radius", "height", "step_height", "cell_size"]),
     )

@@ -1,0 +1,97 @@
+"""The JSON report and the metadata embedded in the GLB/USD (glTF extras, USD customData)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import platform
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+
+import baker
+
+PACKAGES = ("numpy", "scipy", "trimesh", "embreex", "pygltflib", "usd-core", "click")
+
+
+def jsonable(obj):
+    """Plain JSON types from dataclasses, numpy values, paths and tuples."""
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return {f.name: jsonable(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return jsonable(obj.tolist())
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        f = float(obj)
+        return f if math.isfinite(f) else None
+    if isinstance(obj, Path):
+        return obj.as_posix()
+    return obj
+
+
+def rig_summary(rig_cfg) -> dict:
+    """The resolved rig (metres, seconds, radians), as embedded in every output."""
+    return jsonable(rig_cfg)
+
+
+def extras(cfg, traj) -> dict:
+    """Deterministic metadata for glTF extras / USD customData (no timings, no versions)."""
+    return {
+        "generator": f"baker {baker.__version__}",
+        "seed": int(cfg.seed),
+        "fps": int(cfg.fps),
+        "seconds": float(cfg.seconds),
+        "rig": rig_summary(cfg.rig),
+        "timeline": jsonable(list(traj.events)),
+    }
+
+
+def package_versions() -> dict:
+    out = {"python": platform.python_version(), "baker": baker.__version__}
+    for name in PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+def build_report(cfg, env, nav, traj, motion: dict, ctx, written: dict) -> dict:
+    return jsonable({
+        "baker_version": baker.__version__,
+        "seed": cfg.seed,
+        "parameters": {
+            "environment": str(cfg.environment),
+            "seconds": cfg.seconds,
+            "fps": cfg.fps,
+            "sim_rate_hz": cfg.sim_rate,
+            "formats": list(cfg.formats),
+            "sun_direction": env.sun.direction,
+            "rig": rig_summary(cfg.rig),
+        },
+        "environment": {
+            "source": env.source,
+            "meshes": len(env.meshes),
+            "triangles": int(len(env.mesh.faces)),
+            "bounds": env.bounds,
+            "content_hash": env.content_hash,
+        },
+        "navmesh": getattr(nav, "stats", lambda: {})() if callable(getattr(nav, "stats", None)) else {},
+        "navmesh_cache_hit": ctx.notes.get("navmesh_cache_hit"),
+        "versions": package_versions(),
+        "timings_s": {k: round(v, 4) for k, v in ctx.timings.items()},
+        "metrics": motion,
+        "timeline": list(traj.events),
+        "outputs": {k: str(v) for k, v in written.items()},
+    })
+
+
+def to_json_bytes(report: dict) -> bytes:
+    return (json.dumps(report, indent=2, sort_keys=False, allow_nan=False) + "\n").encode()

@@ -1,0 +1,64 @@
+"""The navigation agent: moves along a planned path with a maximum speed, an acceleration
+limit and a stopping distance (as Unity's NavMeshAgent does)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from baker.geometry import polyline
+
+
+class PathAgent:
+    """A point that travels along a path polyline.
+
+    position : (3,) float, metres, world — on the path
+    speed    : float, m/s, along the path
+    """
+
+    def __init__(self, position: np.ndarray, max_speed: float, acceleration: float,
+                 stopping_distance: float):
+        self.max_speed = float(max_speed)
+        self.acceleration = float(acceleration)
+        self.stopping_distance = float(stopping_distance)
+        self.speed_scale = 1.0
+        self.position = np.asarray(position, dtype=np.float64).copy()
+        self.speed = 0.0
+        self._points = self.position[None, :].copy()
+        self._cum = np.zeros(1)
+        self._s = 0.0
+
+    def set_path(self, points: np.ndarray) -> None:
+        """Follow a new path from the agent's current position. points : (k, 3) float."""
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        if len(pts) == 0 or np.linalg.norm(pts[0] - self.position) > 1e-9:
+            pts = np.vstack([self.position, pts])
+        self._points = pts
+        self._cum = polyline.arc_lengths(pts)
+        self._s = 0.0
+
+    @property
+    def remaining(self) -> float:
+        """Metres left along the path."""
+        return float(self._cum[-1] - self._s)
+
+    @property
+    def arrived(self) -> bool:
+        return self.remaining <= self.stopping_distance + 1e-9 and self.speed == 0.0
+
+    @property
+    def goal(self) -> np.ndarray:
+        return self._points[-1]
+
+    def step(self, dt: float) -> None:
+        """Advance by dt seconds: brake to stop at the stopping distance, else accelerate."""
+        vmax = self.max_speed * self.speed_scale
+        free = max(self.remaining - self.stopping_distance, 0.0)
+        target = min(vmax, math.sqrt(2.0 * self.acceleration * free))
+        dv = self.acceleration * dt
+        self.speed = min(max(target, self.speed - dv), self.speed + dv)
+        if free <= 0.0:
+            self.speed = max(self.speed - dv, 0.0)
+        self._s = min(self._s + self.speed * dt, float(self._cum[-1]))
+        self.position = polyline.sample(self._points, self._cum, self._s)

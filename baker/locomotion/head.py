@@ -1,0 +1,78 @@
+"""Head steering: the head follows the navigation agent with a bounded turning radius and a
+sine slither whose frequency and amplitude rise with speed (SEED.md: turn rate 4, amplitude 5).
+
+The head has a smooth "base" point that chases the agent (turn rate limited to speed / turn
+radius, so the trail has no kinks, even when a new path starts behind it) and a lateral slither
+offset on top. Heights are only approximate here; the body stage re-projects everything onto the
+surface with ray casts.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+class HeadSteer:
+    """Kinematic head follower.
+
+    base     : (3,) float, metres — smooth follower of the agent
+    heading  : (3,) float, unit, horizontal
+    position : (3,) float, metres — base plus the slither offset
+    """
+
+    def __init__(self, position: np.ndarray, heading: np.ndarray, *, max_speed: float,
+                 turn_radius: float, lead: float, turn_rate: float, amplitude: float,
+                 max_offset: float):
+        self.base = np.asarray(position, dtype=np.float64).copy()
+        h = np.asarray(heading, dtype=np.float64).copy()
+        h[1] = 0.0
+        self.heading = h / max(np.linalg.norm(h), 1e-12)
+        self.max_speed = float(max_speed)
+        self.turn_radius = float(turn_radius)
+        self.lead = float(lead)
+        self.turn_rate = float(turn_rate)      # rad/s of slither phase at max speed
+        self.amplitude = float(amplitude)      # rad of heading swing at max speed
+        self.max_offset = float(max_offset)    # metres, lateral offset cap
+        self.turn_rate_scale = 1.0
+        self.phase = 0.0
+        self.speed = 0.0
+        self.position = self.base.copy()
+
+    def step(self, dt: float, agent_pos: np.ndarray, agent_speed: float) -> None:
+        to = agent_pos - self.base
+        to[1] = 0.0
+        dist = math.hypot(to[0], to[2])
+        # Speed: match the agent, plus a gain that closes the gap to the lead distance.
+        gain = 4.0
+        u = max(0.0, min(agent_speed + gain * (dist - self.lead), 2.0 * self.max_speed))
+        if dist < 1e-9:
+            u = 0.0
+        if u > 0.0 and dist > 1e-9:
+            want = to / dist
+            # Turn toward the agent, at most u / turn_radius rad/s.
+            cross = self.heading[2] * want[0] - self.heading[0] * want[2]
+            dot = self.heading[0] * want[0] + self.heading[2] * want[2]
+            ang = math.atan2(cross, dot)
+            lim = u * dt / self.turn_radius
+            a = max(-lim, min(lim, ang))
+            c, s = math.cos(a), math.sin(a)
+            hx, hz = self.heading[0], self.heading[2]
+            self.heading = np.array([c * hx + s * hz, 0.0, -s * hx + c * hz])
+            # Don't overshoot the agent when it stops.
+            step = min(u * dt, max(dist - 0.25 * self.lead, 0.0)) if agent_speed == 0.0 else u * dt
+            self.base = self.base + self.heading * step
+            self.base[1] = agent_pos[1]
+            u = step / dt
+        self.speed = u
+        # Slither: frequency ~ speed; lateral amplitude = v * A(v) / w(v) rises with speed.
+        frac = min(u / self.max_speed, 2.0)
+        omega = self.turn_rate * self.turn_rate_scale * frac
+        self.phase += omega * dt
+        if omega > 1e-9:
+            lateral_amp = min(u * self.amplitude * frac / omega, self.max_offset)
+        else:
+            lateral_amp = 0.0
+        left = np.array([self.heading[2], 0.0, -self.heading[0]])
+        self.position = self.base + left * (lateral_amp * math.sin(self.phase))

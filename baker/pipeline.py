@@ -1,0 +1,112 @@
+"""The bake pipeline, step by step. Read this first.
+
+    Step 1  load the environment           environment.load_environment
+    Step 2  build the navigation surface   navmesh.build (or the on-disk cache)
+    Step 3  build the rig                  rig.build_rig
+    Step 4  simulate                       sim.loop.simulate -> Trajectory
+    Step 5  pose                           clip.build_clip   -> Clip
+    Step 6  measure                        metrics.spine_metrics
+    Step 7  export                         export.gltf / export.usd / export.report
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from baker.config import BakeConfig, validate_bake
+from baker.context import Context
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class BakeResult:
+    """What a bake produced.
+
+    outputs : format -> path written
+    report  : the JSON report as a dict
+    """
+
+    outputs: dict[str, Path]
+    report: dict
+    trajectory: object
+    clip: object
+
+
+def make_rng(seed: int) -> np.random.Generator:
+    """The one generator of a bake. Everything stochastic draws from it, in a fixed order."""
+    return np.random.default_rng(np.random.SeedSequence(int(seed)))
+
+
+def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
+         ctx: Context | None = None) -> BakeResult:
+    from baker import metrics
+    from baker.clip import build_clip
+    from baker.environment import load_environment
+    from baker.export import report as report_mod
+    from baker.export.atomic import atomic_write_bytes, check_writable
+    from baker.export.gltf import build_glb
+    from baker.export.usd import write_usd
+    from baker.navmesh import debug as nav_debug
+    from baker.navmesh.cache import load_or_build
+    from baker.rig import build_rig
+    from baker.sim.loop import simulate
+
+    cfg = validate_bake(cfg)
+    ctx = ctx or Context()
+    rng = rng if rng is not None else make_rng(cfg.seed)
+    paths = cfg.output_paths()
+    check_writable(paths["json"].parent)
+
+    # Step 1: the environment, in metres, +Y up, with the sun.
+    with ctx.stage("load"):
+        env = load_environment(cfg.environment, sun_override=cfg.sun_direction)
+
+    # Step 2: the navigation surface for this rig's agent size (cached by content + params).
+    with ctx.stage("navmesh"):
+        nav, cache_hit = load_or_build(env, cfg.rig.navigation, cfg.nav_cache_dir)
+    ctx.notes["navmesh_cache_hit"] = cache_hit
+
+    # Step 3: skeleton and skinned mesh.
+    with ctx.stage("rig"):
+        rig = build_rig(cfg.rig)
+
+    # Step 4: behaviour, agent, head and body, at the fixed simulation rate.
+    with ctx.stage("simulate"):
+        traj = simulate(cfg, env, nav, rng, ctx)
+
+    # Step 5: joint-local transforms at the export fps.
+    with ctx.stage("pose"):
+        clip = build_clip(traj, rig, name="bake")
+
+    # Step 6: motion-quality metrics (independent ray casts against the environment).
+    with ctx.stage("metrics"):
+        motion = metrics.spine_metrics(
+            traj, env.rays, spacing=cfg.rig.body.spacing, clearance=cfg.rig.body.clearance,
+            max_slope=cfg.rig.navigation.max_slope, body_length=cfg.rig.body.length)
+
+    # Step 7: files. Every file is complete before it replaces an older one.
+    extras = report_mod.extras(cfg, traj)
+    debug_meshes = ()
+    if cfg.debug_navmesh:
+        v, f = nav_debug.walkable_mesh(nav)
+        debug_meshes = (("navmesh", v, f, (0.1, 0.6, 1.0, 0.5)),)
+    written: dict[str, Path] = {}
+    with ctx.stage("export"):
+        if "glb" in paths:
+            data = build_glb(env, rig, clip, extras=extras, debug_meshes=debug_meshes)
+            atomic_write_bytes(paths["glb"], data)
+            written["glb"] = paths["glb"]
+        for fmt in ("usd", "usda"):
+            if fmt in paths:
+                write_usd(paths[fmt], env, rig, clip, fps=cfg.fps, extras=extras,
+                          debug_meshes=debug_meshes)
+                written[fmt] = paths[fmt]
+    written["json"] = paths["json"]
+    rep = report_mod.build_report(cfg, env, nav, traj, motion, ctx, written)
+    atomic_write_bytes(paths["json"], report_mod.to_json_bytes(rep))
+    return BakeResult(outputs=written, report=rep, trajectory=traj, clip=clip)

@@ -1,0 +1,106 @@
+"""Bad input: exit code 2, one line naming the problem, no traceback, no partial outputs, and a
+previous good output survives."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from baker.cli import main
+
+
+def run_cli(args, capsys):
+    code = main(["bake", *map(str, args)])
+    err = capsys.readouterr().err
+    return code, err
+
+
+def listing(folder: Path):
+    return sorted(p.name for p in folder.iterdir()) if folder.exists() else []
+
+
+def assert_user_error(code, err, *words):
+    assert code == 2
+    lines = [ln for ln in err.strip().splitlines() if ln.strip()]
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    for w in words:
+        assert w.lower() in lines[0].lower(), lines[0]
+
+
+def steep_plane(path: Path):
+    a = np.radians(70)
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, np.tan(a), 1], [0, np.tan(a), 1]], float)
+    trimesh.Trimesh(v, [[0, 2, 1], [0, 3, 2]], process=False).export(path)
+
+
+CASES = {
+    "missing": (lambda d: d / "nope.glb", ["not found"]),
+    "extension": (lambda d: (d / "scene.xyz").write_text("1 2 3") or d / "scene.xyz", ["xyz"]),
+    "corrupt_glb": (lambda d: (d / "bad.glb").write_bytes(b"glTF\x02\x00\x00\x00garbage") or d / "bad.glb", ["bad.glb"]),
+    "corrupt_obj": (lambda d: (d / "bad.obj").write_bytes(b"\x00\xff\xfe v 1 2\nf 9 9 9\n\x00") or d / "bad.obj", ["bad.obj"]),
+    "no_faces": (lambda d: (d / "pts.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 0 1\n") or d / "pts.obj", ["face"]),
+    "no_walkable": (lambda d: steep_plane(d / "steep.stl") or d / "steep.stl", ["walkable"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_bad_environment_is_a_clean_user_error(case, tmp_path, capsys):
+    make, words = CASES[case]
+    env = make(tmp_path)
+    out = tmp_path / "out"
+    out.mkdir()
+    code, err = run_cli([env, "--out", out / "c", "--seconds", 1, "--no-cache"], capsys)
+    assert_user_error(code, err, *words)
+    assert listing(out) == []
+
+
+@pytest.mark.parametrize("args,word", [
+    (["--seconds", 0], "--seconds"),
+    (["--seconds", -3], "--seconds"),
+    (["--fps", 0], "--fps"),
+    (["--fps", -30], "--fps"),
+    (["--fps", 100000], "--fps"),
+    (["--fps", 7], "--fps"),
+    (["--sun", "1,2"], "--sun"),
+    (["--format", "fbx"], "format"),
+])
+def test_bad_options_are_clean_user_errors(args, word, tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    code, err = run_cli(["--out", out / "c", *args], capsys)
+    assert_user_error(code, err, word)
+    assert listing(out) == []
+
+
+def test_unwritable_output_folder(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    code, err = run_cli(["--out", blocker / "sub" / "c", "--seconds", 1, "--no-cache"], capsys)
+    assert_user_error(code, err, "output")
+
+
+def test_failed_bake_keeps_previous_output(tmp_path, capsys):
+    out = tmp_path / "c"
+    code, _ = run_cli(["--out", out, "--seconds", 1, "--no-cache"], capsys)
+    assert code == 0
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert set(before) == {"c.glb", "c.usd", "c.json"}
+    bad = tmp_path / "bad.glb"
+    bad.write_bytes(b"glTF-broken")
+    before["bad.glb"] = bad.read_bytes()
+    code, err = run_cli([bad, "--out", out, "--seconds", 1, "--no-cache"], capsys)
+    assert code == 2
+    after = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert after == before
+
+
+def test_console_script_error_has_no_traceback(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "baker.cli", "bake", str(tmp_path / "missing.obj")],
+                       capture_output=True, text=True)
+    assert r.returncode == 2
+    assert "Traceback" not in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
