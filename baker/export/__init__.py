@@ -1,0 +1,91 @@
+"""Writers: glTF (GLB), USD and (elsewhere) the JSON report. The only code that writes files.
+
+This module holds the small helpers the writers share: JSON-safe extras, node names, normals and
+the sun light orientation.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping
+from pathlib import PurePath
+
+import numpy as np
+
+from baker.geometry.transforms import frames_to_quat
+
+
+def jsonable(obj):
+    """Plain-Python copy of `obj` for JSON: numpy scalars/arrays, tuples, paths, dataclasses.
+
+    Non-finite floats become None (JSON has no NaN). Dict keys become strings.
+    """
+    if obj is None or isinstance(obj, (bool, str)):
+        return obj
+    if isinstance(obj, (np.bool_,)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        f = float(obj)
+        return f if math.isfinite(f) else None
+    if isinstance(obj, np.ndarray):
+        return jsonable(obj.tolist())
+    if isinstance(obj, Mapping):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple, set, frozenset)):
+        items = sorted(obj, key=repr) if isinstance(obj, (set, frozenset)) else obj
+        return [jsonable(v) for v in items]
+    if isinstance(obj, PurePath):
+        return str(obj)
+    if hasattr(obj, "__dataclass_fields__"):
+        return {k: jsonable(getattr(obj, k)) for k in obj.__dataclass_fields__}
+    return str(obj)
+
+
+_BAD = re.compile(r"[^A-Za-z0-9_]")
+
+
+def safe_name(name: str, taken: set[str], fallback: str = "node") -> str:
+    """`name` reduced to [A-Za-z0-9_], at most 63 bytes, made unique against `taken` (updated)."""
+    base = _BAD.sub("_", str(name)) or fallback
+    if base[0].isdigit():
+        base = "_" + base
+    base = base[:56]
+    out, k = base, 1
+    while out in taken:
+        out = f"{base}_{k}"
+        k += 1
+    taken.add(out)
+    return out
+
+
+def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(n, 3) float32 unit area-weighted vertex normals; isolated/degenerate vertices get +Y."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    n = np.zeros_like(v)
+    if len(f):
+        fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+        for c in range(3):
+            np.add.at(n, f[:, c], fn)
+    return unit_normals(n)
+
+
+def unit_normals(n: np.ndarray) -> np.ndarray:
+    """Normalize to float32 unit length; zero/non-finite rows become +Y."""
+    n = np.asarray(n, dtype=np.float64)
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    good = np.isfinite(length) & (length > 1e-30)
+    out = np.where(good, n / np.where(good, length, 1.0), np.array([0.0, 1.0, 0.0]))
+    return out.astype(np.float32)
+
+
+def light_rotation(direction_to_sun: np.ndarray) -> np.ndarray:
+    """xyzw rotation whose local -Z points along the light (= -direction_to_sun)."""
+    d = np.asarray(direction_to_sun, dtype=np.float64)
+    d = d / np.linalg.norm(d)
+    up = np.array([0.0, 1.0, 0.0]) if abs(d[1]) < 0.999 else np.array([0.0, 0.0, 1.0])
+    q = frames_to_quat(d, up)      # maps +Z onto the sun direction, so -Z onto the light
+    return q / np.linalg.norm(q)

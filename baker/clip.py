@@ -1,0 +1,142 @@
+"""Trajectory + Skeleton -> Clip: per-frame joint-local TRS arrays, ready for the exporters."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from baker.errors import ExportError
+from baker.geometry.conventions import is_valid_name
+from baker.geometry.transforms import quat_conj, quat_mul, quat_rotate
+from baker.rig.build import Rig
+from baker.rig.skeleton import forward_kinematics
+from baker.sim.trajectory import Trajectory
+
+
+@dataclass(frozen=True)
+class Clip:
+    """One animation over the whole skeleton, sampled at the export fps.
+
+    name         : animation name, [A-Za-z0-9_]
+    fps          : export frame rate [Hz]; times[f] == float32(f / fps)
+    times        : (F,) float32, seconds, times[0] == 0, strictly increasing
+    translations : (F, J, 3) float32, metres, joint-local (relative to the parent joint;
+                   the root joint relative to the creature's placement node)
+    rotations    : (F, J, 4) float32, xyzw, joint-local, unit in float32, sign-continuous over F
+    scales       : (F, J, 3) float32, joint-local (ones for now)
+    """
+
+    name: str
+    times: np.ndarray
+    translations: np.ndarray
+    rotations: np.ndarray
+    scales: np.ndarray
+    fps: int = 30
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.times)
+
+    @property
+    def n_joints(self) -> int:
+        return self.translations.shape[1]
+
+    def world(self, parents: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Forward kinematics: (F, J, 3) world translations, (F, J, 4) xyzw world rotations,
+        float64 (scales are ignored; they are ones)."""
+        return forward_kinematics(parents, self.translations, self.rotations)
+
+
+def times_for(n_frames: int, fps: int) -> np.ndarray:
+    """(F,) float32 frame times f / fps, computed in float64 and rounded once."""
+    return (np.arange(n_frames, dtype=np.float64) / float(fps)).astype(np.float32)
+
+
+def _infer_fps(times: np.ndarray) -> int:
+    if len(times) < 2:
+        return 30
+    return int(round((len(times) - 1) / (float(times[-1]) - float(times[0]))))
+
+
+def normalize_quats_f32(q: np.ndarray) -> np.ndarray:
+    """Unit quaternions in float32 (norm computed in float64, result rounded once)."""
+    q = np.asarray(q, dtype=np.float64)
+    return (q / np.linalg.norm(q, axis=-1, keepdims=True)).astype(np.float32)
+
+
+def sign_continuous(q: np.ndarray) -> np.ndarray:
+    """Flip signs along axis 0 so consecutive keys have a non-negative dot product (vectorized).
+
+    q : (F, ..., 4); the first key keeps w >= 0.
+    """
+    q = np.asarray(q)
+    if len(q) == 0:
+        return q.copy()
+    dots = np.sum(q[1:].astype(np.float64) * q[:-1].astype(np.float64), axis=-1)
+    step = np.where(dots < 0, -1.0, 1.0)
+    first = np.where(q[:1, ..., 3] < 0, -1.0, 1.0)
+    sign = np.cumprod(np.concatenate([first, step], axis=0), axis=0)
+    return (q * sign[..., None]).astype(q.dtype)
+
+
+def build_clip(traj: Trajectory, rig: Rig, name: str = "bake", fps: int | None = None) -> Clip:
+    """Convert world spine frames into joint-local TRS.
+
+    traj : spine_positions (F, S, 3) / spine_rotations (F, S, 4) are WORLD transforms of the S
+           spine joints rig.spine; the placement node ("Centipede") is the identity.
+    fps  : export frame rate; None infers it from traj.times (which must be f / fps).
+    Joints not on the spine keep their rest pose.
+    """
+    if not is_valid_name(name):
+        raise ExportError(f"clip name {name!r} must use [A-Za-z0-9_] only")
+    skel = rig.skeleton
+    spine = np.asarray(rig.spine, dtype=np.int64)
+    pos = np.asarray(traj.spine_positions, dtype=np.float64)
+    rot = np.asarray(traj.spine_rotations, dtype=np.float64)
+    f_count = len(traj.times)
+    if f_count == 0:
+        raise ExportError("the trajectory has no frames")
+    if pos.shape != (f_count, len(spine), 3) or rot.shape != (f_count, len(spine), 4):
+        raise ExportError(f"trajectory shapes {pos.shape}/{rot.shape} do not match "
+                          f"{f_count} frames x {len(spine)} spine joints")
+    if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(rot))):
+        raise ExportError("the trajectory has non-finite positions or rotations")
+    fps = _infer_fps(np.asarray(traj.times)) if fps is None else int(fps)
+    if fps <= 0:
+        raise ExportError(f"fps must be > 0 (got {fps})")
+
+    j_count = skel.n_joints
+    # world transforms of every joint: spine from the trajectory, the rest by rest-pose FK below
+    rot = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
+    local_t = np.broadcast_to(skel.rest_translations, (f_count, j_count, 3)).copy()
+    local_q = np.broadcast_to(skel.rest_rotations, (f_count, j_count, 4)).copy()
+    world_t = np.zeros((f_count, j_count, 3))
+    world_q = np.zeros((f_count, j_count, 4))
+    driven = np.zeros(j_count, dtype=bool)
+    driven[spine] = True
+    world_t[:, spine] = pos
+    world_q[:, spine] = rot
+    for j, p in enumerate(skel.parents):
+        if driven[j]:
+            if p < 0:
+                local_t[:, j] = world_t[:, j]
+                local_q[:, j] = world_q[:, j]
+            else:
+                inv = quat_conj(world_q[:, p])
+                local_t[:, j] = quat_rotate(inv, world_t[:, j] - world_t[:, p])
+                local_q[:, j] = quat_mul(inv, world_q[:, j])
+        elif p >= 0:   # undriven joint: follow its parent in the rest pose
+            world_t[:, j] = world_t[:, p] + quat_rotate(world_q[:, p], local_t[:, j])
+            world_q[:, j] = quat_mul(world_q[:, p], local_q[:, j])
+        else:
+            world_t[:, j] = local_t[:, j]
+            world_q[:, j] = local_q[:, j]
+
+    rotations = sign_continuous(normalize_quats_f32(local_q))
+    clip = Clip(name=name, times=times_for(f_count, fps),
+                translations=local_t.astype(np.float32), rotations=rotations,
+                scales=np.ones((f_count, j_count, 3), dtype=np.float32), fps=fps)
+    for arr in (clip.times, clip.translations, clip.rotations, clip.scales):
+        arr.setflags(write=False)
+    return clip

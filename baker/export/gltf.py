@@ -1,0 +1,283 @@
+"""glTF 2.0 binary (GLB) writer: environment, sun, skinned centipede and one animation.
+
+Built with pygltflib objects; the GLB container is assembled here so the output is byte-for-byte
+deterministic and both chunks are padded to 4 bytes. Node layout of the scene:
+
+    Environment            (group)  -> one node per EnvMesh
+    Sun                    KHR_lights_punctual directional light, local -Z along the light
+    Centipede              non-joint placement node (identity) -> head -> trunk_01 -> ...
+    centipede_mesh         skinned mesh, at the scene root with no transform
+    <debug layers>         optional overlays, one node each
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+from collections.abc import Sequence
+
+import numpy as np
+import pygltflib as gl
+
+import baker
+from baker.clip import Clip
+from baker.environment.model import Environment
+from baker.errors import ExportError
+from baker.export import jsonable, light_rotation, safe_name, unit_normals, vertex_normals
+from baker.rig.build import Rig
+
+ANIM_LINEAR = "LINEAR"   # animation interpolation (NOT pygltflib.LINEAR, the texture filter 9729)
+
+FLOAT, UINT16, UINT32 = gl.FLOAT, gl.UNSIGNED_SHORT, gl.UNSIGNED_INT
+ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = gl.ARRAY_BUFFER, gl.ELEMENT_ARRAY_BUFFER
+_TYPES = {1: gl.SCALAR, 2: gl.VEC2, 3: gl.VEC3, 4: gl.VEC4, 16: gl.MAT4}
+_NP = {FLOAT: np.float32, UINT16: np.uint16, UINT32: np.uint32}
+
+DebugMesh = tuple  # (name, vertices (n, 3), faces (m, 3), rgba)
+
+
+class _Builder:
+    """Accumulates the binary chunk and the accessor/bufferView lists."""
+
+    def __init__(self, gltf: gl.GLTF2) -> None:
+        self.gltf = gltf
+        self.chunks: list[bytes] = []
+        self.size = 0
+
+    def _view(self, data: bytes, target: int | None) -> int:
+        pad = (-self.size) % 4
+        if pad:
+            self.chunks.append(b"\0" * pad)
+            self.size += pad
+        self.gltf.bufferViews.append(gl.BufferView(buffer=0, byteOffset=self.size,
+                                                   byteLength=len(data), target=target))
+        self.chunks.append(data)
+        self.size += len(data)
+        return len(self.gltf.bufferViews) - 1
+
+    def accessor(self, array: np.ndarray, component: int, *, target: int | None = None,
+                 minmax: bool = False, normalized: bool | None = None) -> int:
+        """Append `array` (n, k) or (n,) as one accessor in its own bufferView."""
+        a = np.ascontiguousarray(array, dtype=_NP[component])
+        count = a.shape[0]
+        width = int(np.prod(a.shape[1:])) if a.ndim > 1 else 1
+        view = self._view(a.tobytes(), target)
+        acc = gl.Accessor(bufferView=view, byteOffset=0, componentType=component, count=count,
+                          type=_TYPES[width], normalized=normalized)
+        if minmax and count:
+            flat = a.reshape(count, width)
+            cast = float if component == FLOAT else int
+            acc.min = [cast(x) for x in flat.min(axis=0)]
+            acc.max = [cast(x) for x in flat.max(axis=0)]
+        self.gltf.accessors.append(acc)
+        return len(self.gltf.accessors) - 1
+
+    def indices(self, faces: np.ndarray, n_vertices: int) -> int:
+        comp = UINT16 if n_vertices <= 65535 else UINT32
+        return self.accessor(np.asarray(faces).reshape(-1), comp, target=ELEMENT_ARRAY_BUFFER)
+
+    def blob(self) -> bytes:
+        data = b"".join(self.chunks)
+        return data + b"\0" * ((-len(data)) % 4)
+
+
+def _material(gltf: gl.GLTF2, name: str, rgba, metallic: float, roughness: float,
+              double_sided: bool) -> int:
+    rgba = [float(np.clip(c, 0.0, 1.0)) for c in rgba]
+    mat = gl.Material(
+        name=name,
+        pbrMetallicRoughness=gl.PbrMetallicRoughness(
+            baseColorFactor=rgba, metallicFactor=float(np.clip(metallic, 0, 1)),
+            roughnessFactor=float(np.clip(roughness, 0, 1))),
+        doubleSided=bool(double_sided),
+        alphaMode=gl.BLEND if rgba[3] < 1.0 else gl.OPAQUE,
+    )
+    gltf.materials.append(mat)
+    return len(gltf.materials) - 1
+
+
+def _static_mesh(gltf: gl.GLTF2, b: _Builder, name: str, vertices, faces, normals,
+                 material: int) -> int:
+    v = np.asarray(vertices, dtype=np.float32).reshape(-1, 3)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if not len(v) or not len(f):
+        raise ExportError(f"mesh {name!r} has no vertices or no faces")
+    if f.min() < 0 or f.max() >= len(v):
+        raise ExportError(f"mesh {name!r} has face indices out of range")
+    if not np.all(np.isfinite(v)):
+        raise ExportError(f"mesh {name!r} has non-finite vertices")
+    n = vertex_normals(v, f) if normals is None else unit_normals(normals)
+    prim = gl.Primitive(
+        attributes=gl.Attributes(
+            POSITION=b.accessor(v, FLOAT, target=ARRAY_BUFFER, minmax=True),
+            NORMAL=b.accessor(n, FLOAT, target=ARRAY_BUFFER)),
+        indices=b.indices(f, len(v)), material=material, mode=gl.TRIANGLES)
+    gltf.meshes.append(gl.Mesh(name=name, primitives=[prim]))
+    return len(gltf.meshes) - 1
+
+
+def _add_node(gltf: gl.GLTF2, node: gl.Node) -> int:
+    gltf.nodes.append(node)
+    return len(gltf.nodes) - 1
+
+
+def _rounded(v) -> list[float]:
+    return [float(x) for x in np.asarray(v, dtype=np.float32)]
+
+
+def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: dict,
+              debug_meshes: Sequence[DebugMesh] = ()) -> bytes:
+    """The whole scene as GLB bytes. Same inputs give identical bytes.
+
+    env          : environment meshes (each gets a node and a PBR material) and the sun
+    rig          : skeleton + skinned mesh, or None for an environment-only file
+    clip         : animation over rig.skeleton's joints, or None for the rest pose only
+    extras       : custom data, stored in the scene's and the asset's `extras` (made JSON-safe)
+    debug_meshes : (name, vertices (n, 3), faces (m, 3), rgba) extra layers, one node each
+    """
+    if clip is not None and rig is None:
+        raise ExportError("a clip needs a rig to drive")
+    gltf = gl.GLTF2(asset=gl.Asset(version="2.0", generator=f"baker {baker.__version__}"))
+    gltf.buffers = []
+    b = _Builder(gltf)
+    names: set[str] = set()
+    scene_nodes: list[int] = []
+
+    # -- environment
+    env_children = []
+    for m in env.meshes:
+        nm = safe_name(m.name, names, "env_mesh")
+        mat = _material(gltf, nm, tuple(m.color)[:4] + (1.0,) * (4 - len(tuple(m.color)[:4])),
+                        m.metallic, m.roughness, double_sided=True)
+        mesh = _static_mesh(gltf, b, nm, m.vertices, m.faces, m.normals, mat)
+        env_children.append(_add_node(gltf, gl.Node(name=nm, mesh=mesh)))
+    if env_children:
+        scene_nodes.append(_add_node(gltf, gl.Node(name=safe_name("Environment", names),
+                                                   children=env_children)))
+
+    # -- sun: KHR_lights_punctual directional light; it shines along the node's local -Z
+    sun = env.sun
+    gltf.extensions = {"KHR_lights_punctual": {"lights": [{
+        "name": "Sun", "type": "directional",
+        "color": [float(c) for c in sun.color], "intensity": float(sun.intensity)}]}}
+    gltf.extensionsUsed = ["KHR_lights_punctual"]
+    scene_nodes.append(_add_node(gltf, gl.Node(
+        name=safe_name("Sun", names), rotation=_rounded(light_rotation(sun.direction)),
+        extensions={"KHR_lights_punctual": {"light": 0}})))
+
+    # -- the creature
+    if rig is not None:
+        scene_nodes.extend(_add_creature(gltf, b, names, rig, clip))
+
+    # -- debug overlays
+    for name, verts, faces, rgba in debug_meshes:
+        nm = safe_name(name, names, "debug")
+        rgba = tuple(float(c) for c in rgba)
+        mat = _material(gltf, nm, rgba + (1.0,) * (4 - len(rgba)), 0.0, 1.0, double_sided=True)
+        mesh = _static_mesh(gltf, b, nm, verts, faces, None, mat)
+        scene_nodes.append(_add_node(gltf, gl.Node(name=nm, mesh=mesh)))
+
+    gltf.scenes = [gl.Scene(name="Scene", nodes=scene_nodes)]
+    gltf.scene = 0
+    blob = b.blob()
+    gltf.buffers = [gl.Buffer(byteLength=len(blob))]
+
+    doc = json.loads(gltf.gltf_to_json(separators=(",", ":"), indent=None))
+    # extras are inserted after pygltflib's JSON pass, which would drop None/empty values
+    ex = jsonable(dict(extras))
+    doc["asset"]["extras"] = ex
+    doc["scenes"][0]["extras"] = ex
+    text = json.dumps(doc, separators=(",", ":"), allow_nan=False, ensure_ascii=True)
+    return _glb_container(text.encode("utf-8"), blob)
+
+
+def _glb_container(json_bytes: bytes, blob: bytes) -> bytes:
+    json_bytes += b" " * ((-len(json_bytes)) % 4)
+    blob += b"\0" * ((-len(blob)) % 4)
+    total = 12 + 8 + len(json_bytes) + (8 + len(blob) if blob else 0)
+    out = [b"glTF", struct.pack("<II", 2, total), struct.pack("<I", len(json_bytes)), b"JSON",
+           json_bytes]
+    if blob:
+        out += [struct.pack("<I", len(blob)), b"BIN\0", blob]
+    return b"".join(out)
+
+
+def _add_creature(gltf: gl.GLTF2, b: _Builder, names: set[str], rig: Rig,
+                  clip: Clip | None) -> list[int]:
+    """Joint nodes under a non-joint `Centipede` node, the skinned mesh node, the animation.
+    Returns the scene-root node indices it added."""
+    skel = rig.skeleton
+    j_count = skel.n_joints
+    for n in skel.names:
+        if n in names:
+            raise ExportError(f"joint name {n!r} clashes with another node name")
+    names.update(skel.names)
+    placement_name = safe_name("Centipede", names)
+
+    # joint nodes in skeleton order, rest TRS; children from the parents array
+    first = len(gltf.nodes)
+    node_of = np.arange(j_count) + first
+    for j in range(j_count):
+        kids = [int(node_of[c]) for c in skel.children(j)]
+        gltf.nodes.append(gl.Node(
+            name=skel.names[j], translation=_rounded(skel.rest_translations[j]),
+            rotation=_rounded(skel.rest_rotations[j]), children=kids or None))
+    roots = [int(node_of[j]) for j in range(j_count) if skel.parents[j] < 0]
+    placement = _add_node(gltf, gl.Node(name=placement_name, children=roots))
+
+    # skin: inverse bind matrices = inverse(world bind), column-major
+    ibm = np.linalg.inv(skel.world_bind())
+    ibm_acc = b.accessor(ibm.transpose(0, 2, 1).reshape(j_count, 16), FLOAT)
+    gltf.skins.append(gl.Skin(name="Centipede_skin", inverseBindMatrices=ibm_acc,
+                              joints=[int(x) for x in node_of], skeleton=roots[0]))
+    skin = len(gltf.skins) - 1
+
+    mesh = rig.mesh
+    prims = []
+    for mi, (mname, rgb) in enumerate(mesh.materials):
+        used, faces = mesh.submesh(mi)
+        if not len(faces):
+            continue
+        mat = _material(gltf, safe_name(f"centipede_{mname}", names), tuple(rgb) + (1.0,),
+                        0.0, 0.6, double_sided=False)
+        prims.append(gl.Primitive(
+            attributes=gl.Attributes(
+                POSITION=b.accessor(mesh.vertices[used], FLOAT, target=ARRAY_BUFFER, minmax=True),
+                NORMAL=b.accessor(mesh.normals[used], FLOAT, target=ARRAY_BUFFER),
+                JOINTS_0=b.accessor(mesh.joints[used], UINT16, target=ARRAY_BUFFER),
+                WEIGHTS_0=b.accessor(mesh.weights[used], FLOAT, target=ARRAY_BUFFER)),
+            indices=b.indices(faces, len(used)), material=mat, mode=gl.TRIANGLES))
+    gltf.meshes.append(gl.Mesh(name="centipede", primitives=prims))
+    mesh_node = _add_node(gltf, gl.Node(name=safe_name("centipede_mesh", names),
+                                        mesh=len(gltf.meshes) - 1, skin=skin))
+
+    if clip is not None:
+        _add_animation(gltf, b, clip, node_of)
+    return [placement, mesh_node]
+
+
+def _add_animation(gltf: gl.GLTF2, b: _Builder, clip: Clip, node_of: np.ndarray) -> None:
+    f_count, j_count = clip.translations.shape[:2]
+    if j_count != len(node_of):
+        raise ExportError(f"clip has {j_count} joints, the skeleton {len(node_of)}")
+    times = np.asarray(clip.times, dtype=np.float32)
+    if f_count == 0 or times[0] < 0 or np.any(np.diff(times) <= 0):
+        raise ExportError("clip times must start at >= 0 and strictly increase")
+    t_acc = b.accessor(times, FLOAT, minmax=True)
+    samplers, channels = [], []
+
+    def channel(node: int, path: str, values: np.ndarray) -> None:
+        samplers.append(gl.AnimationSampler(input=t_acc, output=b.accessor(values, FLOAT),
+                                            interpolation=ANIM_LINEAR))
+        channels.append(gl.AnimationChannel(
+            sampler=len(samplers) - 1, target=gl.AnimationChannelTarget(node=int(node), path=path)))
+
+    rot = np.asarray(clip.rotations, dtype=np.float32)
+    scl = np.asarray(clip.scales, dtype=np.float32)
+    animate_scale = not np.all(scl == 1.0)
+    for j in range(j_count):
+        channel(node_of[j], "translation", clip.translations[:, j])
+        channel(node_of[j], "rotation", rot[:, j])
+        if animate_scale:
+            channel(node_of[j], "scale", scl[:, j])
+    gltf.animations.append(gl.Animation(name=clip.name, samplers=samplers, channels=channels))

@@ -1,0 +1,306 @@
+"""The procedural skinned body mesh: a segmented, tapered tube with a rounded head, a closed
+tail and static leg stubs, skinned to the spine joints.
+
+Everything is built in the skeleton's bind space (rest pose straight along +Z, head at z=0,
+trunk_k at z=-k*spacing), vectorized over rings and around each ring.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from baker.errors import RigError
+
+MAX_INFLUENCES = 4
+BODY, LEGS = 0, 1
+
+RING_SIDES = 16          # vertices around the body cross-section
+RINGS_PER_SEGMENT = 8    # rings along one segment (one sits exactly on each segment boundary)
+PINCH_DEPTH = 0.14       # fraction the cross-section shrinks at a segment boundary
+PINCH_WIDTH = 0.22       # [segments] half-width of the pinch
+HEAD_CAP = 0.55          # [segments] length of the rounded head in front of the head segment
+TAIL_CAP = 0.35          # [segments] length of the closed tail behind the last segment
+CAP_RINGS = 6
+LEG_SIDES = 6
+
+
+@dataclass(frozen=True)
+class SkinnedMesh:
+    """A triangle mesh in the skeleton's bind space, with linear-blend skin weights.
+
+    vertices      : (V, 3) float32, metres, bind space
+    normals       : (V, 3) float32, unit, outward
+    faces         : (M, 3) uint32, counter-clockwise seen from outside
+    joints        : (V, 4) uint16, joint indices; unused slots are joint 0 with weight 0
+    weights       : (V, 4) float32, sum to 1 within 2e-7, no joint repeated within a vertex
+    face_material : (M,) uint8, index into `materials`
+    materials     : ((name, (r, g, b) linear), ...)
+    """
+
+    vertices: np.ndarray
+    normals: np.ndarray
+    faces: np.ndarray
+    joints: np.ndarray
+    weights: np.ndarray
+    face_material: np.ndarray
+    materials: tuple[tuple[str, tuple[float, float, float]], ...]
+
+    def __post_init__(self) -> None:
+        conv = {"vertices": np.float32, "normals": np.float32, "faces": np.uint32,
+                "joints": np.uint16, "weights": np.float32, "face_material": np.uint8}
+        for name, dt in conv.items():
+            arr = np.ascontiguousarray(getattr(self, name), dtype=dt)
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        v = len(self.vertices)
+        if (self.vertices.shape != (v, 3) or self.normals.shape != (v, 3)
+                or self.joints.shape != (v, MAX_INFLUENCES) or self.weights.shape != (v, MAX_INFLUENCES)
+                or self.faces.ndim != 2 or self.faces.shape[1] != 3
+                or self.face_material.shape != (len(self.faces),)):
+            raise RigError("skinned mesh arrays have inconsistent shapes")
+        if len(self.faces) and int(self.faces.max()) >= v:
+            raise RigError("skinned mesh faces index past the vertex array")
+        if len(self.face_material) and int(self.face_material.max()) >= len(self.materials):
+            raise RigError("skinned mesh face_material indexes past the material list")
+
+    def submesh(self, material: int) -> tuple[np.ndarray, np.ndarray]:
+        """Vertex indices (k,) used by faces of `material` and those faces re-indexed (m, 3)."""
+        f = self.faces[self.face_material == material]
+        used, inv = np.unique(f, return_inverse=True)
+        return used.astype(np.int64), inv.reshape(-1, 3).astype(np.uint32)
+
+
+# --------------------------------------------------------------------------- weights
+def normalize_weights(joints: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Merge repeated joints, keep the 4 largest influences, renormalize in float32.
+
+    joints : (V, K) int, weights : (V, K) float, K >= 1
+    returns (V, 4) uint16 joints, (V, 4) float32 weights: sorted by weight (largest first),
+    unused slots joint 0 weight 0, sums within 2e-7 of 1.
+    """
+    joints = np.asarray(joints, dtype=np.int64)
+    weights = np.asarray(weights, dtype=np.float64).copy()
+    v, k = joints.shape
+    # merge duplicates: for each slot, add its weight to the first slot holding the same joint
+    for a in range(1, k):
+        for b in range(a):
+            same = (joints[:, a] == joints[:, b]) & (weights[:, b] >= 0)
+            weights[same, b] += weights[same, a]
+            weights[same, a] = 0.0
+            joints[same, a] = 0
+    weights[weights < 0] = 0.0
+    order = np.argsort(-weights, axis=1, kind="stable")[:, :MAX_INFLUENCES]
+    w = np.take_along_axis(weights, order, axis=1)
+    j = np.take_along_axis(joints, order, axis=1)
+    if w.shape[1] < MAX_INFLUENCES:
+        pad = MAX_INFLUENCES - w.shape[1]
+        w = np.pad(w, ((0, 0), (0, pad)))
+        j = np.pad(j, ((0, 0), (0, pad)))
+    total = w.sum(axis=1, keepdims=True)
+    if np.any(total <= 0):
+        raise RigError("a vertex has no skin weight")
+    w = (w / total).astype(np.float32)
+    j[w == 0] = 0
+    # put the float32 rounding remainder on the largest weight so sums are within 2e-7
+    w32 = w
+    resid = np.float32(1.0) - w32.sum(axis=1, dtype=np.float32)
+    w32[:, 0] += resid
+    return j.astype(np.uint16), w32
+
+
+# --------------------------------------------------------------------------- geometry helpers
+def _vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area-weighted vertex normals (V, 3) float64; zero-area fans fall back to +Y."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    n = np.zeros_like(v)
+    for c in range(3):
+        np.add.at(n, f[:, c], fn)
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.where(length > 1e-20, n / np.maximum(length, 1e-30), np.array([0.0, 1.0, 0.0]))
+    return n
+
+
+def _tube_faces(n_rings: int, sides: int, offset: int = 0) -> np.ndarray:
+    """Quads between consecutive rings of `sides` vertices, as triangles, outward for rings
+    ordered front (+Z) to back with vertices counter-clockwise seen from the front (+X toward +Y).
+    """
+    r = np.arange(n_rings - 1)[:, None]
+    k = np.arange(sides)[None, :]
+    a = r * sides + k
+    b = (r + 1) * sides + k
+    c = r * sides + (k + 1) % sides
+    d = (r + 1) * sides + (k + 1) % sides
+    tris = np.stack([np.stack([a, b, c], -1), np.stack([c, b, d], -1)], axis=2)
+    return tris.reshape(-1, 3) + offset
+
+
+def _smoothstep(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+# --------------------------------------------------------------------------- the body
+def build_body_mesh(width_profile: np.ndarray, spacing: float, height_ratio: float,
+                    leg_stub_length: float, body_rgb, legs_rgb, spine: np.ndarray,
+                    clearance: float | None = None) -> SkinnedMesh:
+    """Procedural centipede body in bind space.
+
+    width_profile : (S,) float, metres, half-width per spine segment, head to tail
+    spacing       : metres between neighbouring spine joints (joint s sits at z = -s*spacing)
+    spine         : (S,) int, skeleton joint index of spine segment s
+    clearance     : metres from the centre line down to the ground; leg stub tips are aimed
+                    just above it (None: a fixed downward slope)
+    """
+    wp = np.asarray(width_profile, dtype=np.float64)
+    spine = np.asarray(spine, dtype=np.int64)
+    s_count = len(wp)
+    if s_count < 2 or spine.shape != (s_count,):
+        raise RigError("body mesh needs a width per spine segment (at least 2)")
+    if not (spacing > 0 and height_ratio > 0 and np.all(wp > 0)):
+        raise RigError("body mesh needs positive spacing, widths and height ratio")
+
+    # ring positions along the body in segment units c (c = s at joint s; z = -c*spacing)
+    body_c = np.arange(-0.5 * RINGS_PER_SEGMENT, (s_count - 0.5) * RINGS_PER_SEGMENT + 1) / RINGS_PER_SEGMENT
+    # rounded caps: quarter-ellipse profiles
+    th = np.linspace(0.0, 0.5 * np.pi, CAP_RINGS + 1)[1:-1]          # excludes tip and joint ring
+    head_c = -0.5 - HEAD_CAP * np.cos(th)
+    head_scale = np.sin(th)
+    tail_c = (s_count - 0.5) + TAIL_CAP * np.cos(th[::-1])
+    tail_scale = np.sin(th[::-1])
+    c = np.concatenate([head_c, body_c, tail_c])
+    cap_scale = np.concatenate([head_scale, np.ones_like(body_c), tail_scale])
+
+    # half-width along the body, with a pinch at each segment boundary (c = k + 0.5)
+    half_w = np.interp(np.clip(c, 0, s_count - 1), np.arange(s_count), wp)
+    d = np.abs(c - (np.floor(c - 0.5) + 0.5))
+    d = np.minimum(d, 1.0 - d)                                    # distance to nearest boundary
+    pinch = 1.0 - PINCH_DEPTH * np.clip(1.0 - d / PINCH_WIDTH, 0.0, 1.0) ** 2
+    half_w = half_w * pinch * cap_scale
+    half_h = half_w * height_ratio
+
+    phi = np.arange(RING_SIDES) * (2.0 * np.pi / RING_SIDES)
+    ring_x = half_w[:, None] * np.cos(phi)[None, :]
+    ring_y = half_h[:, None] * np.sin(phi)[None, :]
+    ring_z = np.broadcast_to((-c * spacing)[:, None], ring_x.shape)
+    ring_v = np.stack([ring_x, ring_y, ring_z], -1).reshape(-1, 3)
+    n_rings = len(c)
+    tip_front = np.array([[0.0, 0.0, (0.5 + HEAD_CAP) * spacing]])
+    tip_back = np.array([[0.0, 0.0, -(s_count - 0.5 + TAIL_CAP) * spacing]])
+    body_v = np.concatenate([ring_v, tip_front, tip_back])
+    i_front = n_rings * RING_SIDES
+    i_back = i_front + 1
+    k = np.arange(RING_SIDES)
+    kn = (k + 1) % RING_SIDES
+    front_fan = np.stack([np.full(RING_SIDES, i_front), k, kn], -1)
+    last = (n_rings - 1) * RING_SIDES
+    back_fan = np.stack([np.full(RING_SIDES, i_back), last + kn, last + k], -1)
+    body_f = np.concatenate([_tube_faces(n_rings, RING_SIDES), front_fan, back_fan])
+
+    # skin weights: blend smoothly from joint floor(c) to the next joint behind it
+    c_v = np.concatenate([np.repeat(c, RING_SIDES), [-0.5 - HEAD_CAP, s_count - 0.5 + TAIL_CAP]])
+    cc = np.clip(c_v, 0.0, s_count - 1.0)
+    s0 = np.minimum(np.floor(cc).astype(np.int64), s_count - 2)
+    t = _smoothstep(cc - s0)
+    body_j = np.stack([spine[s0], spine[s0 + 1]], -1)
+    body_w = np.stack([1.0 - t, t], -1)
+
+    # leg stubs: one small tapered tube per side per trunk segment, pointing out and down
+    legs_v, legs_f, legs_j = [], [], []
+    if leg_stub_length > 0:
+        seg = np.arange(1, s_count)
+        n_legs = 2 * len(seg)
+        side = np.tile([1.0, -1.0], len(seg))                       # +X is the creature's left
+        seg2 = np.repeat(seg, 2)
+        w = wp[seg2]
+        h = w * height_ratio
+        base = np.stack([side * 0.75 * w, -0.35 * h, -seg2 * spacing], -1)     # (L, 3)
+        length = leg_stub_length + 0.75 * w                       # reach out of the body
+        if clearance is None:
+            sin_down = np.full(n_legs, 0.45)
+        else:   # tip just above the ground: drop = clearance - base height - a small margin
+            drop = clearance * 0.9 + base[:, 1]
+            sin_down = np.clip(drop / length, 0.1, 0.8)
+        cos_down = np.sqrt(1.0 - sin_down ** 2)
+        axis = np.stack([side * cos_down * 0.97, -sin_down, -cos_down * 0.243], -1)
+        axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+        # frame around the axis: u along +Z-ish (perpendicular), v = axis x u
+        ref = np.array([0.0, 0.0, 1.0])
+        u = ref - (axis @ ref)[:, None] * axis
+        u /= np.linalg.norm(u, axis=1, keepdims=True)
+        vv = np.cross(axis, u)
+        r0 = np.minimum(0.28 * w, 0.25 * length)
+        ts = np.array([0.0, 0.55])                                # ring stations along the leg
+        radii = np.array([1.0, 0.55])
+        ang = np.arange(LEG_SIDES) * (2.0 * np.pi / LEG_SIDES)
+        # rings: (L, R, K, 3)
+        centre = base[:, None, :] + (ts[None, :, None] * length[:, None, None]) * axis[:, None, :]
+        rad = (radii[None, :] * r0[:, None])[:, :, None, None]
+        circ = (np.cos(ang)[None, None, :, None] * u[:, None, None, :]
+                + np.sin(ang)[None, None, :, None] * vv[:, None, None, :])
+        rings = centre[:, :, None, :] + rad * circ
+        tips = base + length[:, None] * axis
+        per_leg = len(ts) * LEG_SIDES + 2                          # rings + base centre + tip
+        leg_vertices = np.concatenate(
+            [rings.reshape(n_legs, -1, 3), base[:, None, :], tips[:, None, :]], axis=1)
+        # faces for one leg, local indices; rings go base -> tip along `axis`
+        kk = np.arange(LEG_SIDES)
+        kn2 = (kk + 1) % LEG_SIDES
+        tube = _tube_faces(len(ts), LEG_SIDES)
+        i_base = len(ts) * LEG_SIDES
+        i_tip = i_base + 1
+        lastr = (len(ts) - 1) * LEG_SIDES
+        base_fan = np.stack([np.full(LEG_SIDES, i_base), kk, kn2], -1)
+        tip_fan = np.stack([np.full(LEG_SIDES, i_tip), lastr + kn2, lastr + kk], -1)
+        one = np.concatenate([tube, base_fan, tip_fan])
+        # the winding is made outward per leg by a signed-volume test (_orient_outward)
+        offs = (np.arange(n_legs) * per_leg)[:, None, None]
+        lf = one[None] + offs
+        lv = leg_vertices.reshape(-1, 3)
+        legs_v.append(lv)
+        legs_f.append(lf.reshape(-1, 3))
+        legs_j.append(np.repeat(spine[seg2], per_leg))
+
+    vertices = body_v
+    faces = body_f
+    face_mat = np.zeros(len(body_f), dtype=np.uint8)
+    joints4 = body_j
+    weights4 = body_w
+    if legs_v:
+        lv, lf, lj = legs_v[0], legs_f[0], legs_j[0]
+        lf = _orient_outward(lv, lf, per_leg)
+        vertices = np.concatenate([body_v, lv])
+        faces = np.concatenate([body_f, lf + len(body_v)])
+        face_mat = np.concatenate([face_mat, np.ones(len(lf), dtype=np.uint8)])
+        joints4 = np.concatenate([body_j, np.stack([lj, np.zeros_like(lj)], -1)])
+        weights4 = np.concatenate([body_w, np.stack([np.ones(len(lj)), np.zeros(len(lj))], -1)])
+    body_faces = faces[face_mat == BODY]
+    if _signed_volume(vertices, body_faces) < 0:
+        faces[face_mat == BODY] = body_faces[:, ::-1]
+
+    j4, w4 = normalize_weights(joints4, weights4)
+    normals = _vertex_normals(vertices, faces)
+    materials = (("body", tuple(float(x) for x in body_rgb)),
+                 ("legs", tuple(float(x) for x in legs_rgb)))
+    return SkinnedMesh(vertices=vertices, normals=normals, faces=faces, joints=j4, weights=w4,
+                       face_material=face_mat, materials=materials)
+
+
+def _signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
+    v = np.asarray(vertices, dtype=np.float64)[np.asarray(faces, dtype=np.int64)]
+    return float(np.einsum("ij,ij->i", v[:, 0], np.cross(v[:, 1], v[:, 2])).sum() / 6.0)
+
+
+def _orient_outward(vertices: np.ndarray, faces: np.ndarray, per_leg: int) -> np.ndarray:
+    """Flip each closed leg's faces when its signed volume is negative."""
+    faces = np.array(faces)
+    n_legs = len(vertices) // per_leg
+    per_f = len(faces) // n_legs
+    fv = np.asarray(vertices, np.float64)[faces.astype(np.int64)].reshape(n_legs, per_f, 3, 3)
+    vol = np.einsum("lfi,lfi->lf", fv[:, :, 0], np.cross(fv[:, :, 1], fv[:, :, 2])).sum(1)
+    flip = np.repeat(vol < 0, per_f)
+    faces[flip] = faces[flip][:, ::-1]
+    return faces

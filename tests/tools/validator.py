@@ -1,0 +1,73 @@
+"""Test helpers for the two validators the project runs on its own output.
+
+- `gltf_validate(path)`: the Khronos glTF-Validator (npm `gltf-validator`, pinned in
+  tests/tools/package-lock.json), run through tests/tools/gltf_validate.mjs. `npm ci` installs it
+  into tests/tools/node_modules on first use. Tests skip (with the reason) when node/npm are not on
+  PATH; CI has them.
+- `usd_validate(stage)`: pxr.UsdValidation with every registered validator; returns the errors.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import threading
+from pathlib import Path
+
+import pytest
+
+TOOLS = Path(__file__).resolve().parent
+SCRIPT = TOOLS / "gltf_validate.mjs"
+_install_lock = threading.Lock()
+
+
+def _ensure_validator() -> str:
+    node = shutil.which("node")
+    npm = shutil.which("npm")
+    if node is None or npm is None:
+        pytest.skip("glTF validation needs node and npm on PATH (CI has them)")
+    with _install_lock:
+        if not (TOOLS / "node_modules" / "gltf-validator" / "package.json").is_file():
+            r = subprocess.run([npm, "ci", "--no-audit", "--no-fund", "--loglevel=error"],
+                               cwd=TOOLS, capture_output=True, text=True, timeout=600)
+            if r.returncode != 0:
+                raise RuntimeError(f"npm ci failed in {TOOLS}:\n{r.stdout}\n{r.stderr}")
+    return node
+
+
+def gltf_validate(path: Path | str) -> dict:
+    """Run the Khronos validator on a .glb/.gltf file; return its JSON report."""
+    node = _ensure_validator()
+    r = subprocess.run([node, str(SCRIPT), str(Path(path).resolve())], cwd=TOOLS,
+                       capture_output=True, text=True, timeout=600,
+                       env={**os.environ, "NODE_NO_WARNINGS": "1"})
+    if r.returncode not in (0, 1):
+        raise RuntimeError(f"glTF validator failed ({r.returncode}):\n{r.stderr}")
+    return json.loads(r.stdout)
+
+
+def issues_summary(report: dict, severity: int) -> list[tuple[str, str, str]]:
+    """(code, pointer, message) of the report's messages at `severity` (0 error, 1 warning,
+    2 info, 3 hint)."""
+    return [(m.get("code", ""), m.get("pointer", ""), m.get("message", ""))
+            for m in report["issues"]["messages"] if m["severity"] == severity]
+
+
+def usd_validate(stage) -> list:
+    """pxr.UsdValidation errors (ValidationErrorType.Error) for an open stage."""
+    from pxr import UsdValidation
+
+    registry = UsdValidation.ValidationRegistry()
+    ctx = UsdValidation.ValidationContext(registry.GetOrLoadAllValidators())
+    errors = ctx.Validate(stage)
+    return [e for e in errors if e.GetType() == UsdValidation.ValidationErrorType.Error]
+
+
+def usd_issues(stage) -> list:
+    """Every pxr.UsdValidation finding (errors, warnings, notes) for an open stage."""
+    from pxr import UsdValidation
+
+    registry = UsdValidation.ValidationRegistry()
+    return list(UsdValidation.ValidationContext(registry.GetOrLoadAllValidators()).Validate(stage))
