@@ -1,0 +1,601 @@
+"""Load an environment file into an `Environment`: world-space triangle meshes (metres, +Y up)
+with their base colours, plus the sun.
+
+Formats
+-------
+- glTF 2.0 (.gltf, .glb): read directly (JSON + buffers) so base colours keep full float
+  precision and `KHR_lights_punctual` directional lights can be found. Node transforms
+  (matrix or TRS) are applied. glTF is always +Y up, metres.
+- OBJ, PLY, STL: read with trimesh as a scene; scene-graph transforms are applied. Assumed to be
+  metres, +Y up. OBJ `Kd` (through trimesh's material) is taken as a linear colour; PLY vertex
+  or face colours (sRGB bytes) are averaged and converted to linear.
+- USD (.usd, .usda, .usdc): every visible, non-guide `UsdGeom.Mesh` is fan-triangulated,
+  moved to world space with `ComputeLocalToWorldTransform`, scaled by the stage's
+  `metersPerUnit` and rotated to +Y up when the stage is Z up. The colour comes from a bound
+  `UsdPreviewSurface` diffuseColor, else the `displayColor` primvar. The sun is a
+  `UsdLux.DistantLight`.
+
+Every failure is an `EnvironmentLoadError` with a one-line message naming the file.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import logging
+import math
+import re
+import struct
+from pathlib import Path
+
+import numpy as np
+
+from baker.environment.model import EnvMesh, Environment, Sun
+from baker.errors import EnvironmentLoadError
+
+log = logging.getLogger(__name__)
+
+#: Toward-the-sun direction used when the file has no directional light (about 17 deg from
+#: the zenith).
+DEFAULT_SUN_DIRECTION = np.array([0.3, 1.0, 0.2]) / np.linalg.norm([0.3, 1.0, 0.2])
+
+DEFAULT_COLOR = (0.5, 0.5, 0.5, 1.0)
+
+GLTF_EXTS = {".gltf", ".glb"}
+TRIMESH_EXTS = {".obj", ".ply", ".stl"}
+USD_EXTS = {".usd", ".usda", ".usdc"}
+SUPPORTED_EXTS = GLTF_EXTS | TRIMESH_EXTS | USD_EXTS
+
+_MAX_NAME = 63
+
+
+# --------------------------------------------------------------------------- public API
+def load_environment(path: str | Path, sun_override=None) -> Environment:
+    """Read an environment file.
+
+    path         : .glb/.gltf, .obj, .ply, .stl, .usd/.usda/.usdc
+    sun_override : (3,) float toward the sun, or None to use the file's directional light
+                   (or DEFAULT_SUN_DIRECTION when the file has none)
+    returns      : Environment with one EnvMesh per source mesh primitive (world space,
+                   metres, +Y up) and the sun
+    raises       : EnvironmentLoadError for a missing, unsupported, corrupt or empty file
+    """
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext not in SUPPORTED_EXTS:
+        raise EnvironmentLoadError(
+            f"unsupported environment format '{path.suffix or '(none)'}' for {path} "
+            f"(expected one of {', '.join(sorted(SUPPORTED_EXTS))})")
+    if not path.exists():
+        raise EnvironmentLoadError(f"environment file not found: {path}")
+    if not path.is_file():
+        raise EnvironmentLoadError(f"environment path is not a file: {path}")
+
+    try:
+        if ext in GLTF_EXTS:
+            raw, sun = _read_gltf(path)
+        elif ext in USD_EXTS:
+            raw, sun = _read_usd(path)
+        else:
+            raw, sun = _read_trimesh(path)
+    except EnvironmentLoadError:
+        raise
+    except Exception as exc:  # any parser failure is a corrupt file to the user
+        msg = " ".join(str(exc).split())[:200] or type(exc).__name__
+        raise EnvironmentLoadError(f"cannot read environment {path}: {msg}") from exc
+
+    meshes = []
+    names = _unique_names([r[0] for r in raw])
+    for name, (_, v, f, n, color, rough, metal) in zip(names, raw):
+        cleaned = _clean(v, f, n)
+        if cleaned is None:
+            log.info("environment %s: dropping mesh %r, it has no usable faces", path, name)
+            continue
+        v, f, n = cleaned
+        meshes.append(EnvMesh(name=name, vertices=v, faces=f, normals=n,
+                              color=tuple(float(c) for c in color),
+                              roughness=float(rough), metallic=float(metal)))
+    if not meshes:
+        raise EnvironmentLoadError(f"environment {path} has no triangle faces")
+    # names may have lost uniqueness only if meshes were dropped: they cannot collide, keep them
+
+    if sun_override is not None:
+        sun = Sun(direction=_unit_direction(sun_override, path, "sun override"),
+                  **({} if sun is None else {"intensity": sun.intensity, "color": sun.color}))
+    elif sun is None:
+        sun = Sun(direction=DEFAULT_SUN_DIRECTION.copy())
+    if sun.direction[1] <= 0:
+        log.warning("environment %s: the sun is at or below the horizon (direction %s)",
+                    path, np.round(sun.direction, 3).tolist())
+
+    return Environment(meshes=tuple(meshes), sun=sun, source=str(path),
+                       name=sanitize_name(path.stem, fallback="environment"))
+
+
+def sanitize_name(name: str, fallback: str = "mesh") -> str:
+    """A legal node name: [A-Za-z0-9_] only, not starting with a digit, at most 63 bytes."""
+    s = re.sub(r"[^A-Za-z0-9_]", "_", str(name or ""))
+    s = re.sub(r"_+", "_", s).strip("_") or fallback
+    if s[0].isdigit():
+        s = "m_" + s
+    return s[:_MAX_NAME]
+
+
+# --------------------------------------------------------------------------- shared helpers
+def _unique_names(names: list[str]) -> list[str]:
+    out, used = [], set()
+    for raw in names:
+        base = sanitize_name(raw)
+        name, k = base, 1
+        while name in used:
+            k += 1
+            suffix = f"_{k}"
+            name = base[: _MAX_NAME - len(suffix)] + suffix
+        used.add(name)
+        out.append(name)
+    return out
+
+
+def _unit_direction(d, path, what) -> np.ndarray:
+    d = np.asarray(d, dtype=np.float64).reshape(-1)
+    n = float(np.linalg.norm(d)) if d.shape == (3,) else 0.0
+    if d.shape != (3,) or not np.all(np.isfinite(d)) or n < 1e-12:
+        raise EnvironmentLoadError(f"{what} must be a finite non-zero 3-vector (file {path})")
+    return d / n
+
+
+def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    c = np.clip(np.asarray(c, dtype=np.float64), 0.0, 1.0)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def _clean(v, f, n):
+    """Drop faces with out-of-range indices, non-finite vertices or zero area, and unused
+    vertices. Returns (vertices float32, faces uint32, normals float32|None) or None."""
+    v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
+    f = np.asarray(f, dtype=np.int64).reshape(-1, 3)
+    if len(f) == 0 or len(v) == 0:
+        return None
+    ok = np.all((f >= 0) & (f < len(v)), axis=1)
+    f = f[ok]
+    finite = np.all(np.isfinite(v), axis=1)
+    f = f[np.all(finite[f], axis=1)]
+    f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
+    if len(f):
+        tri = v[f]
+        area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        scale = max(float(np.ptp(v[np.unique(f)], axis=0).max()), 1e-9)
+        f = f[area2 > (scale * 1e-9) ** 2]
+    if len(f) == 0:
+        return None
+    used = np.unique(f)
+    remap = np.full(len(v), -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    nv = v[used].astype(np.float32)
+    nf = remap[f].astype(np.uint32)
+    nn = None
+    if n is not None:
+        n = np.asarray(n, dtype=np.float64).reshape(-1, 3)
+        if len(n) == len(v):
+            n = n[used]
+            length = np.linalg.norm(n, axis=1, keepdims=True)
+            if np.all(np.isfinite(n)) and np.all(length > 1e-8):
+                nn = (n / length).astype(np.float32)
+    return nv, nf, nn
+
+
+def _fix_winding(f: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """Reverse triangle winding when the 3x3 part of m mirrors space."""
+    if np.linalg.det(m[:3, :3]) < 0:
+        return f[:, ::-1].copy()
+    return f
+
+
+def _transform_points(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """m: (4, 4) column-vector convention; v: (n, 3)."""
+    return v @ m[:3, :3].T + m[:3, 3]
+
+
+def _transform_normals(m: np.ndarray, n: np.ndarray) -> np.ndarray:
+    try:
+        nm = np.linalg.inv(m[:3, :3]).T
+    except np.linalg.LinAlgError:
+        return None
+    return n @ nm.T
+
+
+# --------------------------------------------------------------------------- glTF
+_COMPONENT = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16,
+              5125: np.uint32, 5126: np.float32}
+_NCOMP = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+_UNSUPPORTED_EXT = {"KHR_draco_mesh_compression", "EXT_meshopt_compression"}
+
+
+def _parse_glb(data: bytes, path: Path):
+    if len(data) < 12 or data[:4] != b"glTF":
+        raise EnvironmentLoadError(f"corrupt GLB {path}: missing 'glTF' header")
+    version, length = struct.unpack_from("<II", data, 4)
+    if version != 2:
+        raise EnvironmentLoadError(f"unsupported glTF version {version} in {path} (need 2)")
+    if length > len(data):
+        raise EnvironmentLoadError(f"corrupt GLB {path}: truncated ({len(data)} of {length} bytes)")
+    off, doc, bin_chunk = 12, None, None
+    while off + 8 <= length:
+        clen, ctype = struct.unpack_from("<II", data, off)
+        chunk = data[off + 8: off + 8 + clen]
+        if len(chunk) != clen:
+            raise EnvironmentLoadError(f"corrupt GLB {path}: truncated chunk")
+        if ctype == 0x4E4F534A and doc is None:
+            doc = json.loads(chunk.decode("utf-8"))
+        elif ctype == 0x004E4942 and bin_chunk is None:
+            bin_chunk = chunk
+        off += 8 + clen
+    if doc is None:
+        raise EnvironmentLoadError(f"corrupt GLB {path}: no JSON chunk")
+    return doc, bin_chunk
+
+
+class _GltfReader:
+    def __init__(self, doc: dict, bin_chunk: bytes | None, path: Path):
+        if not isinstance(doc, dict) or "asset" not in doc:
+            raise EnvironmentLoadError(f"corrupt glTF {path}: no 'asset' object")
+        ver = str(doc["asset"].get("version", ""))
+        if not ver.startswith("2"):
+            raise EnvironmentLoadError(f"unsupported glTF version '{ver}' in {path} (need 2.x)")
+        req = set(doc.get("extensionsRequired", [])) & _UNSUPPORTED_EXT
+        if req:
+            raise EnvironmentLoadError(
+                f"glTF {path} requires unsupported extension(s) {', '.join(sorted(req))}")
+        self.doc, self.bin, self.path = doc, bin_chunk, path
+        self._buffers: dict[int, bytes] = {}
+
+    def buffer(self, i: int) -> bytes:
+        if i not in self._buffers:
+            b = self.doc["buffers"][i]
+            uri = b.get("uri")
+            if uri is None:
+                if self.bin is None:
+                    raise EnvironmentLoadError(f"corrupt glTF {self.path}: buffer {i} has no data")
+                data = self.bin
+            elif uri.startswith("data:"):
+                data = base64.b64decode(uri.split(",", 1)[1])
+            else:
+                from urllib.parse import unquote
+
+                data = (self.path.parent / unquote(uri)).read_bytes()
+            if len(data) < b.get("byteLength", 0):
+                raise EnvironmentLoadError(f"corrupt glTF {self.path}: buffer {i} is too short")
+            self._buffers[i] = data
+        return self._buffers[i]
+
+    def accessor(self, i: int) -> np.ndarray:
+        """Accessor data as a (count, ncomp) float64 or int64 array, normalization applied."""
+        a = self.doc["accessors"][i]
+        dtype = np.dtype(_COMPONENT[a["componentType"]]).newbyteorder("<")
+        ncomp = _NCOMP[a["type"]]
+        count = int(a["count"])
+        if "bufferView" in a:
+            bv = self.doc["bufferViews"][a["bufferView"]]
+            buf = self.buffer(bv["buffer"])
+            start = bv.get("byteOffset", 0) + a.get("byteOffset", 0)
+            elem = dtype.itemsize * ncomp
+            stride = bv.get("byteStride") or elem
+            end = start + stride * (count - 1) + elem if count else start
+            if end > bv.get("byteOffset", 0) + bv["byteLength"] or end > len(buf):
+                raise EnvironmentLoadError(f"corrupt glTF {self.path}: accessor {i} out of bounds")
+            if count == 0:
+                out = np.zeros((0, ncomp), dtype=dtype)
+            else:
+                raw = np.frombuffer(buf, dtype=np.uint8, count=end - start, offset=start)
+                rows = np.lib.stride_tricks.as_strided(
+                    raw, shape=(count, elem), strides=(stride, 1))
+                out = np.ascontiguousarray(rows).view(dtype).reshape(count, ncomp)
+        else:
+            out = np.zeros((count, ncomp), dtype=dtype)
+        out = out.copy()
+        sparse = a.get("sparse")
+        if sparse:
+            n = int(sparse["count"])
+            idx_info, val_info = sparse["indices"], sparse["values"]
+            ibv = self.doc["bufferViews"][idx_info["bufferView"]]
+            idt = np.dtype(_COMPONENT[idx_info["componentType"]]).newbyteorder("<")
+            idx = np.frombuffer(self.buffer(ibv["buffer"]), dtype=idt, count=n,
+                                offset=ibv.get("byteOffset", 0) + idx_info.get("byteOffset", 0))
+            vbv = self.doc["bufferViews"][val_info["bufferView"]]
+            vals = np.frombuffer(self.buffer(vbv["buffer"]), dtype=dtype, count=n * ncomp,
+                                 offset=vbv.get("byteOffset", 0) + val_info.get("byteOffset", 0))
+            out[idx.astype(np.int64)] = vals.reshape(n, ncomp)
+        if a.get("normalized") and dtype.kind in "iu":
+            info = np.iinfo(dtype)
+            return np.maximum(out.astype(np.float64) / info.max, -1.0)
+        if dtype.kind == "f":
+            return out.astype(np.float64)
+        return out.astype(np.int64)
+
+    @staticmethod
+    def local_matrix(node: dict) -> np.ndarray:
+        if "matrix" in node:
+            return np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4).T
+        from scipy.spatial.transform import Rotation
+
+        m = np.eye(4)
+        q = np.asarray(node.get("rotation", [0, 0, 0, 1]), dtype=np.float64)
+        if np.linalg.norm(q) > 0:
+            m[:3, :3] = Rotation.from_quat(q).as_matrix()
+        m[:3, :3] = m[:3, :3] * np.asarray(node.get("scale", [1, 1, 1]), dtype=np.float64)
+        m[:3, 3] = node.get("translation", [0, 0, 0])
+        return m
+
+    def world_nodes(self):
+        """Yield (node_index, world_matrix) over the default scene, parents first."""
+        nodes = self.doc.get("nodes", [])
+        scenes = self.doc.get("scenes", [])
+        if scenes:
+            roots = scenes[self.doc.get("scene", 0)].get("nodes", [])
+        else:  # no scene: every node without a parent is a root
+            children = {c for n in nodes for c in n.get("children", [])}
+            roots = [i for i in range(len(nodes)) if i not in children]
+        stack = [(r, np.eye(4)) for r in reversed(roots)]
+        seen = set()
+        while stack:
+            i, parent = stack.pop()
+            if i in seen:
+                raise EnvironmentLoadError(f"corrupt glTF {self.path}: node {i} has two parents")
+            seen.add(i)
+            world = parent @ self.local_matrix(nodes[i])
+            yield i, world
+            for c in reversed(nodes[i].get("children", [])):
+                stack.append((c, world))
+
+    def material(self, idx):
+        if idx is None:
+            return DEFAULT_COLOR, 1.0, 0.0
+        mat = self.doc["materials"][idx]
+        pbr = mat.get("pbrMetallicRoughness", {})
+        color = tuple(float(c) for c in pbr.get("baseColorFactor", [1.0, 1.0, 1.0, 1.0]))
+        return color, float(pbr.get("roughnessFactor", 1.0)), float(pbr.get("metallicFactor", 1.0))
+
+    def triangles(self, prim: dict):
+        """(faces (m, 3) int64) for a primitive, or None for points/lines."""
+        mode = prim.get("mode", 4)
+        nverts = self.doc["accessors"][prim["attributes"]["POSITION"]]["count"]
+        idx = (self.accessor(prim["indices"]).reshape(-1) if "indices" in prim
+               else np.arange(nverts, dtype=np.int64))
+        if mode == 4:
+            return idx[: len(idx) // 3 * 3].reshape(-1, 3)
+        if mode == 5:  # strip
+            if len(idx) < 3:
+                return np.zeros((0, 3), np.int64)
+            k = np.arange(len(idx) - 2)
+            even = (k % 2) == 0
+            a, b, c = idx[k], idx[k + 1], idx[k + 2]
+            return np.stack([a, np.where(even, b, c), np.where(even, c, b)], axis=1)
+        if mode == 6:  # fan
+            if len(idx) < 3:
+                return np.zeros((0, 3), np.int64)
+            k = np.arange(1, len(idx) - 1)
+            return np.stack([np.full_like(k, idx[0]), idx[k], idx[k + 1]], axis=1)
+        return None
+
+    def read(self):
+        doc = self.doc
+        nodes = doc.get("nodes", [])
+        meshes = doc.get("meshes", [])
+        lights = doc.get("extensions", {}).get("KHR_lights_punctual", {}).get("lights", [])
+        raw, suns = [], []
+        for ni, world in self.world_nodes():
+            node = nodes[ni]
+            light_ref = node.get("extensions", {}).get("KHR_lights_punctual")
+            if light_ref is not None:
+                light = lights[light_ref["light"]]
+                if light.get("type") == "directional":
+                    d = world[:3, :3] @ np.array([0.0, 0.0, 1.0])
+                    if np.linalg.norm(d) > 1e-12:
+                        suns.append(Sun(direction=d / np.linalg.norm(d),
+                                        intensity=float(light.get("intensity", 1.0)),
+                                        color=tuple(float(c) for c in
+                                                    light.get("color", [1.0, 1.0, 1.0]))))
+            if "mesh" not in node:
+                continue
+            mesh = meshes[node["mesh"]]
+            base = node.get("name") or mesh.get("name") or f"mesh_{node['mesh']}"
+            prims = mesh.get("primitives", [])
+            for pi, prim in enumerate(prims):
+                name = base if len(prims) == 1 else f"{base}_{pi}"
+                if "POSITION" not in prim.get("attributes", {}):
+                    continue
+                faces = self.triangles(prim)
+                if faces is None:
+                    continue
+                v = _transform_points(world, self.accessor(prim["attributes"]["POSITION"]))
+                n = None
+                if "NORMAL" in prim["attributes"]:
+                    n = _transform_normals(world, self.accessor(prim["attributes"]["NORMAL"]))
+                color, rough, metal = self.material(prim.get("material"))
+                raw.append((name, v, _fix_winding(faces, world), n, color, rough, metal))
+        sun = max(suns, key=lambda s: s.intensity) if suns else None
+        return raw, sun
+
+
+def _read_gltf(path: Path):
+    data = path.read_bytes()
+    if path.suffix.lower() == ".glb" or data[:4] == b"glTF":
+        doc, bin_chunk = _parse_glb(data, path)
+    else:
+        doc, bin_chunk = json.loads(data.decode("utf-8")), None
+    return _GltfReader(doc, bin_chunk, path).read()
+
+
+# --------------------------------------------------------------------------- OBJ / PLY / STL
+def _trimesh_color(geom) -> tuple[float, float, float, float]:
+    vis = getattr(geom, "visual", None)
+    if vis is None:
+        return DEFAULT_COLOR
+    if vis.kind == "texture":
+        mat = getattr(vis, "material", None)
+        c = getattr(mat, "baseColorFactor", None)
+        if c is None:
+            c = getattr(mat, "diffuse", None)
+        if c is not None:
+            c = np.asarray(c, dtype=np.float64).reshape(-1)
+            if c.max() > 1.0:  # trimesh stores material colours as bytes
+                c = c / 255.0
+            if len(c) == 3:
+                c = np.append(c, 1.0)
+            return tuple(float(x) for x in np.clip(c[:4], 0, 1))
+        return DEFAULT_COLOR
+    if vis.kind in ("vertex", "face") and getattr(vis, "defined", False):
+        cols = vis.vertex_colors if vis.kind == "vertex" else vis.face_colors
+        mean = np.asarray(cols, dtype=np.float64).mean(axis=0) / 255.0
+        rgb = _srgb_to_linear(mean[:3])
+        return (float(rgb[0]), float(rgb[1]), float(rgb[2]), float(mean[3]))
+    return DEFAULT_COLOR
+
+
+def _read_trimesh(path: Path):
+    import trimesh
+
+    scene = trimesh.load_scene(str(path))
+    raw = []
+    for node in scene.graph.nodes_geometry:
+        transform, geom_name = scene.graph[node]
+        geom = scene.geometry[geom_name]
+        faces = getattr(geom, "faces", None)
+        if faces is None or len(faces) == 0:  # PointCloud, Path3D, empty mesh
+            continue
+        m = np.asarray(transform, dtype=np.float64)
+        v = _transform_points(m, np.asarray(geom.vertices, dtype=np.float64))
+        f = _fix_winding(np.asarray(faces, dtype=np.int64), m)
+        name = node if node != path.name else (geom_name if geom_name != path.name else path.stem)
+        raw.append((name, v, f, None, _trimesh_color(geom), 1.0, 0.0))
+    return raw, None
+
+
+# --------------------------------------------------------------------------- USD
+def _usd_matrix(gf_matrix) -> np.ndarray:
+    """Gf.Matrix4d (row-vector convention) -> (4, 4) column-vector numpy matrix."""
+    return np.array(gf_matrix, dtype=np.float64).reshape(4, 4).T
+
+
+def _usd_color(prim, mesh, time):
+    from pxr import UsdShade
+
+    rough, metal = 1.0, 0.0
+    try:
+        material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+    except Exception:  # pragma: no cover - malformed binding
+        material = None
+    if material:
+        output = material.GetSurfaceOutput()
+        source = output.GetConnectedSources()[0] if output else []
+        for src in source:
+            shader = UsdShade.Shader(src.source.GetPrim())
+            if not shader or shader.GetIdAttr().Get() != "UsdPreviewSurface":
+                continue
+            diff = shader.GetInput("diffuseColor")
+            opac = shader.GetInput("opacity")
+            r_in, m_in = shader.GetInput("roughness"), shader.GetInput("metallic")
+            if r_in and r_in.Get() is not None:
+                rough = float(r_in.Get())
+            if m_in and m_in.Get() is not None:
+                metal = float(m_in.Get())
+            if diff and not diff.HasConnectedSource() and diff.Get() is not None:
+                c = [float(x) for x in diff.Get()]
+                a = float(opac.Get()) if opac and opac.Get() is not None else 1.0
+                return (c[0], c[1], c[2], a), rough, metal
+    pv = mesh.GetDisplayColorPrimvar()
+    if pv and pv.HasValue():
+        vals = pv.ComputeFlattened(time)
+        if vals is not None and len(vals):
+            c = np.asarray(vals, dtype=np.float64).reshape(-1, 3).mean(axis=0)
+            alpha = 1.0
+            op = mesh.GetDisplayOpacityPrimvar()
+            if op and op.HasValue():
+                ov = op.ComputeFlattened(time)
+                if ov is not None and len(ov):
+                    alpha = float(np.mean(np.asarray(ov, dtype=np.float64)))
+            return (float(c[0]), float(c[1]), float(c[2]), alpha), rough, metal
+    return DEFAULT_COLOR, rough, metal
+
+
+def _fan_triangulate(counts: np.ndarray, indices: np.ndarray, holes: np.ndarray,
+                     left_handed: bool) -> np.ndarray:
+    counts = np.asarray(counts, dtype=np.int64)
+    indices = np.asarray(indices, dtype=np.int64)
+    if len(counts) == 0 or counts.sum() != len(indices) or np.any(counts < 0):
+        raise ValueError("faceVertexCounts do not match faceVertexIndices")
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    keep = counts >= 3
+    if len(holes):
+        h = np.asarray(holes, dtype=np.int64)
+        keep[h[(h >= 0) & (h < len(counts))]] = False
+    counts, starts = counts[keep], starts[keep]
+    ntri = counts - 2
+    if ntri.sum() == 0:
+        return np.zeros((0, 3), np.int64)
+    face_of_tri = np.repeat(np.arange(len(counts)), ntri)
+    k = np.arange(ntri.sum()) - np.repeat(np.cumsum(ntri) - ntri, ntri) + 1
+    s = starts[face_of_tri]
+    tris = np.stack([indices[s], indices[s + k], indices[s + k + 1]], axis=1)
+    if left_handed:
+        tris = tris[:, ::-1]
+    return tris
+
+
+def _read_usd(path: Path):
+    from pxr import Usd, UsdGeom, UsdLux
+
+    stage = Usd.Stage.Open(str(path))
+    if stage is None:
+        raise EnvironmentLoadError(f"cannot open USD stage {path}")
+    mpu = float(UsdGeom.GetStageMetersPerUnit(stage))
+    if not (math.isfinite(mpu) and mpu > 0):
+        raise EnvironmentLoadError(f"invalid metersPerUnit {mpu} in {path}")
+    z_up = UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
+    # stage space -> baker space (+Y up, metres)
+    fix = np.eye(4)
+    if z_up:
+        fix[:3, :3] = [[1, 0, 0], [0, 0, 1], [0, -1, 0]]  # (x, y, z) -> (x, z, -y)
+    fix[:3, :3] *= mpu
+    time = Usd.TimeCode.EarliestTime()
+    cache = UsdGeom.XformCache(time)
+    raw, suns = [], []
+    for prim in stage.Traverse():
+        if prim.IsA(UsdGeom.Imageable):
+            img = UsdGeom.Imageable(prim)
+            if img.ComputeVisibility(time) == UsdGeom.Tokens.invisible:
+                continue
+            if img.ComputePurpose() == UsdGeom.Tokens.guide:
+                continue
+        if prim.IsA(UsdLux.DistantLight):
+            light = UsdLux.DistantLight(prim)
+            world = fix @ _usd_matrix(cache.GetLocalToWorldTransform(prim))
+            d = world[:3, :3] @ np.array([0.0, 0.0, 1.0])
+            if np.linalg.norm(d) > 1e-12:
+                inten = light.GetIntensityAttr().Get(time)
+                expo = light.GetExposureAttr().Get(time) or 0.0
+                col = light.GetColorAttr().Get(time)
+                suns.append(Sun(
+                    direction=d / np.linalg.norm(d),
+                    intensity=float(inten if inten is not None else 1.0) * 2.0 ** float(expo),
+                    color=tuple(float(c) for c in col) if col is not None else (1.0, 1.0, 1.0)))
+            continue
+        if not prim.IsA(UsdGeom.Mesh):
+            continue
+        mesh = UsdGeom.Mesh(prim)
+        pts = mesh.GetPointsAttr().Get(time)
+        counts = mesh.GetFaceVertexCountsAttr().Get(time)
+        idx = mesh.GetFaceVertexIndicesAttr().Get(time)
+        if pts is None or counts is None or idx is None or len(pts) == 0:
+            continue
+        holes = mesh.GetHoleIndicesAttr().Get(time)
+        left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
+        faces = _fan_triangulate(np.asarray(counts), np.asarray(idx),
+                                 np.asarray(holes if holes is not None else [], dtype=np.int64),
+                                 left)
+        world = fix @ _usd_matrix(cache.GetLocalToWorldTransform(prim))
+        v = _transform_points(world, np.asarray(pts, dtype=np.float64).reshape(-1, 3))
+        color, rough, metal = _usd_color(prim, mesh, time)
+        raw.append((prim.GetName(), v, _fix_winding(faces, world), None, color, rough, metal))
+    sun = max(suns, key=lambda s: s.intensity) if suns else None
+    return raw, sun
