@@ -81,7 +81,7 @@ def load_environment(path: str | Path, sun_override=None) -> Environment:
     except EnvironmentLoadError:
         raise
     except Exception as exc:  # any parser failure is a corrupt file to the user
-        msg = " ".join(str(exc).split())[:200] or type(exc).__name__
+        msg = _error_text(exc)
         raise EnvironmentLoadError(f"cannot read environment {path}: {msg}") from exc
 
     meshes = []
@@ -122,6 +122,15 @@ def sanitize_name(name: str, fallback: str = "mesh") -> str:
 
 
 # --------------------------------------------------------------------------- shared helpers
+def _error_text(exc: Exception) -> str:
+    """One short line from a parser exception (pxr's messages carry C++ source locations)."""
+    text = " ".join(str(exc).split())
+    m = re.search(r"in file \S+ : (.*?)(?= Error in '|$)", text)
+    if m:
+        text = m.group(1).strip().strip("'")
+    return text[:200] or type(exc).__name__
+
+
 def _unique_names(names: list[str]) -> list[str]:
     out, used = [], set()
     for raw in names:
@@ -213,7 +222,7 @@ _UNSUPPORTED_EXT = {"KHR_draco_mesh_compression", "EXT_meshopt_compression"}
 
 def _parse_glb(data: bytes, path: Path):
     if len(data) < 12 or data[:4] != b"glTF":
-        raise EnvironmentLoadError(f"corrupt GLB {path}: missing 'glTF' header")
+        raise EnvironmentLoadError(f"corrupt GLB {path}: not a binary glTF (bad header)")
     version, length = struct.unpack_from("<II", data, 4)
     if version != 2:
         raise EnvironmentLoadError(f"unsupported glTF version {version} in {path} (need 2)")
@@ -455,6 +464,11 @@ def _trimesh_color(geom) -> tuple[float, float, float, float]:
 def _read_trimesh(path: Path):
     import trimesh
 
+    if path.suffix.lower() == ".obj":
+        with open(path, "rb") as fh:
+            head = fh.read(1 << 16)
+        if b"\x00" in head:
+            raise EnvironmentLoadError(f"corrupt OBJ {path}: binary data in a text format")
     scene = trimesh.load_scene(str(path))
     raw = []
     for node in scene.graph.nodes_geometry:

@@ -1,0 +1,425 @@
+"""load_environment: every format round-trips into world space (metres, +Y up) with colours and
+the sun; every bad input is an EnvironmentLoadError."""
+
+from __future__ import annotations
+
+import json
+import struct
+
+import numpy as np
+import pytest
+import trimesh
+
+from baker.environment import Environment, load_environment
+from baker.environment.load import DEFAULT_SUN_DIRECTION, sanitize_name
+from baker.errors import EnvironmentLoadError
+from baker.geometry.conventions import is_valid_name
+
+
+def _tri_mesh() -> trimesh.Trimesh:
+    return trimesh.creation.box(extents=(1.0, 2.0, 3.0))
+
+
+def _assert_env(env: Environment, n_meshes: int):
+    assert isinstance(env, Environment)
+    assert len(env.meshes) == n_meshes
+    names = [m.name for m in env.meshes]
+    assert len(set(names)) == len(names)
+    for m in env.meshes:
+        assert is_valid_name(m.name), m.name
+        assert m.vertices.dtype == np.float32 and m.vertices.shape[1] == 3
+        assert m.faces.dtype == np.uint32 and m.faces.shape[1] == 3 and len(m.faces)
+        assert np.all(np.isfinite(m.vertices))
+        assert m.faces.max() < len(m.vertices)
+    assert np.isclose(np.linalg.norm(env.sun.direction), 1.0)
+
+
+def _same_point_set(a: np.ndarray, b: np.ndarray, atol=1e-5):
+    a = np.unique(np.round(np.asarray(a, float), 5), axis=0)
+    b = np.unique(np.round(np.asarray(b, float), 5), axis=0)
+    assert a.shape == b.shape
+    np.testing.assert_allclose(a, b, atol=atol)
+
+
+# --------------------------------------------------------------------------- hand-built GLB
+def _glb(doc: dict, blob: bytes) -> bytes:
+    blob = blob + b"\0" * (-len(blob) % 4)
+    doc = dict(doc, buffers=[{"byteLength": len(blob)}])
+    js = json.dumps(doc).encode()
+    js += b" " * (-len(js) % 4)
+    total = 12 + 8 + len(js) + 8 + len(blob)
+    return (struct.pack("<III", 0x46546C67, 2, total) + struct.pack("<II", len(js), 0x4E4F534A)
+            + js + struct.pack("<II", len(blob), 0x004E4942) + blob)
+
+
+def _triangle_glb(nodes, positions, indices=None, mode=4, material=None, lights=None) -> bytes:
+    pos = np.asarray(positions, np.float32)
+    blob = pos.tobytes()
+    views = [{"buffer": 0, "byteOffset": 0, "byteLength": len(blob)}]
+    accessors = [{"bufferView": 0, "componentType": 5126, "count": len(pos), "type": "VEC3",
+                  "min": pos.min(0).tolist(), "max": pos.max(0).tolist()}]
+    prim = {"attributes": {"POSITION": 0}, "mode": mode}
+    if indices is not None:
+        idx = np.asarray(indices, np.uint16).tobytes()
+        views.append({"buffer": 0, "byteOffset": len(blob), "byteLength": len(idx)})
+        accessors.append({"bufferView": 1, "componentType": 5123, "count": len(indices),
+                          "type": "SCALAR"})
+        blob += idx
+        prim["indices"] = 1
+    doc = {"asset": {"version": "2.0"}, "scene": 0,
+           "scenes": [{"nodes": [i for i, n in enumerate(nodes) if n.pop("_root", False)]}],
+           "nodes": nodes, "meshes": [{"name": "tri mesh", "primitives": [prim]}],
+           "accessors": accessors, "bufferViews": views}
+    if material is not None:
+        doc["materials"] = [material]
+        prim["material"] = 0
+    if lights is not None:
+        doc["extensionsUsed"] = ["KHR_lights_punctual"]
+        doc["extensions"] = {"KHR_lights_punctual": {"lights": lights}}
+    return _glb(doc, blob)
+
+
+QUAD = [[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]]
+QUAD_IDX = [0, 2, 1, 0, 3, 2]
+
+
+def test_glb_node_hierarchy_is_applied(tmp_path):
+    # parent translates, child rotates 90 deg about +Y and scales by 2
+    q = [0.0, np.sin(np.pi / 4), 0.0, np.cos(np.pi / 4)]
+    nodes = [{"name": "parent", "translation": [10.0, 1.0, -2.0], "children": [1], "_root": True},
+             {"name": "child/quad", "rotation": q, "scale": [2.0, 2.0, 2.0], "mesh": 0}]
+    mat = {"pbrMetallicRoughness": {"baseColorFactor": [0.1, 0.2, 0.3, 0.9],
+                                    "metallicFactor": 0.0, "roughnessFactor": 0.7}}
+    p = tmp_path / "scene.glb"
+    p.write_bytes(_triangle_glb(nodes, QUAD, QUAD_IDX, material=mat))
+    env = load_environment(p)
+    _assert_env(env, 1)
+    m = env.meshes[0]
+    assert m.name == "child_quad"
+    # Ry(90): (x, y, z) -> (z, y, -x); then scale 2, then translate
+    local = np.asarray(QUAD, float)
+    expect = np.stack([local[:, 2], local[:, 1], -local[:, 0]], 1) * 2 + [10.0, 1.0, -2.0]
+    _same_point_set(m.vertices, expect)
+    np.testing.assert_allclose(m.color, (0.1, 0.2, 0.3, 0.9), atol=1e-7)
+    assert m.roughness == pytest.approx(0.7) and m.metallic == 0.0
+    assert len(m.faces) == 2
+    np.testing.assert_allclose(env.sun.direction, DEFAULT_SUN_DIRECTION)
+    assert env.source == str(p)
+
+
+def test_glb_from_trimesh_with_matrix_transform(tmp_path):
+    mesh = _tri_mesh()
+    T = trimesh.transformations.compose_matrix(
+        translate=[1.0, 2.0, 3.0], angles=[0.3, -0.5, 1.1], scale=[1.5, 1.5, 1.5])
+    scene = trimesh.Scene()
+    scene.add_geometry(mesh, node_name="box node", geom_name="box", transform=T)
+    scene.add_geometry(_tri_mesh(), node_name="box-node", geom_name="box2")  # same sanitized name
+    p = tmp_path / "boxes.glb"
+    p.write_bytes(scene.export(file_type="glb"))
+    env = load_environment(p)
+    _assert_env(env, 2)
+    world = trimesh.transform_points(mesh.vertices, T)
+    got = [m for m in env.meshes if np.allclose(np.sort(m.vertices, 0), np.sort(world, 0),
+                                               atol=1e-5)]
+    assert len(got) == 1
+    np.testing.assert_allclose(env.bounds[1], np.maximum(world.max(0), [0.5, 1.0, 1.5]),
+                               atol=1e-5)
+
+
+def test_glb_points_and_lines_only_is_no_faces(tmp_path):
+    for mode in (0, 1, 3):
+        p = tmp_path / f"mode{mode}.glb"
+        p.write_bytes(_triangle_glb([{"name": "pts", "mesh": 0, "_root": True}], QUAD,
+                                    mode=mode))
+        with pytest.raises(EnvironmentLoadError, match="no triangle faces"):
+            load_environment(p)
+
+
+def test_glb_strip_and_fan(tmp_path):
+    for mode in (5, 6):
+        p = tmp_path / f"mode{mode}.glb"
+        p.write_bytes(_triangle_glb([{"name": "s", "mesh": 0, "_root": True}], QUAD,
+                                    [0, 1, 3, 2] if mode == 5 else [0, 1, 2, 3], mode=mode))
+        env = load_environment(p)
+        assert len(env.meshes[0].faces) == 2
+
+
+def test_glb_directional_light_gives_sun(tmp_path):
+    # a light node rotated -60 deg about X: its +Z (toward the sun) is (0, sin60, cos60)
+    a = np.radians(-60.0)
+    q = [np.sin(a / 2), 0.0, 0.0, np.cos(a / 2)]
+    nodes = [{"name": "ground", "mesh": 0, "_root": True},
+             {"name": "pivot", "children": [2], "_root": True, "rotation": [0, 0, 0, 1]},
+             {"name": "sun", "rotation": q, "extensions": {"KHR_lights_punctual": {"light": 1}}}]
+    lights = [{"type": "point", "intensity": 100.0},
+              {"type": "directional", "intensity": 2.5, "color": [1.0, 0.9, 0.8]}]
+    p = tmp_path / "lit.glb"
+    p.write_bytes(_triangle_glb(nodes, QUAD, QUAD_IDX, lights=lights))
+    env = load_environment(p)
+    np.testing.assert_allclose(env.sun.direction, [0.0, np.sin(np.pi / 3), np.cos(np.pi / 3)],
+                               atol=1e-9)
+    assert env.sun.intensity == pytest.approx(2.5)
+    assert env.sun.color == pytest.approx((1.0, 0.9, 0.8))
+    # the override wins, keeping the light's intensity and colour
+    env2 = load_environment(p, sun_override=(0.0, 2.0, 0.0))
+    np.testing.assert_allclose(env2.sun.direction, [0.0, 1.0, 0.0])
+    assert env2.sun.intensity == pytest.approx(2.5)
+
+
+def test_sun_override_without_light(tmp_path):
+    p = tmp_path / "a.stl"
+    _tri_mesh().export(p)
+    env = load_environment(p, sun_override=[1.0, 1.0, 0.0])
+    np.testing.assert_allclose(env.sun.direction, np.array([1.0, 1.0, 0.0]) / np.sqrt(2))
+    with pytest.raises(EnvironmentLoadError):
+        load_environment(p, sun_override=[0.0, 0.0, 0.0])
+
+
+# --------------------------------------------------------------------------- OBJ / PLY / STL
+def test_obj_with_material_colour(tmp_path):
+    (tmp_path / "rock.mtl").write_text("newmtl stone\nKd 0.2 0.4 0.6\n")
+    (tmp_path / "rock.obj").write_text(
+        "mtllib rock.mtl\no Rock-1\nusemtl stone\n"
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n")
+    env = load_environment(tmp_path / "rock.obj")
+    _assert_env(env, 1)
+    m = env.meshes[0]
+    assert len(m.faces) == 2  # quad triangulated
+    _same_point_set(m.vertices, [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    np.testing.assert_allclose(m.color[:3], (0.2, 0.4, 0.6), atol=1 / 255)
+
+
+def test_obj_without_material_is_grey(tmp_path):
+    p = tmp_path / "plain.obj"
+    p.write_text("v 0 0 0\nv 1 0 0\nv 0 0 1\nf 1 2 3\n")
+    env = load_environment(p)
+    assert env.meshes[0].color == (0.5, 0.5, 0.5, 1.0)
+
+
+def test_ply_round_trip_with_face_colours(tmp_path):
+    mesh = _tri_mesh()
+    mesh.apply_translation([0.0, 5.0, 0.0])
+    mesh.visual.face_colors = np.tile([188, 188, 188, 255], (len(mesh.faces), 1))
+    p = tmp_path / "b.ply"
+    mesh.export(p)
+    env = load_environment(p)
+    _assert_env(env, 1)
+    _same_point_set(env.meshes[0].vertices, mesh.vertices)
+    # sRGB 188 is linear ~0.5
+    np.testing.assert_allclose(env.meshes[0].color[:3], [0.5029] * 3, atol=2e-3)
+
+
+def test_stl_round_trip(tmp_path):
+    mesh = _tri_mesh()
+    p = tmp_path / "c.stl"
+    mesh.export(p)
+    env = load_environment(p)
+    _assert_env(env, 1)
+    assert len(env.meshes[0].faces) == 12
+    _same_point_set(env.meshes[0].vertices, mesh.vertices)
+    assert env.name == "c"
+
+
+def test_degenerate_faces_and_nan_vertices_are_dropped(tmp_path):
+    p = tmp_path / "dirty.obj"
+    p.write_text("v 0 0 0\nv 1 0 0\nv 0 0 1\nv nan 0 0\nv 2 0 0\n"
+                 "f 1 2 3\nf 1 2 4\nf 1 2 5\nf 1 1 3\n")
+    env = load_environment(p)
+    m = env.meshes[0]
+    assert len(m.faces) == 1
+    assert len(m.vertices) == 3  # unused vertices removed too
+
+
+# --------------------------------------------------------------------------- USD
+USDA = """#usda 1.0
+(
+    upAxis = "Z"
+    metersPerUnit = 0.01
+)
+
+def Xform "World"
+{
+    double3 xformOp:translate = (100, 200, 300)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+
+    def Mesh "floor_piece"
+    {
+        int[] faceVertexCounts = [4, 3]
+        int[] faceVertexIndices = [0, 1, 2, 3, 1, 4, 2]
+        point3f[] points = [(0, 0, 0), (100, 0, 0), (100, 100, 0), (0, 100, 0), (200, 50, 0)]
+        color3f[] primvars:displayColor = [(0.25, 0.5, 0.75)]
+        uniform token subdivisionScheme = "none"
+    }
+
+    def Mesh "painted" (
+        prepend apiSchemas = ["MaterialBindingAPI"]
+    )
+    {
+        int[] faceVertexCounts = [3]
+        int[] faceVertexIndices = [0, 1, 2]
+        point3f[] points = [(0, 0, 10), (10, 0, 10), (0, 10, 10)]
+        color3f[] primvars:displayColor = [(1, 1, 1)]
+        rel material:binding = </World/Mat>
+    }
+
+    def Material "Mat"
+    {
+        token outputs:surface.connect = </World/Mat/Surface.outputs:surface>
+        def Shader "Surface"
+        {
+            uniform token info:id = "UsdPreviewSurface"
+            color3f inputs:diffuseColor = (0.1, 0.6, 0.2)
+            float inputs:roughness = 0.8
+            token outputs:surface
+        }
+    }
+
+    def Mesh "hidden"
+    {
+        token visibility = "invisible"
+        int[] faceVertexCounts = [3]
+        int[] faceVertexIndices = [0, 1, 2]
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+    }
+
+    def DistantLight "Sun"
+    {
+        float inputs:intensity = 4
+        float xformOp:rotateX = 30
+        uniform token[] xformOpOrder = ["xformOp:rotateX"]
+    }
+}
+"""
+
+
+def test_usda_z_up_centimetres(tmp_path):
+    p = tmp_path / "stage.usda"
+    p.write_text(USDA)
+    env = load_environment(p)
+    _assert_env(env, 2)
+    floor = next(m for m in env.meshes if m.name == "floor_piece")
+    assert len(floor.faces) == 3  # quad fan-triangulated into 2, plus a triangle
+    pts_cm = np.array([[0, 0, 0], [100, 0, 0], [100, 100, 0], [0, 100, 0], [200, 50, 0]], float)
+    world_m = (pts_cm + [100, 200, 300]) * 0.01
+    expect = np.stack([world_m[:, 0], world_m[:, 2], -world_m[:, 1]], 1)  # Z up -> Y up
+    _same_point_set(floor.vertices, expect)
+    np.testing.assert_allclose(floor.color, (0.25, 0.5, 0.75, 1.0), atol=1e-6)
+    # all faces of the (z = const) floor are horizontal in +Y-up space
+    tm = trimesh.Trimesh(floor.vertices, floor.faces, process=False)
+    np.testing.assert_allclose(np.abs(tm.face_normals[:, 1]), 1.0, atol=1e-6)
+
+    painted = next(m for m in env.meshes if m.name == "painted")
+    np.testing.assert_allclose(painted.color, (0.1, 0.6, 0.2, 1.0), atol=1e-6)
+    assert painted.roughness == pytest.approx(0.8)
+    # DistantLight rotated 30 deg about X in Z-up space: +Z -> (0, -sin30, cos30) (Z up);
+    # converted to Y up: (x, z, -y) = (0, cos30, sin30)
+    np.testing.assert_allclose(env.sun.direction, [0.0, np.cos(np.pi / 6), np.sin(np.pi / 6)],
+                               atol=1e-6)
+    assert env.sun.intensity == pytest.approx(4.0)
+
+
+def test_usd_binary_crate(tmp_path):
+    from pxr import Usd, UsdGeom
+
+    p = tmp_path / "crate.usdc"
+    stage = Usd.Stage.CreateNew(str(p))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    mesh = UsdGeom.Mesh.Define(stage, "/Tri")
+    mesh.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (0, 0, 1)])
+    mesh.CreateFaceVertexCountsAttr([3])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2])
+    stage.GetRootLayer().Save()
+    env = load_environment(p)
+    _assert_env(env, 1)
+    _same_point_set(env.meshes[0].vertices, [[0, 0, 0], [1, 0, 0], [0, 0, 1]])
+    assert env.meshes[0].color == (0.5, 0.5, 0.5, 1.0)
+
+
+def test_usd_unauthored_units_are_centimetres(tmp_path):
+    """USD's fallback metersPerUnit is 0.01 (UsdGeomLinearUnits); the loader honours it."""
+    p = tmp_path / "nounits.usda"
+    p.write_text('#usda 1.0\ndef Mesh "m"\n{\n    int[] faceVertexCounts = [3]\n'
+                 '    int[] faceVertexIndices = [0, 1, 2]\n'
+                 '    point3f[] points = [(0, 0, 0), (100, 0, 0), (0, 0, 100)]\n}\n')
+    env = load_environment(p)
+    _same_point_set(env.meshes[0].vertices, [[0, 0, 0], [1, 0, 0], [0, 0, 1]])
+
+
+# --------------------------------------------------------------------------- errors
+def test_missing_file(tmp_path):
+    with pytest.raises(EnvironmentLoadError, match="not found") as ei:
+        load_environment(tmp_path / "nope.glb")
+    assert "nope.glb" in str(ei.value) and "\n" not in str(ei.value)
+
+
+def test_unsupported_extension(tmp_path):
+    p = tmp_path / "points.xyz"
+    p.write_text("0 0 0\n")
+    with pytest.raises(EnvironmentLoadError, match="unsupported") as ei:
+        load_environment(p)
+    assert "points.xyz" in str(ei.value)
+
+
+@pytest.mark.parametrize("data", [b"", b"glTF", b"not a glb at all" * 10,
+                                  b"glTF\x02\x00\x00\x00\xff\xff\x00\x00garbage",
+                                  b"glTF\x02\x00\x00\x00\x20\x00\x00\x00"
+                                  b"\x0c\x00\x00\x00JSON{not json}"])
+def test_corrupt_glb(tmp_path, data):
+    p = tmp_path / "bad.glb"
+    p.write_bytes(data)
+    with pytest.raises(EnvironmentLoadError) as ei:
+        load_environment(p)
+    assert "bad.glb" in str(ei.value) and "\n" not in str(ei.value)
+
+
+def test_truncated_glb(tmp_path):
+    good = tmp_path / "good.glb"
+    good.write_bytes(_triangle_glb([{"name": "q", "mesh": 0, "_root": True}], QUAD, QUAD_IDX))
+    load_environment(good)
+    bad = tmp_path / "cut.glb"
+    bad.write_bytes(good.read_bytes()[:-40])
+    with pytest.raises(EnvironmentLoadError, match="cut.glb"):
+        load_environment(bad)
+
+
+@pytest.mark.parametrize("text", ["v 1 2 foo\nv a b c\nf 1 2 3\n",
+                                  "\x00\x01\x02\xff binary junk",
+                                  "f 1 2 3\nf 4 5 6\n"])
+def test_corrupt_obj(tmp_path, text):
+    p = tmp_path / "bad.obj"
+    p.write_bytes(text.encode("latin-1"))
+    with pytest.raises(EnvironmentLoadError, match="bad.obj"):
+        load_environment(p)
+
+
+def test_obj_with_vertices_but_no_faces(tmp_path):
+    p = tmp_path / "cloud.obj"
+    p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    with pytest.raises(EnvironmentLoadError, match="no triangle faces"):
+        load_environment(p)
+
+
+def test_corrupt_usd(tmp_path):
+    p = tmp_path / "bad.usda"
+    p.write_text("#usda 1.0\ndef Mesh \"m\" {{{{ garbage\n")
+    with pytest.raises(EnvironmentLoadError, match="bad.usda"):
+        load_environment(p)
+
+
+def test_corrupt_ply_and_stl(tmp_path):
+    for name in ("bad.ply", "bad.stl"):
+        p = tmp_path / name
+        p.write_bytes(b"ply\nformat ascii 1.0\nelement vertex 3\nend_header\n1 2\n"
+                      if name.endswith("ply") else b"solid x\nfacet normal 0 0\n")
+        with pytest.raises(EnvironmentLoadError, match=name):
+            load_environment(p)
+
+
+# --------------------------------------------------------------------------- names
+@pytest.mark.parametrize("raw", ["log-A", "rock 1", "ümlaut/ß", "", "9lives", "x" * 100,
+                                 "__a__b__"])
+def test_sanitize_name(raw):
+    s = sanitize_name(raw)
+    assert is_valid_name(s)
+    assert not s[0].isdigit()
