@@ -416,13 +416,13 @@ def make_rainforest_floor(seed: int = DEFAULT_SEED) -> tuple[list[Part], SunSpec
         centre = np.array([c[0], h + radii.min() * rng.uniform(0.2, 0.5), c[1]])
         parts.append(ellipsoid(f"rock_{i + 1:02d}", "rock", radii, R, centre, hi=True))
 
-    # low flat stones: climbable (top slope <= 50 deg, at most 4.5 cm above the ground)
+    # low flat stones: climbable (top slope <= 45 deg, at most 4.5 cm above the ground)
     for i in range(10):
         A = rng.uniform(0.08, 0.3)
         cz = A * rng.uniform(0.25, 0.4)                   # vertical semi-axis
         ratio = rng.uniform(0.7, 1.0)                     # second horizontal semi-axis / A
-        # the ground cuts the ellipsoid where its slope (across the narrow axis) is 50 deg
-        th_min = math.atan2(1.0, math.tan(math.radians(50.0)) * ratio * A / cz)
+        # the ground cuts the ellipsoid where its slope (across the narrow axis) is 45 deg
+        th_min = math.atan2(1.0, math.tan(math.radians(45.0)) * ratio * A / cz)
         h_max = cz * (1.0 - math.sin(th_min))
         h = min(rng.uniform(0.02, 0.045), h_max)
         c, _ = place(rng, fp, 0.0, A, gap=0.25)
@@ -430,7 +430,7 @@ def make_rainforest_floor(seed: int = DEFAULT_SEED) -> tuple[list[Part], SunSpec
         g = ground.height(c[0], c[1])
         centre = np.array([c[0], g + h - cz, c[1]])
         parts.append(ellipsoid(f"stone_{i + 1:02d}", "rock", np.array([A, cz, ratio * A]), R,
-                               centre))
+                               centre, hi=True))
 
     # twigs: thin boxes lying on the ground, easy to step over
     for i in range(10):
