@@ -1,0 +1,448 @@
+"""Build a NavSurface from an Environment (Recast's build steps, done with rays and numpy).
+
+Steps (all vectorized over columns / samples; rays are cast in batched chunks):
+1. Column heightfield: cast a ray straight down through every column centre from above the
+   scene, then again from just below each hit, until no column hits anything: every surface
+   layer of every column is found (log top and the floor inside it, bridge and road).
+   Faces are two-sided, so a downward ray always sees a surface from above. For closed
+   (watertight) mesh components, hits are counted per component down each column: an even
+   count means "entering the solid" (its top), an odd count means "leaving it" (the inside of
+   its bottom shell), which is not a floor. This does not depend on face winding.
+2. Walkable samples: slope within max_slope and at least agent height of free space up to the
+   next hit above.
+3. Links between 4-neighbour samples whose heights differ by at most the step height and whose
+   free spaces overlap by the agent height; a short horizontal ray at a small height above the
+   higher sample breaks links through walls (zero-thickness walls included). Diagonal links
+   need both L-shaped 4-link paths (no corner cutting).
+4. Erosion by the agent radius: a multi-source distance on the link graph from the boundary
+   (horizontal rays give the exact distance to walls next to boundary samples).
+5. Islands smaller than `min_island_area` are dropped; components are labelled (largest = 0).
+6. A coarse graph over blocks of columns, for fast path finding.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+
+import numpy as np
+from scipy.sparse import coo_matrix, csr_matrix
+from scipy.sparse.csgraph import connected_components
+
+from baker.errors import NavError
+from baker.navmesh.surface import DIRS, OPPOSITE, NavSurface
+
+log = logging.getLogger(__name__)
+
+#: Rays per Embree call (bounds the temporary memory of a pass).
+CHUNK_RAYS = 1 << 20
+#: Vertical offset below a hit before casting again (metres).
+LAYER_EPS = 1e-4
+#: Safety cap on the number of layers per column.
+MAX_PASSES = 256
+
+
+# --------------------------------------------------------------------------- ray casting
+class _Caster:
+    """Batched first-hit rays straight on embreex (float32 scene re-centred on the mesh for
+    precision). Falls back to the environment's RayCaster when embreex is missing."""
+
+    def __init__(self, env):
+        mesh = env.mesh
+        v = np.asarray(mesh.vertices, dtype=np.float64)
+        f = np.asarray(mesh.faces, dtype=np.int64)
+        self.shift = (v.min(axis=0) + v.max(axis=0)) * 0.5 if len(v) else np.zeros(3)
+        fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+        ln = np.linalg.norm(fn, axis=1)
+        fn[ln > 0] /= ln[ln > 0, None]
+        self.face_normals = fn
+        self._env = env
+        try:
+            from embreex import rtcore_scene
+            from embreex.mesh_construction import TriangleMesh
+
+            self._scene = rtcore_scene.EmbreeScene()
+            TriangleMesh(scene=self._scene, vertices=(v - self.shift).astype(np.float32),
+                         indices=f.astype(np.int32))
+        except Exception:  # pragma: no cover - embreex missing
+            log.warning("embreex unavailable: navigation build uses slower ray casts")
+            self._scene = None
+
+    def cast(self, origins: np.ndarray, directions: np.ndarray,
+             max_distance: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """origins, directions (n, 3) (directions unit). Returns (t (n,) float64 with inf on a
+        miss, prim (n,) int64 with -1 on a miss)."""
+        n = len(origins)
+        t = np.full(n, np.inf)
+        prim = np.full(n, -1, dtype=np.int64)
+        for a in range(0, n, CHUNK_RAYS):
+            b = min(n, a + CHUNK_RAYS)
+            if self._scene is None:  # pragma: no cover
+                h = self._env.rays.first_hit(origins[a:b], directions[a:b],
+                                             np.inf if max_distance is None else max_distance)
+                t[a:b] = h.distance
+                prim[a:b] = h.faces
+                continue
+            o = (origins[a:b] - self.shift).astype(np.float32)
+            d = directions[a:b].astype(np.float32)
+            if max_distance is None:
+                r = self._scene.run(o, d, output=1)
+            else:
+                r = self._scene.run(o, d, dists=np.full(b - a, max_distance, np.float32),
+                                    output=1)
+            p = r["primID"].astype(np.int64)
+            hit = p >= 0
+            prim[a:b] = p
+            tt = t[a:b]
+            tt[hit] = r["tfar"][hit]
+        return t, prim
+
+
+def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """Per face: connected component id (vertices welded by position), and per component:
+    True when it is closed (every edge shared by exactly two faces). Winding is not used."""
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    if len(f) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, bool)
+    ext = float(np.ptp(v, axis=0).max()) or 1.0
+    q = np.round(v / (ext * 1e-7)).astype(np.int64)
+    _, vid = np.unique(q, axis=0, return_inverse=True)
+    vid = vid.reshape(-1)
+    F = vid[f]
+    nv = int(vid.max()) + 1
+    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    e.sort(axis=1)
+    e = e[e[:, 0] != e[:, 1]]
+    g = coo_matrix((np.ones(len(e), np.int8), (e[:, 0], e[:, 1])), shape=(nv, nv))
+    ncomp, vcomp = connected_components(g, directed=False)
+    key = e[:, 0] * nv + e[:, 1]
+    uk, cnt = np.unique(key, return_counts=True)
+    closed = np.ones(ncomp, dtype=bool)
+    closed[vcomp[(uk[cnt != 2] // nv)]] = False
+    return vcomp[F[:, 0]], closed
+
+
+# --------------------------------------------------------------------------- build steps
+def _grid(env, bounds, cell: float):
+    eb = np.asarray(env.bounds, dtype=np.float64)
+    b = eb if bounds is None else np.asarray(bounds, dtype=np.float64)
+    if b.shape == (2, 2):  # (x, z) min / max
+        b = np.array([[b[0, 0], eb[0, 1], b[0, 1]], [b[1, 0], eb[1, 1], b[1, 1]]])
+    x0, z0 = float(b[0, 0]), float(b[0, 2])
+    nx = max(1, int(math.ceil((b[1, 0] - x0) / cell - 1e-9)))
+    nz = max(1, int(math.ceil((b[1, 2] - z0) / cell - 1e-9)))
+    return x0, z0, nx, nz, float(eb[1, 1]) + 1.0
+
+
+def _cast_layers(caster: _Caster, x0, z0, nx, nz, cell, ytop):
+    """All hits of all columns: (col (H,) int64, y (H,) float64, prim (H,) int64), sorted by
+    column then top to bottom."""
+    col = np.arange(nx * nz, dtype=np.int64)
+    ox = x0 + (col // nz + 0.5) * cell
+    oz = z0 + (col % nz + 0.5) * cell
+    oy = np.full(len(col), ytop)
+    cols, ys, prims = [], [], []
+    down = np.array([0.0, -1.0, 0.0])
+    for _ in range(MAX_PASSES):
+        if len(col) == 0:
+            break
+        o = np.stack([ox, oy, oz], axis=1)
+        t, prim = caster.cast(o, np.broadcast_to(down, o.shape))
+        h = prim >= 0
+        col, ox, oz, prim = col[h], ox[h], oz[h], prim[h]
+        y = oy[h] - t[h]
+        cols.append(col)
+        ys.append(y)
+        prims.append(prim)
+        oy = y - LAYER_EPS
+    col = np.concatenate(cols) if cols else np.zeros(0, np.int64)
+    y = np.concatenate(ys) if ys else np.zeros(0)
+    prim = np.concatenate(prims) if prims else np.zeros(0, np.int64)
+    order = np.argsort(col, kind="stable")  # passes are in top-to-bottom order already
+    return col[order], y[order], prim[order]
+
+
+def _link_axis(d, ix, iz, y, ceil, nx, nz, col_start, counts, step, height):
+    """Best neighbour sample (or -1) of every sample in axis direction d (0: +X, 1: +Z)."""
+    dx, dz = DIRS[d]
+    jx, jz = ix + dx, iz + dz
+    inb = (jx >= 0) & (jx < nx) & (jz >= 0) & (jz < nz)
+    src = np.nonzero(inb)[0]
+    ncol = jx[src] * nz + jz[src]
+    cnt = counts[ncol]
+    start = col_start[ncol]
+    best = np.full(len(src), -1, dtype=np.int64)
+    best_dy = np.full(len(src), np.inf)
+    maxl = int(cnt.max()) if len(cnt) else 0
+    ys, cs = y[src], ceil[src]
+    for k in range(maxl):
+        sel = np.nonzero(cnt > k)[0]
+        cand = start[sel] + k
+        dy = np.abs(y[cand] - ys[sel])
+        gap = np.minimum(ceil[cand], cs[sel]) - np.maximum(y[cand], ys[sel])
+        ok = (dy <= step) & (gap >= height) & (dy < best_dy[sel])
+        best[sel[ok]] = cand[ok]
+        best_dy[sel[ok]] = dy[ok]
+    out = np.full(len(y), -1, dtype=np.int64)
+    out[src] = best
+    return out
+
+
+def build(env, agent, *, bounds=None, coarse_factor: int = 4,
+          min_island_area: float | None = None) -> NavSurface:
+    """Build the navigation surface of `env` for `agent` (a NavAgentConfig).
+
+    bounds          : optional (2, 3) [min, max] corners (or (2, 2) XZ corners) limiting the
+                      build area; default: the environment's bounds
+    coarse_factor   : columns per side of a coarse path-finding block
+    min_island_area : m^2, components with less horizontal area are dropped;
+                      default max(64 cells, (4 radius)^2)
+    Raises NavError when nothing is walkable.
+    """
+    timings = {}
+    t0 = time.perf_counter()
+    cell = float(agent.cell_size)
+    radius, height = float(agent.radius), float(agent.height)
+    step, slope = float(agent.step_height), float(agent.max_slope)
+    if not (cell > 0 and radius > 0 and height > 0 and step >= 0 and 0 <= slope < math.pi / 2):
+        raise NavError(f"invalid navigation agent parameters: {agent}")
+    mesh = env.mesh
+    if len(mesh.faces) == 0:
+        raise NavError("environment has no walkable surface (it has no triangles)")
+    x0, z0, nx, nz, ytop = _grid(env, bounds, cell)
+    ncols = nx * nz
+    caster = _Caster(env)
+    face_comp, comp_closed = _solid_components(mesh)
+    timings["setup"] = time.perf_counter() - t0
+
+    # 1. column heightfield ---------------------------------------------------------------
+    t = time.perf_counter()
+    hcol, hy, hprim = _cast_layers(caster, x0, z0, nx, nz, cell, ytop)
+    timings["layers"] = time.perf_counter() - t
+    t = time.perf_counter()
+    nh = len(hcol)
+    first = np.ones(nh, dtype=bool)
+    first[1:] = hcol[1:] != hcol[:-1]
+    hceil = np.empty(nh)
+    hceil[first] = np.inf
+    hceil[~first] = hy[:-1][~first[1:]]
+    fn = caster.face_normals[hprim]
+    fn *= np.where(fn[:, 1] < 0, -1.0, 1.0)[:, None]  # two-sided: seen from above
+    # inside-solid test: down each column, the n-th hit on a closed component enters it
+    # (n even) or leaves it (n odd); a hit is not a floor when the space just above it lies
+    # inside some closed component (its own exit, or a surface buried in / coincident with a
+    # solid's bottom).
+    hc = face_comp[hprim]
+    closed = comp_closed[hc]
+    inside = np.zeros(nh, dtype=bool)
+    if closed.any():
+        idx = np.nonzero(closed)[0]
+        o = np.lexsort((idx, hc[idx], hcol[idx]))
+        si = idx[o]
+        g = np.ones(len(si), dtype=bool)
+        g[1:] = (hcol[si][1:] != hcol[si][:-1]) | (hc[si][1:] != hc[si][:-1])
+        gstart = np.maximum.accumulate(np.where(g, np.arange(len(si)), 0))
+        rank = np.arange(len(si)) - gstart
+        toggle = np.zeros(nh, dtype=np.int64)
+        toggle[si] = np.where(rank % 2 == 0, 1, -1)
+        excl = np.cumsum(toggle) - toggle
+        fidx = np.maximum.accumulate(np.where(first, np.arange(nh), 0))
+        inside = (excl - excl[fidx]) > 0
+
+    # 2. walkable samples -----------------------------------------------------------------
+    walk = (fn[:, 1] >= math.cos(slope) - 1e-9) & (hceil - hy >= height) & ~inside
+    if not walk.any():
+        raise NavError("environment has no walkable surface (no upward-facing surface within "
+                       f"{math.degrees(slope):.1f} deg with {height:g} m of clearance)")
+    scol = hcol[walk]
+    sy = hy[walk]
+    sceil = hceil[walk]
+    snrm = fn[walk]
+    six, siz = scol // nz, scol % nz
+    counts = np.bincount(scol, minlength=ncols)
+    col_start = np.zeros(ncols + 1, dtype=np.int64)
+    np.cumsum(counts, out=col_start[1:])
+    n = len(sy)
+    timings["samples"] = time.perf_counter() - t
+
+    # 3. links ----------------------------------------------------------------------------
+    t = time.perf_counter()
+    h_off = max(min(step, 0.5 * height), 1e-4)
+    links = np.full((n, 8), -1, dtype=np.int64)
+    px = x0 + (six + 0.5) * cell
+    pz = z0 + (siz + 0.5) * cell
+    for d in (0, 1):
+        nb = _link_axis(d, six, siz, sy, sceil, nx, nz, col_start, counts, step, height)
+        s = np.nonzero(nb >= 0)[0]
+        tt = nb[s]
+        o = np.stack([px[s], np.maximum(sy[s], sy[tt]) + h_off, pz[s]], axis=1)
+        dirv = np.zeros_like(o)
+        dirv[:, 0], dirv[:, 2] = DIRS[d]
+        th, _ = caster.cast(o, dirv, cell)
+        ok = ~np.isfinite(th)
+        s, tt = s[ok], tt[ok]
+        links[s, d] = tt
+        links[tt, OPPOSITE[d]] = s
+    for d in (0, 1):  # keep symmetric links only
+        s = np.nonzero(links[:, d] >= 0)[0]
+        bad = links[links[s, d], OPPOSITE[d]] != s
+        links[s[bad], d] = -1
+        s = np.nonzero(links[:, OPPOSITE[d]] >= 0)[0]
+        bad = links[links[s, OPPOSITE[d]], d] != s
+        links[s[bad], OPPOSITE[d]] = -1
+    ext = np.vstack([links, np.full((1, 8), -1, np.int64)])  # row -1 -> no links
+    for d, (a1, a2) in ((4, (0, 1)), (7, (0, 3))):
+        u1 = ext[ext[:, a1][:-1], a2]
+        u2 = ext[ext[:, a2][:-1], a1]
+        s = np.nonzero((u1 >= 0) & (u1 == u2))[0]
+        u = u1[s]
+        gap = np.minimum(sceil[s], sceil[u]) - np.maximum(sy[s], sy[u])
+        ok = (np.abs(sy[u] - sy[s]) <= step) & (gap >= height)
+        s, u = s[ok], u[ok]
+        links[s, d] = u
+        links[u, OPPOSITE[d]] = s
+    timings["links"] = time.perf_counter() - t
+
+    # 4. erosion --------------------------------------------------------------------------
+    t = time.perf_counter()
+    missing = links[:, :4] < 0
+    border = np.nonzero(missing.any(axis=1))[0]
+    d0 = np.full(len(border), 0.5 * cell)
+    bs, bd = np.nonzero(missing[border])
+    if len(bs):  # exact distance to walls beside boundary samples
+        sb = border[bs]
+        o = np.stack([px[sb], sy[sb] + h_off, pz[sb]], axis=1)
+        dirv = np.zeros_like(o)
+        dirv[:, 0] = DIRS[bd, 0]
+        dirv[:, 2] = DIRS[bd, 1]
+        th, _ = caster.cast(o, dirv, 0.5 * cell)
+        np.minimum.at(d0, bs, np.where(np.isfinite(th), th, 0.5 * cell))
+    dist = np.full(n, np.inf)
+    dist[border] = d0
+    w = np.where(np.arange(8) < 4, cell, cell * math.sqrt(2.0))
+    iters = int(math.ceil(radius / cell)) + 1
+    active = border
+    for _ in range(iters):
+        if len(active) == 0:
+            break
+        changed = []
+        for d in range(8):
+            nb = links[active, d]
+            m = nb >= 0
+            src, nb = active[m], nb[m]
+            nd = dist[src] + w[d]
+            better = nd < dist[nb]
+            if better.any():
+                np.minimum.at(dist, nb[better], nd[better])
+                changed.append(nb[better])
+        active = np.unique(np.concatenate(changed)) if changed else np.zeros(0, np.int64)
+        active = active[dist[active] < radius + cell * 1.5]
+    keep = dist >= radius - 1e-9
+    timings["erode"] = time.perf_counter() - t
+
+    # 5. islands and components -----------------------------------------------------------
+    t = time.perf_counter()
+
+    def _compact(keep, links):
+        remap = np.full(len(keep) + 1, -1, dtype=np.int64)
+        remap[np.nonzero(keep)[0]] = np.arange(int(keep.sum()))
+        return remap[links[keep]]
+
+    links = _compact(keep, links)
+    sel = np.nonzero(keep)[0]
+    ncomp, comp = _components(links)
+    if min_island_area is None:
+        min_island_area = max(64 * cell * cell, (4 * radius) ** 2)
+    size = np.bincount(comp, minlength=ncomp)
+    big = size * cell * cell >= min_island_area
+    keep2 = big[comp]
+    if not keep2.any():
+        raise NavError("environment has no walkable surface (every walkable area is narrower "
+                       f"than the agent or smaller than {min_island_area:g} m^2)")
+    links = _compact(keep2, links)
+    sel = sel[keep2]
+    order = np.argsort(-size[big], kind="stable")
+    relabel = np.full(ncomp, -1, dtype=np.int64)
+    relabel[np.nonzero(big)[0][order]] = np.arange(int(big.sum()))
+    comp = relabel[comp[keep2]].astype(np.int32)
+    comp_area = np.sort(size[big])[::-1] * cell * cell
+    scol = scol[sel]
+    counts = np.bincount(scol, minlength=ncols)
+    col_start = np.zeros(ncols + 1, dtype=np.int64)
+    np.cumsum(counts, out=col_start[1:])
+    positions = np.stack([px[sel], sy[sel], pz[sel]], axis=1)
+    cells = np.stack([six[sel], siz[sel]], axis=1).astype(np.int32)
+    timings["components"] = time.perf_counter() - t
+
+    # 6. coarse graph ---------------------------------------------------------------------
+    t = time.perf_counter()
+    coarse_of, coarse_rep, cindptr, cindices = _coarse(positions, cells, links, coarse_factor,
+                                                       nz)
+    timings["coarse"] = time.perf_counter() - t
+    timings["total"] = time.perf_counter() - t0
+    log.info("navmesh: %d x %d columns, %d hits, %d walkable samples, %d components, "
+             "%.3f m^2; %s", nx, nz, nh, len(positions), len(comp_area), comp_area.sum(),
+             ", ".join(f"{k} {v:.3f}s" for k, v in timings.items()))
+    return NavSurface(
+        positions=positions.astype(np.float32),
+        normals=snrm[sel].astype(np.float32),
+        cells=cells,
+        col_start=col_start,
+        links=links.astype(np.int32),
+        component=comp,
+        clearance=dist[sel].astype(np.float32),
+        component_area=comp_area,
+        coarse_of=coarse_of,
+        coarse_rep=coarse_rep,
+        coarse_indptr=cindptr,
+        coarse_indices=cindices,
+        origin=(x0, z0),
+        shape=(nx, nz),
+        cell_size=cell,
+        coarse_factor=int(coarse_factor),
+        agent_radius=radius,
+        agent_height=height,
+        step_height=step,
+        max_slope=slope,
+    )
+
+
+def _components(links: np.ndarray) -> tuple[int, np.ndarray]:
+    n = len(links)
+    m = links >= 0
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(m.sum(axis=1), out=indptr[1:])
+    g = csr_matrix((np.ones(int(m.sum()), np.int8), links[m], indptr), shape=(n, n))
+    return connected_components(g, directed=False)
+
+
+def _coarse(positions, cells, links, k, nz):
+    """Coarse nodes = connected groups of samples inside k x k column blocks."""
+    n = len(positions)
+    k = max(1, int(k))
+    bz = (nz + k - 1) // k
+    block = (cells[:, 0] // k).astype(np.int64) * bz + cells[:, 1] // k
+    m = links >= 0
+    src = np.repeat(np.arange(n), m.sum(axis=1))
+    dst = links[m]
+    same = block[src] == block[dst]
+    g = coo_matrix((np.ones(int(same.sum()), np.int8), (src[same], dst[same])), shape=(n, n))
+    nc, lab = connected_components(g.tocsr(), directed=False)
+    # representative: the sample closest to its group's centroid
+    cnt = np.bincount(lab, minlength=nc).astype(np.float64)
+    cen = np.stack([np.bincount(lab, positions[:, i], nc) for i in range(3)], axis=1)
+    cen /= cnt[:, None]
+    dd = np.einsum("ij,ij->i", positions - cen[lab], positions - cen[lab])
+    o = np.lexsort((dd, lab))
+    firsts = np.ones(n, dtype=bool)
+    firsts[1:] = lab[o][1:] != lab[o][:-1]
+    rep = o[firsts].astype(np.int32)
+    # coarse edges
+    cs, cd = lab[src[~same]], lab[dst[~same]]
+    key = np.unique(cs.astype(np.int64) * nc + cd)
+    cs, cd = key // nc, key % nc
+    indptr = np.zeros(nc + 1, dtype=np.int64)
+    np.cumsum(np.bincount(cs, minlength=nc), out=indptr[1:])
+    return lab.astype(np.int32), rep, indptr, cd.astype(np.int32)

@@ -1,0 +1,412 @@
+"""Queries on a built NavSurface (Detour's side): nearest point, random reachable point, path.
+
+All functions take the surface first; NavSurface has thin methods that call them. Expected
+failures (nothing near, unreachable goal) are results (None, complete=False), never exceptions.
+Heavier lookup structures (KD-tree, coarse-graph lists) are built lazily on first use and kept
+in the surface's private cache.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+
+import numpy as np
+
+from baker.navmesh.surface import DIRS, NavSurface, PathResult
+
+#: Ring radius (in columns) searched on the grid before falling back to the KD-tree.
+_RING = 3
+#: (dx + 1, dz + 1) -> direction index into DIRS.
+_DIR_OF = np.full((3, 3), -1, dtype=np.int64)
+for _d, (_dx, _dz) in enumerate(DIRS):
+    _DIR_OF[_dx + 1, _dz + 1] = _d
+
+
+# --------------------------------------------------------------------------- helpers
+def _pt(p) -> np.ndarray:
+    return np.asarray(p, dtype=np.float64).reshape(3)
+
+
+def _columns(s: NavSurface, x, z):
+    """Column indices (ix, iz) of world x, z (arrays); may be out of the grid."""
+    c = s.cell_size
+    ix = np.floor((np.asarray(x, np.float64) - s.origin[0]) / c).astype(np.int64)
+    iz = np.floor((np.asarray(z, np.float64) - s.origin[1]) / c).astype(np.int64)
+    return ix, iz
+
+
+def _plane_y(s: NavSurface, idx, x, z):
+    """Height of the tangent plane of samples idx at (x, z)."""
+    p = s.positions[idx].astype(np.float64)
+    n = s.normals[idx].astype(np.float64)
+    return p[..., 1] - (n[..., 0] * (x - p[..., 0]) + n[..., 2] * (z - p[..., 2])) / n[..., 1]
+
+
+def _window(s: NavSurface, ix0, ix1, iz0, iz1) -> np.ndarray:
+    """Sample indices in the column rectangle [ix0, ix1] x [iz0, iz1] (clipped to the grid)."""
+    nx, nz = s.shape
+    ix0, iz0 = max(int(ix0), 0), max(int(iz0), 0)
+    ix1, iz1 = min(int(ix1), nx - 1), min(int(iz1), nz - 1)
+    if ix0 > ix1 or iz0 > iz1:
+        return np.zeros(0, dtype=np.int64)
+    rows = np.arange(ix0, ix1 + 1, dtype=np.int64) * nz
+    a = s.col_start[rows + iz0]
+    b = s.col_start[rows + iz1 + 1]
+    ln = b - a
+    tot = int(ln.sum())
+    if tot == 0:
+        return np.zeros(0, dtype=np.int64)
+    off = np.repeat(a - np.concatenate([[0], np.cumsum(ln)[:-1]]), ln)
+    return off + np.arange(tot, dtype=np.int64)
+
+
+def _kdtree(s: NavSurface):
+    t = s._cache.get("kdtree")
+    if t is None:
+        from scipy.spatial import cKDTree
+
+        t = cKDTree(s.positions, balanced_tree=False, compact_nodes=False)
+        s._cache["kdtree"] = t
+    return t
+
+
+def _snap(s: NavSurface, idx: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """(k, 3) surface points of samples idx closest to p: p's (x, z) on the sample's plane
+    when p is inside the sample's column, else the sample's centre."""
+    out = s.positions[idx].astype(np.float64)
+    ix, iz = _columns(s, p[0], p[2])
+    inside = (s.cells[idx, 0] == ix) & (s.cells[idx, 1] == iz)
+    if inside.any():
+        j = idx[inside]
+        out[inside, 0] = p[0]
+        out[inside, 2] = p[2]
+        out[inside, 1] = _plane_y(s, j, p[0], p[2])
+    return out
+
+
+def _nearest_sample(s: NavSurface, p: np.ndarray, max_dist: float = np.inf):
+    """(sample index, surface point) closest to p within max_dist, or (-1, None)."""
+    if s.n_samples == 0:
+        return -1, None
+    c = s.cell_size
+    ix, iz = _columns(s, p[0], p[2])
+    r = _RING if not math.isfinite(max_dist) else min(_RING, int(math.ceil(max_dist / c)))
+    idx = _window(s, ix - r, ix + r, iz - r, iz + r)
+    best, bp, bd = -1, None, np.inf
+    if len(idx):
+        q = _snap(s, idx, p)
+        d = np.linalg.norm(q - p, axis=1)
+        k = int(np.argmin(d))
+        best, bp, bd = int(idx[k]), q[k], float(d[k])
+    if bd > (r + 0.5) * c and bd > 0:  # something outside the window may be closer
+        dist, k = _kdtree(s).query(p, k=1, distance_upper_bound=min(bd, max_dist))
+        if np.isfinite(dist) and dist < bd:
+            best, bp, bd = int(k), s.positions[k].astype(np.float64), float(dist)
+    if best < 0 or bd > max_dist:
+        return -1, None
+    return best, bp
+
+
+def _members(s: NavSurface):
+    """CSR coarse node -> samples (order, indptr)."""
+    m = s._cache.get("members")
+    if m is None:
+        order = np.argsort(s.coarse_of, kind="stable")
+        indptr = np.zeros(len(s.coarse_rep) + 1, dtype=np.int64)
+        np.cumsum(np.bincount(s.coarse_of, minlength=len(s.coarse_rep)), out=indptr[1:])
+        m = (order, indptr)
+        s._cache["members"] = m
+    return m
+
+
+def _coarse_lists(s: NavSurface):
+    c = s._cache.get("coarse_lists")
+    if c is None:
+        c = (s.coarse_indptr.tolist(), s.coarse_indices.tolist(),
+             s.positions[s.coarse_rep].astype(np.float64).tolist())
+        s._cache["coarse_lists"] = c
+    return c
+
+
+# --------------------------------------------------------------------------- public queries
+def nearest(s: NavSurface, p, max_dist: float = np.inf) -> np.ndarray | None:
+    """The walkable surface point closest to p (3D), like Unity's NavMesh.SamplePosition.
+
+    p : (3,) world. Returns (3,) float64, or None when nothing is within max_dist."""
+    _, q = _nearest_sample(s, _pt(p), max_dist)
+    return None if q is None else q.copy()
+
+
+def component_of(s: NavSurface, p) -> int:
+    """Component label of the surface near p (the nearest sample), -1 when the surface is empty."""
+    k, _ = _nearest_sample(s, _pt(p))
+    return -1 if k < 0 else int(s.component[k])
+
+
+def _locate(s: NavSurface, points: np.ndarray, tol: float):
+    """Per point: the sample of its column whose plane height is closest, and that height;
+    (-1, NaN) when none is within tol vertically."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    n = len(pts)
+    best = np.full(n, -1, dtype=np.int64)
+    besth = np.full(n, np.nan)
+    bestd = np.full(n, np.inf)
+    if n == 0 or s.n_samples == 0:
+        return best, besth
+    nx, nz = s.shape
+    ix, iz = _columns(s, pts[:, 0], pts[:, 2])
+    ok = (ix >= 0) & (ix < nx) & (iz >= 0) & (iz < nz)
+    sel = np.nonzero(ok)[0]
+    col = ix[sel] * nz + iz[sel]
+    a = s.col_start[col]
+    cnt = s.col_start[col + 1] - a
+    k = 0
+    while True:
+        m = cnt > k
+        if not m.any():
+            break
+        j = sel[m]
+        cand = a[m] + k
+        h = _plane_y(s, cand, pts[j, 0], pts[j, 2])
+        d = np.abs(h - pts[j, 1])
+        better = (d < bestd[j]) & (d <= tol)
+        best[j[better]] = cand[better]
+        besth[j[better]] = h[better]
+        bestd[j[better]] = d[better]
+        k += 1
+    return best, besth
+
+
+def _default_tol(s: NavSurface) -> float:
+    return max(0.5 * s.step_height, 1e-3 * s.cell_size, 1e-6)
+
+
+def is_walkable(s: NavSurface, points, tol: float | None = None) -> np.ndarray:
+    """(n,) bool: each point lies within `tol` metres (vertically) of a walkable sample's
+    surface in its column. Default tol: half the step height."""
+    tol = _default_tol(s) if tol is None else float(tol)
+    return _locate(s, points, tol)[0] >= 0
+
+
+def surface_height(s: NavSurface, points, tol: float = np.inf) -> np.ndarray:
+    """(n,) height of the walkable layer closest (vertically) to each point, NaN if none
+    within tol or off the surface."""
+    return _locate(s, points, tol)[1]
+
+
+def random_point_near(s: NavSurface, p, radius: float,
+                      rng: np.random.Generator) -> np.ndarray | None:
+    """A random walkable point within `radius` (3D) of p, in the component of the surface
+    nearest p (so reachable from there), uniform by surface area: a sample is drawn with
+    weight 1 / normal_y, then jittered inside its cell and put on its tangent plane.
+    Returns (3,) float64, or None when no such point exists."""
+    p = _pt(p)
+    s0, _ = _nearest_sample(s, p)
+    if s0 < 0 or not radius > 0:
+        return None
+    comp = s.component[s0]
+    c = s.cell_size
+    ix0, iz0 = _columns(s, p[0] - radius, p[2] - radius)
+    ix1, iz1 = _columns(s, p[0] + radius, p[2] + radius)
+    idx = _window(s, ix0, ix1, iz0, iz1)
+    if len(idx) == 0:
+        return None
+    idx = idx[s.component[idx] == comp]
+    pos = s.positions[idx].astype(np.float64)
+    d2 = np.einsum("ij,ij->i", pos - p, pos - p)
+    idx = idx[d2 <= radius * radius]
+    if len(idx) == 0:
+        return None
+    w = np.cumsum(1.0 / s.normals[idx, 1].astype(np.float64))
+    for _ in range(16):
+        k = idx[min(int(np.searchsorted(w, rng.random() * w[-1], side="right")), len(idx) - 1)]
+        q = s.positions[k].astype(np.float64)
+        jx, jz = (rng.random(2) - 0.5) * c * 0.999
+        q[0] += jx
+        q[2] += jz
+        q[1] = _plane_y(s, k, q[0], q[2])
+        if np.dot(q - p, q - p) <= radius * radius:
+            return q
+    return s.positions[k].astype(np.float64)
+
+
+def _walk(s: NavSurface, s0: int, a: np.ndarray, b: np.ndarray, s1: int = -1):
+    """Follow links from sample s0 (whose column holds a) along the straight XZ segment a-b.
+    Returns the sample reached in b's column, or -1 when a column on the way has no linked
+    sample on this layer (or the end is not s1 when s1 >= 0)."""
+    c = s.cell_size
+    L = math.hypot(b[0] - a[0], b[2] - a[2])
+    n = int(math.ceil(L / (0.25 * c))) + 1
+    t = np.linspace(0.0, 1.0, n + 1)
+    ix, iz = _columns(s, a[0] + t * (b[0] - a[0]), a[2] + t * (b[2] - a[2]))
+    dx, dz = np.diff(ix), np.diff(iz)
+    m = (dx != 0) | (dz != 0)
+    dirs = _DIR_OF[dx[m] + 1, dz[m] + 1]
+    cur = int(s0)
+    if ix[0] != s.cells[cur, 0] or iz[0] != s.cells[cur, 1]:
+        return -1
+    links = s.links
+    for d in dirs.tolist():
+        cur = int(links[cur, d])
+        if cur < 0:
+            return -1
+    if s1 >= 0 and cur != s1:
+        return -1
+    return cur
+
+
+def segment_visible(s: NavSurface, a, b) -> bool:
+    """True when the straight segment from a to b (both near the surface) stays on linked
+    walkable samples of one layer: an agent can walk it straight."""
+    a, b = _pt(a), _pt(b)
+    ka, _ = _locate(s, a[None], max(s.step_height, s.cell_size))
+    kb, _ = _locate(s, b[None], max(s.step_height, s.cell_size))
+    if ka[0] < 0 or kb[0] < 0:
+        return False
+    return _walk(s, int(ka[0]), a, b, int(kb[0])) >= 0
+
+
+def _closest_in_component(s: NavSurface, comp: int, b: np.ndarray) -> int:
+    reps = s.coarse_rep
+    rc = np.nonzero(s.component[reps] == comp)[0]
+    rp = s.positions[reps[rc]].astype(np.float64)
+    d = np.linalg.norm(rp - b, axis=1)
+    slack = 2.0 * s.coarse_factor * s.cell_size * math.sqrt(2.0) + s.coarse_factor * s.step_height
+    near = rc[d <= d.min() + 2 * slack]
+    order, indptr = _members(s)
+    idx = np.concatenate([order[indptr[u]:indptr[u + 1]] for u in near.tolist()])
+    dd = np.linalg.norm(s.positions[idx].astype(np.float64) - b, axis=1)
+    return int(idx[int(np.argmin(dd))])
+
+
+def _coarse_astar(s: NavSurface, u0: int, u1: int) -> list[int] | None:
+    indptr, indices, pos = _coarse_lists(s)
+    gx, gy, gz = pos[u1]
+    sqrt = math.sqrt
+    g = {u0: 0.0}
+    parent = {u0: -1}
+    ux, uy, uz = pos[u0]
+    heap = [(sqrt((ux - gx) ** 2 + (uy - gy) ** 2 + (uz - gz) ** 2), 0.0, u0)]
+    closed = set()
+    while heap:
+        _, gu, u = heapq.heappop(heap)
+        if u == u1:
+            out = [u]
+            while parent[out[-1]] >= 0:
+                out.append(parent[out[-1]])
+            return out[::-1]
+        if u in closed:
+            continue
+        closed.add(u)
+        ux, uy, uz = pos[u]
+        for v in indices[indptr[u]:indptr[u + 1]]:
+            if v in closed:
+                continue
+            vx, vy, vz = pos[v]
+            ng = gu + sqrt((vx - ux) ** 2 + (vy - uy) ** 2 + (vz - uz) ** 2)
+            if ng < g.get(v, math.inf):
+                g[v] = ng
+                parent[v] = u
+                h = sqrt((vx - gx) ** 2 + (vy - gy) ** 2 + (vz - gz) ** 2)
+                heapq.heappush(heap, (ng + h, ng, v))
+    return None
+
+
+def _fine_astar(s: NavSurface, a: int, b: int, allowed: set[int]) -> list[int] | None:
+    """A* over sample links, restricted to samples whose coarse node is in `allowed`."""
+    pos = s.positions
+    co = s.coarse_of
+    links = s.links
+    goal = pos[b].astype(np.float64)
+    g = {a: 0.0}
+    parent = {a: -1}
+    heap = [(0.0, 0.0, a)]
+    closed = set()
+    while heap:
+        _, gu, u = heapq.heappop(heap)
+        if u == b:
+            out = [u]
+            while parent[out[-1]] >= 0:
+                out.append(parent[out[-1]])
+            return out[::-1]
+        if u in closed:
+            continue
+        closed.add(u)
+        pu = pos[u].astype(np.float64)
+        for v in links[u].tolist():
+            if v < 0 or v in closed or int(co[v]) not in allowed:
+                continue
+            pv = pos[v].astype(np.float64)
+            ng = gu + float(np.linalg.norm(pv - pu))
+            if ng < g.get(v, math.inf):
+                g[v] = ng
+                parent[v] = u
+                heapq.heappush(heap, (ng + float(np.linalg.norm(goal - pv)), ng, v))
+    return None
+
+
+def find_path(s: NavSurface, a, b) -> PathResult:
+    """Path from a to b on the surface.
+
+    A* over the coarse graph (connected groups of samples in blocks of columns), whose
+    representatives are linked by straight walks on the fine links (fine A* fills any gap),
+    then line-of-sight smoothing (string pulling): consecutive points are mutually visible on
+    the surface (the straight segment stays on linked samples of one layer). Points lie on
+    the surface. When b is not reachable from a, the path ends at the reachable point closest
+    to b and complete is False. When a is not near any surface, points is just [a].
+    """
+    a, b = _pt(a), _pt(b)
+    sa, pa = _nearest_sample(s, a)
+    if sa < 0:
+        return PathResult(a[None].copy(), False)
+    sb, pb = _nearest_sample(s, b)
+    complete = True
+    if sb < 0 or s.component[sb] != s.component[sa]:
+        sb = _closest_in_component(s, int(s.component[sa]), b)
+        pb = s.positions[sb].astype(np.float64)
+        complete = False
+    if sa == sb or _walk(s, sa, pa, pb, sb) >= 0:
+        pts = [pa] if np.array_equal(pa, pb) else [pa, pb]
+        return PathResult(np.array(pts), complete)
+    cpath = _coarse_astar(s, int(s.coarse_of[sa]), int(s.coarse_of[sb]))
+    if cpath is None:  # cannot happen on a consistent surface; keep the contract anyway
+        return PathResult(pa[None].copy(), False)
+    reps = s.coarse_rep
+    chain_s = [sa] + [int(reps[u]) for u in cpath[1:-1]] + [sb]
+    chain_p = [pa] + [s.positions[k].astype(np.float64) for k in chain_s[1:-1]] + [pb]
+    # make consecutive chain points mutually visible (fine A* inside the two blocks)
+    fs, fp = [chain_s[0]], [chain_p[0]]
+    for i in range(1, len(chain_s)):
+        if _walk(s, fs[-1], fp[-1], chain_p[i], chain_s[i]) < 0:
+            centre = s.positions[fs[-1]].astype(np.float64)
+            if not np.array_equal(fp[-1], centre):  # leave an off-centre start via its centre
+                fs.append(fs[-1])
+                fp.append(centre)
+            allowed = {int(s.coarse_of[fs[-1]]), int(s.coarse_of[chain_s[i]])}
+            sub = _fine_astar(s, fs[-1], chain_s[i], allowed)
+            if sub is None:  # pragma: no cover - groups are connected by construction
+                sub = _fine_astar(s, fs[-1], chain_s[i], set(range(len(reps))))
+            for k in sub[1:-1]:
+                fs.append(k)
+                fp.append(s.positions[k].astype(np.float64))
+            if len(sub) >= 2 and _walk(s, fs[-1], fp[-1], chain_p[i], chain_s[i]) < 0:
+                # the end point is off-centre in its cell: step through the centre
+                fs.append(chain_s[i])
+                fp.append(s.positions[chain_s[i]].astype(np.float64))
+        fs.append(chain_s[i])
+        fp.append(chain_p[i])
+    # string pulling: greedily jump to the farthest point visible from the anchor
+    out_p = [fp[0]]
+    anchor = 0
+    m = len(fs)
+    while anchor < m - 1:
+        j = anchor + 1
+        while j + 1 < m and _walk(s, fs[anchor], fp[anchor], fp[j + 1], fs[j + 1]) >= 0:
+            j += 1
+        out_p.append(fp[j])
+        anchor = j
+    pts = np.array(out_p)
+    keep = np.ones(len(pts), dtype=bool)
+    keep[1:] = np.any(np.abs(np.diff(pts, axis=0)) > 0, axis=1)
+    return PathResult(pts[keep], complete)
