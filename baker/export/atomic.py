@@ -53,6 +53,22 @@ def _unlink(p: Path) -> None:
         pass
 
 
+def check_writable(folder: Path) -> None:
+    """ExportError (one line) unless `folder` exists and a file can be created in it.
+
+    Call it before a long bake so an unwritable output folder fails early.
+    """
+    folder = Path(folder) if str(folder) else Path(".")
+    if not folder.is_dir():
+        raise ExportError(f"output folder {folder} does not exist")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".baker-write-test.", dir=folder)
+    except OSError as e:
+        raise ExportError(f"output folder {folder} is not writable: {e.strerror or e}") from None
+    os.close(fd)
+    _unlink(Path(tmp))
+
+
 def atomic_write_bytes(path: Path, data: bytes) -> None:
     """Write `data` to `path` atomically. ExportError (one line) when it cannot be written."""
     path = Path(path)

@@ -1,0 +1,226 @@
+"""USD writer (usd-core): environment, sun and the UsdSkel centipede, written atomically.
+
+Stage layout (defaultPrim /World):
+
+    /World                         Xform; customData carries the bake's extras
+      Environment/<mesh>           Mesh, displayColor, UsdPreviewSurface material
+      Sun                          DistantLight, local -Z along the light
+      Centipede                    SkelRoot
+        Skeleton                   joints as paths, bindTransforms (world), restTransforms (local)
+        Animation                  SkelAnimation, time samples keyed by frame number
+        body, legs                 skinned Meshes (one per material)
+      Debug/<name>                 optional overlay meshes
+      Looks/<material>             Materials
+
+This is the only module that converts xyzw quaternions to USD's (w, x, y, z): Vt.QuatfArray's
+memory layout is (x, y, z, w), so FromNumpy takes xyzw arrays directly; Gf.Quatf(w, x, y, z) takes
+the real part first.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from baker.clip import Clip
+from baker.environment.model import Environment
+from baker.errors import ExportError
+from baker.export import jsonable, light_rotation, safe_name, unit_normals, vertex_normals
+from baker.export.atomic import atomic_output
+from baker.rig.build import Rig
+
+
+def _pxr():
+    from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdSkel, Vt
+
+    return Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdSkel, Vt
+
+
+def _matrices(m: np.ndarray):
+    """(n, 4, 4) column-vector matrices -> Vt.Matrix4dArray (USD's row-vector layout)."""
+    from pxr import Vt
+
+    return Vt.Matrix4dArray.FromNumpy(np.ascontiguousarray(np.transpose(m, (0, 2, 1)), np.float64))
+
+
+def _custom_data_value(v):
+    """USD customData holds dict/str/int/float/bool; anything else becomes a JSON string."""
+    if isinstance(v, bool) or v is None:
+        return v if v is not None else "null"
+    if isinstance(v, (int, float, str)):
+        return v
+    if isinstance(v, dict):
+        return {str(k): _custom_data_value(x) for k, x in v.items()}
+    return json.dumps(v, separators=(",", ":"), allow_nan=False)
+
+
+def _material(stage, looks_path, name: str, rgb, opacity: float, metallic: float,
+              roughness: float):
+    _, Sdf, _, _, _, UsdShade, _, _ = _pxr()
+    from pxr import Gf
+
+    mat = UsdShade.Material.Define(stage, looks_path.AppendChild(name))
+    shader = UsdShade.Shader.Define(stage, mat.GetPath().AppendChild("PreviewSurface"))
+    shader.CreateIdAttr("UsdPreviewSurface")
+    shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(
+        Gf.Vec3f(*[float(np.clip(c, 0, 1)) for c in rgb[:3]]))
+    shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(float(np.clip(metallic, 0, 1)))
+    shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(np.clip(roughness, 0, 1)))
+    if opacity < 1.0:
+        shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(float(opacity))
+    mat.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+    return mat
+
+
+def _mesh(stage, path, vertices, faces, normals, rgba, material, double_sided: bool):
+    Gf, Sdf, _, UsdGeom, _, UsdShade, _, Vt = _pxr()
+    v = np.ascontiguousarray(vertices, dtype=np.float32).reshape(-1, 3)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if not len(v) or not len(f):
+        raise ExportError(f"mesh {path.name!r} has no vertices or no faces")
+    if f.min() < 0 or f.max() >= len(v):
+        raise ExportError(f"mesh {path.name!r} has face indices out of range")
+    if not np.all(np.isfinite(v)):
+        raise ExportError(f"mesh {path.name!r} has non-finite vertices")
+    n = vertex_normals(v, f) if normals is None else unit_normals(normals)
+    mesh = UsdGeom.Mesh.Define(stage, path)
+    mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(v))
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(f), 3, dtype=np.int32)))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(f.astype(np.int32).reshape(-1)))
+    mesh.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(n))
+    mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+    mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    mesh.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
+    mesh.CreateDoubleSidedAttr(bool(double_sided))
+    mesh.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, v.min(0))),
+                                         Gf.Vec3f(*map(float, v.max(0)))]))
+    mesh.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*[float(c) for c in rgba[:3]])]))
+    if len(rgba) > 3 and rgba[3] < 1.0:
+        mesh.CreateDisplayOpacityAttr(Vt.FloatArray([float(rgba[3])]))
+    UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(material)
+    return mesh
+
+
+def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dict,
+                debug_meshes: Sequence = ()):
+    """The scene as an in-memory Usd.Stage (see the module docstring for its layout)."""
+    Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdSkel, Vt = _pxr()
+    if fps <= 0:
+        raise ExportError(f"fps must be > 0 (got {fps})")
+    skel = rig.skeleton
+    f_count, j_count = clip.translations.shape[:2]
+    if j_count != skel.n_joints:
+        raise ExportError(f"clip has {j_count} joints, the skeleton {skel.n_joints}")
+    if f_count == 0:
+        raise ExportError("the clip has no frames")
+
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    stage.SetTimeCodesPerSecond(float(fps))
+    stage.SetFramesPerSecond(float(fps))
+    stage.SetStartTimeCode(0.0)
+    stage.SetEndTimeCode(float(f_count - 1))
+
+    world = UsdGeom.Xform.Define(stage, "/World")
+    stage.SetDefaultPrim(world.GetPrim())
+    Usd.ModelAPI(world.GetPrim()).SetKind("assembly")
+    for k, v in jsonable(dict(extras)).items():
+        world.GetPrim().SetCustomDataByKey(str(k), _custom_data_value(v))
+    looks = UsdGeom.Scope.Define(stage, "/World/Looks").GetPath()
+    mat_names: set[str] = set()
+
+    # -- environment
+    env_path = UsdGeom.Xform.Define(stage, "/World/Environment").GetPath()
+    taken: set[str] = set()
+    for m in env.meshes:
+        nm = safe_name(m.name, taken, "env_mesh")
+        rgba = tuple(float(c) for c in m.color)
+        mat = _material(stage, looks, safe_name(nm, mat_names), rgba, 1.0, m.metallic, m.roughness)
+        _mesh(stage, env_path.AppendChild(nm), m.vertices, m.faces, m.normals, rgba, mat,
+              double_sided=True)
+
+    # -- sun: DistantLight shines along its local -Z
+    sun = env.sun
+    light = UsdLux.DistantLight.Define(stage, "/World/Sun")
+    q = light_rotation(sun.direction)
+    light.AddOrientOp().Set(Gf.Quatf(float(q[3]), float(q[0]), float(q[1]), float(q[2])))
+    light.CreateIntensityAttr().Set(float(sun.intensity))
+    light.CreateColorAttr().Set(Gf.Vec3f(*[float(c) for c in sun.color]))
+
+    # -- the creature
+    root = UsdSkel.Root.Define(stage, "/World/Centipede")
+    Usd.ModelAPI(root.GetPrim()).SetKind("component")
+    sk = UsdSkel.Skeleton.Define(stage, "/World/Centipede/Skeleton")
+    joints = Vt.TokenArray(list(skel.joint_paths()))
+    sk.CreateJointsAttr(joints)
+    sk.CreateJointNamesAttr(Vt.TokenArray(list(skel.names)))
+    sk.CreateBindTransformsAttr(_matrices(skel.world_bind()))
+    sk.CreateRestTransformsAttr(_matrices(skel.local_rest_matrices()))
+
+    anim = UsdSkel.Animation.Define(stage, "/World/Centipede/Animation")
+    anim.CreateJointsAttr(joints)
+    t_attr = anim.CreateTranslationsAttr()
+    r_attr = anim.CreateRotationsAttr()
+    s_attr = anim.CreateScalesAttr()
+    tr = np.ascontiguousarray(clip.translations, dtype=np.float32)
+    rot = np.ascontiguousarray(clip.rotations, dtype=np.float32)      # xyzw == GfQuatf memory
+    sc = np.ascontiguousarray(clip.scales, dtype=np.float16)
+    with Sdf.ChangeBlock():
+        for f in range(f_count):
+            tc = Usd.TimeCode(float(f))
+            t_attr.Set(Vt.Vec3fArray.FromNumpy(tr[f]), tc)
+            r_attr.Set(Vt.QuatfArray.FromNumpy(rot[f]), tc)
+            s_attr.Set(Vt.Vec3hArray.FromNumpy(sc[f]), tc)
+    UsdSkel.BindingAPI.Apply(sk.GetPrim()).CreateAnimationSourceRel().SetTargets([anim.GetPath()])
+
+    mesh = rig.mesh
+    identity = Gf.Matrix4d(1.0)
+    for mi, (mname, rgb) in enumerate(mesh.materials):
+        used, faces = mesh.submesh(mi)
+        if not len(faces):
+            continue
+        nm = safe_name(mname, taken | {"Skeleton", "Animation"}, "part")
+        mat = _material(stage, looks, safe_name(f"centipede_{mname}", mat_names), rgb, 1.0,
+                        0.0, 0.6)
+        m = _mesh(stage, root.GetPath().AppendChild(nm), mesh.vertices[used], faces,
+                  mesh.normals[used], tuple(rgb), mat, double_sided=False)
+        binding = UsdSkel.BindingAPI.Apply(m.GetPrim())
+        binding.CreateSkeletonRel().SetTargets([sk.GetPath()])
+        binding.CreateJointIndicesPrimvar(False, 4).Set(
+            Vt.IntArray.FromNumpy(mesh.joints[used].astype(np.int32).reshape(-1)))
+        binding.CreateJointWeightsPrimvar(False, 4).Set(
+            Vt.FloatArray.FromNumpy(mesh.weights[used].astype(np.float32).reshape(-1)))
+        binding.CreateGeomBindTransformAttr(identity)
+
+    # -- debug overlays
+    if debug_meshes:
+        dbg = UsdGeom.Scope.Define(stage, "/World/Debug").GetPath()
+        dtaken: set[str] = set()
+        for name, verts, faces, rgba in debug_meshes:
+            nm = safe_name(name, dtaken, "debug")
+            rgba = tuple(float(c) for c in rgba) + (1.0,) * (4 - len(rgba))
+            mat = _material(stage, looks, safe_name(f"debug_{nm}", mat_names), rgba, rgba[3],
+                            0.0, 1.0)
+            _mesh(stage, dbg.AppendChild(nm), verts, faces, None, rgba, mat, double_sided=True)
+    return stage
+
+
+def write_usd(path: Path, env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dict,
+              debug_meshes: Sequence = ()) -> None:
+    """Write the stage to `path`: `.usda` gives text, `.usd`/`.usdc` crate (binary).
+
+    Written to a temporary file in the same folder and renamed, so a failure leaves any previous
+    file intact. ExportError when the folder is missing or unwritable.
+    """
+    path = Path(path)
+    if path.suffix not in (".usd", ".usda", ".usdc"):
+        raise ExportError(f"cannot write {path}: USD output needs a .usd, .usda or .usdc suffix")
+    stage = build_stage(env, rig, clip, fps=fps, extras=extras, debug_meshes=debug_meshes)
+    with atomic_output(path) as tmp:
+        args = {"format": "usdc"} if path.suffix == ".usd" else {}
+        if not stage.GetRootLayer().Export(str(tmp), args=args):
+            raise ExportError(f"cannot write {path}: USD export failed")

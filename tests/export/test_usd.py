@@ -1,0 +1,166 @@
+"""USD writer: UsdValidation, UsdSkel read-back against the GLB, metadata, determinism."""
+
+import json
+
+import numpy as np
+import pytest
+from glb_read import Glb
+from validator import usd_issues, usd_validate
+
+from baker.errors import ExportError
+from baker.export.gltf import build_glb
+from baker.export.usd import write_usd
+from baker.geometry.transforms import quat_rotate, trs_to_matrix
+
+pxr = pytest.importorskip("pxr")
+from pxr import Usd, UsdGeom, UsdLux, UsdSkel  # noqa: E402
+
+NAV = ("navmesh", np.array([[0, 0.001, 0], [0.5, 0.001, 0], [0, 0.001, 0.5]]),
+       np.array([[0, 2, 1]]), (0.1, 0.6, 1.0, 0.5))
+
+
+@pytest.fixture(scope="module", params=[".usd", ".usda"])
+def usd_path(request, tmp_path_factory, small_env, rig, clip, bake_extras):
+    path = tmp_path_factory.mktemp("usd") / f"centipede{request.param}"
+    write_usd(path, small_env, rig, clip, fps=30, extras=bake_extras, debug_meshes=(NAV,))
+    return path
+
+
+@pytest.fixture(scope="module")
+def stage(usd_path):
+    return Usd.Stage.Open(str(usd_path))
+
+
+def test_file_format_follows_the_suffix(usd_path):
+    head = usd_path.read_bytes()[:8]
+    assert head == (b"PXR-USDC" if usd_path.suffix == ".usd" else b"#usda 1.")
+
+
+def test_usd_validation_zero_errors(stage):
+    assert usd_validate(stage) == []
+    # and nothing else either (warnings/notes) at the time of writing
+    assert [(e.GetName(), e.GetMessage()) for e in usd_issues(stage)] == []
+
+
+def test_stage_metadata(stage, clip):
+    assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.y
+    assert UsdGeom.GetStageMetersPerUnit(stage) == 1.0
+    assert stage.GetTimeCodesPerSecond() == 30 and stage.GetFramesPerSecond() == 30
+    assert stage.GetStartTimeCode() == 0 and stage.GetEndTimeCode() == clip.n_frames - 1
+    assert stage.GetDefaultPrim().GetPath() == "/World"
+
+
+def test_prims(stage, rig, small_env):
+    for p in ("/World/Environment/ground", "/World/Environment/rock_1", "/World/Environment/log_A",
+              "/World/Debug/navmesh", "/World/Centipede/body", "/World/Centipede/legs"):
+        mesh = UsdGeom.Mesh(stage.GetPrimAtPath(p))
+        assert mesh, p
+        assert mesh.GetSubdivisionSchemeAttr().Get() == "none"
+        assert mesh.GetNormalsAttr().HasValue()
+        assert mesh.GetDisplayColorAttr().HasValue()
+    assert stage.GetPrimAtPath("/World/Centipede").IsA(UsdSkel.Root)
+    light = UsdLux.DistantLight(stage.GetPrimAtPath("/World/Sun"))
+    m = np.array(light.ComputeLocalToWorldTransform(0)).T          # column-vector convention
+    np.testing.assert_allclose(m[:3, :3] @ [0, 0, -1], -small_env.sun.direction, atol=1e-6)
+
+
+def test_skeleton_and_binding(stage, rig):
+    skel = UsdSkel.Skeleton(stage.GetPrimAtPath("/World/Centipede/Skeleton"))
+    assert list(skel.GetJointsAttr().Get()) == list(rig.skeleton.joint_paths())
+    bind = np.array(skel.GetBindTransformsAttr().Get()).transpose(0, 2, 1)
+    np.testing.assert_allclose(bind, rig.skeleton.world_bind(), atol=1e-12)
+    rest = np.array(skel.GetRestTransformsAttr().Get()).transpose(0, 2, 1)
+    np.testing.assert_allclose(rest, rig.skeleton.local_rest_matrices(), atol=1e-12)
+    src = UsdSkel.BindingAPI(skel.GetPrim()).GetAnimationSourceRel().GetTargets()
+    assert [str(p) for p in src] == ["/World/Centipede/Animation"]
+    total = 0
+    for name in ("body", "legs"):
+        prim = stage.GetPrimAtPath(f"/World/Centipede/{name}")
+        assert prim.HasAPI(UsdSkel.BindingAPI)
+        b = UsdSkel.BindingAPI(prim)
+        ji, jw = b.GetJointIndicesPrimvar(), b.GetJointWeightsPrimvar()
+        assert ji.GetElementSize() == 4 and jw.GetElementSize() == 4
+        assert ji.GetInterpolation() == "vertex" and jw.GetInterpolation() == "vertex"
+        w = np.array(jw.Get()).reshape(-1, 4)
+        assert np.all(np.abs(w.sum(1) - 1) <= 2e-7)
+        assert np.array(b.GetGeomBindTransformAttr().Get()).tolist() == np.eye(4).tolist()
+        assert [str(p) for p in b.GetSkeletonRel().GetTargets()] == ["/World/Centipede/Skeleton"]
+        total += len(w)
+    assert total == len(rig.mesh.vertices)
+    anim = UsdSkel.Animation(stage.GetPrimAtPath("/World/Centipede/Animation"))
+    assert anim.GetRotationsAttr().GetTypeName() == "quatf[]"
+    assert anim.GetScalesAttr().GetTypeName() == "half3[]"
+    assert anim.GetTranslationsAttr().GetTypeName() == "float3[]"
+
+
+def _usd_local(stage, n_frames):
+    cache = UsdSkel.Cache()
+    root = UsdSkel.Root(stage.GetPrimAtPath("/World/Centipede"))
+    cache.Populate(root, Usd.TraverseInstanceProxies())
+    skel = UsdSkel.Skeleton(stage.GetPrimAtPath("/World/Centipede/Skeleton"))
+    query = cache.GetSkelQuery(skel)
+    anim_query = query.GetAnimQuery()
+    assert anim_query
+    assert list(anim_query.GetJointTransformTimeSamples()) == list(range(n_frames))
+    return np.stack([np.array(anim_query.ComputeJointLocalTransforms(Usd.TimeCode(f))).transpose(0, 2, 1)
+                     for f in range(n_frames)])
+
+
+def test_usd_joint_transforms_match_glb(stage, small_env, rig, clip, bake_extras):
+    usd_m = _usd_local(stage, clip.n_frames)                       # (F, J, 4, 4) column vectors
+    glb = Glb(build_glb(small_env, rig, clip, extras=bake_extras))
+    tracks = glb.animation_tracks()
+    t = np.stack([tracks[(n, "translation")][1] for n in rig.skeleton.names], 1).astype(np.float64)
+    q = np.stack([tracks[(n, "rotation")][1] for n in rig.skeleton.names], 1).astype(np.float64)
+    glb_m = trs_to_matrix(t, q)
+    err = np.abs(usd_m - glb_m).max()
+    assert err < 1e-4, err
+
+
+def test_usd_skinning_poses_the_mesh_on_the_trajectory(stage, rig, trajectory):
+    # world-space joint transforms from UsdSkel put the head where the trajectory says
+    cache = UsdSkel.Cache()
+    root = UsdSkel.Root(stage.GetPrimAtPath("/World/Centipede"))
+    cache.Populate(root, Usd.TraverseInstanceProxies())
+    query = cache.GetSkelQuery(UsdSkel.Skeleton(stage.GetPrimAtPath("/World/Centipede/Skeleton")))
+    for f in (0, trajectory.n_frames // 2, trajectory.n_frames - 1):
+        xf = np.array(query.ComputeJointSkelTransforms(Usd.TimeCode(f))).transpose(0, 2, 1)
+        np.testing.assert_allclose(xf[:, :3, 3], trajectory.spine_positions[f], atol=1e-5)
+
+
+def test_extras_as_custom_data(stage):
+    cd = stage.GetPrimAtPath("/World").GetCustomData()
+    assert cd["seed"] == 7 and cd["rig"] == "scolopendra"
+    assert json.loads(cd["timeline"])[0]["state"] == "wander"
+    assert json.loads(cd["events"]) == []
+
+
+def test_usda_is_deterministic(tmp_path, small_env, rig, clip, bake_extras):
+    a, b = tmp_path / "a.usda", tmp_path / "b.usda"
+    for p in (a, b):
+        write_usd(p, small_env, rig, clip, fps=30, extras=bake_extras)
+    assert a.read_bytes() == b.read_bytes()
+
+
+def test_usdc_is_deterministic(tmp_path, small_env, rig, clip, bake_extras):
+    a, b = tmp_path / "a.usd", tmp_path / "b.usd"
+    for p in (a, b):
+        write_usd(p, small_env, rig, clip, fps=30, extras=bake_extras)
+    assert a.read_bytes() == b.read_bytes()
+
+
+def test_write_usd_errors(tmp_path, small_env, rig, clip):
+    with pytest.raises(ExportError):
+        write_usd(tmp_path / "missing" / "x.usd", small_env, rig, clip, fps=30, extras={})
+    with pytest.raises(ExportError):
+        write_usd(tmp_path / "x.abc", small_env, rig, clip, fps=30, extras={})
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_quaternion_order_round_trips(stage, clip):
+    anim = UsdSkel.Animation(stage.GetPrimAtPath("/World/Centipede/Animation"))
+    rots = anim.GetRotationsAttr().Get(Usd.TimeCode(5))
+    q = rots[3]
+    np.testing.assert_allclose([*q.GetImaginary(), q.GetReal()], clip.rotations[5, 3], atol=0)
+    v = quat_rotate(clip.rotations[5, 3].astype(float), np.array([0.0, 0, 1]))
+    assert np.isfinite(v).all()
