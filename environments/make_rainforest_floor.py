@@ -82,7 +82,8 @@ class Ground:
         n = 7
         self.wavelength = rng.uniform(3.0, 9.0, n)
         ang = rng.uniform(0.0, 2.0 * np.pi, n)
-        self.k = np.stack([np.cos(ang), np.sin(ang)], axis=1) * (2 * np.pi / self.wavelength)[:, None]
+        wavenumber = 2 * np.pi / self.wavelength
+        self.k = np.stack([np.cos(ang), np.sin(ang)], axis=1) * wavenumber[:, None]
         self.amp = self.wavelength * rng.uniform(0.004, 0.008, n)  # slope per wave <= 0.05
         self.phase = rng.uniform(0.0, 2.0 * np.pi, n)
         r_ang = rng.uniform(0.0, 2.0 * np.pi, 3)

@@ -574,7 +574,7 @@ def _read_usd(path: Path):
     time = Usd.TimeCode.EarliestTime()
     cache = UsdGeom.XformCache(time)
     raw, suns = [], []
-    for prim in stage.Traverse():
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
         if prim.IsA(UsdGeom.Imageable):
             img = UsdGeom.Imageable(prim)
             if img.ComputeVisibility(time) == UsdGeom.Tokens.invisible:

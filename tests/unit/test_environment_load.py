@@ -346,6 +346,68 @@ def test_usd_unauthored_units_are_centimetres(tmp_path):
     _same_point_set(env.meshes[0].vertices, [[0, 0, 0], [1, 0, 0], [0, 0, 1]])
 
 
+def test_usd_instances_are_expanded(tmp_path):
+    p = tmp_path / "inst.usda"
+    p.write_text("""#usda 1.0
+(
+    metersPerUnit = 1
+    upAxis = "Y"
+)
+class "Proto"
+{
+    def Mesh "tri"
+    {
+        int[] faceVertexCounts = [3]
+        int[] faceVertexIndices = [0, 1, 2]
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 0, 1)]
+    }
+}
+def Xform "A" (instanceable = true
+    references = </Proto>)
+{
+    double3 xformOp:translate = (5, 0, 0)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+def Xform "B" (instanceable = true
+    references = </Proto>)
+{
+    double3 xformOp:translate = (-5, 0, 0)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+""")
+    env = load_environment(p)
+    _assert_env(env, 2)
+    xs = sorted(float(m.vertices[:, 0].min()) for m in env.meshes)
+    assert xs == [-5.0, 5.0]
+
+
+def test_gltf_json_with_data_uri_and_external_bin(tmp_path):
+    import base64
+
+    pos = np.asarray(QUAD, np.float32)
+    idx = np.asarray(QUAD_IDX, np.uint16)
+    (tmp_path / "idx.bin").write_bytes(idx.tobytes())
+    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+           "nodes": [{"name": "q", "mesh": 0, "translation": [0, 3, 0]}],
+           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+           "buffers": [{"byteLength": pos.nbytes, "uri": "data:application/octet-stream;base64,"
+                        + base64.b64encode(pos.tobytes()).decode()},
+                       {"byteLength": idx.nbytes, "uri": "idx.bin"}],
+           "bufferViews": [{"buffer": 0, "byteLength": pos.nbytes},
+                           {"buffer": 1, "byteLength": idx.nbytes}],
+           "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3"},
+                         {"bufferView": 1, "componentType": 5123, "count": 6,
+                          "type": "SCALAR"}]}
+    p = tmp_path / "q.gltf"
+    p.write_text(json.dumps(doc))
+    env = load_environment(p)
+    _assert_env(env, 1)
+    _same_point_set(env.meshes[0].vertices, pos + [0, 3, 0])
+    (tmp_path / "idx.bin").unlink()
+    with pytest.raises(EnvironmentLoadError, match="q.gltf"):
+        load_environment(p)
+
+
 # --------------------------------------------------------------------------- errors
 def test_missing_file(tmp_path):
     with pytest.raises(EnvironmentLoadError, match="not found") as ei:
