@@ -491,7 +491,7 @@ def _quat_z_to(d: np.ndarray) -> list[float]:
     axis = np.cross(z, d)
     q = np.array([axis[0], axis[1], axis[2], 1.0 + c])
     q /= np.linalg.norm(q)
-    return [float(x) for x in q]
+    return [round(float(x), 9) for x in q]  # rounded: the JSON text must not vary by platform
 
 
 def build_glb(parts: list[Part], sun: SunSpec, seed: int) -> bytes:
