@@ -57,6 +57,7 @@ class _Caster:
         ln = np.linalg.norm(fn, axis=1)
         fn[ln > 0] /= ln[ln > 0, None]
         self.face_normals = fn
+        self.vertices, self.faces = v, f
         self._env = env
         try:
             from embreex import rtcore_scene
@@ -164,30 +165,41 @@ def _cast_layers(caster: _Caster, x0, z0, nx, nz, cell, ytop):
     return col[order], y[order], prim[order]
 
 
-def _link_axis(d, ix, iz, y, ceil, nx, nz, col_start, counts, step, height):
-    """Best neighbour sample (or -1) of every sample in axis direction d (0: +X, 1: +Z)."""
-    dx, dz = DIRS[d]
-    jx, jz = ix + dx, iz + dz
-    inb = (jx >= 0) & (jx < nx) & (jz >= 0) & (jz < nz)
-    src = np.nonzero(inb)[0]
-    ncol = jx[src] * nz + jz[src]
-    cnt = counts[ncol]
+def _link_axis(d, scol, six, siz, y, ceil, nx, nz, col_start, counts, step, height):
+    """Best neighbour sample (or -1) of every sample in axis direction d (0: +X, 1: +Z):
+    the sample of the next column closest in height, within the step height, with the agent
+    height free above both."""
+    n = len(y)
+    if d == 0:
+        inb = six < nx - 1
+        ncol = scol + nz
+    else:
+        inb = siz < nz - 1
+        ncol = scol + 1
+    ncol = np.where(inb, ncol, scol)
+    cnt = np.where(inb, counts[ncol], 0)
     start = col_start[ncol]
-    best = np.full(len(src), -1, dtype=np.int64)
-    best_dy = np.full(len(src), np.inf)
-    maxl = int(cnt.max()) if len(cnt) else 0
-    ys, cs = y[src], ceil[src]
-    for k in range(maxl):
-        sel = np.nonzero(cnt > k)[0]
-        cand = start[sel] + k
-        dy = np.abs(y[cand] - ys[sel])
-        gap = np.minimum(ceil[cand], cs[sel]) - np.maximum(y[cand], ys[sel])
-        ok = (dy <= step) & (gap >= height) & (dy < best_dy[sel])
-        best[sel[ok]] = cand[ok]
-        best_dy[sel[ok]] = dy[ok]
-    out = np.full(len(y), -1, dtype=np.int64)
-    out[src] = best
-    return out
+    cand = np.minimum(start, n - 1)
+    yc = y[cand]
+    dy = np.abs(yc - y)
+    gap = np.minimum(ceil[cand], ceil) - np.maximum(yc, y)
+    ok = (cnt > 0) & (dy <= step) & (gap >= height)
+    best = np.where(ok, cand, -1)
+    multi = np.nonzero(cnt > 1)[0]
+    if len(multi):
+        best_dy = np.where(ok, dy, np.inf)[multi]
+        bm = best[multi]
+        ys, cs, st, cm = y[multi], ceil[multi], start[multi], cnt[multi]
+        for k in range(1, int(cm.max())):
+            sel = np.nonzero(cm > k)[0]
+            cand = st[sel] + k
+            dy = np.abs(y[cand] - ys[sel])
+            gap = np.minimum(ceil[cand], cs[sel]) - np.maximum(y[cand], ys[sel])
+            ok = (dy <= step) & (gap >= height) & (dy < best_dy[sel])
+            bm[sel[ok]] = cand[ok]
+            best_dy[sel[ok]] = dy[ok]
+        best[multi] = bm
+    return best
 
 
 def build(env, agent, *, bounds=None, coarse_factor: int = 4,
@@ -270,32 +282,38 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
     # 3. links ----------------------------------------------------------------------------
     t = time.perf_counter()
     h_off = max(min(step, 0.5 * height), 1e-4)
-    links = np.full((n, 8), -1, dtype=np.int64)
+    links = np.full((n, 8), -1, dtype=np.int32)
     px = x0 + (six + 0.5) * cell
     pz = z0 + (siz + 0.5) * cell
+    blockers = _blocker_columns(caster, x0, z0, nx, nz, cell, min(slope, math.atan2(h_off, cell)))
     for d in (0, 1):
-        nb = _link_axis(d, six, siz, sy, sceil, nx, nz, col_start, counts, step, height)
+        nb = _link_axis(d, scol, six, siz, sy, sceil, nx, nz, col_start, counts, step,
+                        height)
         s = np.nonzero(nb >= 0)[0]
         tt = nb[s]
-        o = np.stack([px[s], np.maximum(sy[s], sy[tt]) + h_off, pz[s]], axis=1)
-        dirv = np.zeros_like(o)
-        dirv[:, 0], dirv[:, 2] = DIRS[d]
-        th, _ = caster.cast(o, dirv, cell)
-        ok = ~np.isfinite(th)
-        s, tt = s[ok], tt[ok]
+        test = blockers[scol[s]] | blockers[scol[tt]]
+        if test.any():  # only links near steep triangles can be blocked by them
+            q, qt = s[test], tt[test]
+            o = np.stack([px[q], np.maximum(sy[q], sy[qt]) + h_off, pz[q]], axis=1)
+            dirv = np.zeros_like(o)
+            dirv[:, 0], dirv[:, 2] = DIRS[d]
+            th, _ = caster.cast(o, dirv, cell)
+            ok = np.ones(len(s), dtype=bool)
+            ok[np.nonzero(test)[0][np.isfinite(th)]] = False
+            s, tt = s[ok], tt[ok]
         links[s, d] = tt
         links[tt, OPPOSITE[d]] = s
-    for d in (0, 1):  # keep symmetric links only
+    for d in range(4):  # keep symmetric links only (two layers may have claimed one sample)
         s = np.nonzero(links[:, d] >= 0)[0]
         bad = links[links[s, d], OPPOSITE[d]] != s
         links[s[bad], d] = -1
-        s = np.nonzero(links[:, OPPOSITE[d]] >= 0)[0]
-        bad = links[links[s, OPPOSITE[d]], d] != s
-        links[s[bad], OPPOSITE[d]] = -1
-    ext = np.vstack([links, np.full((1, 8), -1, np.int64)])  # row -1 -> no links
     for d, (a1, a2) in ((4, (0, 1)), (7, (0, 3))):
-        u1 = ext[ext[:, a1][:-1], a2]
-        u2 = ext[ext[:, a2][:-1], a1]
+        s1 = np.nonzero(links[:, a1] >= 0)[0]
+        u1 = np.full(n, -1, dtype=np.int32)
+        u1[s1] = links[links[s1, a1], a2]
+        s2 = np.nonzero(links[:, a2] >= 0)[0]
+        u2 = np.full(n, -1, dtype=np.int32)
+        u2[s2] = links[links[s2, a2], a1]
         s = np.nonzero((u1 >= 0) & (u1 == u2))[0]
         u = u1[s]
         gap = np.minimum(sceil[s], sceil[u]) - np.maximum(sy[s], sy[u])
@@ -346,8 +364,8 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
     t = time.perf_counter()
 
     def _compact(keep, links):
-        remap = np.full(len(keep) + 1, -1, dtype=np.int64)
-        remap[np.nonzero(keep)[0]] = np.arange(int(keep.sum()))
+        remap = np.full(len(keep) + 1, -1, dtype=np.int32)
+        remap[:-1][keep] = np.arange(int(keep.sum()), dtype=np.int32)
         return remap[links[keep]]
 
     links = _compact(keep, links)
@@ -409,13 +427,42 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
     )
 
 
-def _components(links: np.ndarray) -> tuple[int, np.ndarray]:
+def _blocker_columns(caster: _Caster, x0, z0, nx, nz, cell, angle) -> np.ndarray:
+    """(nx * nz,) bool: columns within one cell of the XZ bounding box of a triangle steeper
+    than `angle` (only those can block a horizontal link ray)."""
+    v = caster.vertices
+    f = caster.faces
+    steep = np.abs(caster.face_normals[:, 1]) < math.cos(angle) + 1e-9
+    tri = v[f[steep]]
+    if len(tri) == 0:
+        return np.zeros(nx * nz, dtype=bool)
+    lo = tri.min(axis=1)
+    hi = tri.max(axis=1)
+    i0 = np.clip(np.floor((lo[:, 0] - x0) / cell).astype(np.int64) - 1, 0, nx)
+    i1 = np.clip(np.floor((hi[:, 0] - x0) / cell).astype(np.int64) + 2, 0, nx)
+    j0 = np.clip(np.floor((lo[:, 2] - z0) / cell).astype(np.int64) - 1, 0, nz)
+    j1 = np.clip(np.floor((hi[:, 2] - z0) / cell).astype(np.int64) + 2, 0, nz)
+    diff = np.zeros((nx + 1, nz + 1), dtype=np.int32)
+    np.add.at(diff, (i0, j0), 1)
+    np.add.at(diff, (i1, j0), -1)
+    np.add.at(diff, (i0, j1), -1)
+    np.add.at(diff, (i1, j1), 1)
+    cov = np.cumsum(np.cumsum(diff, axis=0), axis=1)[:nx, :nz]
+    return (cov > 0).reshape(-1)
+
+
+def _csr(links: np.ndarray, mask: np.ndarray) -> csr_matrix:
     n = len(links)
-    m = links >= 0
     indptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(m.sum(axis=1), out=indptr[1:])
-    g = csr_matrix((np.ones(int(m.sum()), np.int8), links[m], indptr), shape=(n, n))
-    return connected_components(g, directed=False)
+    np.cumsum(mask.sum(axis=1), out=indptr[1:])
+    return csr_matrix((np.ones(int(indptr[-1]), np.int8), links[mask], indptr), shape=(n, n))
+
+
+def _components(links: np.ndarray) -> tuple[int, np.ndarray]:
+    # links are symmetric and diagonals imply 4-link paths: strong components of the
+    # 4-link digraph are the connected components (and much faster than directed=False)
+    ax = links[:, :4]
+    return connected_components(_csr(ax, ax >= 0), directed=True, connection="strong")
 
 
 def _coarse(positions, cells, links, k, nz):
@@ -424,25 +471,31 @@ def _coarse(positions, cells, links, k, nz):
     k = max(1, int(k))
     bz = (nz + k - 1) // k
     block = (cells[:, 0] // k).astype(np.int64) * bz + cells[:, 1] // k
-    m = links >= 0
-    src = np.repeat(np.arange(n), m.sum(axis=1))
-    dst = links[m]
-    same = block[src] == block[dst]
-    g = coo_matrix((np.ones(int(same.sum()), np.int8), (src[same], dst[same])), shape=(n, n))
-    nc, lab = connected_components(g.tocsr(), directed=False)
-    # representative: the sample closest to its group's centroid
-    cnt = np.bincount(lab, minlength=nc).astype(np.float64)
-    cen = np.stack([np.bincount(lab, positions[:, i], nc) for i in range(3)], axis=1)
-    cen /= cnt[:, None]
-    dd = np.einsum("ij,ij->i", positions - cen[lab], positions - cen[lab])
-    o = np.lexsort((dd, lab))
-    firsts = np.ones(n, dtype=bool)
-    firsts[1:] = lab[o][1:] != lab[o][:-1]
-    rep = o[firsts].astype(np.int32)
-    # coarse edges
-    cs, cd = lab[src[~same]], lab[dst[~same]]
-    key = np.unique(cs.astype(np.int64) * nc + cd)
+    ax = links[:, :4]
+    has = ax >= 0
+    same = np.zeros_like(has)
+    same[has] = (block[np.nonzero(has)[0]] == block[ax[has]])
+    nc, lab = connected_components(_csr(ax, same), directed=True, connection="strong")
+    # representative: the sample nearest its block's centre (ties: lowest index)
+    c = (k - 1) * 0.5
+    pri = np.abs(cells[:, 0] % k - c) + np.abs(cells[:, 1] % k - c)
+    key = np.rint(pri * 2).astype(np.int64) * n + np.arange(n)
+    best = np.full(nc, np.iinfo(np.int64).max)
+    np.minimum.at(best, lab, key)
+    rep = (best % n).astype(np.int32)
+    # coarse edges from 4-links that cross block borders
+    keys = []
+    for d in (0, 1):  # +X, +Z; symmetrized below
+        src = np.nonzero(has[:, d] & ~same[:, d])[0]
+        key = lab[src].astype(np.int64) * nc + lab[ax[src, d]]
+        if len(key) > 1:  # neighbours along a block border mostly repeat the same pair
+            key = key[np.concatenate([[True], key[1:] != key[:-1]])]
+        keys.append(key)
+    key = np.unique(np.concatenate(keys))
     cs, cd = key // nc, key % nc
+    cs, cd = np.concatenate([cs, cd]), np.concatenate([cd, cs])
+    o = np.argsort(cs, kind="stable")
+    cs, cd = cs[o], cd[o]
     indptr = np.zeros(nc + 1, dtype=np.int64)
     np.cumsum(np.bincount(cs, minlength=nc), out=indptr[1:])
     return lab.astype(np.int32), rep, indptr, cd.astype(np.int32)
