@@ -73,7 +73,8 @@ def sine_trajectory(spacing: float, n_spine: int, seconds: float = 3.0, fps: int
     times = np.arange(f_count) / fps
     amp, k = 0.05, 2 * np.pi / 0.4
     bump, kb = (0.02, 2 * np.pi / 0.7) if bumpy else (0.0, 1.0)
-    z = np.linspace(-0.5, 1.5, 40001)
+    z_end = 1.0 + 1.2 * speed * seconds                 # the path is longer than its z extent
+    z = np.linspace(-0.5, z_end, int(20000 * (z_end + 0.5)) + 1)
     pts = np.stack([amp * np.sin(k * z), bump * np.sin(kb * z) + clearance, z], -1)
     seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
     arc = np.concatenate([[0.0], np.cumsum(seg)])

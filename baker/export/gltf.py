@@ -13,6 +13,7 @@ deterministic and both chunks are padded to 4 bytes. Node layout of the scene:
 from __future__ import annotations
 
 import json
+import logging
 import struct
 from collections.abc import Sequence
 
@@ -32,6 +33,8 @@ FLOAT, UINT16, UINT32 = gl.FLOAT, gl.UNSIGNED_SHORT, gl.UNSIGNED_INT
 ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = gl.ARRAY_BUFFER, gl.ELEMENT_ARRAY_BUFFER
 _TYPES = {1: gl.SCALAR, 2: gl.VEC2, 3: gl.VEC3, 4: gl.VEC4, 16: gl.MAT4}
 _NP = {FLOAT: np.float32, UINT16: np.uint16, UINT32: np.uint32}
+
+log = logging.getLogger(__name__)
 
 DebugMesh = tuple  # (name, vertices (n, 3), faces (m, 3), rgba)
 
@@ -106,7 +109,10 @@ def _static_mesh(gltf: gl.GLTF2, b: _Builder, name: str, vertices, faces, normal
         raise ExportError(f"mesh {name!r} has face indices out of range")
     if not np.all(np.isfinite(v)):
         raise ExportError(f"mesh {name!r} has non-finite vertices")
-    n = vertex_normals(v, f) if normals is None else unit_normals(normals)
+    if normals is None or np.shape(normals) != v.shape:
+        n = vertex_normals(v, f)
+    else:
+        n = unit_normals(normals)
     prim = gl.Primitive(
         attributes=gl.Attributes(
             POSITION=b.accessor(v, FLOAT, target=ARRAY_BUFFER, minmax=True),
@@ -140,20 +146,29 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
     gltf = gl.GLTF2(asset=gl.Asset(version="2.0", generator=f"baker {baker.__version__}"))
     gltf.buffers = []
     b = _Builder(gltf)
-    names: set[str] = set()
+    # fixed node names and joint names are reserved first; other names are made unique around them
+    names: set[str] = {"Environment", "Sun", "Centipede", "centipede_mesh"}
+    if rig is not None:
+        names.update(rig.skeleton.names)
+        if len(names) != 4 + rig.skeleton.n_joints:
+            raise ExportError("joint names clash with the scene's node names "
+                              "(Environment, Sun, Centipede, centipede_mesh)")
     scene_nodes: list[int] = []
 
     # -- environment
     env_children = []
     for m in env.meshes:
+        if len(m.vertices) == 0 or len(m.faces) == 0:
+            log.warning("skipping empty environment mesh %r", m.name)
+            continue
         nm = safe_name(m.name, names, "env_mesh")
-        mat = _material(gltf, nm, tuple(m.color)[:4] + (1.0,) * (4 - len(tuple(m.color)[:4])),
-                        m.metallic, m.roughness, double_sided=True)
+        color = tuple(float(c) for c in m.color)
+        mat = _material(gltf, nm, color + (1.0,) * (4 - len(color)), m.metallic, m.roughness,
+                        double_sided=True)
         mesh = _static_mesh(gltf, b, nm, m.vertices, m.faces, m.normals, mat)
         env_children.append(_add_node(gltf, gl.Node(name=nm, mesh=mesh)))
     if env_children:
-        scene_nodes.append(_add_node(gltf, gl.Node(name=safe_name("Environment", names),
-                                                   children=env_children)))
+        scene_nodes.append(_add_node(gltf, gl.Node(name="Environment", children=env_children)))
 
     # -- sun: KHR_lights_punctual directional light; it shines along the node's local -Z
     sun = env.sun
@@ -162,7 +177,7 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
         "color": [float(c) for c in sun.color], "intensity": float(sun.intensity)}]}}
     gltf.extensionsUsed = ["KHR_lights_punctual"]
     scene_nodes.append(_add_node(gltf, gl.Node(
-        name=safe_name("Sun", names), rotation=_rounded(light_rotation(sun.direction)),
+        name="Sun", rotation=_rounded(light_rotation(sun.direction)),
         extensions={"KHR_lights_punctual": {"light": 0}})))
 
     # -- the creature
@@ -171,6 +186,9 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
 
     # -- debug overlays
     for name, verts, faces, rgba in debug_meshes:
+        if len(verts) == 0 or len(faces) == 0:
+            log.warning("skipping empty debug layer %r", name)
+            continue
         nm = safe_name(name, names, "debug")
         rgba = tuple(float(c) for c in rgba)
         mat = _material(gltf, nm, rgba + (1.0,) * (4 - len(rgba)), 0.0, 1.0, double_sided=True)
@@ -208,11 +226,6 @@ def _add_creature(gltf: gl.GLTF2, b: _Builder, names: set[str], rig: Rig,
     Returns the scene-root node indices it added."""
     skel = rig.skeleton
     j_count = skel.n_joints
-    for n in skel.names:
-        if n in names:
-            raise ExportError(f"joint name {n!r} clashes with another node name")
-    names.update(skel.names)
-    placement_name = safe_name("Centipede", names)
 
     # joint nodes in skeleton order, rest TRS; children from the parents array
     first = len(gltf.nodes)
@@ -223,7 +236,7 @@ def _add_creature(gltf: gl.GLTF2, b: _Builder, names: set[str], rig: Rig,
             name=skel.names[j], translation=_rounded(skel.rest_translations[j]),
             rotation=_rounded(skel.rest_rotations[j]), children=kids or None))
     roots = [int(node_of[j]) for j in range(j_count) if skel.parents[j] < 0]
-    placement = _add_node(gltf, gl.Node(name=placement_name, children=roots))
+    placement = _add_node(gltf, gl.Node(name="Centipede", children=roots))
 
     # skin: inverse bind matrices = inverse(world bind), column-major
     ibm = np.linalg.inv(skel.world_bind())
@@ -248,7 +261,7 @@ def _add_creature(gltf: gl.GLTF2, b: _Builder, names: set[str], rig: Rig,
                 WEIGHTS_0=b.accessor(mesh.weights[used], FLOAT, target=ARRAY_BUFFER)),
             indices=b.indices(faces, len(used)), material=mat, mode=gl.TRIANGLES))
     gltf.meshes.append(gl.Mesh(name="centipede", primitives=prims))
-    mesh_node = _add_node(gltf, gl.Node(name=safe_name("centipede_mesh", names),
+    mesh_node = _add_node(gltf, gl.Node(name="centipede_mesh",
                                         mesh=len(gltf.meshes) - 1, skin=skin))
 
     if clip is not None:

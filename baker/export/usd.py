@@ -20,6 +20,7 @@ the real part first.
 from __future__ import annotations
 
 import json
+import logging
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -31,6 +32,8 @@ from baker.errors import ExportError
 from baker.export import jsonable, light_rotation, safe_name, unit_normals, vertex_normals
 from baker.export.atomic import atomic_output
 from baker.rig.build import Rig
+
+log = logging.getLogger(__name__)
 
 
 def _pxr():
@@ -50,7 +53,9 @@ def _custom_data_value(v):
     """USD customData holds dict/str/int/float/bool; anything else becomes a JSON string."""
     if isinstance(v, bool) or v is None:
         return v if v is not None else "null"
-    if isinstance(v, (int, float, str)):
+    if isinstance(v, int):
+        return v if -2 ** 63 <= v < 2 ** 63 else str(v)
+    if isinstance(v, (float, str)):
         return v
     if isinstance(v, dict):
         return {str(k): _custom_data_value(x) for k, x in v.items()}
@@ -85,7 +90,10 @@ def _mesh(stage, path, vertices, faces, normals, rgba, material, double_sided: b
         raise ExportError(f"mesh {path.name!r} has face indices out of range")
     if not np.all(np.isfinite(v)):
         raise ExportError(f"mesh {path.name!r} has non-finite vertices")
-    n = vertex_normals(v, f) if normals is None else unit_normals(normals)
+    if normals is None or np.shape(normals) != v.shape:
+        n = vertex_normals(v, f)
+    else:
+        n = unit_normals(normals)
     mesh = UsdGeom.Mesh.Define(stage, path)
     mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(v))
     mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(f), 3, dtype=np.int32)))
@@ -128,8 +136,8 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
     world = UsdGeom.Xform.Define(stage, "/World")
     stage.SetDefaultPrim(world.GetPrim())
     Usd.ModelAPI(world.GetPrim()).SetKind("assembly")
-    for k, v in jsonable(dict(extras)).items():
-        world.GetPrim().SetCustomDataByKey(str(k), _custom_data_value(v))
+    # set as one dictionary: SetCustomDataByKey would split keys containing ":" into levels
+    world.GetPrim().SetCustomData(_custom_data_value(jsonable(dict(extras))))
     looks = UsdGeom.Scope.Define(stage, "/World/Looks").GetPath()
     mat_names: set[str] = set()
 
@@ -137,6 +145,9 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
     env_path = UsdGeom.Xform.Define(stage, "/World/Environment").GetPath()
     taken: set[str] = set()
     for m in env.meshes:
+        if len(m.vertices) == 0 or len(m.faces) == 0:
+            log.warning("skipping empty environment mesh %r", m.name)
+            continue
         nm = safe_name(m.name, taken, "env_mesh")
         rgba = tuple(float(c) for c in m.color)
         mat = _material(stage, looks, safe_name(nm, mat_names), rgba, 1.0, m.metallic, m.roughness)
@@ -201,6 +212,9 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
         dbg = UsdGeom.Scope.Define(stage, "/World/Debug").GetPath()
         dtaken: set[str] = set()
         for name, verts, faces, rgba in debug_meshes:
+            if len(verts) == 0 or len(faces) == 0:
+                log.warning("skipping empty debug layer %r", name)
+                continue
             nm = safe_name(name, dtaken, "debug")
             rgba = tuple(float(c) for c in rgba) + (1.0,) * (4 - len(rgba))
             mat = _material(stage, looks, safe_name(f"debug_{nm}", mat_names), rgba, rgba[3],

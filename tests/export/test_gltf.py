@@ -164,3 +164,47 @@ def test_extras_are_plain_json(glb):
     assert isinstance(ex["spacing"], float)
     assert glb.doc["asset"]["version"] == "2.0"
     assert glb.doc["asset"]["generator"].startswith("baker")
+
+
+def test_awkward_names_large_meshes_and_empty_layers(tmp_path, rig, clip, small_env):
+    from conftest import box_mesh
+
+    from baker.environment.model import EnvMesh, Environment
+
+    n = 300                                    # 90601 vertices: needs 32-bit indices
+    xs = np.linspace(-1, 1, n + 1)
+    gx, gz = np.meshgrid(xs, xs, indexing="ij")
+    v = np.stack([gx.ravel(), 0.01 * np.sin(5 * gx.ravel()), gz.ravel()], -1).astype(np.float32)
+    i = np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]
+    f = np.concatenate([np.stack([i, i + 1, i + n + 2], -1).reshape(-1, 3),
+                        np.stack([i, i + n + 2, i + n + 1], -1).reshape(-1, 3)]).astype(np.uint32)
+    big = EnvMesh(name="head", vertices=v, faces=f, normals=np.zeros((3, 3)),  # wrong shape: recomputed
+                  color=(0.3, 0.2, 0.1))
+    env = Environment(meshes=(big, box_mesh("Sun", (0, 0, 0), (1, 1, 1), (1, 1, 1, 1)),
+                              box_mesh("Sun", (0, 0, 0), (1, 1, 1), (1, 1, 1, 1)),
+                              box_mesh("3 rocks!", (0, 0, 0), (1, 1, 1), (1, 1, 1, 1))),
+                      sun=small_env.sun)
+    empty = ("empty", np.zeros((0, 3)), np.zeros((0, 3), int), (1, 0, 0, 1))
+    data = build_glb(env, rig, clip, extras={}, debug_meshes=(empty,))
+    g = Glb(data)
+    names = [nd.get("name") for nd in g.doc["nodes"]]
+    assert len(names) == len(set(names))
+    assert names.count("head") == 1 and names.count("Sun") == 1 and "empty" not in names
+    env_names = [names[c] for c in g.doc["nodes"][g.node_index("Environment")]["children"]]
+    assert env_names == ["head_1", "Sun_1", "Sun_2", "_3_rocks_"]
+    report = _report(tmp_path, data)
+    assert issues_summary(report, 0) == [] and issues_summary(report, 1) == []
+    big_prim = g.doc["meshes"][0]["primitives"][0]
+    assert g.doc["accessors"][big_prim["indices"]]["componentType"] == 5125
+
+
+def test_single_frame_clip_validates(tmp_path, small_env, rig, trajectory):
+    from baker.clip import build_clip
+    from baker.sim.trajectory import Trajectory
+
+    one = Trajectory(times=trajectory.times[:1], spine_positions=trajectory.spine_positions[:1],
+                     spine_rotations=trajectory.spine_rotations[:1],
+                     head_surface_normal=trajectory.head_surface_normal[:1],
+                     ground_heights=trajectory.ground_heights[:1])
+    report = _report(tmp_path, build_glb(small_env, rig, build_clip(one, rig), extras={}))
+    assert issues_summary(report, 0) == [] and issues_summary(report, 1) == []
