@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -23,12 +24,34 @@ SCRIPT = TOOLS / "gltf_validate.mjs"
 _install_lock = threading.Lock()
 
 
+@contextlib.contextmanager
+def _file_lock():
+    """Serialize `npm ci` across threads and processes (pytest-xdist workers)."""
+    with _install_lock:
+        try:
+            import fcntl
+        except ImportError:          # Windows: the thread lock is all we have
+            yield
+            return
+        import tempfile
+
+        with open(Path(tempfile.gettempdir()) / "baker-gltf-validator-npm.lock", "w") as fh:
+            fcntl.flock(fh, fcntl.LOCK_EX)
+            try:
+                yield
+            finally:
+                fcntl.flock(fh, fcntl.LOCK_UN)
+
+
 def _ensure_validator() -> str:
     node = shutil.which("node")
     npm = shutil.which("npm")
     if node is None or npm is None:
-        pytest.skip("glTF validation needs node and npm on PATH (CI has them)")
-    with _install_lock:
+        msg = "glTF validation needs node and npm on PATH"
+        if os.environ.get("CI"):
+            pytest.fail(f"{msg}; CI must provide them")
+        pytest.skip(f"{msg} (CI has them)")
+    with _file_lock():
         if not (TOOLS / "node_modules" / "gltf-validator" / "package.json").is_file():
             r = subprocess.run([npm, "ci", "--no-audit", "--no-fund", "--loglevel=error"],
                                cwd=TOOLS, capture_output=True, text=True, timeout=600)
