@@ -82,14 +82,13 @@ def normalize_weights(joints: np.ndarray, weights: np.ndarray) -> tuple[np.ndarr
     """
     joints = np.asarray(joints, dtype=np.int64)
     weights = np.asarray(weights, dtype=np.float64).copy()
-    v, k = joints.shape
-    # merge duplicates: for each slot, add its weight to the first slot holding the same joint
+    k = joints.shape[1]
+    # merge duplicates: move each slot's weight to the first earlier slot with the same joint
     for a in range(1, k):
         for b in range(a):
-            same = (joints[:, a] == joints[:, b]) & (weights[:, b] >= 0)
+            same = joints[:, a] == joints[:, b]
             weights[same, b] += weights[same, a]
             weights[same, a] = 0.0
-            joints[same, a] = 0
     weights[weights < 0] = 0.0
     order = np.argsort(-weights, axis=1, kind="stable")[:, :MAX_INFLUENCES]
     w = np.take_along_axis(weights, order, axis=1)
@@ -104,10 +103,8 @@ def normalize_weights(joints: np.ndarray, weights: np.ndarray) -> tuple[np.ndarr
     w = (w / total).astype(np.float32)
     j[w == 0] = 0
     # put the float32 rounding remainder on the largest weight so sums are within 2e-7
-    w32 = w
-    resid = np.float32(1.0) - w32.sum(axis=1, dtype=np.float32)
-    w32[:, 0] += resid
-    return j.astype(np.uint16), w32
+    w[:, 0] += np.float32(1.0) - w.sum(axis=1, dtype=np.float32)
+    return j.astype(np.uint16), w
 
 
 # --------------------------------------------------------------------------- geometry helpers
@@ -209,7 +206,9 @@ def build_body_mesh(width_profile: np.ndarray, spacing: float, height_ratio: flo
     body_w = np.stack([1.0 - t, t], -1)
 
     # leg stubs: one small tapered tube per side per trunk segment, pointing out and down
-    legs_v, legs_f, legs_j = [], [], []
+    vertices, faces = body_v, body_f
+    face_mat = np.zeros(len(body_f), dtype=np.uint8)
+    joints4, weights4 = body_j, body_w
     if leg_stub_length > 0:
         seg = np.arange(1, s_count)
         n_legs = 2 * len(seg)
@@ -258,20 +257,9 @@ def build_body_mesh(width_profile: np.ndarray, spacing: float, height_ratio: flo
         one = np.concatenate([tube, base_fan, tip_fan])
         # the winding is made outward per leg by a signed-volume test (_orient_outward)
         offs = (np.arange(n_legs) * per_leg)[:, None, None]
-        lf = one[None] + offs
         lv = leg_vertices.reshape(-1, 3)
-        legs_v.append(lv)
-        legs_f.append(lf.reshape(-1, 3))
-        legs_j.append(np.repeat(spine[seg2], per_leg))
-
-    vertices = body_v
-    faces = body_f
-    face_mat = np.zeros(len(body_f), dtype=np.uint8)
-    joints4 = body_j
-    weights4 = body_w
-    if legs_v:
-        lv, lf, lj = legs_v[0], legs_f[0], legs_j[0]
-        lf = _orient_outward(lv, lf, per_leg)
+        lf = _orient_outward(lv, (one[None] + offs).reshape(-1, 3), per_leg)
+        lj = np.repeat(spine[seg2], per_leg)            # each stub is rigid on its segment
         vertices = np.concatenate([body_v, lv])
         faces = np.concatenate([body_f, lf + len(body_v)])
         face_mat = np.concatenate([face_mat, np.ones(len(lf), dtype=np.uint8)])
