@@ -327,7 +327,7 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
     t = time.perf_counter()
     missing = links[:, :4] < 0
     border = np.nonzero(missing.any(axis=1))[0]
-    d0 = np.full(len(border), 0.5 * cell)
+    d0 = np.full(len(border), np.inf)
     bs, bd = np.nonzero(missing[border])
     if len(bs):  # exact distance to walls beside boundary samples
         sb = border[bs]
@@ -335,7 +335,7 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
         dirv = np.zeros_like(o)
         dirv[:, 0] = DIRS[bd, 0]
         dirv[:, 2] = DIRS[bd, 1]
-        th, _ = caster.cast(o, dirv, 0.5 * cell)
+        th, _ = caster.cast(o, dirv, cell)
         np.minimum.at(d0, bs, np.where(np.isfinite(th), th, 0.5 * cell))
     dist = np.full(n, np.inf)
     dist[border] = d0
