@@ -1,0 +1,60 @@
+"""Optional: Blender 5 (bpy) imports the GLB and the USD with the animation in place.
+
+bpy needs numpy<2, so it is not a project dependency. Point BAKER_BLENDER_PYTHON at a Python
+that has it (e.g. `python3.11 -m venv /tmp/bpy && /tmp/bpy/bin/pip install bpy`); the test skips
+otherwise.
+"""
+
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from baker.export.atomic import atomic_write_bytes
+from baker.export.gltf import build_glb
+from baker.export.usd import write_usd
+
+PROBE = Path(__file__).resolve().parents[1] / "tools" / "blender_probe.py"
+
+
+def _blender_python() -> str:
+    exe = os.environ.get("BAKER_BLENDER_PYTHON", "")
+    if not exe or not shutil.which(exe):
+        pytest.skip("set BAKER_BLENDER_PYTHON to a Python with bpy to run the Blender import check")
+    return exe
+
+
+def _probe(exe: str, path: Path, fps: int, frames: list[int]) -> dict:
+    r = subprocess.run([exe, str(PROBE), str(path), str(fps), ",".join(map(str, frames))],
+                       capture_output=True, text=True, timeout=600)
+    lines = [ln for ln in r.stdout.splitlines() if ln.startswith("PROBE_JSON ")]
+    assert lines, f"Blender probe failed:\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
+    return json.loads(lines[-1][len("PROBE_JSON "):])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("suffix", [".glb", ".usd"])
+def test_blender_imports_the_animation(tmp_path, suffix, small_env, rig, clip, trajectory, bake_extras):
+    exe = _blender_python()
+    path = tmp_path / f"centipede{suffix}"
+    if suffix == ".glb":
+        atomic_write_bytes(path, build_glb(small_env, rig, clip, extras=bake_extras))
+    else:
+        write_usd(path, small_env, rig, clip, fps=clip.fps, extras=bake_extras)
+    last = clip.n_frames - 1
+    frames = [0, last // 2, last]
+    d = _probe(exe, path, clip.fps, frames)
+    assert len(d["armatures"]) == 1
+    assert d["bones"] == list(rig.skeleton.names)
+    assert d["action_range"] == [0.0, float(last)]
+    assert d["lights"] and d["skinned_meshes"]
+    assert d["skinned_vertices"] == len(rig.mesh.vertices)
+    for f in frames:
+        got = np.array([d["positions"][str(f)][n] for n in rig.skeleton.names])
+        p = trajectory.spine_positions[f]
+        want = np.stack([p[:, 0], -p[:, 2], p[:, 1]], -1)          # +Y up -> Blender's +Z up
+        assert np.abs(got - want).max() < 1e-5
