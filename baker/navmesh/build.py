@@ -368,23 +368,24 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
         remap[:-1][keep] = np.arange(int(keep.sum()), dtype=np.int32)
         return remap[links[keep]]
 
-    links = _compact(keep, links)
-    sel = np.nonzero(keep)[0]
-    ncomp, comp = _components(links)
+    ax = links[:, :4]
+    axm = (ax >= 0) & keep[:, None]
+    axm[axm] = keep[ax[axm]]
+    ncomp, comp = connected_components(_csr(ax, axm), directed=True, connection="strong")
     if min_island_area is None:
         min_island_area = max(64 * cell * cell, (4 * radius) ** 2)
-    size = np.bincount(comp, minlength=ncomp)
+    size = np.bincount(comp[keep], minlength=ncomp)
     big = size * cell * cell >= min_island_area
-    keep2 = big[comp]
+    keep2 = keep & big[comp]
     if not keep2.any():
         raise NavError("environment has no walkable surface (every walkable area is narrower "
                        f"than the agent or smaller than {min_island_area:g} m^2)")
     links = _compact(keep2, links)
-    sel = sel[keep2]
+    sel = np.nonzero(keep2)[0]
     order = np.argsort(-size[big], kind="stable")
     relabel = np.full(ncomp, -1, dtype=np.int64)
     relabel[np.nonzero(big)[0][order]] = np.arange(int(big.sum()))
-    comp = relabel[comp[keep2]].astype(np.int32)
+    comp = relabel[comp[sel]].astype(np.int32)
     comp_area = np.sort(size[big])[::-1] * cell * cell
     scol = scol[sel]
     counts = np.bincount(scol, minlength=ncols)

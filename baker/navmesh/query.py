@@ -195,18 +195,59 @@ def surface_height(s: NavSurface, points, tol: float = np.inf) -> np.ndarray:
     return _locate(s, points, tol)[1]
 
 
+def _coarse_index(s: NavSurface):
+    """Lazily built coarse-node tables: (block_start CSR over blocks -> node order,
+    node weight (sum of 1 / normal_y of its samples), node extent (max distance from the
+    representative to a member sample), block grid shape)."""
+    ci = s._cache.get("coarse_index")
+    if ci is None:
+        k = s.coarse_factor
+        nx, nz = s.shape
+        bx, bz = (nx + k - 1) // k, (nz + k - 1) // k
+        rep = s.coarse_rep
+        cells = s.cells[rep].astype(np.int64)
+        blk = (cells[:, 0] // k) * bz + cells[:, 1] // k
+        order = np.argsort(blk, kind="stable")
+        bstart = np.zeros(bx * bz + 1, dtype=np.int64)
+        np.cumsum(np.bincount(blk, minlength=bx * bz), out=bstart[1:])
+        m = len(rep)
+        w = np.bincount(s.coarse_of, 1.0 / s.normals[:, 1].astype(np.float64), minlength=m)
+        d = np.linalg.norm(s.positions - s.positions[rep[s.coarse_of]], axis=1)
+        ext = np.zeros(m)
+        np.maximum.at(ext, s.coarse_of, d)
+        ci = (order, bstart, w, ext, (bx, bz))
+        s._cache["coarse_index"] = ci
+    return ci
+
+
+def _jitter(s: NavSurface, k: int, p: np.ndarray, radius: float, rng) -> np.ndarray | None:
+    """A point uniform in sample k's cell, on its tangent plane; None when outside radius."""
+    q = s.positions[k].astype(np.float64)
+    jx, jz = (rng.random(2) - 0.5) * s.cell_size * 0.999
+    q[0] += jx
+    q[2] += jz
+    q[1] = _plane_y(s, k, q[0], q[2])
+    return q if np.dot(q - p, q - p) <= radius * radius else None
+
+
 def random_point_near(s: NavSurface, p, radius: float,
                       rng: np.random.Generator) -> np.ndarray | None:
     """A random walkable point within `radius` (3D) of p, in the component of the surface
     nearest p (so reachable from there), uniform by surface area: a sample is drawn with
-    weight 1 / normal_y, then jittered inside its cell and put on its tangent plane.
+    weight 1 / normal_y (its cell's surface area), then jittered inside its cell on its
+    tangent plane (rejected and redrawn when that leaves the sphere).
+    Large radii draw a coarse node first (weight = its area), then a member sample, with
+    rejection outside the sphere: still exactly uniform.
     Returns (3,) float64, or None when no such point exists."""
     p = _pt(p)
     s0, _ = _nearest_sample(s, p)
     if s0 < 0 or not radius > 0:
         return None
     comp = s.component[s0]
-    c = s.cell_size
+    if radius > 4 * s.coarse_factor * s.cell_size:
+        q = _random_point_coarse(s, p, radius, comp, rng)
+        if q is not None:
+            return q
     ix0, iz0 = _columns(s, p[0] - radius, p[2] - radius)
     ix1, iz1 = _columns(s, p[0] + radius, p[2] + radius)
     idx = _window(s, ix0, ix1, iz0, iz1)
@@ -219,16 +260,52 @@ def random_point_near(s: NavSurface, p, radius: float,
     if len(idx) == 0:
         return None
     w = np.cumsum(1.0 / s.normals[idx, 1].astype(np.float64))
-    for _ in range(16):
+    for _ in range(32):
         k = idx[min(int(np.searchsorted(w, rng.random() * w[-1], side="right")), len(idx) - 1)]
-        q = s.positions[k].astype(np.float64)
-        jx, jz = (rng.random(2) - 0.5) * c * 0.999
-        q[0] += jx
-        q[2] += jz
-        q[1] = _plane_y(s, k, q[0], q[2])
-        if np.dot(q - p, q - p) <= radius * radius:
+        q = _jitter(s, k, p, radius, rng)
+        if q is not None:
             return q
     return s.positions[k].astype(np.float64)
+
+
+def _random_point_coarse(s: NavSurface, p, radius, comp, rng, tries: int = 64):
+    order, bstart, w, ext, (bx, bz) = _coarse_index(s)
+    k, c = s.coarse_factor, s.cell_size
+    bc = k * c
+    i0 = int(math.floor((p[0] - radius - s.origin[0]) / bc)) - 1
+    i1 = int(math.floor((p[0] + radius - s.origin[0]) / bc)) + 1
+    j0 = int(math.floor((p[2] - radius - s.origin[1]) / bc)) - 1
+    j1 = int(math.floor((p[2] + radius - s.origin[1]) / bc)) + 1
+    i0, j0, i1, j1 = max(i0, 0), max(j0, 0), min(i1, bx - 1), min(j1, bz - 1)
+    if i0 > i1 or j0 > j1:
+        return None
+    rows = np.arange(i0, i1 + 1, dtype=np.int64) * bz
+    a, b = bstart[rows + j0], bstart[rows + j1 + 1]
+    ln = b - a
+    tot = int(ln.sum())
+    if tot == 0:
+        return None
+    nodes = order[np.repeat(a - np.concatenate([[0], np.cumsum(ln)[:-1]]), ln)
+                  + np.arange(tot, dtype=np.int64)]
+    rep = s.coarse_rep[nodes]
+    nodes = nodes[s.component[rep] == comp]
+    rep = s.coarse_rep[nodes]
+    dr = np.linalg.norm(s.positions[rep].astype(np.float64) - p, axis=1)
+    nodes = nodes[dr <= radius + ext[nodes]]
+    if len(nodes) == 0:
+        return None
+    cw = np.cumsum(w[nodes])
+    morder, mptr = _members(s)
+    for _ in range(tries):
+        u = nodes[min(int(np.searchsorted(cw, rng.random() * cw[-1], side="right")),
+                      len(nodes) - 1)]
+        mem = morder[mptr[u]:mptr[u + 1]]
+        mw = np.cumsum(1.0 / s.normals[mem, 1].astype(np.float64))
+        kk = mem[min(int(np.searchsorted(mw, rng.random() * mw[-1], side="right")), len(mem) - 1)]
+        q = _jitter(s, int(kk), p, radius, rng)
+        if q is not None:
+            return q
+    return None  # mostly outside the sphere: let the fine path decide
 
 
 def _walk(s: NavSurface, s0: int, a: np.ndarray, b: np.ndarray, s1: int = -1):
