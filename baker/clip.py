@@ -105,6 +105,10 @@ def build_clip(traj: Trajectory, rig: Rig, name: str = "bake", fps: int | None =
     fps = _infer_fps(np.asarray(traj.times)) if fps is None else int(fps)
     if fps <= 0:
         raise ExportError(f"fps must be > 0 (got {fps})")
+    frame_err = np.abs(np.asarray(traj.times, dtype=np.float64) * fps - np.arange(f_count)).max()
+    if frame_err > 0.01:
+        raise ExportError(f"trajectory times are not frame / {fps} s (off by up to "
+                          f"{frame_err:.3g} frames): resample the trajectory first")
 
     j_count = skel.n_joints
     # world transforms of every joint: spine from the trajectory, the rest by rest-pose FK below

@@ -96,3 +96,14 @@ def test_local_rotation_composes_back(clip, trajectory):
     rebuilt = quat_mul(w[:, :-1], clip.rotations[:, 1:].astype(np.float64))
     d = np.abs(np.sum(rebuilt * w[:, 1:], -1))
     assert np.all(d > 1 - 1e-6)
+
+
+def test_times_must_be_frames_at_the_fps(trajectory, rig):
+    with pytest.raises(ExportError, match="resample"):
+        build_clip(trajectory, rig, fps=24)
+    odd = Trajectory(times=trajectory.times * 1.1, spine_positions=trajectory.spine_positions,
+                     spine_rotations=trajectory.spine_rotations,
+                     head_surface_normal=trajectory.head_surface_normal,
+                     ground_heights=trajectory.ground_heights)
+    with pytest.raises(ExportError):
+        build_clip(odd, rig, fps=30)
