@@ -70,13 +70,22 @@ class _Caster:
             log.warning("embreex unavailable: navigation build uses slower ray casts")
             self._scene = None
 
+    def _run(self, o32: np.ndarray, d32: np.ndarray, max_distance):
+        """One Embree call: o32 origins already shifted (float32). Returns (tfar, primID)."""
+        if max_distance is None:
+            r = self._scene.run(o32, d32, output=1)
+        else:
+            r = self._scene.run(o32, d32, dists=np.full(len(o32), max_distance, np.float32),
+                                output=1)
+        return r["tfar"], r["primID"]
+
     def cast(self, origins: np.ndarray, directions: np.ndarray,
              max_distance: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """origins, directions (n, 3) (directions unit). Returns (t (n,) float64 with inf on a
-        miss, prim (n,) int64 with -1 on a miss)."""
+        miss, prim (n,) int32 with -1 on a miss)."""
         n = len(origins)
         t = np.full(n, np.inf)
-        prim = np.full(n, -1, dtype=np.int64)
+        prim = np.full(n, -1, dtype=np.int32)
         for a in range(0, n, CHUNK_RAYS):
             b = min(n, a + CHUNK_RAYS)
             if self._scene is None:  # pragma: no cover
@@ -85,18 +94,37 @@ class _Caster:
                 t[a:b] = h.distance
                 prim[a:b] = h.faces
                 continue
-            o = (origins[a:b] - self.shift).astype(np.float32)
-            d = directions[a:b].astype(np.float32)
-            if max_distance is None:
-                r = self._scene.run(o, d, output=1)
-            else:
-                r = self._scene.run(o, d, dists=np.full(b - a, max_distance, np.float32),
-                                    output=1)
-            p = r["primID"].astype(np.int64)
+            o = np.empty((b - a, 3), np.float32)
+            np.subtract(origins[a:b], self.shift, out=o, casting="same_kind")
+            tf, p = self._run(o, np.ascontiguousarray(directions[a:b], np.float32),
+                              max_distance)
             hit = p >= 0
             prim[a:b] = p
-            tt = t[a:b]
-            tt[hit] = r["tfar"][hit]
+            t[a:b][hit] = tf[hit]
+        return t, prim
+
+    def cast_down(self, col: np.ndarray, oy: np.ndarray, x0, z0, nz, cell):
+        """Downward rays from height oy (n,) through the centres of columns col (n,).
+        Returns (t (n,) float64, inf on a miss; prim (n,) int32, -1 on a miss)."""
+        if self._scene is None:  # pragma: no cover
+            o = np.stack([x0 + (col // nz + 0.5) * cell, oy, z0 + (col % nz + 0.5) * cell], 1)
+            return self.cast(o, np.broadcast_to([0.0, -1.0, 0.0], o.shape))
+        n = len(col)
+        t = np.full(n, np.inf)
+        prim = np.full(n, -1, dtype=np.int32)
+        d = np.zeros((min(n, CHUNK_RAYS), 3), np.float32)
+        d[:, 1] = -1.0
+        for a in range(0, n, CHUNK_RAYS):
+            b = min(n, a + CHUNK_RAYS)
+            c = col[a:b]
+            o = np.empty((b - a, 3), np.float32)
+            o[:, 0] = x0 + (c // nz + 0.5) * cell - self.shift[0]
+            o[:, 1] = oy[a:b] - self.shift[1]
+            o[:, 2] = z0 + (c % nz + 0.5) * cell - self.shift[2]
+            tf, p = self._run(o, d[: b - a], None)
+            hit = p >= 0
+            prim[a:b] = p
+            t[a:b][hit] = tf[hit]
         return t, prim
 
 
@@ -107,17 +135,19 @@ def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray]:
     f = np.asarray(mesh.faces, dtype=np.int64)
     if len(f) == 0:
         return np.zeros(0, np.int64), np.zeros(0, bool)
+    lo = v.min(axis=0)
     ext = float(np.ptp(v, axis=0).max()) or 1.0
-    q = np.round(v / (ext * 1e-7)).astype(np.int64)
-    _, vid = np.unique(q, axis=0, return_inverse=True)
+    q = np.round((v - lo) / (ext * 1e-6)).astype(np.int64)  # weld within 1e-6 of the extent
+    key = (q[:, 0] << 42) | (q[:, 1] << 21) | q[:, 2]
+    _, vid = np.unique(key, return_inverse=True)
     vid = vid.reshape(-1)
     F = vid[f]
     nv = int(vid.max()) + 1
     e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
     e.sort(axis=1)
     e = e[e[:, 0] != e[:, 1]]
-    g = coo_matrix((np.ones(len(e), np.int8), (e[:, 0], e[:, 1])), shape=(nv, nv))
-    ncomp, vcomp = connected_components(g, directed=False)
+    g = coo_matrix((np.ones(len(e), np.int8), (e[:, 0], e[:, 1])), shape=(nv, nv)).tocsr()
+    ncomp, vcomp = connected_components(g, directed=True, connection="weak")
     key = e[:, 0] * nv + e[:, 1]
     uk, cnt = np.unique(key, return_counts=True)
     closed = np.ones(ncomp, dtype=bool)
@@ -141,18 +171,14 @@ def _cast_layers(caster: _Caster, x0, z0, nx, nz, cell, ytop):
     """All hits of all columns: (col (H,) int64, y (H,) float64, prim (H,) int64), sorted by
     column then top to bottom."""
     col = np.arange(nx * nz, dtype=np.int64)
-    ox = x0 + (col // nz + 0.5) * cell
-    oz = z0 + (col % nz + 0.5) * cell
     oy = np.full(len(col), ytop)
     cols, ys, prims = [], [], []
-    down = np.array([0.0, -1.0, 0.0])
     for _ in range(MAX_PASSES):
         if len(col) == 0:
             break
-        o = np.stack([ox, oy, oz], axis=1)
-        t, prim = caster.cast(o, np.broadcast_to(down, o.shape))
+        t, prim = caster.cast_down(col, oy, x0, z0, nz, cell)
         h = prim >= 0
-        col, ox, oz, prim = col[h], ox[h], oz[h], prim[h]
+        col, prim = col[h], prim[h]
         y = oy[h] - t[h]
         cols.append(col)
         ys.append(y)
@@ -160,9 +186,33 @@ def _cast_layers(caster: _Caster, x0, z0, nx, nz, cell, ytop):
         oy = y - LAYER_EPS
     col = np.concatenate(cols) if cols else np.zeros(0, np.int64)
     y = np.concatenate(ys) if ys else np.zeros(0)
-    prim = np.concatenate(prims) if prims else np.zeros(0, np.int64)
+    prim = np.concatenate(prims) if prims else np.zeros(0, np.int32)
     order = np.argsort(col, kind="stable")  # passes are in top-to-bottom order already
     return col[order], y[order], prim[order]
+
+
+def _inside_solid(hcol, hprim, first, face_comp, comp_closed) -> np.ndarray:
+    """(H,) bool per hit (sorted by column, top to bottom): the space just above the hit lies
+    inside a closed mesh component. Down a column, the n-th hit on a closed component enters
+    it (n even) or leaves it (n odd); winding is never used."""
+    nh = len(hcol)
+    hc = face_comp[hprim]
+    closed = comp_closed[hc]
+    if not closed.any():
+        return np.zeros(nh, dtype=bool)
+    idx = np.nonzero(closed)[0]
+    key = hcol[idx] * (len(comp_closed) + 1) + hc[idx]
+    o = np.argsort(key, kind="stable")  # nearly sorted already: fast; keeps depth order
+    si, key = idx[o], key[o]
+    g = np.ones(len(si), dtype=bool)
+    g[1:] = key[1:] != key[:-1]
+    ar = np.arange(len(si))
+    rank = ar - np.maximum.accumulate(np.where(g, ar, 0))
+    toggle = np.zeros(nh, dtype=np.int32)
+    toggle[si] = np.where(rank % 2 == 0, 1, -1)
+    excl = np.cumsum(toggle) - toggle
+    fidx = np.maximum.accumulate(np.where(first, np.arange(nh), 0))
+    return (excl - excl[fidx]) > 0
 
 
 def _link_axis(d, scol, six, siz, y, ceil, nx, nz, col_start, counts, step, height):
@@ -240,38 +290,24 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
     hceil = np.empty(nh)
     hceil[first] = np.inf
     hceil[~first] = hy[:-1][~first[1:]]
-    fn = caster.face_normals[hprim]
-    fn *= np.where(fn[:, 1] < 0, -1.0, 1.0)[:, None]  # two-sided: seen from above
+    hny = np.abs(caster.face_normals[hprim, 1])  # two-sided: every hit is seen from above
     # inside-solid test: down each column, the n-th hit on a closed component enters it
     # (n even) or leaves it (n odd); a hit is not a floor when the space just above it lies
     # inside some closed component (its own exit, or a surface buried in / coincident with a
     # solid's bottom).
-    hc = face_comp[hprim]
-    closed = comp_closed[hc]
-    inside = np.zeros(nh, dtype=bool)
-    if closed.any():
-        idx = np.nonzero(closed)[0]
-        o = np.lexsort((idx, hc[idx], hcol[idx]))
-        si = idx[o]
-        g = np.ones(len(si), dtype=bool)
-        g[1:] = (hcol[si][1:] != hcol[si][:-1]) | (hc[si][1:] != hc[si][:-1])
-        gstart = np.maximum.accumulate(np.where(g, np.arange(len(si)), 0))
-        rank = np.arange(len(si)) - gstart
-        toggle = np.zeros(nh, dtype=np.int64)
-        toggle[si] = np.where(rank % 2 == 0, 1, -1)
-        excl = np.cumsum(toggle) - toggle
-        fidx = np.maximum.accumulate(np.where(first, np.arange(nh), 0))
-        inside = (excl - excl[fidx]) > 0
+    inside = _inside_solid(hcol, hprim, first, face_comp, comp_closed)
 
     # 2. walkable samples -----------------------------------------------------------------
-    walk = (fn[:, 1] >= math.cos(slope) - 1e-9) & (hceil - hy >= height) & ~inside
+    walk = (hny >= math.cos(slope) - 1e-9) & (hceil - hy >= height) & ~inside
     if not walk.any():
         raise NavError("environment has no walkable surface (no upward-facing surface within "
                        f"{math.degrees(slope):.1f} deg with {height:g} m of clearance)")
     scol = hcol[walk]
     sy = hy[walk]
     sceil = hceil[walk]
-    snrm = fn[walk]
+    snrm = caster.face_normals[hprim[walk]]
+    snrm *= np.where(snrm[:, 1] < 0, -1.0, 1.0)[:, None]
+    del hcol, hy, hprim, hceil, hny, inside, walk, first
     six, siz = scol // nz, scol % nz
     counts = np.bincount(scol, minlength=ncols)
     col_start = np.zeros(ncols + 1, dtype=np.int64)
