@@ -7,6 +7,7 @@ from baker.navmesh.query import (
     is_walkable,
     nearest,
     random_point_near,
+    resample_path,
     segment_visible,
     surface_height,
 )
@@ -14,5 +15,5 @@ from baker.navmesh.surface import FORMAT_VERSION, NavSurface, PathResult
 
 __all__ = [
     "FORMAT_VERSION", "NavSurface", "PathResult", "build", "component_of", "find_path",
-    "is_walkable", "nearest", "random_point_near", "segment_visible", "surface_height",
+    "is_walkable", "nearest", "random_point_near", "resample_path", "segment_visible", "surface_height",
 ]

@@ -333,6 +333,68 @@ def _walk(s: NavSurface, s0: int, a: np.ndarray, b: np.ndarray, s1: int = -1):
     return cur
 
 
+def _trace(s: NavSurface, s0: int, a: np.ndarray, b: np.ndarray, n: int):
+    """Samples under n + 1 evenly spaced XZ points from a to b, following links from s0
+    (whose column holds a). Returns (points (n + 1, 3) on the surface, ok)."""
+    c = s.cell_size
+    L = math.hypot(b[0] - a[0], b[2] - a[2])
+    m = max(n, int(math.ceil(L / (0.25 * c))))
+    m = int(math.ceil(m / n)) * n  # dense grid holding the n + 1 output points
+    t = np.linspace(0.0, 1.0, m + 1)
+    x = a[0] + t * (b[0] - a[0])
+    z = a[2] + t * (b[2] - a[2])
+    ix, iz = _columns(s, x, z)
+    dx, dz = np.diff(ix), np.diff(iz)
+    ch = np.nonzero((dx != 0) | (dz != 0))[0]
+    dirs = _DIR_OF[dx[ch] + 1, dz[ch] + 1].tolist()
+    samp = np.empty(m + 1, dtype=np.int64)
+    cur = int(s0)
+    ok = ix[0] == s.cells[cur, 0] and iz[0] == s.cells[cur, 1]
+    prev = 0
+    for i, d in zip(ch.tolist(), dirs):
+        samp[prev:i + 1] = cur
+        nxt = int(s.links[cur, d]) if ok else -1
+        if nxt < 0:
+            ok = False
+        else:
+            cur = nxt
+        prev = i + 1
+    samp[prev:] = cur
+    k = np.arange(0, m + 1, m // n)
+    y = _plane_y(s, samp[k], x[k], z[k])
+    return np.stack([x[k], y, z[k]], axis=1), ok
+
+
+def resample_path(s: NavSurface, points, spacing: float | None = None) -> np.ndarray:
+    """Points along a path (e.g. PathResult.points) every `spacing` metres (horizontal,
+    default: the cell size), with heights on the surface layer the path walks on (the
+    straight chord between two path points can cut through bumps of the terrain).
+    Returns (m, 3) float64, the original points included."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if len(pts) == 0:
+        return pts.copy()
+    spacing = s.cell_size if spacing is None else float(spacing)
+    k, _ = _locate(s, pts[:1], max(s.step_height, s.cell_size))
+    cur = int(k[0])
+    out = [pts[:1]]
+    for a, b in zip(pts[:-1], pts[1:]):
+        n = max(1, int(math.ceil(math.hypot(b[0] - a[0], b[2] - a[2]) / spacing)))
+        seg = None
+        if cur >= 0:
+            seg, ok = _trace(s, cur, a, b, n)
+            if not ok:
+                seg = None
+        if seg is None:  # not a walkable straight segment: nearest layer to the chord
+            t = np.linspace(0.0, 1.0, n + 1)[:, None]
+            seg = a + t * (b - a)
+            h = _locate(s, seg, np.inf)[1]
+            seg[:, 1] = np.where(np.isnan(h), seg[:, 1], h)
+        out.append(seg[1:])
+        kb, _ = _locate(s, b[None], max(s.step_height, s.cell_size))
+        cur = int(kb[0])
+    return np.concatenate(out)
+
+
 def segment_visible(s: NavSurface, a, b) -> bool:
     """True when the straight segment from a to b (both near the surface) stays on linked
     walkable samples of one layer: an agent can walk it straight."""

@@ -150,6 +150,11 @@ class NavSurface:
         from baker.navmesh import query
         return query.surface_height(self, points, tol)
 
+    def resample_path(self, points, spacing: float | None = None) -> np.ndarray:
+        """(m, 3) points along a path every `spacing` m, heights on the walked surface."""
+        from baker.navmesh import query
+        return query.resample_path(self, points, spacing)
+
     def segment_visible(self, a, b) -> bool:
         """True when the straight segment a-b stays on linked walkable samples of one layer."""
         from baker.navmesh import query

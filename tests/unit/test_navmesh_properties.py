@@ -89,3 +89,19 @@ def test_find_path_on_curved_log(ax, az, ay, bx, bz, by):
     assert s.is_walkable(r.points, tol=1e-4).all()
     for p, q in zip(r.points[:-1], r.points[1:]):
         assert s.segment_visible(p, q)
+
+
+@settings(max_examples=30, deadline=None)
+@given(ax=st.floats(0.0, 1.0), az=st.floats(-0.3, 1.3), ay=st.sampled_from([0.0, 0.2]),
+       bx=st.floats(0.0, 1.0), bz=st.floats(-0.3, 1.3), by=st.sampled_from([0.0, 0.2]))
+def test_resampled_path_follows_the_surface(ax, az, ay, bx, bz, by):
+    s = log_scene()
+    a = s.nearest([ax, ay, az])
+    r = s.find_path(a, [bx, by, bz])
+    dense = s.resample_path(r.points, 0.02)
+    assert np.allclose(dense[0], r.points[0]) and np.allclose(dense[-1], r.points[-1])
+    assert s.is_walkable(dense, tol=1e-4).all()
+    step = np.linalg.norm((dense[1:] - dense[:-1])[:, [0, 2]], axis=1)
+    assert np.all(step <= 0.02 + 1e-9)
+    # neighbouring dense points stay on one layer: no jumps larger than the step height
+    assert np.all(np.abs(np.diff(dense[:, 1])) <= AGENT.step_height + 1e-9)
