@@ -61,13 +61,16 @@ def _window(s: NavSurface, ix0, ix1, iz0, iz1) -> np.ndarray:
     return off + np.arange(tot, dtype=np.int64)
 
 
-def _kdtree(s: NavSurface):
-    t = s._cache.get("kdtree")
+def _rep_kdtree(s: NavSurface):
+    """KD-tree over the coarse representatives (far fewer points than samples), and the
+    largest distance from a representative to a member of its node."""
+    t = s._cache.get("rep_kdtree")
     if t is None:
         from scipy.spatial import cKDTree
 
-        t = cKDTree(s.positions, balanced_tree=False, compact_nodes=False)
-        s._cache["kdtree"] = t
+        ext = _coarse_index(s)[3]
+        t = (cKDTree(s.positions[s.coarse_rep]), float(ext.max()) if len(ext) else 0.0)
+        s._cache["rep_kdtree"] = t
     return t
 
 
@@ -85,24 +88,46 @@ def _snap(s: NavSurface, idx: np.ndarray, p: np.ndarray) -> np.ndarray:
     return out
 
 
+def _best_in(s: NavSurface, idx: np.ndarray, p: np.ndarray):
+    if len(idx) == 0:
+        return -1, None, np.inf
+    q = _snap(s, idx, p)
+    d = np.linalg.norm(q - p, axis=1)
+    k = int(np.argmin(d))
+    return int(idx[k]), q[k], float(d[k])
+
+
 def _nearest_sample(s: NavSurface, p: np.ndarray, max_dist: float = np.inf):
-    """(sample index, surface point) closest to p within max_dist, or (-1, None)."""
+    """(sample index, surface point) closest to p within max_dist, or (-1, None).
+
+    Grid windows of growing size around p's column (exact once the best distance is within
+    the window), then a KD-tree over the coarse representatives for far-away points."""
     if s.n_samples == 0:
         return -1, None
     c = s.cell_size
     ix, iz = _columns(s, p[0], p[2])
-    r = _RING if not math.isfinite(max_dist) else min(_RING, int(math.ceil(max_dist / c)))
-    idx = _window(s, ix - r, ix + r, iz - r, iz + r)
     best, bp, bd = -1, None, np.inf
-    if len(idx):
-        q = _snap(s, idx, p)
-        d = np.linalg.norm(q - p, axis=1)
-        k = int(np.argmin(d))
-        best, bp, bd = int(idx[k]), q[k], float(d[k])
-    if bd > (r + 0.5) * c and bd > 0:  # something outside the window may be closer
-        dist, k = _kdtree(s).query(p, k=1, distance_upper_bound=min(bd, max_dist))
-        if np.isfinite(dist) and dist < bd:
-            best, bp, bd = int(k), s.positions[k].astype(np.float64), float(dist)
+    for r in (_RING, 16, 64):
+        if math.isfinite(max_dist):
+            r = min(r, int(math.ceil(max_dist / c)))
+        best, bp, bd = _best_in(s, _window(s, ix - r, ix + r, iz - r, iz + r), p)
+        if best >= 0 and bd > (r + 0.5) * c and math.ceil(bd / c) <= 64:
+            r = int(math.ceil(bd / c))  # one window that surely holds the nearest sample
+            best, bp, bd = _best_in(s, _window(s, ix - r, ix + r, iz - r, iz + r), p)
+        if best >= 0 and bd <= (r + 0.5) * c:
+            break
+        if (r + 0.5) * c >= max_dist:
+            break
+    else:
+        tree, ext = _rep_kdtree(s)
+        dr, _ = tree.query(p, k=1)
+        if math.isfinite(dr) and dr - ext <= min(bd, max_dist):
+            nodes = tree.query_ball_point(p, dr + 2.0 * ext)
+            order, indptr = _members(s)
+            idx = np.concatenate([order[indptr[u]:indptr[u + 1]] for u in nodes])
+            k2, q2, d2 = _best_in(s, idx, p)
+            if d2 < bd:
+                best, bp, bd = k2, q2, d2
     if best < 0 or bd > max_dist:
         return -1, None
     return best, bp
@@ -144,7 +169,7 @@ def component_of(s: NavSurface, p) -> int:
     return -1 if k < 0 else int(s.component[k])
 
 
-def _locate(s: NavSurface, points: np.ndarray, tol: float):
+def _locate(s: NavSurface, points: np.ndarray, tol: float, _retry: bool = True):
     """Per point: the sample of its column whose plane height is closest, and that height;
     (-1, NaN) when none is within tol vertically."""
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
@@ -175,6 +200,20 @@ def _locate(s: NavSurface, points: np.ndarray, tol: float):
         besth[j[better]] = h[better]
         bestd[j[better]] = d[better]
         k += 1
+    if _retry and (best < 0).any():
+        # points on a cell border (path corners often are): try the neighbouring columns
+        miss = np.nonzero(best < 0)[0]
+        eps = 1e-6 * s.cell_size
+        for ox, oz in ((eps, 0), (-eps, 0), (0, eps), (0, -eps), (eps, eps), (-eps, -eps),
+                       (eps, -eps), (-eps, eps)):
+            q = pts[miss] + [ox, 0.0, oz]
+            b2, h2 = _locate(s, q, tol, _retry=False)
+            got = b2 >= 0
+            best[miss[got]] = b2[got]
+            besth[miss[got]] = h2[got]
+            miss = miss[~got]
+            if len(miss) == 0:
+                break
     return best, besth
 
 
@@ -334,22 +373,20 @@ def _walk(s: NavSurface, s0: int, a: np.ndarray, b: np.ndarray, s1: int = -1):
 
 
 def _trace(s: NavSurface, s0: int, a: np.ndarray, b: np.ndarray, n: int):
-    """Samples under n + 1 evenly spaced XZ points from a to b, following links from s0
-    (whose column holds a). Returns (points (n + 1, 3) on the surface, ok)."""
+    """Surface points at n + 1 evenly spaced XZ positions from a to b, on the layer reached
+    by following links from s0 (whose column holds a) exactly as _walk does.
+    Returns (points (n + 1, 3), ok); ok is False when the walk leaves the surface."""
     c = s.cell_size
     L = math.hypot(b[0] - a[0], b[2] - a[2])
-    m = max(n, int(math.ceil(L / (0.25 * c))))
-    m = int(math.ceil(m / n)) * n  # dense grid holding the n + 1 output points
+    m = int(math.ceil(L / (0.25 * c))) + 1  # the same dense grid as _walk
     t = np.linspace(0.0, 1.0, m + 1)
-    x = a[0] + t * (b[0] - a[0])
-    z = a[2] + t * (b[2] - a[2])
-    ix, iz = _columns(s, x, z)
+    ix, iz = _columns(s, a[0] + t * (b[0] - a[0]), a[2] + t * (b[2] - a[2]))
     dx, dz = np.diff(ix), np.diff(iz)
     ch = np.nonzero((dx != 0) | (dz != 0))[0]
     dirs = _DIR_OF[dx[ch] + 1, dz[ch] + 1].tolist()
     samp = np.empty(m + 1, dtype=np.int64)
     cur = int(s0)
-    ok = ix[0] == s.cells[cur, 0] and iz[0] == s.cells[cur, 1]
+    ok = bool(ix[0] == s.cells[cur, 0] and iz[0] == s.cells[cur, 1])
     prev = 0
     for i, d in zip(ch.tolist(), dirs):
         samp[prev:i + 1] = cur
@@ -360,9 +397,12 @@ def _trace(s: NavSurface, s0: int, a: np.ndarray, b: np.ndarray, n: int):
             cur = nxt
         prev = i + 1
     samp[prev:] = cur
-    k = np.arange(0, m + 1, m // n)
-    y = _plane_y(s, samp[k], x[k], z[k])
-    return np.stack([x[k], y, z[k]], axis=1), ok
+    tk = np.linspace(0.0, 1.0, n + 1)
+    k = np.rint(tk * m).astype(np.int64)
+    x = a[0] + tk * (b[0] - a[0])
+    z = a[2] + tk * (b[2] - a[2])
+    y = _plane_y(s, samp[k], x, z)
+    return np.stack([x, y, z], axis=1), ok
 
 
 def resample_path(s: NavSurface, points, spacing: float | None = None) -> np.ndarray:

@@ -106,6 +106,21 @@ class NavSurface:
             self._cache["csr"] = c
         return c
 
+    def stats(self) -> dict:
+        """Summary for reports (plain JSON types)."""
+        return {
+            "samples": self.n_samples,
+            "walkable_area_m2": round(self.walkable_area, 4),
+            "components": self.n_components,
+            "largest_component_m2": round(float(self.component_area[0]), 4)
+            if self.n_components else 0.0,
+            "grid": [int(self.shape[0]), int(self.shape[1])],
+            "cell_size": self.cell_size,
+            "agent": {"radius": self.agent_radius, "height": self.agent_height,
+                      "step_height": self.step_height, "max_slope": self.max_slope},
+            "format_version": FORMAT_VERSION,
+        }
+
     def arrays(self) -> dict:
         """Every field as a dict of numpy arrays / scalars (for .npz saving)."""
         return {f.name: getattr(self, f.name) for f in fields(self) if f.name != "_cache"}

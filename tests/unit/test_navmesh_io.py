@@ -97,3 +97,19 @@ def test_bounds_limit_the_build():
     env = env_of(floor(0.0, 1.0, 0.0, 1.0), box((0.6, 0, 0.6), (0.8, 0.3, 0.8)))
     s = build(env, AGENT, bounds=[[0.0, 0.0], [0.5, 0.5]])
     assert s.positions[:, 0].max() < 0.5 and s.positions[:, 2].max() < 0.5
+
+
+def test_nearest_from_far_away_and_stats(surface):
+    # far above / beside the scene: still the exact nearest surface point
+    q = surface.nearest([0.5, 3.0, 0.5])
+    assert abs(q[1] - 0.3) < 1e-6
+    q = surface.nearest([3.0, 0.0, 0.5])
+    assert abs(q[0] - 0.945) < 1e-6 and abs(q[1]) < 1e-6  # road end, eroded by r
+    brute = surface.positions[np.argmin(np.linalg.norm(surface.positions - [3.0, 0.0, 0.5],
+                                                       axis=1))]
+    assert np.linalg.norm(q - [3, 0, 0.5]) <= np.linalg.norm(brute - [3, 0, 0.5]) + 1e-9
+    st = surface.stats()
+    assert st["samples"] == surface.n_samples and st["components"] == 2
+    import json
+
+    json.dumps(st)
