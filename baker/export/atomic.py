@@ -54,13 +54,17 @@ def _unlink(p: Path) -> None:
 
 
 def check_writable(folder: Path) -> None:
-    """ExportError (one line) unless `folder` exists and a file can be created in it.
+    """Create `folder` if needed; ExportError (one line) unless a file can be created in it.
 
     Call it before a long bake so an unwritable output folder fails early.
     """
     folder = Path(folder) if str(folder) else Path(".")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise ExportError(f"output folder {folder} cannot be created: {e.strerror or e}") from None
     if not folder.is_dir():
-        raise ExportError(f"output folder {folder} does not exist")
+        raise ExportError(f"output folder {folder} is not a folder")
     try:
         fd, tmp = tempfile.mkstemp(prefix=".baker-write-test.", dir=folder)
     except OSError as e:

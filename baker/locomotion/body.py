@@ -1,12 +1,19 @@
-"""Follow-the-leader body: every segment sits on the head's trail at its fixed arc length
-behind the head, is projected onto the surface below and oriented by the surface normal,
-facing the segment ahead. Vectorized over frames and segments: one ray batch for the bake."""
+"""Follow-the-leader body: every segment sits on the head's trail at its fixed arc length behind
+the head, a clearance above the surface, oriented by the surface normal and facing the segment
+ahead. Vectorized over frames and segments, with one batch of ray casts for the whole bake.
+
+The trail is the head's path projected onto the surface below (Embree rays). Its height profile is
+smoothed along the trail and kept inside a band around the surface, so the spine rides over
+creases and small steps without kinks: neighbouring joints keep their spacing, and every joint
+stays between 0 and 2x the clearance above the surface below it.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
 from baker.environment.rays import RayCaster
 from baker.geometry import polyline
@@ -42,32 +49,71 @@ def project_to_surface(rays: RayCaster, points: np.ndarray, probe: float):
     return out, nrm, hits.hit
 
 
-def body_frames(trail: np.ndarray, head_arc: np.ndarray, spacing: float, segments: int,
-                clearance: float, rays: RayCaster, probe: float) -> BodyFrames:
+@dataclass(frozen=True)
+class Trail:
+    """The head's trail on the surface, resampled uniformly in horizontal arc length.
+
+    points  : (T, 3) float64, metres, world; y is the smoothed surface height
+    normals : (T, 3) float64, smoothed unit surface normals
+    ground  : (T,) float64, raw surface height under each point
+    cum     : (T,) float64, 3D arc length along `points`
+    cum_h   : (T,) float64, horizontal arc length of each point
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    ground: np.ndarray
+    cum: np.ndarray
+    cum_h: np.ndarray
+
+    def arc_at(self, horizontal_arc: np.ndarray) -> np.ndarray:
+        """3D arc length at given horizontal arc lengths (exact, piecewise linear)."""
+        return np.interp(horizontal_arc, self.cum_h, self.cum)
+
+
+def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: float,
+                clearance: float, resolution: float | None = None) -> Trail:
+    """Project the head's path onto the surface and smooth its height profile.
+
+    path       : (n, 3) float, head positions oldest first (heights approximate, within `probe`)
+    spacing    : metres between spine joints; the smoothing scale
+    clearance  : metres; the smoothed height stays within 0.9 clearance of the surface
+    resolution : horizontal sample spacing (default spacing / 8)
+    """
+    res = resolution or spacing / 8.0
+    flat = path.copy()
+    flat[:, 1] = 0.0
+    cum_h0 = polyline.arc_lengths(flat)
+    n = max(int(np.ceil(cum_h0[-1] / res)), 1) + 1
+    s = np.linspace(0.0, cum_h0[-1], n)
+    pts = polyline.sample(path, cum_h0, s)
+    ground_pts, normals, _ = project_to_surface(rays, pts, probe)
+    ground = ground_pts[:, 1]
+    sigma = spacing / res
+    smooth = gaussian_filter1d(ground, sigma, mode="nearest")
+    band = 0.9 * clearance
+    y = np.clip(smooth, ground - band, ground + band)
+    pts = ground_pts.copy()
+    pts[:, 1] = y
+    normals = normalize(gaussian_filter1d(normals, 0.5 * sigma, axis=0, mode="nearest"))
+    return Trail(points=pts, normals=normals, ground=ground, cum=polyline.arc_lengths(pts), cum_h=s)
+
+
+def body_frames(trail: Trail, head_arc: np.ndarray, spacing: float, segments: int,
+                clearance: float) -> BodyFrames:
     """Place the spine on the trail.
 
-    trail    : (T, 3) float, head trail on the surface, oldest first (includes the initial body)
-    head_arc : (F,) float, arc length of the head along `trail` at each frame
-    spacing  : metres between neighbouring joints along the trail
-    probe    : metres above a trail point from which the surface is searched (less than the
-               free height of the walkable layer, so an overhang is never hit)
+    head_arc : (F,) float, 3D arc length of the head along the trail at each frame
     """
-    cum = polyline.arc_lengths(trail)
     s = head_arc[:, None] - spacing * np.arange(segments)[None, :]            # (F, S)
-    virt = polyline.sample(trail, cum, s)                                        # (F, S, 3)
-    F = len(head_arc)
-    ground, normals, _ = project_to_surface(rays, virt.reshape(-1, 3), probe)
-    ground = ground.reshape(F, segments, 3)
-    normals = normals.reshape(F, segments, 3)
-    # Smooth normals along the body (1-2-1) so triangle edges do not make the spine jitter.
-    pad = np.concatenate([normals[:, :1], normals, normals[:, -1:]], axis=1)
-    normals = normalize(pad[:, :-2] + 2.0 * pad[:, 1:-1] + pad[:, 2:])
-    pos = ground + clearance * UP
+    virt = polyline.sample(trail.points, trail.cum, s)                         # (F, S, 3)
+    normals = normalize(polyline.sample(trail.normals, trail.cum, s))
+    ground = np.interp(s, trail.cum, trail.ground)
+    pos = virt + clearance * UP
     forward = np.empty_like(pos)
     forward[:, 1:] = pos[:, :-1] - pos[:, 1:]
-    head_dir = polyline.tangents(trail, cum, head_arc)
+    head_dir = polyline.tangents(trail.points, trail.cum, head_arc)
     ahead = pos[:, 0] - pos[:, 1]
-    # The head faces along the trail; fall back to the neck direction where the trail is flat.
     forward[:, 0] = np.where(np.linalg.norm(head_dir, axis=1, keepdims=True) > 0.5, head_dir, ahead)
     rot = frames_to_quat(forward, normals)
-    return BodyFrames(positions=pos, rotations=rot, normals=normals, ground=ground[..., 1])
+    return BodyFrames(positions=pos, rotations=rot, normals=normals, ground=ground)

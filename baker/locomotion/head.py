@@ -37,6 +37,7 @@ class HeadSteer:
         self.max_offset = float(max_offset)    # metres, lateral offset cap
         self.turn_rate_scale = 1.0
         self.phase = 0.0
+        self.lateral_amp = 0.0
         self.speed = 0.0
         self.position = self.base.copy()
 
@@ -50,29 +51,31 @@ class HeadSteer:
         if dist < 1e-9:
             u = 0.0
         if u > 0.0 and dist > 1e-9:
+            # Don't overshoot the agent when it has stopped.
+            step = min(u * dt, max(dist - 0.25 * self.lead, 0.0)) if agent_speed == 0.0 else u * dt
             want = to / dist
-            # Turn toward the agent, at most u / turn_radius rad/s.
+            # Turn toward the agent by at most step / turn_radius: the path's curvature is bounded.
             cross = self.heading[2] * want[0] - self.heading[0] * want[2]
             dot = self.heading[0] * want[0] + self.heading[2] * want[2]
             ang = math.atan2(cross, dot)
-            lim = u * dt / self.turn_radius
+            lim = step / self.turn_radius
             a = max(-lim, min(lim, ang))
             c, s = math.cos(a), math.sin(a)
             hx, hz = self.heading[0], self.heading[2]
             self.heading = np.array([c * hx + s * hz, 0.0, -s * hx + c * hz])
-            # Don't overshoot the agent when it stops.
-            step = min(u * dt, max(dist - 0.25 * self.lead, 0.0)) if agent_speed == 0.0 else u * dt
             self.base = self.base + self.heading * step
             self.base[1] = agent_pos[1]
             u = step / dt
         self.speed = u
-        # Slither: frequency ~ speed; lateral amplitude = v * A(v) / w(v) rises with speed.
+        # Slither: frequency ~ speed; lateral amplitude = v * A(v) / w(v) rises with speed. The
+        # amplitude changes by at most a tenth of the distance walked, so speeding up or slowing
+        # down never swings the head sideways on the spot.
         frac = min(u / self.max_speed, 2.0)
         omega = self.turn_rate * self.turn_rate_scale * frac
         self.phase += omega * dt
-        if omega > 1e-9:
-            lateral_amp = min(u * self.amplitude * frac / omega, self.max_offset)
-        else:
-            lateral_amp = 0.0
+        want = min(u * self.amplitude / max(self.turn_rate * self.turn_rate_scale, 1e-9),
+                   self.max_offset) if omega > 1e-9 else self.lateral_amp
+        dmax = 0.1 * u * dt
+        self.lateral_amp += max(-dmax, min(dmax, want - self.lateral_amp))
         left = np.array([self.heading[2], 0.0, -self.heading[0]])
-        self.position = self.base + left * (lateral_amp * math.sin(self.phase))
+        self.position = self.base + left * (self.lateral_amp * math.sin(self.phase))

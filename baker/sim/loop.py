@@ -18,7 +18,7 @@ from baker.context import Context
 from baker.errors import NavError
 from baker.geometry import polyline
 from baker.locomotion.agent import PathAgent
-from baker.locomotion.body import body_frames, project_to_surface
+from baker.locomotion.body import body_frames, build_trail
 from baker.locomotion.head import HeadSteer
 from baker.sim.trajectory import Trajectory
 
@@ -58,7 +58,7 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
 
     start, heading = choose_start(nav, env, body.length, rng)
     agent = PathAgent(start, loco.max_speed, loco.acceleration, loco.stopping_distance)
-    head = HeadSteer(start, heading, max_speed=loco.max_speed, turn_radius=navc.radius,
+    head = HeadSteer(start, heading, max_speed=loco.max_speed, turn_radius=max(navc.radius, 3.0 * body.spacing),
                      lead=0.25 * body.spacing, turn_rate=loco.head_turn_rate,
                      amplitude=loco.slither_amplitude, max_offset=0.5 * navc.radius)
     brain = WanderBrain(nav, rig.wander.interval, rig.wander.radius, rng)
@@ -90,15 +90,20 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     if events:
         events[-1]["end"] = round(cfg.seconds, 6)
 
-    # Heights of the head trail: one ray batch, searched from below the agent's free height.
+    # The trail: head path (preceded by the initial body line) projected onto the surface, with
+    # rays searched from below the agent's free height so overhangs are never hit.
     probe = 0.5 * navc.height
-    heads, _, _ = project_to_surface(env.rays, heads, probe)
-    tail, _, _ = project_to_surface(env.rays, tail, probe)
-    trail = np.vstack([tail[:-1], heads])
-    cum = polyline.arc_lengths(trail)
+    path = np.vstack([tail[:-1], heads])
+    # Path heights are exact only at path corners: start the rays from the navigation surface.
+    h = nav.surface_height(path)
+    path[np.isfinite(h), 1] = h[np.isfinite(h)]
+    trail = build_trail(path, env.rays, probe=probe, spacing=body.spacing, clearance=body.clearance)
+    flat = path.copy()
+    flat[:, 1] = 0.0
+    cum_h = polyline.arc_lengths(flat)
     frame_steps = np.arange(0, n_steps + 1, per_frame)
-    head_arc = cum[len(tail) - 1 + frame_steps]
-    bf = body_frames(trail, head_arc, body.spacing, body.segments, body.clearance, env.rays, probe)
+    head_arc = trail.arc_at(cum_h[len(tail) - 1 + frame_steps])
+    bf = body_frames(trail, head_arc, body.spacing, body.segments, body.clearance)
     return Trajectory(
         times=frame_steps * dt,
         spine_positions=bf.positions,

@@ -37,13 +37,23 @@ def steep_plane(path: Path):
     trimesh.Trimesh(v, [[0, 2, 1], [0, 3, 2]], process=False).export(path)
 
 
+def put(path: Path, data: bytes) -> Path:
+    path.write_bytes(data)
+    return path
+
+
+def steep(path: Path) -> Path:
+    steep_plane(path)
+    return path
+
+
 CASES = {
     "missing": (lambda d: d / "nope.glb", ["not found"]),
-    "extension": (lambda d: (d / "scene.xyz").write_text("1 2 3") or d / "scene.xyz", ["xyz"]),
-    "corrupt_glb": (lambda d: (d / "bad.glb").write_bytes(b"glTF\x02\x00\x00\x00garbage") or d / "bad.glb", ["bad.glb"]),
-    "corrupt_obj": (lambda d: (d / "bad.obj").write_bytes(b"\x00\xff\xfe v 1 2\nf 9 9 9\n\x00") or d / "bad.obj", ["bad.obj"]),
-    "no_faces": (lambda d: (d / "pts.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 0 1\n") or d / "pts.obj", ["face"]),
-    "no_walkable": (lambda d: steep_plane(d / "steep.stl") or d / "steep.stl", ["walkable"]),
+    "extension": (lambda d: put(d / "scene.xyz", b"1 2 3"), ["xyz"]),
+    "corrupt_glb": (lambda d: put(d / "bad.glb", b"glTF\x02\x00\x00\x00garbage"), ["bad.glb"]),
+    "corrupt_obj": (lambda d: put(d / "bad.obj", b"\x00\xff\xfe v 1 2\nf 9 9 9\n\x00"), ["bad.obj"]),
+    "no_faces": (lambda d: put(d / "pts.obj", b"v 0 0 0\nv 1 0 0\nv 0 0 1\n"), ["face"]),
+    "no_walkable": (lambda d: steep(d / "steep.stl"), ["walkable"]),
 }
 
 
