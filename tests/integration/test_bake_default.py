@@ -1,0 +1,145 @@
+"""End to end on the bundled rainforest floor: a 60 s bake, checked by the Khronos validator,
+UsdValidation, the UsdSkel round trip and the motion metrics; determinism; the CLI's output."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pxr import Usd, UsdSkel
+
+from baker.config import DEFAULT_RIG, BakeConfig, load_rig_config
+from baker.geometry.transforms import trs_to_matrix
+from baker.pipeline import bake
+from glb_read import Glb
+from validator import gltf_validate, issues_summary, usd_validate
+
+pytestmark = pytest.mark.slow
+
+
+def run(tmp: Path, name: str, seconds: float, seed: int = 0, **kw):
+    cfg = BakeConfig(seconds=seconds, seed=seed, rig=load_rig_config(DEFAULT_RIG),
+                     out=tmp / name, nav_cache_dir=tmp / "navcache", **kw)
+    return bake(cfg)
+
+
+@pytest.fixture(scope="module")
+def baked(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("bake60")
+    return run(tmp, "centipede", 60.0)
+
+
+def test_outputs_exist(baked):
+    assert set(baked.outputs) == {"glb", "usd", "json"}
+    for p in baked.outputs.values():
+        assert p.is_file() and p.stat().st_size > 0
+    assert not [p for p in baked.outputs["glb"].parent.iterdir() if ".tmp" in p.name]
+
+
+def test_motion_metrics_over_every_frame(baked):
+    m = baked.report["metrics"]
+    assert m["frames"] == 60 * 30 + 1
+    assert m["nan_count"] == 0
+    # every trunk joint between 0 and 2x clearance above the surface below it
+    assert m["clearance_violations"] == 0
+    assert 0.0 <= m["clearance_ratio_min"] and m["clearance_ratio_max"] <= 2.0
+    # neighbouring spine joints within +-2% of the rig spacing
+    assert m["spacing_error_max"] <= 0.02
+    # the surface under the head is never steeper than 60 degrees
+    assert m["head_slope_max_deg"] <= 60.0
+    assert m["frames_on_unwalkable_slope"] == 0
+    assert m["head_unsupported_frames"] == 0
+    assert m["distance_walked_body_lengths"] > 10
+
+
+def test_metrics_agree_with_the_trajectory(baked):
+    """Recompute spacing from the trajectory itself, not from the report."""
+    p = baked.trajectory.spine_positions
+    spacing = 0.25 / 20
+    gaps = np.linalg.norm(np.diff(p, axis=1), axis=2) / spacing - 1
+    assert np.abs(gaps).max() == pytest.approx(baked.report["metrics"]["spacing_error_max"])
+    assert np.all(np.isfinite(p))
+
+
+def test_glb_passes_khronos_validator(baked):
+    report = gltf_validate(baked.outputs["glb"])
+    errors = issues_summary(report, 0)
+    assert errors == [], errors
+    assert report["issues"]["numErrors"] == 0
+
+
+def test_usd_passes_usd_validation(baked):
+    stage = Usd.Stage.Open(str(baked.outputs["usd"]))
+    assert usd_validate(stage) == []
+    assert UsdGeomUpAxis(stage) == "Y"
+    assert stage.GetTimeCodesPerSecond() == 30
+    assert stage.GetEndTimeCode() == 60 * 30
+
+
+def UsdGeomUpAxis(stage):
+    from pxr import UsdGeom
+
+    return UsdGeom.GetStageUpAxis(stage)
+
+
+def test_usd_anim_query_matches_glb_accessors(baked):
+    stage = Usd.Stage.Open(str(baked.outputs["usd"]))
+    cache = UsdSkel.Cache()
+    root = UsdSkel.Root(stage.GetPrimAtPath("/World/Centipede"))
+    cache.Populate(root, Usd.TraverseInstanceProxies())
+    skel = UsdSkel.Skeleton(stage.GetPrimAtPath("/World/Centipede/Skeleton"))
+    anim = cache.GetSkelQuery(skel).GetAnimQuery()
+    names = [str(t).split("/")[-1] for t in anim.GetJointOrder()]
+    glb = Glb(baked.outputs["glb"].read_bytes())
+    tracks = glb.animation_tracks()
+    t = np.stack([tracks[(n, "translation")][1] for n in names], 1).astype(np.float64)
+    q = np.stack([tracks[(n, "rotation")][1] for n in names], 1).astype(np.float64)
+    glb_m = trs_to_matrix(t, q)
+    n_frames = len(t)
+    assert n_frames == 1801
+    worst = 0.0
+    for f in range(n_frames):
+        usd_m = np.array(anim.ComputeJointLocalTransforms(Usd.TimeCode(f))).transpose(0, 2, 1)
+        worst = max(worst, float(np.abs(usd_m - glb_m[f]).max()))
+    assert worst < 1e-4, worst
+
+
+def test_report_contents(baked):
+    r = json.loads(baked.outputs["json"].read_text())
+    assert r["seed"] == 0
+    assert r["parameters"]["seconds"] == 60.0 and r["parameters"]["fps"] == 30
+    assert r["parameters"]["rig"]["body"]["segments"] == 21
+    for stage in ("load", "navmesh", "rig", "simulate", "pose", "export"):
+        assert r["timings_s"][stage] >= 0
+    for pkg in ("numpy", "trimesh", "pygltflib", "usd-core"):
+        assert r["versions"][pkg]
+    tl = r["timeline"]
+    assert tl and tl[0]["start"] == 0.0 and tl[-1]["end"] == 60.0
+    assert all(a["end"] == b["start"] for a, b in zip(tl, tl[1:]))
+    doc = Glb(baked.outputs["glb"].read_bytes()).doc
+    assert doc["asset"]["extras"]["seed"] == 0
+    assert doc["asset"]["extras"]["timeline"] == tl
+
+
+def test_same_seed_same_bytes_different_seed_different_path(tmp_path):
+    a = run(tmp_path, "a", 10.0, seed=3)
+    b = run(tmp_path, "b", 10.0, seed=3)
+    c = run(tmp_path, "c", 10.0, seed=4)
+    for fmt in ("glb", "usd"):
+        assert a.outputs[fmt].read_bytes() == b.outputs[fmt].read_bytes()
+    pa, pc = a.trajectory.spine_positions[:, 0], c.trajectory.spine_positions[:, 0]
+    assert np.abs(pa - pc).max() > 0.1
+
+
+def test_cli_is_quiet_when_piped_and_prints_one_summary_line(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "baker.cli", "bake", "--seconds", "2", "--out",
+                        str(tmp_path / "c"), "--cache-dir", str(tmp_path / "cache")],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert r.stderr == ""
+    lines = r.stdout.strip().splitlines()
+    assert len(lines) == 1
+    assert "61 frames" in lines[0] and "c.glb" in lines[0] and "c.usd" in lines[0]
+    assert " s" in lines[0]
