@@ -112,6 +112,7 @@ def bench(name: str, env: Environment, agent: NavAgentConfig, target_dist: float
     times = []
     s = None
     for _ in range(repeat):
+        s = None  # free the previous surface before building again (peak memory)
         t = time.perf_counter()
         s = build(env, agent)
         times.append(time.perf_counter() - t)

@@ -41,6 +41,10 @@ CHUNK_RAYS = 1 << 20
 LAYER_EPS = 1e-4
 #: Safety cap on the number of layers per column.
 MAX_PASSES = 256
+#: Largest grid built in one piece (about 0.5 kB of peak memory per column): beyond it, build
+#: raises NavError asking for a larger cell size or smaller bounds instead of running out of
+#: memory.
+MAX_COLUMNS = 40_000_000
 
 
 # --------------------------------------------------------------------------- ray casting
@@ -275,6 +279,10 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
         raise NavError("environment has no walkable surface (it has no triangles)")
     x0, z0, nx, nz, ytop = _grid(env, bounds, cell)
     ncols = nx * nz
+    if ncols > MAX_COLUMNS:
+        raise NavError(f"navigation grid too large: {nx} x {nz} columns at cell size {cell:g} m "
+                       f"(limit {MAX_COLUMNS:,}); use a larger cell size (at least "
+                       f"{cell * math.sqrt(ncols / MAX_COLUMNS):.3g} m) or smaller bounds")
     caster = _Caster(env)
     face_comp, comp_closed = _solid_components(mesh)
     timings["setup"] = time.perf_counter() - t0

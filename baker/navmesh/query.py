@@ -575,14 +575,35 @@ def find_path(s: NavSurface, a, b) -> PathResult:
                 fp.append(s.positions[chain_s[i]].astype(np.float64))
         fs.append(chain_s[i])
         fp.append(chain_p[i])
-    # string pulling: greedily jump to the farthest point visible from the anchor
+    # string pulling: from each anchor jump to a far visible chain point (galloping search:
+    # +1, +2, +4, ... until a point is hidden, then bisect; only visible jumps are taken)
     out_p = [fp[0]]
     anchor = 0
     m = len(fs)
+
+    def vis(i, j):
+        return _walk(s, fs[i], fp[i], fp[j], fs[j]) >= 0
+
     while anchor < m - 1:
-        j = anchor + 1
-        while j + 1 < m and _walk(s, fs[anchor], fp[anchor], fp[j + 1], fs[j + 1]) >= 0:
-            j += 1
+        if vis(anchor, m - 1):
+            j = m - 1
+        else:
+            good, step = anchor + 1, 1
+            bad = m - 1
+            while good + step < bad:
+                if vis(anchor, good + step):
+                    good += step
+                    step *= 2
+                else:
+                    bad = good + step
+                    break
+            while bad - good > 1:
+                mid = (good + bad) // 2
+                if vis(anchor, mid):
+                    good = mid
+                else:
+                    bad = mid
+            j = good
         out_p.append(fp[j])
         anchor = j
     pts = np.array(out_p)

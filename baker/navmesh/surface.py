@@ -106,6 +106,15 @@ class NavSurface:
             self._cache["csr"] = c
         return c
 
+    def prepare(self) -> "NavSurface":
+        """Build the lazy query tables now (coarse-graph lists, members, block index) instead
+        of on the first query (about 0.1-0.3 s on a few million samples). Returns self."""
+        from baker.navmesh import query
+        query._coarse_lists(self)
+        query._members(self)
+        query._coarse_index(self)
+        return self
+
     def stats(self) -> dict:
         """Summary for reports (plain JSON types)."""
         return {

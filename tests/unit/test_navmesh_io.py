@@ -113,3 +113,23 @@ def test_nearest_from_far_away_and_stats(surface):
     import json
 
     json.dumps(st)
+
+
+def test_grid_too_large_is_a_nav_error(monkeypatch):
+    import importlib
+
+    from baker.errors import NavError
+
+    build_mod = importlib.import_module("baker.navmesh.build")  # the module, not the function
+
+    monkeypatch.setattr(build_mod, "MAX_COLUMNS", 1000)
+    with pytest.raises(NavError, match="too large"):
+        build_mod.build(env_of(floor()), AGENT)
+
+
+def test_prepare_and_queries_agree(surface):
+    import copy
+
+    s2 = copy.deepcopy(surface).prepare()
+    a, b = [0.05, 0, 0.5], [0.95, 0, 0.5]
+    assert np.array_equal(s2.find_path(a, b).points, surface.find_path(a, b).points)
