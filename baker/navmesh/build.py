@@ -347,8 +347,10 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
             s, tt = s[ok], tt[ok]
         links[s, d] = tt
         links[tt, OPPOSITE[d]] = s
-    for d in range(4):  # keep symmetric links only (two layers may have claimed one sample)
-        s = np.nonzero(links[:, d] >= 0)[0]
+    # keep symmetric links only: two layers of one column may have claimed the same sample
+    msrc = np.nonzero(counts[scol] > 1)[0]
+    for d in (0, 1):
+        s = msrc[links[msrc, d] >= 0]
         bad = links[links[s, d], OPPOSITE[d]] != s
         links[s[bad], d] = -1
     for d, (a1, a2) in ((4, (0, 1)), (7, (0, 3))):
