@@ -381,8 +381,15 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
         dirv = np.zeros_like(o)
         dirv[:, 0] = DIRS[bd, 0]
         dirv[:, 2] = DIRS[bd, 1]
-        th, _ = caster.cast(o, dirv, cell)
-        np.minimum.at(d0, bs, np.where(np.isfinite(th), th, 0.5 * cell))
+        th, tp = caster.cast(o, dirv, cell)
+        dd = np.full(len(th), 0.5 * cell)
+        hit = np.isfinite(th)
+        # distance to the wall's plane (a slanted wall is closer than along the grid axis)
+        fn = caster.face_normals[tp[hit]]
+        nh = np.hypot(fn[:, 0], fn[:, 2])
+        cosang = np.abs(fn[:, 0] * dirv[hit, 0] + fn[:, 2] * dirv[hit, 2]) / np.maximum(nh, 1e-12)
+        dd[hit] = th[hit] * np.where(nh > 1e-6, cosang, 1.0)
+        np.minimum.at(d0, bs, dd)
     dist = np.full(n, np.inf)
     dist[border] = d0
     w = np.where(np.arange(8) < 4, cell, cell * math.sqrt(2.0))

@@ -258,3 +258,20 @@ def test_links_are_symmetric_and_components_consistent():
     assert np.all(s.component[src] == s.component[dst])
     assert np.all(np.diff(s.component_area) <= 0)
     assert np.all(s.normals[:, 1] >= math.cos(AGENT.max_slope) - 1e-6)
+
+
+@pytest.mark.parametrize("deg", [0.0, 30.0, 45.0])
+def test_erosion_keeps_the_radius_from_slanted_walls(deg):
+    """A tall thin wall at any angle: no sample closer than about the radius to its plane."""
+    a = math.radians(deg)
+    d = np.array([math.cos(a), 0.0, math.sin(a)])
+    c = np.array([0.5, 0.0, 0.5])
+    p0, p1 = c - 0.6 * d, c + 0.6 * d
+    wall = quad(p0, p0 + [0, 0.3, 0], p1 + [0, 0.3, 0], p1)
+    s = build(env_of(floor(-0.2, 1.2, -0.2, 1.2), wall), AGENT)
+    n = np.array([-d[2], 0.0, d[0]])
+    q = s.positions.astype(float) - c
+    along = q @ d
+    perp = np.abs(q @ n)
+    mid = np.abs(along) < 0.5  # away from the wall's ends
+    assert perp[mid].min() >= R - 0.2 * CELL
