@@ -12,6 +12,10 @@ Scenes:
 
 For every scene it prints the median build time and the median / p90 times of
 random_point_near and find_path for targets within a given distance.
+
+Reference (benchmarks/recast_reference.cpp, Recast 1.5.1, cell height 0.05 m) on the generated
+scene exported as OBJ: walkable area 37962 m^2 (baker.navmesh: 36967 m^2, -2.6 %), Recast build
+2.3 s single-threaded on the same machine.
 """
 
 from __future__ import annotations

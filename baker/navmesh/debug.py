@@ -32,10 +32,11 @@ def walkable_mesh(s: NavSurface, lift: float = 0.002) -> tuple[np.ndarray, np.nd
 
 
 def draw_map(s: NavSurface, path_png, paths=(), points=(), *, dpi: int = 150,
-             title: str | None = None) -> Path:
+             title: str | None = None, extent=None) -> Path:
     """Draw a top-down map (X right, Z down as seen from above with +Y toward the viewer) of the
     walkable samples coloured by component, with optional paths ((k, 3) arrays or PathResults)
-    and points ((3,) or (k, 3)). Needs matplotlib (optional dependency)."""
+    and points ((3,) or (k, 3)). extent: optional (xmin, xmax, zmin, zmax) zoom window in
+    metres. Needs matplotlib (optional dependency)."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -64,6 +65,9 @@ def draw_map(s: NavSurface, path_png, paths=(), points=(), *, dpi: int = 150,
     ax.set_ylabel("z [m]")
     ax.set_title(title or f"walkable area {s.walkable_area:.2f} m^2, {s.n_components} components")
     ax.set_aspect("equal")
+    if extent is not None:
+        ax.set_xlim(extent[0], extent[1])
+        ax.set_ylim(extent[3], extent[2])
     path_png.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path_png, dpi=dpi, bbox_inches="tight")
     plt.close(fig)
