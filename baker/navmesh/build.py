@@ -176,18 +176,24 @@ def _cast_layers(caster: _Caster, x0, z0, nx, nz, cell, ytop):
     column then top to bottom."""
     col = np.arange(nx * nz, dtype=np.int64)
     oy = np.full(len(col), ytop)
+    # the re-cast offset must exceed float32 rounding of the (re-centred) coordinates
+    span = np.abs(np.array([x0, ytop, z0, x0 + nx * cell, z0 + nz * cell]) - np.r_[
+        caster.shift[[0, 1, 2, 0, 2]]]).max()
+    eps = max(LAYER_EPS, 16.0 * float(np.finfo(np.float32).eps) * span)
     cols, ys, prims = [], [], []
+    last = np.full(len(col), -1, dtype=np.int32)
     for _ in range(MAX_PASSES):
         if len(col) == 0:
             break
         t, prim = caster.cast_down(col, oy, x0, z0, nz, cell)
-        h = prim >= 0
+        h = (prim >= 0) & (prim != last)  # the same triangle again: rounding, stop there
         col, prim = col[h], prim[h]
         y = oy[h] - t[h]
         cols.append(col)
         ys.append(y)
         prims.append(prim)
-        oy = y - LAYER_EPS
+        oy = y - eps
+        last = prim
     col = np.concatenate(cols) if cols else np.zeros(0, np.int64)
     y = np.concatenate(ys) if ys else np.zeros(0)
     prim = np.concatenate(prims) if prims else np.zeros(0, np.int32)
