@@ -392,9 +392,10 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
         hit = np.isfinite(th)
         # distance to the wall's plane (a slanted wall is closer than along the grid axis)
         fn = caster.face_normals[tp[hit]]
-        nh = np.hypot(fn[:, 0], fn[:, 2])
-        cosang = np.abs(fn[:, 0] * dirv[hit, 0] + fn[:, 2] * dirv[hit, 2]) / np.maximum(nh, 1e-12)
-        dd[hit] = th[hit] * np.where(nh > 1e-6, cosang, 1.0)
+        hlen = np.hypot(fn[:, 0], fn[:, 2])
+        cosang = (np.abs(fn[:, 0] * dirv[hit, 0] + fn[:, 2] * dirv[hit, 2])
+                  / np.maximum(hlen, 1e-12))
+        dd[hit] = th[hit] * np.where(hlen > 1e-6, cosang, 1.0)
         np.minimum.at(d0, bs, dd)
     dist = np.full(n, np.inf)
     dist[border] = d0

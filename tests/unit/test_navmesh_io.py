@@ -133,3 +133,12 @@ def test_prepare_and_queries_agree(surface):
     s2 = copy.deepcopy(surface).prepare()
     a, b = [0.05, 0, 0.5], [0.95, 0, 0.5]
     assert np.array_equal(s2.find_path(a, b).points, surface.find_path(a, b).points)
+
+
+def test_build_log_message_formats(caplog):
+    import logging
+
+    with caplog.at_level(logging.INFO, logger="baker.navmesh.build"):
+        build(bridge_scene(), AGENT)
+    msgs = [r.getMessage() for r in caplog.records if r.name == "baker.navmesh.build"]
+    assert any("walkable samples" in m for m in msgs)
