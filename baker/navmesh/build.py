@@ -534,8 +534,7 @@ def _coarse(positions, cells, links, k, nz):
     block = (cells[:, 0] // k).astype(np.int64) * bz + cells[:, 1] // k
     ax = links[:, :4]
     has = ax >= 0
-    same = np.zeros_like(has)
-    same[has] = (block[np.nonzero(has)[0]] == block[ax[has]])
+    same = has & (block[:, None] == block[np.maximum(ax, 0)])
     nc, lab = connected_components(_csr(ax, same), directed=True, connection="strong")
     # representative: the sample nearest its block's centre (ties: lowest index)
     c = (k - 1) * 0.5

@@ -401,7 +401,16 @@ def _trace(s: NavSurface, s0: int, a: np.ndarray, b: np.ndarray, n: int):
     k = np.rint(tk * m).astype(np.int64)
     x = a[0] + tk * (b[0] - a[0])
     z = a[2] + tk * (b[2] - a[2])
-    y = _plane_y(s, samp[k], x, z)
+    # use the walked sample of the output point's own column (a nearby dense point holds it)
+    oix, oiz = _columns(s, x, z)
+    kk = k.copy()
+    found = (ix[k] == oix) & (iz[k] == oiz)
+    for off in (-1, 1, -2, 2, -3, 3):
+        kc = np.clip(k + off, 0, m)
+        hit = ~found & (ix[kc] == oix) & (iz[kc] == oiz)
+        kk[hit] = kc[hit]
+        found |= hit
+    y = _plane_y(s, samp[kk], x, z)
     return np.stack([x, y, z], axis=1), ok
 
 
