@@ -45,6 +45,8 @@ MAX_PASSES = 256
 #: raises NavError asking for a larger cell size or smaller bounds instead of running out of
 #: memory.
 MAX_COLUMNS = 40_000_000
+#: Columns ray-cast and reduced to walkable samples at a time (bounds the per-hit memory).
+TILE_COLUMNS = 1 << 20
 
 
 # --------------------------------------------------------------------------- ray casting
@@ -171,10 +173,10 @@ def _grid(env, bounds, cell: float):
     return x0, z0, nx, nz, float(eb[1, 1]) + 1.0
 
 
-def _cast_layers(caster: _Caster, x0, z0, nx, nz, cell, ytop):
-    """All hits of all columns: (col (H,) int64, y (H,) float64, prim (H,) int64), sorted by
-    column then top to bottom."""
-    col = np.arange(nx * nz, dtype=np.int64)
+def _cast_layers(caster: _Caster, x0, z0, nx, nz, cell, ytop, col0=0, col1=None):
+    """All hits of columns col0..col1-1: (col (H,) int64, y (H,) float64, prim (H,) int32),
+    sorted by column then top to bottom."""
+    col = np.arange(col0, nx * nz if col1 is None else col1, dtype=np.int64)
     oy = np.full(len(col), ytop)
     # the re-cast offset must exceed float32 rounding of the (re-centred) coordinates
     span = np.abs(np.array([x0, ytop, z0, x0 + nx * cell, z0 + nz * cell]) - np.r_[
@@ -199,6 +201,30 @@ def _cast_layers(caster: _Caster, x0, z0, nx, nz, cell, ytop):
     prim = np.concatenate(prims) if prims else np.zeros(0, np.int32)
     order = np.argsort(col, kind="stable")  # passes are in top-to-bottom order already
     return col[order], y[order], prim[order]
+
+
+def _walkable_hits(caster, x0, z0, nx, nz, cell, ytop, c0, c1, face_comp, comp_closed,
+                   cos_slope, height, timings):
+    """Heightfield of columns c0..c1-1 reduced to its walkable hits:
+    (col, y, ceiling y, triangle, number of hits)."""
+    t = time.perf_counter()
+    hcol, hy, hprim = _cast_layers(caster, x0, z0, nx, nz, cell, ytop, c0, c1)
+    timings["layers"] = timings.get("layers", 0.0) + time.perf_counter() - t
+    t = time.perf_counter()
+    nh = len(hcol)
+    first = np.ones(nh, dtype=bool)
+    first[1:] = hcol[1:] != hcol[:-1]
+    hceil = np.empty(nh)
+    hceil[first] = np.inf
+    hceil[~first] = hy[:-1][~first[1:]]
+    hny = np.abs(caster.face_normals[hprim, 1])  # two-sided: every hit is seen from above
+    # inside-solid test: a hit is not a floor when the space just above it lies inside a
+    # closed component (its own exit, or a surface buried in / coincident with a solid)
+    inside = _inside_solid(hcol, hprim, first, face_comp, comp_closed)
+    walk = (hny >= cos_slope) & (hceil - hy >= height) & ~inside
+    out = (hcol[walk], hy[walk], hceil[walk], hprim[walk], nh)
+    timings["samples"] = timings.get("samples", 0.0) + time.perf_counter() - t
+    return out
 
 
 def _inside_solid(hcol, hprim, first, face_comp, comp_closed) -> np.ndarray:
@@ -293,41 +319,32 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
     face_comp, comp_closed = _solid_components(mesh)
     timings["setup"] = time.perf_counter() - t0
 
-    # 1. column heightfield ---------------------------------------------------------------
+    # 1.-2. column heightfield and walkable samples, in bands of columns (bounded memory) ---
+    parts = []
+    cos_slope = math.cos(slope) - 1e-9
+    for c0 in range(0, ncols, TILE_COLUMNS):
+        parts.append(_walkable_hits(caster, x0, z0, nx, nz, cell, ytop, c0,
+                                    min(ncols, c0 + TILE_COLUMNS), face_comp, comp_closed,
+                                    cos_slope, height, timings))
+    nh = sum(p[4] for p in parts)
     t = time.perf_counter()
-    hcol, hy, hprim = _cast_layers(caster, x0, z0, nx, nz, cell, ytop)
-    timings["layers"] = time.perf_counter() - t
-    t = time.perf_counter()
-    nh = len(hcol)
-    first = np.ones(nh, dtype=bool)
-    first[1:] = hcol[1:] != hcol[:-1]
-    hceil = np.empty(nh)
-    hceil[first] = np.inf
-    hceil[~first] = hy[:-1][~first[1:]]
-    hny = np.abs(caster.face_normals[hprim, 1])  # two-sided: every hit is seen from above
-    # inside-solid test: down each column, the n-th hit on a closed component enters it
-    # (n even) or leaves it (n odd); a hit is not a floor when the space just above it lies
-    # inside some closed component (its own exit, or a surface buried in / coincident with a
-    # solid's bottom).
-    inside = _inside_solid(hcol, hprim, first, face_comp, comp_closed)
-
-    # 2. walkable samples -----------------------------------------------------------------
-    walk = (hny >= math.cos(slope) - 1e-9) & (hceil - hy >= height) & ~inside
-    if not walk.any():
+    scol = np.concatenate([p[0] for p in parts])
+    sy = np.concatenate([p[1] for p in parts])
+    sceil = np.concatenate([p[2] for p in parts])
+    sprim = np.concatenate([p[3] for p in parts])
+    del parts
+    if len(scol) == 0:
         raise NavError("environment has no walkable surface (no upward-facing surface within "
                        f"{math.degrees(slope):.1f} deg with {height:g} m of clearance)")
-    scol = hcol[walk]
-    sy = hy[walk]
-    sceil = hceil[walk]
-    snrm = caster.face_normals[hprim[walk]]
+    snrm = caster.face_normals[sprim]
     snrm *= np.where(snrm[:, 1] < 0, -1.0, 1.0)[:, None]
-    del hcol, hy, hprim, hceil, hny, inside, walk, first
+    del sprim
     six, siz = scol // nz, scol % nz
     counts = np.bincount(scol, minlength=ncols)
     col_start = np.zeros(ncols + 1, dtype=np.int64)
     np.cumsum(counts, out=col_start[1:])
     n = len(sy)
-    timings["samples"] = time.perf_counter() - t
+    timings["samples"] += time.perf_counter() - t
 
     # 3. links ----------------------------------------------------------------------------
     t = time.perf_counter()
