@@ -410,7 +410,15 @@ def _trace(s: NavSurface, s0: int, a: np.ndarray, b: np.ndarray, n: int):
         hit = ~found & (ix[kc] == oix) & (iz[kc] == oiz)
         kk[hit] = kc[hit]
         found |= hit
-    y = _plane_y(s, samp[kk], x, z)
+    use = samp[kk]
+    if not found.all():  # the segment only clips that column: step over to it by a link
+        j = np.nonzero(~found)[0]
+        ddx, ddz = oix[j] - ix[k[j]], oiz[j] - iz[k[j]]
+        near = (np.abs(ddx) <= 1) & (np.abs(ddz) <= 1)
+        j, ddx, ddz = j[near], ddx[near], ddz[near]
+        nb = s.links[samp[k[j]], _DIR_OF[ddx + 1, ddz + 1]]
+        use[j[nb >= 0]] = nb[nb >= 0]
+    y = _plane_y(s, use, x, z)
     return np.stack([x, y, z], axis=1), ok
 
 
