@@ -86,7 +86,8 @@ def build_clip(traj: Trajectory, rig: Rig, name: str = "bake", fps: int | None =
     traj : spine_positions (F, S, 3) / spine_rotations (F, S, 4) are WORLD transforms of the S
            spine joints rig.spine; the placement node ("Centipede") is the identity.
     fps  : export frame rate; None infers it from traj.times (which must be f / fps).
-    Joints not on the spine keep their rest pose.
+    Limb joints named in traj.joint_names take their world frames from traj.joint_positions /
+    joint_rotations. Other joints keep their rest pose relative to their parent.
     """
     if not is_valid_name(name):
         raise ExportError(f"clip name {name!r} must use [A-Za-z0-9_] only")
@@ -121,6 +122,18 @@ def build_clip(traj: Trajectory, rig: Rig, name: str = "bake", fps: int | None =
     driven[spine] = True
     world_t[:, spine] = pos
     world_q[:, spine] = rot
+    if traj.joint_names:       # limbs: world frames of named joints
+        limb = np.array([skel.index(n) for n in traj.joint_names], dtype=np.int64)
+        lp = np.asarray(traj.joint_positions, dtype=np.float64)
+        lq = np.asarray(traj.joint_rotations, dtype=np.float64)
+        if lp.shape != (f_count, len(limb), 3) or lq.shape != (f_count, len(limb), 4):
+            raise ExportError(f"trajectory limb shapes {lp.shape}/{lq.shape} do not match "
+                              f"{f_count} frames x {len(limb)} joints")
+        if not (np.all(np.isfinite(lp)) and np.all(np.isfinite(lq))):
+            raise ExportError("the trajectory has non-finite limb positions or rotations")
+        driven[limb] = True
+        world_t[:, limb] = lp
+        world_q[:, limb] = lq / np.linalg.norm(lq, axis=-1, keepdims=True)
     for j, p in enumerate(skel.parents):
         if driven[j]:
             if p < 0:

@@ -70,6 +70,36 @@ class NavAgentConfig:
 
 
 @dataclass(frozen=True)
+class LegsConfig:
+    """Walking legs, ultimate legs, antennae and forcipules. Rig files give lengths in [BL]."""
+
+    enabled: bool = True            # [bool] False: spine only, static leg stubs on the mesh
+    upper_length: float = 0.0275    # [>0] [m] hip -> knee bone (coxa..femur)
+    tip_length: float = 0.03        # [>0] [m] knee -> foot bone (tibia..tarsus)
+    hip_width: float = 0.75         # [0..1.5] hip's lateral offset as a fraction of the half-width
+    reach: float = 0.0425           # [>0] [m] foot anchor's lateral distance from the centre line
+    knee_out: float = 0.35          # [>=0] knee pole = up (across the leg) + knee_out * outward
+    duty: float = 0.6               # (0..1) fraction of a step cycle a foot is planted
+    waves: float = 2.0              # [>0] gait waves along the body (lag = waves * 360 / pairs)
+    stride_min: float = 0.04        # [>0] [m] body travel per step cycle when slow
+    stride_max: float = 0.075       # [>=stride_min] [m] body travel per step cycle at max speed
+    lift: float = 0.00625           # [>=0] [m] swing height at mid swing
+    settle_time: float = 0.2        # [>0] [s] longest swing; feet land by then when the body stops
+    max_swing_rate: float = math.radians(480.0)  # [>0] [rad/s] fastest leg sweep in a swing;
+                                    # the duty factor drops at high speed to respect it
+    radius: float = 0.0016          # [>0] [m] leg tube radius at the hip (tapers to a point)
+    ultimate_upper: float = 0.025   # [>0] [m] ultimate leg bones, trailing backward
+    ultimate_tip: float = 0.03      # [>0] [m]
+    ultimate_raise: float = math.radians(15.0)   # [0..pi/2] [rad] pitch above the body axis
+                                                 # (warning posture: up to vertical)
+    ultimate_spread: float = math.radians(20.0)  # [0..pi/2] [rad] outward from the body axis
+    antenna_length: float = 0.03    # [>0] [m] each of the two antenna joints
+    antenna_sweep: float = math.radians(25.0)    # [0..pi/2] [rad] side-to-side sweep amplitude
+    antenna_rate: float = 1.3       # [>=0] [Hz] sweep frequency
+    forcipule_length: float = 0.012  # [>0] [m] each forcipule bone
+
+
+@dataclass(frozen=True)
 class RigConfig:
     name: str = "scolopendra"
     source: str = ""
@@ -78,6 +108,7 @@ class RigConfig:
     locomotion: LocomotionConfig = field(default_factory=LocomotionConfig)
     wander: WanderConfig = field(default_factory=WanderConfig)
     navigation: NavAgentConfig = field(default_factory=NavAgentConfig)
+    legs: LegsConfig = field(default_factory=LegsConfig)
 
 
 # --------------------------------------------------------------------------- bake run
@@ -181,12 +212,21 @@ def load_rig_config(path: Path | str) -> RigConfig:
                    {"radius": length, "height": length, "step_height": length,
                     "cell_size": length, "max_slope": deg})
     colors = _section(ColorsConfig, data.get("colors", {}), f"{path} [colors]", {})
-    extra = set(data) - {"name", "body", "colors", "locomotion", "wander", "navigation"}
+    legs = _section(LegsConfig, data.get("legs", {}), f"{path} [legs]",
+                    {**{k: length for k in _LEG_LENGTHS},
+                     **{k: deg for k in ("ultimate_raise", "ultimate_spread", "antenna_sweep",
+                                         "max_swing_rate")}})
+    extra = set(data) - {"name", "body", "colors", "locomotion", "wander", "navigation", "legs"}
     if extra:
         raise ConfigError(f"{path}: unknown section(s) {', '.join(sorted(extra))}")
     rig = RigConfig(name=str(data.get("name", path.stem)), source=str(path), body=body,
-                    colors=colors, locomotion=loco, wander=wander, navigation=nav)
+                    colors=colors, locomotion=loco, wander=wander, navigation=nav, legs=legs)
     return validate_rig(rig, str(path))
+
+
+#: LegsConfig fields given in body lengths in rig files (metres in LegsConfig)
+_LEG_LENGTHS = ("upper_length", "tip_length", "reach", "stride_min", "stride_max", "lift",
+                "radius", "ultimate_upper", "ultimate_tip", "antenna_length", "forcipule_length")
 
 
 def validate_rig(rig: RigConfig, where: str = "rig") -> RigConfig:
@@ -209,6 +249,24 @@ def validate_rig(rig: RigConfig, where: str = "rig") -> RigConfig:
         (0 < rig.navigation.max_slope < math.pi / 2, "navigation.max_slope must be in (0, 90) deg"),
         (b.clearance >= 0, "body.clearance must be >= 0"),
     ]
+    lg = rig.legs
+    checks += [
+        (isinstance(lg.enabled, bool), "legs.enabled must be true or false"),
+        (all(getattr(lg, k) > 0 for k in _LEG_LENGTHS if k != "lift"),
+         "legs lengths (bones, reach, strides, radius) must be > 0"),
+        (lg.lift >= 0, "legs.lift must be >= 0"),
+        (0 < lg.duty < 1, "legs.duty must be in (0, 1)"),
+        (lg.waves > 0, "legs.waves must be > 0"),
+        (lg.stride_max >= lg.stride_min, "legs.stride_max must be >= legs.stride_min"),
+        (lg.settle_time > 0, "legs.settle_time must be > 0"),
+        (lg.max_swing_rate > 0, "legs.max_swing_rate must be > 0"),
+        (0 <= lg.hip_width <= 1.5, "legs.hip_width must be in [0, 1.5]"),
+        (lg.knee_out >= 0, "legs.knee_out must be >= 0"),
+        (all(0 <= getattr(lg, k) <= math.pi / 2 for k in
+             ("ultimate_raise", "ultimate_spread", "antenna_sweep")),
+         "legs angles must be in [0, 90] deg"),
+        (lg.antenna_rate >= 0, "legs.antenna_rate must be >= 0"),
+    ]
     for ok, msg in checks:
         if not ok:
             raise ConfigError(f"{where}: {msg}")
@@ -229,4 +287,5 @@ def scale_rig(rig: RigConfig, factor: float) -> RigConfig:
         locomotion=sc(rig.locomotion, ["max_speed", "acceleration", "stopping_distance"]),
         wander=sc(rig.wander, ["radius"]),
         navigation=sc(rig.navigation, ["radius", "height", "step_height", "cell_size"]),
+        legs=sc(rig.legs, list(_LEG_LENGTHS)),
     )

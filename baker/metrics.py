@@ -55,3 +55,163 @@ def spine_metrics(traj: Trajectory, rays, *, spacing: float, clearance: float,
         "max_joint_rotation_per_frame_deg": float(rot.max()) if rot.size else 0.0,
         "nan_count": nan,
     }
+
+
+def _leg_index(names: tuple[str, ...], suffix: str) -> dict[str, int]:
+    return {n[: -len(suffix)]: i for i, n in enumerate(names) if n.endswith(suffix)}
+
+
+def foot_positions(traj: Trajectory, tip_length: float) -> np.ndarray:
+    """(F, L, 3) walking-leg foot tips (end of each `leg_*_tip` bone, local +Y), legs in the
+    trajectory's order (L_01, R_01, L_02, ...)."""
+    from baker.geometry.transforms import quat_rotate
+
+    names = traj.joint_names
+    tips = [i for i, n in enumerate(names) if n.startswith("leg_") and n.endswith("_tip")]
+    p = traj.joint_positions[:, tips]
+    q = traj.joint_rotations[:, tips]
+    return p + quat_rotate(q, np.broadcast_to([0.0, tip_length, 0.0], p.shape))
+
+
+def _local_angle_steps(traj: Trajectory, parents_world: np.ndarray, child: np.ndarray) -> np.ndarray:
+    """(F-1, n) degrees: change of each joint's rotation relative to its parent between frames."""
+    local = quat_mul(quat_conj(parents_world), child)
+    dq = quat_mul(quat_conj(local[:-1]), local[1:])
+    return np.degrees(2.0 * np.arccos(np.clip(np.abs(dq[..., 3]), 0.0, 1.0)))
+
+
+def leg_metrics(traj: Trajectory, rays, legs_cfg, *, spacing: float, body_length: float,
+                lag_setting_deg: float, window_s: float = 60.0) -> dict:
+    """Leg and foot quality numbers over every frame (see issue 5's Done-when list).
+
+    - skate: per-frame motion of each planted foot tip (both frames in the same stance), as % of
+      body length: median, max, and the fraction of stance frames sliding > 0.5% BL;
+    - penetration: depth of foot tips below the surface straight under them (% BL);
+    - bones through the environment: a ray along every leg bone (walking and ultimate legs),
+      every frame, shortened by 0.5% BL at its end so a foot resting on the ground does not count;
+      antenna bones are counted separately;
+    - rotation: largest change of a leg joint's rotation relative to its parent between frames
+      (deg); the world-space value too;
+    - crossing: smallest distance between feet of neighbouring legs on the same side, as a
+      fraction of the segment spacing;
+    - rhythm: phase lag between neighbouring legs on one side, measured from touchdown frames
+      and the distance the head travelled: circular mean per `window_s` window and overall,
+      against the setting (retrograde: the rear leg lags).
+    """
+    if not traj.joint_names or traj.foot_contacts is None:
+        return {"enabled": False}
+    names = traj.joint_names
+    F = traj.n_frames
+    feet = foot_positions(traj, legs_cfg.tip_length)
+    contact = np.asarray(traj.foot_contacts, bool)
+    L = feet.shape[1]
+    bl = body_length
+
+    # skate
+    stay = contact[1:] & contact[:-1]
+    step = np.linalg.norm(np.diff(feet, axis=0), axis=-1) / bl * 100.0
+    st = step[stay]
+    skate_median = float(np.median(st)) if st.size else 0.0
+    slide_frac = float(np.mean(st > 0.5)) if st.size else 0.0
+
+    # penetration of foot tips
+    probe = 0.05 * bl
+    fp = feet.reshape(-1, 3)
+    h = rays.cast_down(fp, probe, max_distance=2.0 * probe)
+    depth = np.where(h.hit, probe - h.distance, -np.inf) / bl * 100.0     # > 0: below
+
+    # bones through the environment, one batch per bone kind
+    def bone_hits(start_names, lengths):
+        idx = [names.index(n) for n in start_names]
+        p = traj.joint_positions[:, idx].reshape(-1, 3)
+        d = quat_rotate_y(traj.joint_rotations[:, idx].reshape(-1, 4))
+        ln = np.tile(np.asarray(lengths, float), F)
+        r = rays.first_hit(p, d, max_distance=np.maximum(ln - 0.005 * bl, 0.0))
+        return r.hit.reshape(F, len(idx))
+
+    up_names = [n for n in names if n.startswith("leg_") and n.endswith("_upper")]
+    tip_names = [n for n in names if n.startswith("leg_") and n.endswith("_tip")]
+    ult = [n for n in names if n.startswith("ultimate_")]
+    ant = [n for n in names if n.startswith("antenna_")]
+    ult_len = [legs_cfg.ultimate_upper if n.endswith("upper") else legs_cfg.ultimate_tip for n in ult]
+    leg_hits = bone_hits(up_names, [legs_cfg.upper_length] * len(up_names))
+    tip_hits = bone_hits(tip_names, [legs_cfg.tip_length] * len(tip_names))
+    ult_hits = bone_hits(ult, ult_len) if ult else np.zeros((F, 0), bool)
+    ant_hits = bone_hits(ant, [legs_cfg.antenna_length] * len(ant)) if ant else np.zeros((F, 0), bool)
+
+    # rotation per frame, relative to the parent
+    seg_of = np.array([int(n.split("_")[2]) for n in up_names])
+    up_idx = [names.index(n) for n in up_names]
+    tip_idx = [names.index(n) for n in tip_names]
+    spine_q = traj.spine_rotations[:, seg_of]
+    rot_upper = _local_angle_steps(traj, spine_q, traj.joint_rotations[:, up_idx])
+    rot_tip = _local_angle_steps(traj, traj.joint_rotations[:, up_idx], traj.joint_rotations[:, tip_idx])
+    wq = traj.joint_rotations[:, up_idx + tip_idx]
+    dq = quat_mul(quat_conj(wq[:-1]), wq[1:])
+    rot_world = np.degrees(2.0 * np.arccos(np.clip(np.abs(dq[..., 3]), 0.0, 1.0)))
+
+    # crossing: neighbours on the same side (legs ordered L_01, R_01, L_02, ...)
+    gaps = np.linalg.norm(feet[:, 2:] - feet[:, :-2], axis=-1) / spacing
+
+    # rhythm
+    travel = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(traj.spine_positions[:, 0], axis=0), axis=1))])
+    td = contact[1:] & ~contact[:-1]
+    lags, when = [], []
+    for a in range(L - 2):
+        fa = np.nonzero(td[:, a])[0] + 1
+        fr = np.nonzero(td[:, a + 2])[0] + 1
+        if len(fa) < 3 or len(fr) == 0:
+            continue
+        k = np.searchsorted(fa, fr, side="right") - 1
+        ok = (k >= 0) & (k < len(fa) - 1)
+        k, fr = k[ok], fr[ok]
+        cyc = travel[fa[k + 1]] - travel[fa[k]]
+        good = cyc > 1e-9
+        lags.append((travel[fr[good]] - travel[fa[k[good]]]) / cyc[good])
+        when.append(traj.times[fr[good]])
+    lag_mean = lag_drift = None
+    windows = []
+    if lags:
+        lag = np.concatenate(lags)
+        t = np.concatenate(when)
+        setting = lag_setting_deg / 360.0
+
+        def circ(x):
+            return float(np.degrees(np.angle(np.mean(np.exp(2j * np.pi * x)))))
+
+        lag_mean = circ(lag)
+        n_win = max(int(np.ceil(float(traj.times[-1]) / window_s)), 1)
+        for w in range(n_win):
+            m = (t >= w * window_s) & (t < (w + 1) * window_s)
+            if np.count_nonzero(m) >= 20:
+                windows.append(round(circ(lag[m]), 3))
+        ref = setting * 360.0
+        lag_drift = float(max(abs((x - ref + 180.0) % 360.0 - 180.0) for x in windows)) if windows else None
+
+    return {
+        "enabled": True,
+        "legs": int(L),
+        "stance_fraction": float(contact.mean()),
+        "skate_median_pct_bl": skate_median,
+        "skate_max_pct_bl": float(st.max()) if st.size else 0.0,
+        "skate_frames_over_0p5pct_fraction": slide_frac,
+        "foot_penetration_max_pct_bl": float(max(depth.max(), 0.0)),
+        "foot_unsupported_fraction": float(np.mean(~h.hit)),
+        "leg_bone_hits": int(leg_hits.sum() + tip_hits.sum() + ult_hits.sum()),
+        "leg_bone_hit_frames": int(np.count_nonzero(leg_hits.any(1) | tip_hits.any(1) | ult_hits.any(1))),
+        "antenna_bone_hits": int(ant_hits.sum()),
+        "max_leg_rotation_per_frame_deg": float(max(rot_upper.max(), rot_tip.max())) if F > 1 else 0.0,
+        "max_leg_rotation_per_frame_world_deg": float(rot_world.max()) if F > 1 else 0.0,
+        "min_neighbour_foot_distance_spacing": float(gaps.min()),
+        "phase_lag_setting_deg": float(lag_setting_deg),
+        "phase_lag_measured_deg": lag_mean,
+        "phase_lag_window_means_deg": windows,
+        "phase_lag_max_window_error_deg": lag_drift,
+    }
+
+
+def quat_rotate_y(q: np.ndarray) -> np.ndarray:
+    """Local +Y axes of xyzw rotations q (..., 4) -> (..., 3)."""
+    from baker.geometry.transforms import quat_rotate
+
+    return quat_rotate(q, np.broadcast_to([0.0, 1.0, 0.0], q.shape[:-1] + (3,)))

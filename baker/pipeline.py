@@ -5,7 +5,7 @@
     Step 3  build the rig                  rig.build_rig
     Step 4  simulate                       sim.loop.simulate -> Trajectory
     Step 5  pose                           clip.build_clip   -> Clip
-    Step 6  measure                        metrics.spine_metrics
+    Step 6  measure                        metrics.spine_metrics, metrics.leg_metrics
     Step 7  export                         export.gltf / export.usd / export.report
 """
 
@@ -88,6 +88,11 @@ def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
         motion = metrics.spine_metrics(
             traj, env.rays, spacing=cfg.rig.body.spacing, clearance=cfg.rig.body.clearance,
             max_slope=cfg.rig.navigation.max_slope, body_length=cfg.rig.body.length)
+        if cfg.rig.legs.enabled:
+            motion["legs"] = metrics.leg_metrics(
+                traj, env.rays, cfg.rig.legs, spacing=cfg.rig.body.spacing,
+                body_length=cfg.rig.body.length,
+                lag_setting_deg=360.0 * cfg.rig.legs.waves / (cfg.rig.body.segments - 1))
 
     # Step 7: files. Every file is complete before it replaces an older one.
     extras = report_mod.extras(cfg, traj)

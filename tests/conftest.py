@@ -47,9 +47,25 @@ def rig_config():
 
 @pytest.fixture(scope="session")
 def rig(rig_config):
+    """The default rig, with legs, antennae, ultimate legs and forcipules."""
     from baker.rig import build_rig
 
     return build_rig(rig_config)
+
+
+@pytest.fixture(scope="session")
+def spine_rig_config(rig_config):
+    """The default rig without limbs (legs.enabled = false): spine joints and leg stubs only."""
+    from dataclasses import replace
+
+    return replace(rig_config, legs=replace(rig_config.legs, enabled=False))
+
+
+@pytest.fixture(scope="session")
+def spine_rig(spine_rig_config):
+    from baker.rig import build_rig
+
+    return build_rig(spine_rig_config)
 
 
 @pytest.fixture(scope="session")

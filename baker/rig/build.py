@@ -8,7 +8,9 @@ import numpy as np
 
 from baker.config import RigConfig
 from baker.errors import RigError
-from baker.rig.mesh import SkinnedMesh, build_body_mesh
+from baker.geometry.transforms import quat_conj, quat_mul, quat_rotate
+from baker.rig.limbs import limb_rest
+from baker.rig.mesh import SkinnedMesh, add_limbs, build_body_mesh, build_limb_mesh
 from baker.rig.skeleton import Skeleton, spine_skeleton
 
 
@@ -35,7 +37,11 @@ class Rig:
 
 
 def build_rig(cfg: RigConfig) -> Rig:
-    """Skeleton `head` -> `trunk_01` ... `trunk_NN` and its procedural skinned body mesh."""
+    """Skeleton `head` -> `trunk_01` ... `trunk_NN` and its procedural skinned body mesh.
+
+    With cfg.legs.enabled the skeleton also gets the limbs of rig/limbs.py (two joints per
+    walking leg on every trunk segment, ultimate legs, antennae, forcipules) and the mesh gets
+    tapered, skinned limb tubes instead of the static leg stubs."""
     body = cfg.body
     n = int(body.segments)
     widths = np.asarray(body.width_profile, dtype=np.float64)
@@ -46,7 +52,31 @@ def build_rig(cfg: RigConfig) -> Rig:
     skeleton = spine_skeleton(n, body.spacing)
     spine = np.arange(n, dtype=np.int64)
     spine.setflags(write=False)
-    mesh = build_body_mesh(widths, body.spacing, body.height_ratio, body.leg_stub_length,
+    legs = cfg.legs.enabled
+    mesh = build_body_mesh(widths, body.spacing, body.height_ratio,
+                           0.0 if legs else body.leg_stub_length,
                            cfg.colors.body, cfg.colors.legs, spine,
                            clearance=body.clearance)
+    if legs:
+        skeleton, mesh = _add_limbs(cfg, skeleton, mesh)
     return Rig(config=cfg, skeleton=skeleton, mesh=mesh, spine=spine)
+
+
+def _add_limbs(cfg: RigConfig, skeleton: Skeleton, mesh: SkinnedMesh):
+    rest = limb_rest(cfg, skeleton.names)
+    base = skeleton.n_joints
+    index = {n: i for i, n in enumerate(skeleton.names)}
+    index.update({n: base + i for i, n in enumerate(rest.names)})
+    parents = np.array([index[p] for p in rest.parents])
+    wt, wq = skeleton.world_rest()
+    world_t = np.concatenate([wt, rest.positions])
+    world_q = np.concatenate([wq, rest.rotations])
+    inv = quat_conj(world_q[parents])
+    local_t = quat_rotate(inv, rest.positions - world_t[parents])
+    local_q = quat_mul(inv, rest.rotations)
+    skeleton = skeleton.with_joints(rest.names, parents, local_t, local_q)
+    k = len(rest.names) // 2
+    lv, lf, lj, lw = build_limb_mesh(rest.positions.reshape(k, 2, 3), rest.rotations.reshape(k, 2, 4),
+                                     rest.lengths.reshape(k, 2), rest.radii[0::2],
+                                     (base + np.arange(2 * k)).reshape(k, 2))
+    return skeleton, add_limbs(mesh, lv, lf, lj, lw)

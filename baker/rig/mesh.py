@@ -292,3 +292,85 @@ def _orient_outward(vertices: np.ndarray, faces: np.ndarray, per_leg: int) -> np
     flip = np.repeat(vol < 0, per_f)
     faces[flip] = faces[flip][:, ::-1]
     return faces
+
+
+# --------------------------------------------------------------------------- limbs
+LIMB_SIDES = 6
+# stations along a two-bone limb: (bone 0 or 1, fraction along it, radius factor)
+_LIMB_STATIONS = ((0, 0.0, 1.0), (0, 0.5, 0.9), (0, 0.9, 0.75), (1, 0.0, 0.7),
+                  (1, 0.15, 0.66), (1, 0.55, 0.45), (1, 0.85, 0.2))
+
+
+def build_limb_mesh(start: np.ndarray, rotations: np.ndarray, lengths: np.ndarray,
+                    radii: np.ndarray, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                                    np.ndarray, np.ndarray]:
+    """Tapered tubes ending in a point, one per two-bone limb, in bind space.
+
+    start     : (N, 2, 3) float, bind-space origins of each limb's two bones
+    rotations : (N, 2, 4) float, xyzw bind rotations; local +Y runs along the bone
+    lengths   : (N, 2) float, bone lengths [m]
+    radii     : (N,) float, tube radius at the limb's base [m]
+    joints    : (N, 2) int, skeleton joint of each bone
+    returns (vertices (V, 3), faces (M, 3), joints (V, 2), weights (V, 2)): rings on the
+    first bone follow it rigidly, the knee ring blends both bones, the rest follow the second.
+    """
+    from baker.geometry.transforms import quat_rotate
+
+    n = len(start)
+    ax_x = quat_rotate(rotations, np.broadcast_to([1.0, 0.0, 0.0], rotations.shape[:-1] + (3,)))
+    ax_y = quat_rotate(rotations, np.broadcast_to([0.0, 1.0, 0.0], rotations.shape[:-1] + (3,)))
+    ax_z = np.cross(ax_x, ax_y)
+    ang = np.arange(LIMB_SIDES) * (2.0 * np.pi / LIMB_SIDES)
+    rings, rj, rw = [], [], []
+    for bone, frac, rf in _LIMB_STATIONS:
+        c = start[:, bone] + (frac * lengths[:, bone])[:, None] * ax_y[:, bone]
+        if bone == 1 and frac == 0.0:      # the knee: average the two bones' cross-sections
+            u = ax_x[:, 0] + ax_x[:, 1]
+            y = ax_y[:, 0] + ax_y[:, 1]
+            u = u - np.sum(u * y, -1, keepdims=True) * y / np.sum(y * y, -1, keepdims=True)
+            u /= np.linalg.norm(u, axis=1, keepdims=True)
+            v = np.cross(u, y / np.linalg.norm(y, axis=1, keepdims=True))
+            w = (0.5, 0.5)
+        else:
+            u, v = ax_x[:, bone], ax_z[:, bone]
+            w = (1.0, 0.0) if bone == 0 else (0.0, 1.0)
+        r = (radii * rf)[:, None, None]
+        rings.append(c[:, None, :] + r * (np.cos(ang)[None, :, None] * u[:, None, :]
+                                          + np.sin(ang)[None, :, None] * v[:, None, :]))
+        rj.append(np.broadcast_to(joints[:, None, :], (n, LIMB_SIDES, 2)))
+        rw.append(np.broadcast_to(np.array(w), (n, LIMB_SIDES, 2)))
+    n_st = len(_LIMB_STATIONS)
+    tip = start[:, 1] + lengths[:, 1][:, None] * ax_y[:, 1]
+    base = start[:, 0] - (0.3 * radii)[:, None] * ax_y[:, 0]
+    per = n_st * LIMB_SIDES + 2
+    verts = np.concatenate([np.stack(rings, 1).reshape(n, -1, 3), base[:, None], tip[:, None]], 1)
+    vj = np.concatenate([np.stack(rj, 1).reshape(n, -1, 2), joints[:, None, :], joints[:, None, :]], 1)
+    vw = np.concatenate([np.stack(rw, 1).reshape(n, -1, 2),
+                         np.broadcast_to([1.0, 0.0], (n, 1, 2)),
+                         np.broadcast_to([0.0, 1.0], (n, 1, 2))], 1)
+    kk = np.arange(LIMB_SIDES)
+    kn = (kk + 1) % LIMB_SIDES
+    i_base, i_tip = n_st * LIMB_SIDES, n_st * LIMB_SIDES + 1
+    last = (n_st - 1) * LIMB_SIDES
+    one = np.concatenate([_tube_faces(n_st, LIMB_SIDES),
+                          np.stack([np.full(LIMB_SIDES, i_base), kk, kn], -1),
+                          np.stack([np.full(LIMB_SIDES, i_tip), last + kn, last + kk], -1)])
+    offs = (np.arange(n) * per)[:, None, None]
+    v = verts.reshape(-1, 3)
+    f = _orient_outward(v, (one[None] + offs).reshape(-1, 3), per)
+    return v, f, vj.reshape(-1, 2), vw.reshape(-1, 2)
+
+
+def add_limbs(mesh: SkinnedMesh, limb_vertices: np.ndarray, limb_faces: np.ndarray,
+              limb_joints: np.ndarray, limb_weights: np.ndarray) -> SkinnedMesh:
+    """`mesh` plus limb tubes in the "legs" material (index LEGS)."""
+    nv = len(mesh.vertices)
+    vertices = np.concatenate([mesh.vertices.astype(np.float64), limb_vertices])
+    faces = np.concatenate([mesh.faces.astype(np.int64), limb_faces + nv])
+    face_mat = np.concatenate([mesh.face_material, np.full(len(limb_faces), LEGS, np.uint8)])
+    j4, w4 = normalize_weights(limb_joints, limb_weights)
+    joints = np.concatenate([mesh.joints.astype(np.int64), j4.astype(np.int64)])
+    weights = np.concatenate([mesh.weights, w4])
+    normals = _vertex_normals(vertices, faces)
+    return SkinnedMesh(vertices=vertices, normals=normals, faces=faces, joints=joints,
+                       weights=weights, face_material=face_mat, materials=mesh.materials)

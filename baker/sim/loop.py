@@ -20,6 +20,7 @@ from baker.geometry import polyline
 from baker.locomotion.agent import PathAgent
 from baker.locomotion.body import body_frames, build_trail
 from baker.locomotion.head import HeadSteer
+from baker.locomotion.legs import leg_frames
 from baker.sim.trajectory import Trajectory
 
 log = logging.getLogger(__name__)
@@ -104,6 +105,12 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     frame_steps = np.arange(0, n_steps + 1, per_frame)
     head_arc = trail.arc_at(cum_h[len(tail) - 1 + frame_steps])
     bf = body_frames(trail, head_arc, body.spacing, body.segments, body.clearance)
+    # Legs, antennae and ultimate legs for all frames at once, from the placed spine.
+    limbs = {}
+    if rig.legs.enabled:
+        lf = leg_frames(bf, head_arc, frame_steps * dt, env.rays, rig)
+        limbs = dict(joint_names=lf.names, joint_positions=lf.positions,
+                     joint_rotations=lf.rotations, foot_contacts=lf.contacts)
     return Trajectory(
         times=frame_steps * dt,
         spine_positions=bf.positions,
@@ -111,4 +118,5 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
         head_surface_normal=bf.normals[:, 0],
         ground_heights=bf.ground,
         events=tuple(events),
+        **limbs,
     )

@@ -19,6 +19,13 @@ class Trajectory:
     ground_heights  : (F, S) float64, metres, height of the surface below each spine joint
                       (NaN where nothing is below)
     events          : behaviour timeline, list of dicts {start, end, state, details}
+
+    Limb joints (legs, antennae, ...; empty for a spine-only bake):
+    joint_names     : K skeleton joint names driven by the two arrays below
+    joint_positions : (F, K, 3) float64, metres, world joint origins (None when K == 0)
+    joint_rotations : (F, K, 4) float64, xyzw, world; limb bones run along local +Y
+    foot_contacts   : (F, L) bool, walking leg planted, legs ordered L_01, R_01, L_02, ...
+                      (None without legs)
     """
 
     times: np.ndarray
@@ -27,6 +34,10 @@ class Trajectory:
     head_surface_normal: np.ndarray
     ground_heights: np.ndarray
     events: tuple[dict, ...] = field(default_factory=tuple)
+    joint_names: tuple[str, ...] = ()
+    joint_positions: np.ndarray | None = None
+    joint_rotations: np.ndarray | None = None
+    foot_contacts: np.ndarray | None = None
 
     @property
     def n_frames(self) -> int:

@@ -29,11 +29,12 @@ def test_forward_kinematics_reproduces_the_trajectory(clip, trajectory, rig):
 
 
 def test_local_translations_are_the_bone_lengths(clip, rig):
-    lengths = np.linalg.norm(clip.translations[:, 1:].astype(np.float64), axis=-1)
+    trunk = rig.spine[1:]
+    lengths = np.linalg.norm(clip.translations[:, trunk].astype(np.float64), axis=-1)
     np.testing.assert_allclose(lengths, rig.spacing, rtol=2e-3)  # chord vs arc length
     # each trunk joint lies behind its parent, roughly along the parent's -Z (the parent looks at
     # the joint ahead of it, so the child is off its axis by the local bend angle)
-    t = clip.translations[:, 1:].astype(np.float64) / rig.spacing
+    t = clip.translations[:, trunk].astype(np.float64) / rig.spacing
     assert np.all(t[..., 2] < -0.9)
 
 
@@ -90,10 +91,10 @@ def test_rejects_bad_trajectories(trajectory, rig):
         build_clip(trajectory, rig, name="bad name")
 
 
-def test_local_rotation_composes_back(clip, trajectory):
+def test_local_rotation_composes_back(clip, trajectory, rig):
     # world(trunk_k) == world(parent) * local(trunk_k), computed independently of forward_kinematics
     w = trajectory.spine_rotations
-    rebuilt = quat_mul(w[:, :-1], clip.rotations[:, 1:].astype(np.float64))
+    rebuilt = quat_mul(w[:, :-1], clip.rotations[:, rig.spine[1:]].astype(np.float64))
     d = np.abs(np.sum(rebuilt * w[:, 1:], -1))
     assert np.all(d > 1 - 1e-6)
 

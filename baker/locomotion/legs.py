@@ -1,0 +1,370 @@
+"""Legs for the whole bake in one vectorized pass after the spine (like body.py).
+
+Walking legs (two bones each, one pair per trunk segment):
+1. Gait clock (gait.py): phase advances with the distance the body travels along its trail.
+2. Steps: for each leg, touchdown when its phase crosses an integer, liftoff at integer + duty.
+   A foothold is the leg's anchor in the segment frame, placed ahead by half the stance sweep
+   (duty * stride / 2) at touchdown. Two safety rules keep every foot reachable:
+   - a swing lasts at most `settle_time` seconds: when the body slows or stops, the foot lands
+     (at most half a stance sweep ahead of its anchor) and stays put;
+   - a planted foot lifts early when the body has carried its anchor so far ahead that the
+     foot would fall out of reach.
+   The loop runs over step cycles (a few hundred), vectorized over legs.
+3. Footholds: one batch of ray casts for every touchdown of every leg, along the segment's down
+   axis; when a ray misses or lands out of reach (a log's edge), a fan of rays tilted toward the
+   body is tried.
+4. Swing: an arc from the old foothold to the new one, lifted along the segment normal, raised
+   further where the surface below it is higher (one batch of down rays), landing exactly on the
+   foothold.
+5. Two-bone IK for all frames x legs at once (geometry/ik.py), knee pole up and outward.
+
+Ultimate legs and antennae are posed by angles in their segment's frame; their raise/pitch is
+lifted where a bone would go through the environment (candidate angles, one batch of rays).
+Forcipules keep their rest posture on the head (not driven here).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d, maximum_filter1d
+
+from baker.config import RigConfig
+from baker.geometry.conventions import FORWARD, LEFT, UP
+from baker.geometry.ik import bone_frames, two_bone_ik
+from baker.geometry.transforms import normalize, quat_rotate
+from baker.locomotion.body import BodyFrames
+from baker.locomotion.gait import gait_clock
+from baker.rig.limbs import chains, leg_layout, leg_pole
+
+#: the reachable fraction of the full leg length used for planning footholds
+PLAN_REACH = 0.9
+#: fan of foothold rays: tilt from the segment's down axis toward the body [rad]
+FAN = np.radians([0.0, 25.0, 45.0, 65.0])
+#: inside a bend of radius R, feet stay within INNER_REACH * R of the centre line
+INNER_REACH = 0.6
+#: swing progress peak rate relative to its mean (see _swing_shape)
+SWING_PEAK = 1.1
+#: the duty factor never drops below this at high speed
+MIN_DUTY = 0.4
+#: frames ahead in which a planted foot is checked against its hip (reach, under the body)
+LIFT_WINDOW = 48
+
+
+@dataclass(frozen=True)
+class LegFrames:
+    """World frames of the limb joints, per exported frame.
+
+    names     : K driven limb joint names (walking legs first: upper, tip per leg; then chains)
+    positions : (F, K, 3) float64, metres, world joint origins
+    rotations : (F, K, 4) float64, xyzw world; bones along local +Y
+    feet      : (F, L, 3) float64, walking-leg foot tips (end of the tip bone)
+    targets   : (F, L, 3) float64, where each foot was asked to be
+    contacts  : (F, L) bool, foot planted
+    touchdown : (F, L) bool, first frame of a stance that began when the phase said so (not an
+                early, settling landing); for phase measurements
+    lag       : (L,) float64, cycles, gait phase offset of each leg (the setting)
+    """
+
+    names: tuple[str, ...]
+    positions: np.ndarray
+    rotations: np.ndarray
+    feet: np.ndarray
+    targets: np.ndarray
+    contacts: np.ndarray
+    touchdown: np.ndarray
+    lag: np.ndarray
+
+
+def _axes(q: np.ndarray):
+    sh = q.shape[:-1] + (3,)
+    return (quat_rotate(q, np.broadcast_to(LEFT, sh)), quat_rotate(q, np.broadcast_to(UP, sh)),
+            quat_rotate(q, np.broadcast_to(FORWARD, sh)))
+
+
+def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarray,
+                      hips: np.ndarray, reach: float, probe: float) -> np.ndarray:
+    """Footholds on the surface near `points`, all in one batch of ray casts.
+
+    points, up, inward, hips : (n, 3); up = segment normal, inward = toward the body's centre line
+    Rays start `probe` above each point along `up` and go down (and, for the fan, tilted toward
+    the body). The first candidate that hits within `reach` of its hip wins; without one the
+    point itself is kept.
+    """
+    n = len(points)
+    if n == 0:
+        return points.copy()
+    origins = points + probe * up
+    dirs = np.stack([normalize(-np.cos(a) * up + np.sin(a) * inward) for a in FAN], 0)  # (K, n, 3)
+    o = np.broadcast_to(origins, dirs.shape).reshape(-1, 3)
+    h = rays.first_hit(o, dirs.reshape(-1, 3), max_distance=4.0 * probe + reach)
+    pts = h.points.reshape(len(FAN), n, 3)
+    ok = h.hit.reshape(len(FAN), n) & (np.linalg.norm(pts - hips[None], axis=-1) < reach)
+    first = np.argmax(ok, axis=0)
+    any_ok = ok.any(axis=0)
+    out = points.copy()
+    out[any_ok] = pts[first[any_ok], np.nonzero(any_ok)[0]]
+    return out
+
+
+def _swing_shape(u: np.ndarray) -> np.ndarray:
+    """Horizontal progress along a swing, 0 -> 1, gently eased (peak rate SWING_PEAK x mean)."""
+    return u - (SWING_PEAK - 1.0) * np.sin(2.0 * np.pi * u) / (2.0 * np.pi)
+
+
+def spine_curvature(positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+    """(F, S) signed curvature [1/m] of the spine at each joint, + when it bends to the joint's
+    left (+X), from the turn between the neighbouring spine segments."""
+    p = np.asarray(positions, float)
+    d = np.diff(p, axis=1)                                   # (F, S-1, 3), tail -> head is -d
+    seg = np.linalg.norm(d, axis=-1)
+    t = d / np.maximum(seg, 1e-12)[..., None]
+    # turn angle between segment s-1 -> s and s -> s+1, seen along the joint's up axis
+    up = quat_rotate(rotations, np.broadcast_to(UP, p.shape))
+    cr = np.cross(-t[:, 1:], -t[:, :-1])                     # heading change walking forward
+    ang = np.arctan2(np.einsum("fsi,fsi->fs", cr, up[:, 1:-1]),
+                     np.einsum("fsi,fsi->fs", t[:, 1:], t[:, :-1]))
+    k = ang / np.maximum(0.5 * (seg[:, 1:] + seg[:, :-1]), 1e-12)
+    k = np.concatenate([k[:, :1], k, k[:, -1:]], axis=1)
+    return gaussian_filter1d(k, 1.0, axis=1, mode="nearest")
+
+
+def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: RigConfig):
+    """Footholds, swings and IK for every walking leg and frame. Returns a dict of arrays."""
+    lay = leg_layout(cfg)
+    lg, body = cfg.legs, cfg.body
+    F, L = len(times), lay.n_legs
+    q = bf.rotations[:, lay.segment]                                  # (F, L, 4)
+    left, up, fwd = _axes(q)
+    origin = bf.positions[:, lay.segment]
+    hip = origin + quat_rotate(q, np.broadcast_to(lay.hip, q.shape[:-1] + (3,)))
+    # anchors: on the inside of a tight bend the feet pull in toward the body, so neighbouring
+    # feet do not crowd (or cross) near the bend's centre
+    kappa = spine_curvature(bf.positions, bf.rotations)[:, lay.segment]       # (F, L) 1/m, +left
+    inner = kappa * lay.side[None, :] > 0
+    lat_max = np.where(inner, INNER_REACH / np.maximum(np.abs(kappa), 1e-9), np.inf)
+    lat_min = np.abs(lay.hip[:, 0]) + 0.35 * (lg.reach - np.abs(lay.hip[:, 0]))
+    lat = np.clip(lat_max, lat_min[None, :], lg.reach) * lay.side[None, :]
+    anc = np.broadcast_to(lay.anchor, q.shape[:-1] + (3,)).copy()
+    anc[..., 0] = lat
+    anchor = origin + quat_rotate(q, anc)
+
+    clock = gait_clock(arc, times, cfg.locomotion.max_speed, lg.stride_min, lg.stride_max)
+    phi, D, travel = clock.phase, clock.stride, clock.travel
+    # duty factor: the setting, lowered at high speed so that no swing is faster than
+    # max_swing_rate (a swinging foot sweeps about duty/(1-duty) * v / lever rad/s)
+    lever = float(np.min(lg.reach - np.abs(lay.hip[:, 0])))
+    ratio = lg.max_swing_rate * lever / (SWING_PEAK * np.maximum(clock.speed, 1e-9))
+    duty = np.clip(ratio / (1.0 + ratio), MIN_DUTY, lg.duty)           # (F,)
+    lift_gate = np.maximum.accumulate(phi - duty)   # liftoff of cycle i: first f with this >= i - lag
+    A = 0.5 * duty * D                                                # half stance sweep (F,)
+    # how far behind its anchor a planted foot may fall before it must lift
+    lat0 = np.linalg.norm(lay.anchor[:, [0, 1]] - lay.hip[:, [0, 1]], axis=1)
+    span = PLAN_REACH * (lay.l1 + lay.l2)
+    a_back = np.sqrt(np.maximum(span ** 2 - lat0 ** 2, 0.0))         # (L,)
+    a_back = np.minimum(a_back, 1.5 * 0.5 * lg.duty * lg.stride_max)   # (L,)
+    # a planted foot also lifts when the body turns so that it would come under the body
+    foot_x_min = np.abs(lay.hip[:, 0]) + 0.15 * lever                  # (L,) segment frame
+    lag = lay.lag
+    legs = np.arange(L)
+    q_inv = q * np.array([-1.0, -1.0, -1.0, 1.0])
+    win = np.arange(LIFT_WINDOW)[None, :]
+
+    # -- step events, one cycle at a time for all legs
+    T = np.zeros(L, dtype=np.int64)
+    e0 = lag.copy()                                                   # phase at frame 0
+    x = np.clip(A[0] - e0 * D[0], -a_back, A[0])
+    recs_T, recs_LO, recs_x, recs_phase_td = [T.copy()], [], [x], [np.zeros(L, bool)]
+    i = 0
+    while np.any(T < F):
+        Tc = np.minimum(T, F - 1)
+        lo_phase = np.searchsorted(lift_gate, i - lag, side="left")
+        lo_reach = np.searchsorted(travel, travel[Tc] + x + a_back, side="left")
+        # body-frame check over the next LIFT_WINDOW frames (beyond it, the travel rule)
+        hold = anchor[Tc, legs] + fwd[Tc, legs] * x[:, None]
+        fw = np.minimum(Tc[:, None] + win, F - 1)
+        rel = quat_rotate(q_inv[fw, legs[:, None]], hold[:, None, :] - hip[fw, legs[:, None]])
+        bad = ((rel[..., 0] * lay.side[:, None] < foot_x_min[:, None])
+               | (np.linalg.norm(rel, axis=-1) > span) | (rel[..., 2] < -a_back[:, None]))
+        lo_body = np.where(bad.any(1), Tc + np.argmax(bad, 1), lo_reach)
+        LO = np.clip(np.minimum(lo_phase, lo_body), T, F)
+        LOc = np.minimum(LO, F - 1)
+        td_phase = np.searchsorted(phi, i + 1 - lag, side="left")
+        td_time = np.searchsorted(times, times[LOc] + lg.settle_time - 1e-9, side="left")
+        Tn = np.minimum(np.maximum(np.minimum(td_phase, td_time), LO + 1), F)
+        fr = np.minimum(Tn, F - 1)
+        e = phi[fr] + lag - (i + 1)
+        x = np.clip(A[fr] - e * D[fr], -a_back, A[fr])
+        recs_LO.append(LO)
+        recs_T.append(Tn)
+        recs_x.append(x)
+        recs_phase_td.append(td_phase <= td_time)
+        T = Tn
+        i += 1
+    Ts = np.stack(recs_T)                      # (C+1, L) touchdown frames (row 0: frame 0)
+    LOs = np.stack(recs_LO)                    # (C, L) liftoff frames
+    xs = np.stack(recs_x)                      # (C+1, L) landing offsets along fwd
+    C1 = len(Ts)
+
+    # -- footholds: one batch of rays for every touchdown
+    fr = np.minimum(Ts, F - 1)
+    pts = anchor[fr, legs[None, :]] + fwd[fr, legs[None, :]] * xs[..., None]
+    inward = -left[fr, legs[None, :]] * lay.side[None, :, None]
+    holds = project_footholds(rays, pts.reshape(-1, 3), up[fr, legs[None, :]].reshape(-1, 3),
+                              inward.reshape(-1, 3), hip[fr, legs[None, :]].reshape(-1, 3),
+                              PLAN_REACH * (lay.l1 + lay.l2),
+                              probe=body.clearance + 2.0 * lg.lift).reshape(C1, L, 3)
+
+    # -- per-frame foot targets
+    f_idx = np.arange(F)
+    target = np.empty((F, L, 3))
+    contact = np.zeros((F, L), bool)
+    td_flag = np.zeros((F, L), bool)
+    swing_u = np.zeros((F, L))
+    p0 = np.empty((F, L, 3))
+    p1 = np.empty((F, L, 3))
+    phase_td = np.stack(recs_phase_td)        # (C+1, L) touchdown came from the phase
+    for leg in range(L):
+        c = np.searchsorted(Ts[:, leg], f_idx, side="right") - 1      # cycle of each frame
+        c = np.clip(c, 0, C1 - 2)
+        lo = LOs[c, leg]
+        st = f_idx < lo
+        contact[:, leg] = st
+        a, b = holds[c, leg], holds[c + 1, leg]
+        target[:, leg] = a
+        p0[:, leg], p1[:, leg] = a, b
+        lo_c = np.minimum(lo, F - 1)
+        ph = phi + lag[leg]
+        u_phase = (ph - ph[lo_c]) / np.maximum(c + 1 - ph[lo_c], 1e-9)
+        u_time = (times - times[lo_c]) / lg.settle_time
+        swing_u[:, leg] = np.where(st, 0.0, np.clip(np.maximum(u_phase, u_time), 0.0, 1.0))
+        starts = Ts[1:, leg][phase_td[1:, leg]]
+        td_flag[starts[starts < F], leg] = True
+    sw = ~contact
+    u = swing_u
+    h = _swing_shape(u)[..., None]
+    step_len = np.linalg.norm(p1 - p0, axis=-1)
+    lift = lg.lift * np.minimum(1.0, step_len / lg.stride_min)
+    arch = np.sin(np.pi * u)
+    swing_pts = p0 + (p1 - p0) * h + up * (lift * arch)[..., None]
+    target = np.where(sw[..., None], swing_pts, target)
+    # swinging feet stay outside the body, whatever the body's turn
+    rel = quat_rotate(q_inv, target - hip)
+    out = rel[..., 0] * lay.side[None, :]
+    rel[..., 0] = np.where(sw, np.maximum(out, foot_x_min[None, :] + 0.1 * lever), out) * lay.side[None, :]
+    target = hip + quat_rotate(q, rel)
+    # keep swinging feet above the surface below them (one batch of rays)
+    if np.any(sw):
+        sp = target[sw]
+        probe = body.clearance + 2.0 * lg.lift
+        hh = rays.cast_down(sp, probe, max_distance=2.0 * probe)
+        need = hh.points[:, 1] + 0.35 * (lift * arch)[sw]
+        y = np.where(hh.hit, np.maximum(sp[:, 1], need), sp[:, 1])
+        sp[:, 1] = y
+        # a swinging foot never goes into a wall: stop it short of the first hit from its hip
+        hp = hip[sw]
+        v = sp - hp
+        dist = np.linalg.norm(v, axis=1)
+        wall = rays.first_hit(hp, v, max_distance=dist)
+        if np.any(wall.hit):
+            margin = 0.5 * lg.lift
+            keep = np.maximum(wall.distance[wall.hit] - margin, 0.0)
+            sp[wall.hit] = hp[wall.hit] + v[wall.hit] / dist[wall.hit, None] * keep[:, None]
+        target[sw] = sp
+
+    # -- IK, all frames x legs
+    pole = leg_pole(lay, hip, target, fwd, left, lg.knee_out)
+    sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
+    q_u = bone_frames(hip, sol.mid, sol.hinge)
+    q_t = bone_frames(sol.mid, sol.end, sol.hinge)
+    names = tuple(n for pair in zip(lay.upper_names, lay.tip_names) for n in pair)
+    positions = np.stack([hip, sol.mid], axis=2).reshape(F, 2 * L, 3)
+    rotations = np.stack([q_u, q_t], axis=2).reshape(F, 2 * L, 4)
+    return dict(names=names, positions=positions, rotations=rotations, feet=sol.end,
+                targets=target, contacts=contact, touchdown=td_flag, lag=lag)
+
+
+def _chain_dirs(side, yaw, pitch, backward):
+    """(..., 3) unit directions in the segment frame (see rig.limbs._dir), vectorized."""
+    f = -1.0 if backward else 1.0
+    return np.stack([side * np.sin(yaw) * np.cos(pitch), np.sin(pitch),
+                     f * np.cos(yaw) * np.cos(pitch)], -1)
+
+
+def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig, clock_phase=None):
+    """Ultimate legs and antennae: angle-driven two-bone chains, lifted clear of the surface."""
+    lg = cfg.legs
+    F = len(times)
+    names, pos, rot = [], [], []
+    raise_steps = np.radians([0.0, 6.0, 12.0, 20.0, 30.0, 45.0, 60.0, 80.0])
+    for ch in chains(cfg):
+        if ch.kind == "forcipule":
+            continue
+        q = bf.rotations[:, ch.parent]
+        left, up, fwd = _axes(q)
+        o = bf.positions[:, ch.parent] + quat_rotate(q, np.broadcast_to(ch.base, (F, 3)))
+        s = ch.side
+        t = np.asarray(times, float)
+        rest1 = ch.dirs[0]
+        rest2 = ch.dirs[1]
+        yaw1 = np.arctan2(s * rest1[0], abs(rest1[2]))
+        pit1 = np.arcsin(np.clip(rest1[1], -1, 1))
+        yaw2 = np.arctan2(s * rest2[0], abs(rest2[2]))
+        pit2 = np.arcsin(np.clip(rest2[1], -1, 1))
+        back = ch.kind == "ultimate"
+        if back:                       # a slow sway, out of step with the other side
+            dyaw = np.radians(6.0) * np.sin(2 * np.pi * 0.35 * t + (0.0 if s > 0 else np.pi))
+            dpitch = np.radians(3.0) * np.sin(2 * np.pi * 0.22 * t + (0.5 if s > 0 else 2.0))
+        else:                          # antennae sweep side to side and dip to grope the ground
+            w = 2 * np.pi * lg.antenna_rate
+            dyaw = lg.antenna_sweep * np.sin(w * t + (0.0 if s > 0 else 0.6 * np.pi))
+            grope = 0.5 + 0.5 * np.sin(0.5 * w * t + (1.0 if s > 0 else 2.5))
+            dpitch = -np.radians(22.0) * grope ** 3
+        base_pitch = pit1 + dpitch
+        # candidates: raise the chain until both bones clear the environment
+        k = len(raise_steps)
+        pitch = base_pitch[:, None] + raise_steps[None, :]            # (F, k)
+        d1 = _chain_dirs(s, yaw1 + dyaw[:, None], pitch, back)        # (F, k, 3) segment frame
+        d2 = _chain_dirs(s, yaw2 + dyaw[:, None], pitch + (pit2 - pit1), back)
+        qk = np.broadcast_to(q[:, None], (F, k, 4))
+        w1 = quat_rotate(qk, d1)
+        w2 = quat_rotate(qk, d2)
+        l1, l2 = ch.lengths
+        ok_all = np.ones((F, k), bool)
+        o_k = np.broadcast_to(o[:, None], (F, k, 3))
+        knee_k = o_k + w1 * l1
+        for start, d, ln in ((o_k, w1, l1), (knee_k, w2, l2)):
+            hits = rays.first_hit(start.reshape(-1, 3), d.reshape(-1, 3), max_distance=ln * 1.05)
+            ok_all &= ~hits.hit.reshape(F, k)
+        choice = np.where(ok_all.any(1), np.argmax(ok_all, 1), k - 1)
+        lift = raise_steps[choice]
+        lift = gaussian_filter1d(maximum_filter1d(lift, 9, mode="nearest"), 2.0, mode="nearest")
+        pitch = base_pitch + lift
+        d1 = quat_rotate(q, _chain_dirs(s, yaw1 + dyaw, pitch, back))
+        d2 = quat_rotate(q, _chain_dirs(s, yaw2 + dyaw, pitch + (pit2 - pit1), back))
+        knee = o + d1 * l1
+        hinge = normalize(np.cross(up, d1))
+        names += list(ch.names)
+        pos += [o, knee]
+        rot += [bone_frames(o, knee, hinge), bone_frames(knee, knee + d2, hinge)]
+    return names, np.stack(pos, 1), np.stack(rot, 1)
+
+
+def leg_frames(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: RigConfig
+               ) -> LegFrames:
+    """All limbs for all frames.
+
+    bf    : the spine's BodyFrames (F frames)
+    arc   : (F,) float, metres, the head's arc length along the trail (every segment moves by
+            the same amount)
+    times : (F,) float, seconds
+    rays  : the environment's RayCaster
+    """
+    w = walking_legs(bf, np.asarray(arc, float), np.asarray(times, float), rays, cfg)
+    cn, cp, cq = posed_chains(bf, times, rays, cfg)
+    return LegFrames(names=w["names"] + tuple(cn),
+                     positions=np.concatenate([w["positions"], cp], axis=1),
+                     rotations=np.concatenate([w["rotations"], cq], axis=1),
+                     feet=w["feet"], targets=w["targets"], contacts=w["contacts"],
+                     touchdown=w["touchdown"], lag=w["lag"])
