@@ -51,9 +51,13 @@ class PathAgent:
     def goal(self) -> np.ndarray:
         return self._points[-1]
 
-    def step(self, dt: float) -> None:
-        """Advance by dt seconds: brake to stop at the stopping distance, else accelerate."""
-        vmax = self.max_speed * self.speed_scale
+    def step(self, dt: float, slack: float = 1.0) -> None:
+        """Advance by dt seconds: brake to stop at the stopping distance, else accelerate.
+
+        slack : 0..1, how much of the maximum speed the follower allows (1 = free, 0 = wait for
+                the head, which is still turning toward the path)
+        """
+        vmax = self.max_speed * self.speed_scale * min(max(slack, 0.0), 1.0)
         free = max(self.remaining - self.stopping_distance, 0.0)
         target = min(vmax, math.sqrt(2.0 * self.acceleration * free))
         dv = self.acceleration * dt

@@ -89,9 +89,9 @@ def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: flo
     pts = polyline.sample(path, cum_h0, s)
     ground_pts, normals, _ = project_to_surface(rays, pts, probe)
     ground = ground_pts[:, 1]
-    sigma = spacing / res
+    sigma = 2.0 * spacing / res
     smooth = gaussian_filter1d(ground, sigma, mode="nearest")
-    band = 0.9 * clearance
+    band = 0.95 * clearance
     y = np.clip(smooth, ground - band, ground + band)
     pts = ground_pts.copy()
     pts[:, 1] = y

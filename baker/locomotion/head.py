@@ -24,7 +24,7 @@ class HeadSteer:
 
     def __init__(self, position: np.ndarray, heading: np.ndarray, *, max_speed: float,
                  turn_radius: float, lead: float, turn_rate: float, amplitude: float,
-                 max_offset: float):
+                 max_offset: float, max_yaw_rate: float = math.pi):
         self.base = np.asarray(position, dtype=np.float64).copy()
         h = np.asarray(heading, dtype=np.float64).copy()
         h[1] = 0.0
@@ -35,6 +35,7 @@ class HeadSteer:
         self.turn_rate = float(turn_rate)      # rad/s of slither phase at max speed
         self.amplitude = float(amplitude)      # rad of heading swing at max speed
         self.max_offset = float(max_offset)    # metres, lateral offset cap
+        self.max_yaw_rate = float(max_yaw_rate)  # rad/s, heading change limit
         self.turn_rate_scale = 1.0
         self.phase = 0.0
         self.lateral_amp = 0.0
@@ -47,7 +48,7 @@ class HeadSteer:
         dist = math.hypot(to[0], to[2])
         # Speed: match the agent, plus a gain that closes the gap to the lead distance.
         gain = 4.0
-        u = max(0.0, min(agent_speed + gain * (dist - self.lead), 2.0 * self.max_speed))
+        u = max(0.0, min(agent_speed + gain * (dist - self.lead), 1.25 * self.max_speed))
         if dist < 1e-9:
             u = 0.0
         if u > 0.0 and dist > 1e-9:
@@ -59,6 +60,10 @@ class HeadSteer:
             dot = self.heading[0] * want[0] + self.heading[2] * want[2]
             ang = math.atan2(cross, dot)
             lim = step / self.turn_radius
+            if abs(ang) > 0.5:
+                # A sharp turn (a corner, or a new path behind): slow down to bound the yaw rate.
+                step = min(step, self.max_yaw_rate * self.turn_radius * dt)
+                lim = step / self.turn_radius
             a = max(-lim, min(lim, ang))
             c, s = math.cos(a), math.sin(a)
             hx, hz = self.heading[0], self.heading[2]

@@ -251,10 +251,22 @@ def _inside_solid(hcol, hprim, first, face_comp, comp_closed) -> np.ndarray:
     return (excl - excl[fidx]) > 0
 
 
-def _link_axis(d, scol, six, siz, y, ceil, nx, nz, col_start, counts, step, height):
+def _riser(ya, yb, ga, gb):
+    """Height of the step between two neighbouring samples, net of their surface slopes.
+
+    ga, gb : rise of each sample's plane over the horizontal run between them. On a plane the
+    riser is 0; across a crease it is at most half the slope change; on a vertical step it is
+    the step's height. (Recast compares the raw height difference, which forces its climb limit
+    up to cell * tan(max slope) just so that steep ramps stay connected.)
+    """
+    dy = yb - ya
+    return np.minimum(np.abs(dy - ga), np.abs(dy - gb))
+
+
+def _link_axis(d, scol, six, siz, y, ceil, nx, nz, col_start, counts, step, height, g):
     """Best neighbour sample (or -1) of every sample in axis direction d (0: +X, 1: +Z):
-    the sample of the next column closest in height, within the step height, with the agent
-    height free above both."""
+    the sample of the next column with the smallest riser, within the step height, with the
+    agent height free above both. g : (n,) rise of each sample's plane over one cell along d."""
     n = len(y)
     if d == 0:
         inb = six < nx - 1
@@ -267,7 +279,7 @@ def _link_axis(d, scol, six, siz, y, ceil, nx, nz, col_start, counts, step, heig
     start = col_start[ncol]
     cand = np.minimum(start, n - 1)
     yc = y[cand]
-    dy = np.abs(yc - y)
+    dy = _riser(y, yc, g, g[cand])
     gap = np.minimum(ceil[cand], ceil) - np.maximum(yc, y)
     ok = (cnt > 0) & (dy <= step) & (gap >= height)
     best = np.where(ok, cand, -1)
@@ -279,7 +291,7 @@ def _link_axis(d, scol, six, siz, y, ceil, nx, nz, col_start, counts, step, heig
         for k in range(1, int(cm.max())):
             sel = np.nonzero(cm > k)[0]
             cand = st[sel] + k
-            dy = np.abs(y[cand] - ys[sel])
+            dy = _riser(ys[sel], y[cand], g[multi][sel], g[cand])
             gap = np.minimum(ceil[cand], cs[sel]) - np.maximum(y[cand], ys[sel])
             ok = (dy <= step) & (gap >= height) & (dy < best_dy[sel])
             bm[sel[ok]] = cand[ok]
@@ -352,10 +364,14 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
     links = np.full((n, 8), -1, dtype=np.int32)
     px = x0 + (six + 0.5) * cell
     pz = z0 + (siz + 0.5) * cell
+    # rise of each sample's plane over one cell along +X, +Z and the two diagonals
+    gx = -cell * snrm[:, 0] / snrm[:, 1]
+    gz = -cell * snrm[:, 2] / snrm[:, 1]
+    grad = {0: gx, 1: gz, 4: gx + gz, 7: gx - gz}
     blockers = _blocker_columns(caster, x0, z0, nx, nz, cell, min(slope, math.atan2(h_off, cell)))
     for d in (0, 1):
         nb = _link_axis(d, scol, six, siz, sy, sceil, nx, nz, col_start, counts, step,
-                        height)
+                        height, grad[d])
         s = np.nonzero(nb >= 0)[0]
         tt = nb[s]
         test = blockers[scol[s]] | blockers[scol[tt]]
@@ -386,7 +402,7 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
         s = np.nonzero((u1 >= 0) & (u1 == u2))[0]
         u = u1[s]
         gap = np.minimum(sceil[s], sceil[u]) - np.maximum(sy[s], sy[u])
-        ok = (np.abs(sy[u] - sy[s]) <= step) & (gap >= height)
+        ok = (_riser(sy[s], sy[u], grad[d][s], grad[d][u]) <= step) & (gap >= height)
         s, u = s[ok], u[ok]
         links[s, d] = u
         links[u, OPPOSITE[d]] = s

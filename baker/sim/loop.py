@@ -59,9 +59,11 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
 
     start, heading = choose_start(nav, env, body.length, rng)
     agent = PathAgent(start, loco.max_speed, loco.acceleration, loco.stopping_distance)
-    head = HeadSteer(start, heading, max_speed=loco.max_speed, turn_radius=max(navc.radius, 3.0 * body.spacing),
-                     lead=0.25 * body.spacing, turn_rate=loco.head_turn_rate,
-                     amplitude=loco.slither_amplitude, max_offset=0.5 * navc.radius)
+    # Pure pursuit: the head chases the agent one turning radius ahead on the path.
+    turn_radius = max(navc.radius, 3.0 * body.spacing)
+    head = HeadSteer(start, heading, max_speed=loco.max_speed, turn_radius=turn_radius,
+                     lead=turn_radius, turn_rate=loco.head_turn_rate,
+                     amplitude=loco.slither_amplitude, max_offset=0.4 * navc.radius)
     brain = WanderBrain(nav, rig.wander.interval, rig.wander.radius, rng)
 
     # The body starts straight behind the head.
@@ -83,7 +85,9 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
                 details["path_length"] = round(float(polyline.arc_lengths(path.points)[-1]), 4)
             events.append({"start": round(t, 6), "end": None, "state": intent.state,
                            "details": details})
-        agent.step(dt)
+        # The agent waits while the head lags behind it (a sharp turn).
+        gap = float(np.hypot(*(agent.position - head.base)[[0, 2]]))
+        agent.step(dt, slack=2.0 - gap / turn_radius)
         head.step(dt, agent.position, agent.speed)
         heads[k] = head.position
         if k % 2400 == 0:
