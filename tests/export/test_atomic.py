@@ -24,8 +24,16 @@ def test_missing_folder_is_a_one_line_export_error(tmp_path):
     with pytest.raises(ExportError) as e:
         atomic_write_bytes(tmp_path / "nope" / "out.glb", b"x")
     assert "\n" not in str(e.value) and "nope" in str(e.value)
-    with pytest.raises(ExportError):
-        check_writable(tmp_path / "nope")
+
+
+def test_check_writable_creates_the_folder_or_fails_in_one_line(tmp_path):
+    check_writable(tmp_path / "new" / "deeper")
+    assert (tmp_path / "new" / "deeper").is_dir()
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(ExportError) as e:
+        check_writable(blocker / "sub")
+    assert "\n" not in str(e.value) and "sub" in str(e.value)
 
 
 @pytest.mark.skipif(sys.platform == "win32" or os.geteuid() == 0,
