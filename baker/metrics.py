@@ -81,7 +81,7 @@ def _local_angle_steps(traj: Trajectory, parents_world: np.ndarray, child: np.nd
 
 
 def leg_metrics(traj: Trajectory, rays, legs_cfg, *, spacing: float, body_length: float,
-                lag_setting_deg: float, window_s: float = 60.0) -> dict:
+                lag_setting_deg: float, max_speed: float, window_s: float = 60.0) -> dict:
     """Leg and foot quality numbers over every frame (see issue 5's Done-when list).
 
     - skate: per-frame motion of each planted foot tip (both frames in the same stance), as % of
@@ -96,7 +96,10 @@ def leg_metrics(traj: Trajectory, rays, legs_cfg, *, spacing: float, body_length
       fraction of the segment spacing;
     - rhythm: phase lag between neighbouring legs on one side, measured from touchdown frames
       and the distance the head travelled: circular mean per `window_s` window and overall,
-      against the setting (retrograde: the rear leg lags).
+      against the setting (retrograde: the rear leg lags). Only steady walking counts: step
+      cycles of the front leg during which the head kept at least 40% of max_speed and covered
+      0.7..1.3 of the stride the rig sets for that speed (stops, settling feet and steps cut
+      short in tight turns break the rhythm on purpose).
     """
     if not traj.joint_names or traj.foot_contacts is None:
         return {"enabled": False}
@@ -166,7 +169,11 @@ def leg_metrics(traj: Trajectory, rays, legs_cfg, *, spacing: float, body_length
         ok = (k >= 0) & (k < len(fa) - 1)
         k, fr = k[ok], fr[ok]
         cyc = travel[fa[k + 1]] - travel[fa[k]]
-        good = cyc > 1e-9
+        dur = traj.times[fa[k + 1]] - traj.times[fa[k]]
+        v = cyc / np.maximum(dur, 1e-9)
+        stride = legs_cfg.stride_min + (legs_cfg.stride_max - legs_cfg.stride_min) * np.clip(
+            v / max_speed, 0.0, 1.0)
+        good = (v >= 0.4 * max_speed) & (cyc > 0.7 * stride) & (cyc < 1.3 * stride)
         lags.append((travel[fr[good]] - travel[fa[k[good]]]) / cyc[good])
         when.append(traj.times[fr[good]])
     lag_mean = lag_drift = None
@@ -204,6 +211,7 @@ def leg_metrics(traj: Trajectory, rays, legs_cfg, *, spacing: float, body_length
         "max_leg_rotation_per_frame_world_deg": float(rot_world.max()) if F > 1 else 0.0,
         "min_neighbour_foot_distance_spacing": float(gaps.min()),
         "phase_lag_setting_deg": float(lag_setting_deg),
+        "phase_lag_samples": int(sum(len(x) for x in lags)),
         "phase_lag_measured_deg": lag_mean,
         "phase_lag_window_means_deg": windows,
         "phase_lag_max_window_error_deg": lag_drift,

@@ -92,7 +92,8 @@ def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
             motion["legs"] = metrics.leg_metrics(
                 traj, env.rays, cfg.rig.legs, spacing=cfg.rig.body.spacing,
                 body_length=cfg.rig.body.length,
-                lag_setting_deg=360.0 * cfg.rig.legs.waves / (cfg.rig.body.segments - 1))
+                lag_setting_deg=360.0 * cfg.rig.legs.waves / (cfg.rig.body.segments - 1),
+                max_speed=cfg.rig.locomotion.max_speed)
 
     # Step 7: files. Every file is complete before it replaces an older one.
     extras = report_mod.extras(cfg, traj)

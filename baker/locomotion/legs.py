@@ -50,6 +50,12 @@ SWING_PEAK = 1.1
 MIN_DUTY = 0.4
 #: frames ahead in which a planted foot is checked against its hip (reach, under the body)
 LIFT_WINDOW = 48
+#: a swinging foot's angle about its hip stays within this of straight out [rad]
+SWEEP_LIMIT = np.radians(80.0)
+#: swing wall checks: at most this many half-lift raises
+WALL_STEPS = 4
+#: planted feet of neighbouring legs keep at least this many segment spacings apart
+NEIGHBOUR_GAP = 0.3
 
 
 @dataclass(frozen=True)
@@ -165,7 +171,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     a_back = np.sqrt(np.maximum(span ** 2 - lat0 ** 2, 0.0))         # (L,)
     a_back = np.minimum(a_back, 1.5 * 0.5 * lg.duty * lg.stride_max)   # (L,)
     # a planted foot also lifts when the body turns so that it would come under the body
-    foot_x_min = np.abs(lay.hip[:, 0]) + 0.15 * lever                  # (L,) segment frame
+    foot_x_min = np.abs(lay.hip[:, 0]) + 0.3 * lever                   # (L,) segment frame
     lag = lay.lag
     legs = np.arange(L)
     q_inv = q * np.array([-1.0, -1.0, -1.0, 1.0])
@@ -225,12 +231,17 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     p0 = np.empty((F, L, 3))
     p1 = np.empty((F, L, 3))
     phase_td = np.stack(recs_phase_td)        # (C+1, L) touchdown came from the phase
+    cidx = np.empty((F, L), dtype=np.int64)   # hold (cycle) index of each frame
     for leg in range(L):
         c = np.searchsorted(Ts[:, leg], f_idx, side="right") - 1      # cycle of each frame
-        c = np.clip(c, 0, C1 - 2)
+        cidx[:, leg] = c = np.clip(c, 0, C1 - 2)
+        contact[:, leg] = f_idx < LOs[c, leg]
+    holds = _spread_neighbours(holds, Ts, cidx, contact, NEIGHBOUR_GAP * body.spacing, rays,
+                               up, probe=body.clearance + 2.0 * lg.lift)
+    for leg in range(L):
+        c = cidx[:, leg]
         lo = LOs[c, leg]
-        st = f_idx < lo
-        contact[:, leg] = st
+        st = contact[:, leg]
         a, b = holds[c, leg], holds[c + 1, leg]
         target[:, leg] = a
         p0[:, leg], p1[:, leg] = a, b
@@ -246,13 +257,37 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     h = _swing_shape(u)[..., None]
     step_len = np.linalg.norm(p1 - p0, axis=-1)
     lift = lg.lift * np.minimum(1.0, step_len / lg.stride_min)
-    arch = np.sin(np.pi * u)
-    swing_pts = p0 + (p1 - p0) * h + up * (lift * arch)[..., None]
+    arch = np.sin(np.pi * u) ** 2                   # lifts and lands softly
+    # the foot sweeps around its hip in the segment's frame: from the old hold as the segment
+    # saw it at liftoff to the new hold as it sees it at touchdown (angle and radius about the
+    # hip interpolated), so the leg's motion relative to the body is smooth and both ends are
+    # exact in the world
+    f_lo = np.minimum(LOs[cidx, legs[None, :]], F - 1)
+    f_td = np.minimum(Ts[cidx + 1, legs[None, :]], F - 1)
+    lg_ = np.broadcast_to(legs[None, :], (F, L))
+    r0 = quat_rotate(q_inv[f_lo, lg_], p0 - hip[f_lo, lg_])
+    r1 = quat_rotate(q_inv[f_td, lg_], p1 - hip[f_td, lg_])
+    s_ = lay.side[None, :]
+    th0 = np.clip(np.arctan2(r0[..., 2], s_ * r0[..., 0]), -SWEEP_LIMIT, SWEEP_LIMIT)
+    th1 = np.clip(np.arctan2(r1[..., 2], s_ * r1[..., 0]), -SWEEP_LIMIT, SWEEP_LIMIT)
+    rho0 = np.hypot(r0[..., 0], r0[..., 2])
+    rho1 = np.hypot(r1[..., 0], r1[..., 2])
+    hh_ = h[..., 0]
+    th = th0 + (th1 - th0) * hh_
+    rho = rho0 + (rho1 - rho0) * hh_
+    rel = np.stack([s_ * rho * np.cos(th), r0[..., 1] + (r1[..., 1] - r0[..., 1]) * hh_,
+                    rho * np.sin(th)], -1)
+    # exact at the ends whatever the clipping: blend the straight chord back in near u = 0, 1
+    chord = r0 + (r1 - r0) * h
+    ends = (np.cos(np.pi * u) ** 8)[..., None]
+    rel = ends * chord + (1.0 - ends) * rel
+    rel[..., 1] += lift * arch
+    swing_pts = hip + quat_rotate(q, rel)
     target = np.where(sw[..., None], swing_pts, target)
     # swinging feet stay outside the body, whatever the body's turn
     rel = quat_rotate(q_inv, target - hip)
     out = rel[..., 0] * lay.side[None, :]
-    rel[..., 0] = np.where(sw, np.maximum(out, foot_x_min[None, :] + 0.1 * lever), out) * lay.side[None, :]
+    rel[..., 0] = np.where(sw, np.maximum(out, foot_x_min[None, :]), out) * lay.side[None, :]
     target = hip + quat_rotate(q, rel)
     # keep swinging feet above the surface below them (one batch of rays)
     if np.any(sw):
@@ -262,16 +297,38 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         need = hh.points[:, 1] + 0.35 * (lift * arch)[sw]
         y = np.where(hh.hit, np.maximum(sp[:, 1], need), sp[:, 1])
         sp[:, 1] = y
-        # a swinging foot never goes into a wall: stop it short of the first hit from its hip
-        hp = hip[sw]
-        v = sp - hp
-        dist = np.linalg.norm(v, axis=1)
-        wall = rays.first_hit(hp, v, max_distance=dist)
-        if np.any(wall.hit):
-            margin = 0.5 * lg.lift
-            keep = np.maximum(wall.distance[wall.hit] - margin, 0.0)
-            sp[wall.hit] = hp[wall.hit] + v[wall.hit] / dist[wall.hit, None] * keep[:, None]
         target[sw] = sp
+        # a swinging foot never goes into a wall: where its path from the previous frame is
+        # blocked (or it ends inside something), it goes over, raised in lift-sized steps
+        for _ in range(WALL_STEPS):
+            prev = np.concatenate([target[:1], target[:-1]])[sw]
+            cur = target[sw]
+            v = cur - prev
+            dist = np.linalg.norm(v, axis=1)
+            moving = dist > 1e-9
+            blocked = np.zeros(len(cur), bool)
+            eps = 0.1 * lg.lift * UP      # rays start just above feet resting on the surface
+            if np.any(moving):
+                blocked[moving] = rays.first_hit(prev[moving] + eps, v[moving],
+                                                 max_distance=dist[moving]).hit
+            below = rays.first_hit(cur + lg.lift * UP, np.tile(-UP, (len(cur), 1)),
+                                   max_distance=0.9 * lg.lift).hit
+            bump = blocked | below
+            if not bump.any():
+                break
+            cur[bump] += 0.5 * lg.lift * UP
+            target[sw] = cur
+
+    # a swinging foot that would pass too close to its neighbour's foot goes over it
+    gap = NEIGHBOUR_GAP * body.spacing
+    for _ in range(6):
+        d = np.linalg.norm(target[:, 2:] - target[:, :-2], axis=-1)
+        conf = (d < gap) & (sw[:, 2:] | sw[:, :-2])
+        if not conf.any():
+            break
+        f, k = np.nonzero(conf)
+        leg = np.where(sw[f, k + 2], k + 2, k)           # the rear one when both swing
+        np.add.at(target, (f, leg), up[f, leg] * (1.2 * (gap - d[f, k]))[:, None])
 
     # -- IK, all frames x legs
     pole = leg_pole(lay, hip, target, fwd, left, lg.knee_out)
@@ -283,6 +340,51 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     rotations = np.stack([q_u, q_t], axis=2).reshape(F, 2 * L, 4)
     return dict(names=names, positions=positions, rotations=rotations, feet=sol.end,
                 targets=target, contacts=contact, touchdown=td_flag, lag=lag)
+
+
+def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, contact: np.ndarray,
+                       gap: float, rays, up: np.ndarray, probe: float, iterations: int = 8
+                       ) -> np.ndarray:
+    """Legs that know where their neighbours are: when two planted feet of neighbouring legs on
+    one side come closer than `gap`, the one that landed later steps away from the other (its
+    foothold moves along the line between them and is dropped back onto the surface).
+
+    holds : (C+1, L, 3) footholds; Ts : (C+1, L) their touchdown frames; cidx : (F, L) hold of
+    each frame; contact : (F, L) planted. Legs are ordered L_01, R_01, L_02, ... so leg l's
+    rear neighbour on the same side is l + 2. Returns adjusted holds.
+    """
+    holds = holds.copy()
+    F, L = cidx.shape
+    legs = np.arange(L)
+    for _ in range(iterations):
+        pos = holds[cidx, legs[None, :]]                                  # (F, L, 3)
+        d = pos[:, 2:] - pos[:, :-2]                                      # rear - front
+        dist = np.linalg.norm(d, axis=-1)
+        conf = contact[:, 2:] & contact[:, :-2] & (dist < gap)
+        if not conf.any():
+            break
+        f, k = np.nonzero(conf)
+        front, rear = k, k + 2
+        cf, cr = cidx[f, front], cidx[f, rear]
+        later_rear = Ts[cr, rear] >= Ts[cf, front]
+        unit = d[f, k] / np.maximum(dist[f, k], 1e-12)[:, None]
+        need = gap - dist[f, k]
+        leg = np.where(later_rear, rear, front)
+        hold = np.where(later_rear, cr, cf)
+        vec = np.where(later_rear[:, None], unit, -unit) * (need * 1.2)[:, None]
+        # per hold, keep the largest push
+        order = np.argsort(need, kind="stable")
+        disp = np.zeros_like(holds)
+        disp[hold[order], leg[order]] = vec[order]
+        moved = np.any(disp != 0, axis=-1)
+        new = holds[moved] + disp[moved]
+        # back onto the surface, along the up axis at the frame it was planted
+        frame = np.minimum(Ts[moved], F - 1)
+        u = up[frame, np.nonzero(moved)[1]]
+        h = rays.first_hit(new + probe * u, -u, max_distance=2.0 * probe)
+        new[h.hit] = h.points[h.hit]
+        holds[moved] = new
+    return holds
 
 
 def _chain_dirs(side, yaw, pitch, backward):
