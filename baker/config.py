@@ -85,7 +85,7 @@ class LegsConfig:
     stride_max: float = 0.075       # [>=stride_min] [m] body travel per step cycle at max speed
     lift: float = 0.0075            # [>=0] [m] swing height at mid swing
     settle_time: float = 0.35       # [>0] [s] longest swing; feet land by then when the body stops
-    max_swing_rate: float = math.radians(480.0)  # [>0] [rad/s] fastest leg sweep in a swing;
+    max_swing_rate: float = math.radians(420.0)  # [>0] [rad/s] fastest leg sweep in a swing;
                                     # the duty factor drops at high speed to respect it
     radius: float = 0.0016          # [>0] [m] leg tube radius at the hip (tapers to a point)
     ultimate_upper: float = 0.025   # [>0] [m] ultimate leg bones, trailing backward

@@ -52,6 +52,8 @@ MIN_DUTY = 0.4
 LIFT_WINDOW = 48
 #: a swinging foot's angle about its hip stays within this of straight out [rad]
 SWEEP_LIMIT = np.radians(80.0)
+#: knee swivels about the hip->foot axis tried when a leg bone would go through something [rad]
+KNEE_SWIVELS = np.radians([20.0, -20.0, 40.0, -40.0, 60.0, -60.0, 85.0, -85.0])
 #: swing wall checks: at most this many half-lift raises
 WALL_STEPS = 4
 #: planted feet of neighbouring legs keep at least this many segment spacings apart
@@ -311,12 +313,15 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
             if np.any(moving):
                 blocked[moving] = rays.first_hit(prev[moving] + eps, v[moving],
                                                  max_distance=dist[moving]).hit
-            below = rays.first_hit(cur + lg.lift * UP, np.tile(-UP, (len(cur), 1)),
-                                   max_distance=0.9 * lg.lift).hit
-            bump = blocked | below
-            if not bump.any():
+            top = 3.0 * lg.lift
+            hb = rays.first_hit(cur + top * UP, np.tile(-UP, (len(cur), 1)),
+                                max_distance=top - 0.1 * lg.lift)
+            below = hb.hit
+            if not (blocked.any() or below.any()):
                 break
-            cur[bump] += 0.5 * lg.lift * UP
+            cur[blocked] += 0.5 * lg.lift * UP
+            lift_to = cur[below, 1] + top - hb.distance[below] + 0.1 * lg.lift
+            cur[below, 1] = np.maximum(cur[below, 1], lift_to)
             target[sw] = cur
 
     # a swinging foot that would pass too close to its neighbour's foot goes over it
@@ -333,8 +338,10 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     # -- IK, all frames x legs
     pole = leg_pole(lay, hip, target, fwd, left, lg.knee_out)
     sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
-    q_u = bone_frames(hip, sol.mid, sol.hinge)
-    q_t = bone_frames(sol.mid, sol.end, sol.hinge)
+    mid, hinge = _clear_knees(rays, hip, sol.mid, sol.end, sol.hinge, lay.l1, lay.l2,
+                              0.005 * cfg.body.length)
+    q_u = bone_frames(hip, mid, hinge)
+    q_t = bone_frames(mid, sol.end, hinge)
     names = tuple(n for pair in zip(lay.upper_names, lay.tip_names) for n in pair)
     positions = np.stack([hip, sol.mid], axis=2).reshape(F, 2 * L, 3)
     rotations = np.stack([q_u, q_t], axis=2).reshape(F, 2 * L, 4)
@@ -342,8 +349,59 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
                 targets=target, contacts=contact, touchdown=td_flag, lag=lag)
 
 
+def _bones_hit(rays, hip, mid, end, l1, l2, tol):
+    """(n,) bool: either bone of each leg passes through the environment (the last `tol` of the
+    tip bone is not tested, so a foot resting on the surface does not count)."""
+    a = rays.first_hit(hip, mid - hip, max_distance=l1 - tol).hit
+    b = rays.first_hit(mid, end - mid, max_distance=l2 - tol).hit
+    return a | b
+
+
+def _clear_knees(rays, hip, mid, end, hinge, l1, l2, tol):
+    """Swivel knees about the hip->foot axis where a leg bone would pass through the
+    environment (the foot stays where it is). Candidate swivels are tried smallest first; the
+    chosen angle is smoothed over time per leg so the knee glides rather than jumps.
+
+    hip, mid, end, hinge : (F, L, 3). Returns (mid, hinge) adjusted.
+    """
+    F, L, _ = hip.shape
+    hit = _bones_hit(rays, hip.reshape(-1, 3), mid.reshape(-1, 3), end.reshape(-1, 3),
+                     l1, l2, tol).reshape(F, L)
+    if not hit.any():
+        return mid, hinge
+    axis = normalize(end - hip)
+    angle = np.zeros((F, L))
+    f, l = np.nonzero(hit)
+    todo = np.ones(len(f), bool)
+    for a in KNEE_SWIVELS:
+        if not todo.any():
+            break
+        ff, ll = f[todo], l[todo]
+        m = _swivel(mid[ff, ll], hip[ff, ll], axis[ff, ll], a)
+        ok = ~_bones_hit(rays, hip[ff, ll], m, end[ff, ll], l1, l2, tol)
+        idx = np.nonzero(todo)[0][ok]
+        angle[f[idx], l[idx]] = a
+        todo[idx] = False
+    # spread each swivel over neighbouring frames (max of |angle| keeps it clear, then smooth)
+    mag = maximum_filter1d(np.abs(angle), 5, axis=0, mode="nearest")
+    sign = np.sign(gaussian_filter1d(angle, 3.0, axis=0, mode="nearest"))
+    smooth = gaussian_filter1d(mag, 1.5, axis=0, mode="nearest") * sign
+    smooth = np.where(hit, np.where(np.abs(smooth) >= np.abs(angle), smooth, angle), smooth)
+    new_mid = _swivel(mid, hip, axis, smooth)
+    new_hinge = _swivel(hinge, np.zeros_like(hinge), axis, smooth)
+    return new_mid, new_hinge
+
+
+def _swivel(p, origin, axis, angle):
+    """Rotate points p about the line (origin, unit axis) by angle [rad] (Rodrigues)."""
+    v = p - origin
+    c = np.cos(angle)[..., None] if np.ndim(angle) else np.cos(angle)
+    s_ = np.sin(angle)[..., None] if np.ndim(angle) else np.sin(angle)
+    return origin + v * c + np.cross(axis, v) * s_ + axis * np.sum(axis * v, -1, keepdims=True) * (1 - c)
+
+
 def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, contact: np.ndarray,
-                       gap: float, rays, up: np.ndarray, probe: float, iterations: int = 8
+                       gap: float, rays, up: np.ndarray, probe: float, iterations: int = 12
                        ) -> np.ndarray:
     """Legs that know where their neighbours are: when two planted feet of neighbouring legs on
     one side come closer than `gap`, the one that landed later steps away from the other (its
@@ -371,7 +429,7 @@ def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, cont
         need = gap - dist[f, k]
         leg = np.where(later_rear, rear, front)
         hold = np.where(later_rear, cr, cf)
-        vec = np.where(later_rear[:, None], unit, -unit) * (need * 1.2)[:, None]
+        vec = np.where(later_rear[:, None], unit, -unit) * (need * 1.3 + 0.02 * gap)[:, None]
         # per hold, keep the largest push
         order = np.argsort(need, kind="stable")
         disp = np.zeros_like(holds)
