@@ -42,6 +42,10 @@ from baker.rig.limbs import chains, leg_layout, leg_pole
 PLAN_REACH = 0.9
 #: fan of foothold rays: tilt from the segment's down axis toward the body [rad]
 FAN = np.radians([0.0, 25.0, 45.0, 65.0])
+#: foothold fans also start from origins pulled this fraction of the way toward the hip
+FAN_PULL = (0.0, 0.35, 0.6)
+#: a foothold's surface faces at most this far from the segment's up [rad]
+FOOT_SLOPE = np.radians(65.0)
 #: inside a bend of radius R, feet stay within INNER_REACH * R of the centre line
 INNER_REACH = 0.6
 #: swing progress peak rate relative to its mean (see _swing_shape)
@@ -96,19 +100,30 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     """Footholds on the surface near `points`, all in one batch of ray casts.
 
     points, up, inward, hips : (n, 3); up = segment normal, inward = toward the body's centre line
-    Rays start `probe` above each point along `up` and go down (and, for the fan, tilted toward
-    the body). The first candidate that hits within `reach` of its hip wins; without one the
-    point itself is kept.
+    Candidates, in order of preference: a ray straight down (along -up) from `probe` above the
+    point; rays tilted toward the body (the fan, for a log's or a ledge's edge); the same from
+    origins pulled toward the body. A candidate counts when it hits a surface that faces up
+    (within FOOT_SLOPE of the segment's up) within `reach` of its hip. Without one, the point
+    itself is kept.
     """
     n = len(points)
     if n == 0:
         return points.copy()
-    origins = points + probe * up
-    dirs = np.stack([normalize(-np.cos(a) * up + np.sin(a) * inward) for a in FAN], 0)  # (K, n, 3)
-    o = np.broadcast_to(origins, dirs.shape).reshape(-1, 3)
-    h = rays.first_hit(o, dirs.reshape(-1, 3), max_distance=4.0 * probe + reach)
-    pts = h.points.reshape(len(FAN), n, 3)
-    ok = h.hit.reshape(len(FAN), n) & (np.linalg.norm(pts - hips[None], axis=-1) < reach)
+    lat = np.sum((points - hips) * inward, -1, keepdims=True)          # <= 0: distance outward
+    cands_o, cands_d = [], []
+    for pull in FAN_PULL:
+        o = points + probe * up - pull * lat * inward
+        for a in FAN:
+            cands_o.append(o)
+            cands_d.append(normalize(-np.cos(a) * up + np.sin(a) * inward))
+    k = len(cands_o)
+    o = np.concatenate(cands_o)
+    d = np.concatenate(cands_d)
+    h = rays.first_hit(o, d, max_distance=4.0 * probe + reach)
+    pts = h.points.reshape(k, n, 3)
+    facing = np.sum(h.normals.reshape(k, n, 3) * up[None], -1) > np.cos(FOOT_SLOPE)
+    ok = (h.hit.reshape(k, n) & facing
+          & (np.linalg.norm(pts - hips[None], axis=-1) < reach))
     first = np.argmax(ok, axis=0)
     any_ok = ok.any(axis=0)
     out = points.copy()
@@ -189,14 +204,23 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         Tc = np.minimum(T, F - 1)
         lo_phase = np.searchsorted(lift_gate, i - lag, side="left")
         lo_reach = np.searchsorted(travel, travel[Tc] + x + a_back, side="left")
-        # body-frame check over the next LIFT_WINDOW frames (beyond it, the travel rule)
+        # body-frame check of the planted foot, LIFT_WINDOW frames at a time, up to the phase's
+        # liftoff: lift early when it would fall out of reach or come under the body
         hold = anchor[Tc, legs] + fwd[Tc, legs] * x[:, None]
-        fw = np.minimum(Tc[:, None] + win, F - 1)
-        rel = quat_rotate(q_inv[fw, legs[:, None]], hold[:, None, :] - hip[fw, legs[:, None]])
-        bad = ((rel[..., 0] * lay.side[:, None] < foot_x_min[:, None])
-               | (np.linalg.norm(rel, axis=-1) > span) | (rel[..., 2] < -a_back[:, None]))
-        lo_body = np.where(bad.any(1), Tc + np.argmax(bad, 1), lo_reach)
-        LO = np.clip(np.minimum(lo_phase, lo_body), T, F)
+        lo_body = np.full(L, F, dtype=np.int64)
+        start = Tc.copy()
+        open_ = start < np.minimum(lo_phase, F)
+        while open_.any():
+            ll = legs[open_]
+            fw = np.minimum(start[open_, None] + win, F - 1)
+            rel = quat_rotate(q_inv[fw, ll[:, None]], hold[open_, None, :] - hip[fw, ll[:, None]])
+            bad = ((rel[..., 0] * lay.side[ll, None] < foot_x_min[ll, None])
+                   | (np.linalg.norm(rel, axis=-1) > span) | (rel[..., 2] < -a_back[ll, None]))
+            found = bad.any(1)
+            lo_body[ll[found]] = fw[found, np.argmax(bad[found], 1)]
+            start[open_] += LIFT_WINDOW
+            open_ &= (lo_body == F) & (start < np.minimum(lo_phase, F))
+        LO = np.clip(np.minimum(np.minimum(lo_phase, lo_body), lo_reach), T, F)
         LOc = np.minimum(LO, F - 1)
         td_phase = np.searchsorted(phi, i + 1 - lag, side="left")
         td_time = np.searchsorted(times, times[LOc] + lg.settle_time - 1e-9, side="left")
@@ -343,7 +367,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     q_u = bone_frames(hip, mid, hinge)
     q_t = bone_frames(mid, sol.end, hinge)
     names = tuple(n for pair in zip(lay.upper_names, lay.tip_names) for n in pair)
-    positions = np.stack([hip, sol.mid], axis=2).reshape(F, 2 * L, 3)
+    positions = np.stack([hip, mid], axis=2).reshape(F, 2 * L, 3)
     rotations = np.stack([q_u, q_t], axis=2).reshape(F, 2 * L, 4)
     return dict(names=names, positions=positions, rotations=rotations, feet=sol.end,
                 targets=target, contacts=contact, touchdown=td_flag, lag=lag)
@@ -440,8 +464,11 @@ def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, cont
         frame = np.minimum(Ts[moved], F - 1)
         u = up[frame, np.nonzero(moved)[1]]
         h = rays.first_hit(new + probe * u, -u, max_distance=2.0 * probe)
-        new[h.hit] = h.points[h.hit]
-        holds[moved] = new
+        ok = h.hit & (np.abs(np.sum((h.points - holds[moved]) * u, -1)) < 0.5 * probe)
+        new[ok] = h.points[ok]
+        sel = np.nonzero(moved)
+        keep = ok | ~moved[sel]        # a move that would leave the surface is dropped
+        holds[sel[0][keep], sel[1][keep]] = new[keep]
     return holds
 
 
