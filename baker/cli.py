@@ -10,7 +10,8 @@ from pathlib import Path
 
 import click
 
-from baker.config import DEFAULT_ENVIRONMENT, DEFAULT_RIG, BakeConfig, load_rig_config
+from baker.config import (DEFAULT_ENVIRONMENT, DEFAULT_RIG, BakeConfig, load_rig_config,
+                          override_rig)
 from baker.errors import BakerError, ConfigError
 
 
@@ -29,6 +30,29 @@ def parse_vec3(text: str | None, what: str):
     if len(vals) != 3:
         raise ConfigError(f"{what} must be three comma-separated numbers, e.g. 0.3,1,0.2")
     return vals
+
+
+def rig_options(f):
+    """--scale and the navigation agent overrides, shared by `bake` and `navmesh`
+    (passed on to config.override_rig)."""
+    opts = [
+        click.option("--scale", type=float, default=None, metavar="FACTOR",
+                     help="Scale the rig uniformly (sizes, speeds, navigation agent), "
+                          "e.g. 8 for a 2 m giant centipede."),
+        click.option("--agent-radius", type=float, default=None, metavar="M",
+                     help="Navigation agent radius in metres (erosion) [default: from the rig]."),
+        click.option("--agent-height", type=float, default=None, metavar="M",
+                     help="Free height needed above walkable surface, metres [default: from the rig]."),
+        click.option("--step-height", type=float, default=None, metavar="M",
+                     help="Largest riser the agent climbs, metres [default: from the rig]."),
+        click.option("--max-slope", "max_slope_deg", type=float, default=None, metavar="DEG",
+                     help="Steepest walkable slope in degrees [default: from the rig, 60]."),
+        click.option("--cell-size", type=float, default=None, metavar="M",
+                     help="Navigation grid cell size in metres [default: from the rig]."),
+    ]
+    for o in reversed(opts):
+        f = o(f)
+    return f
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -59,8 +83,18 @@ def cli(verbose: int):
 @click.option("--cache-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Navigation cache folder [default: ~/.cache/baker/navmesh].")
 @click.option("--no-cache", is_flag=True, help="Always rebuild the navigation surface.")
+@click.option("--behaviour", type=click.Choice(["auto", "wander", "shade", "hunt"]), default="auto",
+              show_default=True, help="auto lets the brain choose; the others force one drive.")
+@click.option("--prey", type=int, default=0, show_default=True, help="Number of prey capsules (0-16).")
+@click.option("--cobra", type=click.Choice(["auto", "always", "never"]), default="auto",
+              show_default=True, help="Cobra mode (front third raised).")
+@click.option("--sun-path", default=None, metavar="AZ,EL;AZ,EL",
+              help="Move the sun over the bake: azimuth,elevation keys in degrees, evenly spaced.")
+@click.option("--clips", is_flag=True,
+              help="Also write one animation per behaviour segment (glTF animations, USD SkelAnimations).")
+@rig_options
 def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_navmesh,
-         cache_dir, no_cache):
+         cache_dir, no_cache, behaviour, prey, cobra, sun_path, clips, **rig_overrides):
     """Bake a centipede on ENVIRONMENT (glTF/GLB, OBJ, PLY, STL or USD).
 
     With no ENVIRONMENT, the bundled rainforest floor is used."""
@@ -72,9 +106,11 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
     formats = {"glb": ("glb",), "usd": (usd_fmt,), "both": ("glb", usd_fmt)}[fmt]
     cfg = BakeConfig(
         environment=environment or DEFAULT_ENVIRONMENT,
-        seconds=seconds, fps=fps, seed=seed, rig=load_rig_config(rig_path), out=out,
+        seconds=seconds, fps=fps, seed=seed,
+        rig=override_rig(load_rig_config(rig_path), **rig_overrides), out=out,
         formats=formats, sun_direction=parse_vec3(sun, "--sun"), debug_navmesh=debug_navmesh,
         nav_cache_dir=None if no_cache else (cache_dir or default_cache_dir()),
+        behaviour=behaviour, prey=prey, cobra=cobra, sun_path=sun_path, clips=clips,
     )
     progress = TerminalProgress()
     try:
@@ -86,6 +122,33 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
     click.echo(f"baked {m['frames']} frames, walked {m['distance_walked_m']:.2f} m "
                f"({m['distance_walked_body_lengths']:.1f} body lengths) -> {files} "
                f"in {time.perf_counter() - t0:.2f} s")
+
+
+@cli.command()
+@click.argument("environment", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
+              default=DEFAULT_RIG, show_default="rigs/scolopendra.toml",
+              help="Rig whose navigation agent sizes are used.")
+@click.option("--png", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Draw a top-down map of the walkable area (coloured by component) to this PNG.")
+@click.option("--from", "path_from", default=None, metavar="X,Y,Z",
+              help="Find a path from this point (with --to); drawn on the --png map.")
+@click.option("--to", "path_to", default=None, metavar="X,Y,Z", help="Path goal (with --from).")
+@click.option("--cache-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Navigation cache folder [default: ~/.cache/baker/navmesh].")
+@click.option("--no-cache", is_flag=True, help="Build without reading or writing the cache.")
+@rig_options
+def navmesh(environment, rig_path, png, path_from, path_to, cache_dir, no_cache, **rig_overrides):
+    """Build (or load from the cache) the navigation surface of ENVIRONMENT and report on it.
+
+    The surface is cached where `baker bake` looks for it, so a later bake skips the build."""
+    from baker.navmesh.report import format_report, run
+
+    rig = override_rig(load_rig_config(rig_path), **rig_overrides)
+    report = run(environment, rig.navigation, None if no_cache else (cache_dir or default_cache_dir()),
+                 png=png, path_from=parse_vec3(path_from, "--from"),
+                 path_to=parse_vec3(path_to, "--to"))
+    click.echo(format_report(report))
 
 
 def main(argv=None) -> int:

@@ -8,10 +8,30 @@ import numpy as np
 
 from baker.errors import ExportError
 from baker.geometry.conventions import is_valid_name
-from baker.geometry.transforms import quat_conj, quat_mul, quat_rotate
+from baker.geometry.transforms import light_rotation, quat_conj, quat_mul, quat_rotate
 from baker.rig.build import Rig
 from baker.rig.skeleton import forward_kinematics
 from baker.sim.trajectory import Trajectory
+
+
+@dataclass(frozen=True)
+class NodeTrack:
+    """Animation of one scene node that is not a joint (a prey capsule, the sun).
+
+    node         : node name in the exported scene
+    translations : (F, 3) float32 metres, world (the node sits at the scene root), or None
+    rotations    : (F, 4) float32 xyzw unit, sign-continuous, or None
+    scales       : (F, 3) float32, or None (0 hides the node)
+    """
+
+    node: str
+    translations: np.ndarray | None = None
+    rotations: np.ndarray | None = None
+    scales: np.ndarray | None = None
+
+    def slice(self, f0: int, f1: int) -> "NodeTrack":
+        cut = (lambda a: None if a is None else a[f0:f1])
+        return NodeTrack(self.node, cut(self.translations), cut(self.rotations), cut(self.scales))
 
 
 @dataclass(frozen=True)
@@ -33,6 +53,17 @@ class Clip:
     rotations: np.ndarray
     scales: np.ndarray
     fps: int = 30
+    tracks: tuple[NodeTrack, ...] = ()
+
+    def segment(self, f0: int, f1: int, name: str) -> "Clip":
+        """Frames [f0, f1) as a clip of its own, with times starting at 0."""
+        f1 = min(f1, self.n_frames)
+        if not 0 <= f0 < f1:
+            raise ExportError(f"empty clip segment [{f0}, {f1})")
+        return Clip(name=name, times=times_for(f1 - f0, self.fps),
+                    translations=self.translations[f0:f1], rotations=self.rotations[f0:f1],
+                    scales=self.scales[f0:f1], fps=self.fps,
+                    tracks=tuple(t.slice(f0, f1) for t in self.tracks))
 
     @property
     def n_frames(self) -> int:
@@ -153,7 +184,26 @@ def build_clip(traj: Trajectory, rig: Rig, name: str = "bake", fps: int | None =
     rotations = sign_continuous(normalize_quats_f32(local_q))
     clip = Clip(name=name, times=times_for(f_count, fps),
                 translations=local_t.astype(np.float32), rotations=rotations,
-                scales=np.ones((f_count, j_count, 3), dtype=np.float32), fps=fps)
+                scales=np.ones((f_count, j_count, 3), dtype=np.float32), fps=fps,
+                tracks=node_tracks(traj))
     for arr in (clip.times, clip.translations, clip.rotations, clip.scales):
         arr.setflags(write=False)
     return clip
+
+
+def node_tracks(traj: Trajectory) -> tuple[NodeTrack, ...]:
+    """Tracks for the prey capsules (hidden by a zero scale once eaten) and, when the sun
+    moves, the sun's rotation (its local -Z along the light)."""
+    tracks = []
+    for j, name in enumerate(traj.prey_names):
+        scale = np.where(np.asarray(traj.prey_visible[:, j])[:, None], 1.0, 0.0)
+        tracks.append(NodeTrack(
+            node=name,
+            translations=np.asarray(traj.prey_positions[:, j], dtype=np.float32),
+            rotations=sign_continuous(normalize_quats_f32(traj.prey_rotations[:, j])),
+            scales=np.repeat(scale, 3, axis=1).astype(np.float32)))
+    sun = traj.sun_directions
+    if sun is not None and len(sun) > 1 and np.ptp(sun, axis=0).max() > 1e-9:
+        tracks.append(NodeTrack(node="Sun", rotations=sign_continuous(
+            normalize_quats_f32(light_rotation(sun)))))
+    return tuple(tracks)

@@ -100,6 +100,53 @@ class LegsConfig:
 
 
 @dataclass(frozen=True)
+class BehaviourConfig:
+    """The brain (SEED.md numbers, converted to body lengths in rig files)."""
+
+    decision_interval: float = 5.0    # [>0] [s] how often the d10 is rolled (shade vs wander)
+    shade_roll_max: int = 4           # [0..9] a roll of 0..9 at or below this goes to shade
+    shade_min_spots: int = 2          # [>=1] known shade spots needed before seeking shade
+    shade_memory_interval: float = 5.0  # [>0] [s] at most one new shade spot this often
+    shade_spot_spacing: float = 0.25  # [>0] [m] remembered spots are at least this far apart
+    perception_rate: float = 10.0     # [>0] [Hz] shade, prey and obstacle checks
+    detection_range: float = 1.0      # [>0] [m] prey closer than this starts a hunt (SEED: 20 units)
+    strike_range: float = 0.05        # [>0] [m] head to prey surface distance for a capture
+    onslaught_speed: float = 2.0      # [>=1] speed multiplier while hunting (SEED: x2)
+    onslaught_turn_rate: float = 2.0  # [>=1] slither turn-rate multiplier (SEED: 4 -> 8)
+    strike_time: float = 0.6          # [>0] [s] the bite
+    feed_time: float = 8.0            # [>0] [s] holding and eating the prey
+    scout_time: float = 0.8           # [>=0] [s] cobra-raised look when prey is first detected
+    warning_time: float = 2.0         # [>=0] [s] Posture 1 when its shade is lost
+
+
+@dataclass(frozen=True)
+class CobraConfig:
+    """Cobra mode: the front of the body rises along a curve sampled at 1 - i/n (SEED.md)."""
+
+    height: float = 0.04              # [>=0] [m] lift at the head (curve value 1)
+    curve: tuple[tuple[float, float], ...] = ((0.0, 0.0), (0.6667, 0.0), (1.0, 1.0))  # [0..1]
+    ramp_time: float = 0.4            # [>0] [s] time to rise or settle
+    obstacle_probe: float = 0.0625    # [>0] [m] look-ahead for obstacles worth rearing at
+    ceiling_margin: float = 0.01      # [>=0] [m] kept free above every raised joint
+
+
+@dataclass(frozen=True)
+class PreyConfig:
+    """Prey: a capsule that wanders and flees (a cricket-sized navigation agent)."""
+
+    length: float = 0.06              # [>0] [m] capsule length
+    radius: float = 0.012             # [>0] [m] capsule radius
+    wander_speed: float = 0.06        # [>0] [m/s]
+    flee_speed: float = 0.5           # [>0] [m/s] burst speed while fleeing
+    tired_speed: float = 0.1          # [>0] [m/s] after the burst is spent
+    stamina: float = 2.5              # [>0] [s] of burst
+    recovery: float = 0.25            # [>=0] stamina regained per second when not fleeing
+    flee_trigger: float = 0.5         # [>0] [m] a centipede closer than this makes it flee
+    acceleration: float = 2.0         # [>0] [m/s^2]
+    color: tuple[float, float, float] = (0.32, 0.42, 0.12)  # [0..1] linear RGB
+
+
+@dataclass(frozen=True)
 class RigConfig:
     name: str = "scolopendra"
     source: str = ""
@@ -108,6 +155,9 @@ class RigConfig:
     locomotion: LocomotionConfig = field(default_factory=LocomotionConfig)
     wander: WanderConfig = field(default_factory=WanderConfig)
     navigation: NavAgentConfig = field(default_factory=NavAgentConfig)
+    behaviour: BehaviourConfig = field(default_factory=BehaviourConfig)
+    cobra: CobraConfig = field(default_factory=CobraConfig)
+    prey: PreyConfig = field(default_factory=PreyConfig)
     legs: LegsConfig = field(default_factory=LegsConfig)
 
 
@@ -123,6 +173,11 @@ class BakeConfig:
     formats: tuple[str, ...] = ("glb", "usd")  # subset of {"glb", "usd", "usda"}
     sun_direction: tuple[float, float, float] | None = None  # toward the sun; None: from file
     debug_navmesh: bool = False
+    behaviour: str = "auto"      # auto | wander | shade | hunt: which drives the brain may use
+    cobra: str = "auto"          # auto | always | never
+    prey: int = 0                # [0..16] prey capsules
+    sun_path: str | None = None  # "AZ,EL;AZ,EL;..." degrees, evenly spaced over the bake
+    clips: bool = False          # also write one animation per behaviour segment
     nav_cache_dir: Path | None = None  # None: no on-disk navigation cache
 
     @property
@@ -159,6 +214,16 @@ def validate_bake(cfg: BakeConfig) -> BakeConfig:
     bad = set(cfg.formats) - {"glb", "usd", "usda"}
     if bad or not cfg.formats:
         raise ConfigError(f"unknown output format(s): {', '.join(sorted(bad)) or 'none given'}")
+    if cfg.behaviour not in ("auto", "wander", "shade", "hunt"):
+        raise ConfigError(f"--behaviour must be auto, wander, shade or hunt (got {cfg.behaviour})")
+    if cfg.cobra not in ("auto", "always", "never"):
+        raise ConfigError(f"--cobra must be auto, always or never (got {cfg.cobra})")
+    if not 0 <= cfg.prey <= 16:
+        raise ConfigError(f"--prey must be in 0..16 (got {cfg.prey})")
+    if cfg.sun_path is not None:
+        from baker.behaviour.sun import parse_sun_path
+
+        parse_sun_path(cfg.sun_path, cfg.seconds)
     if cfg.sun_direction is not None:
         d = np.asarray(cfg.sun_direction, dtype=float)
         if d.shape != (3,) or not np.all(np.isfinite(d)) or np.linalg.norm(d) < 1e-9:
@@ -177,7 +242,9 @@ def _section(cls, data: dict, where: str, scale: dict[str, float]):
         raise ConfigError(f"{where}: unknown key(s) {', '.join(sorted(unknown))}")
     kw = {}
     for k, v in data.items():
-        if isinstance(v, list):
+        if isinstance(v, list) and v and isinstance(v[0], list):
+            v = tuple(tuple(float(x) for x in row) for row in v)
+        elif isinstance(v, list):
             v = tuple(float(x) * scale.get(k, 1.0) for x in v)
         elif isinstance(v, (int, float)) and not isinstance(v, bool):
             if k in scale:
@@ -216,11 +283,21 @@ def load_rig_config(path: Path | str) -> RigConfig:
                     {**{k: length for k in _LEG_LENGTHS},
                      **{k: deg for k in ("ultimate_raise", "ultimate_spread", "antenna_sweep",
                                          "max_swing_rate")}})
-    extra = set(data) - {"name", "body", "colors", "locomotion", "wander", "navigation", "legs"}
+    behaviour = _section(BehaviourConfig, data.get("behaviour", {}), f"{path} [behaviour]",
+                         {k: length for k in ("shade_spot_spacing", "detection_range",
+                                              "strike_range")})
+    cobra = _section(CobraConfig, data.get("cobra", {}), f"{path} [cobra]",
+                     {k: length for k in ("height", "obstacle_probe", "ceiling_margin")})
+    prey = _section(PreyConfig, data.get("prey", {}), f"{path} [prey]",
+                    {k: length for k in ("length", "radius", "wander_speed", "flee_speed",
+                                         "tired_speed", "flee_trigger", "acceleration")})
+    extra = set(data) - {"name", "body", "colors", "locomotion", "wander", "navigation", "legs",
+                         "behaviour", "cobra", "prey"}
     if extra:
         raise ConfigError(f"{path}: unknown section(s) {', '.join(sorted(extra))}")
     rig = RigConfig(name=str(data.get("name", path.stem)), source=str(path), body=body,
-                    colors=colors, locomotion=loco, wander=wander, navigation=nav, legs=legs)
+                    colors=colors, locomotion=loco, wander=wander, navigation=nav, legs=legs,
+                    behaviour=behaviour, cobra=cobra, prey=prey)
     return validate_rig(rig, str(path))
 
 
@@ -288,4 +365,53 @@ def scale_rig(rig: RigConfig, factor: float) -> RigConfig:
         wander=sc(rig.wander, ["radius"]),
         navigation=sc(rig.navigation, ["radius", "height", "step_height", "cell_size"]),
         legs=sc(rig.legs, list(_LEG_LENGTHS)),
+        behaviour=sc(rig.behaviour, ["shade_spot_spacing", "detection_range", "strike_range"]),
+        cobra=sc(rig.cobra, ["height", "obstacle_probe", "ceiling_margin"]),
+        prey=sc(rig.prey, ["length", "radius", "wander_speed", "flee_speed", "tired_speed",
+                           "flee_trigger", "acceleration"]),
     )
+
+
+#: [Limit] --scale factor range (a 0.25 m rig scaled to 0.25 mm .. 250 m)
+SCALE_RANGE = (1e-3, 1e3)
+
+
+def override_rig(rig: RigConfig, *, scale: float | None = None, agent_radius: float | None = None,
+                 agent_height: float | None = None, step_height: float | None = None,
+                 max_slope_deg: float | None = None, cell_size: float | None = None) -> RigConfig:
+    """The rig with the CLI's overrides applied: first uniformly scaled by `scale` (scale_rig),
+    then the navigation agent's fields set (metres; max slope in degrees). None keeps a value.
+    Raises ConfigError naming the option for out-of-range values."""
+    def num(v, opt):
+        if v is None:
+            return None
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ConfigError(f"{opt} must be a finite number (got {v})")
+        return float(v)
+
+    scale = num(scale, "--scale")
+    if scale is not None:
+        if not SCALE_RANGE[0] <= scale <= SCALE_RANGE[1]:
+            raise ConfigError(f"--scale must be in [{SCALE_RANGE[0]:g}, {SCALE_RANGE[1]:g}] "
+                              f"(got {scale:g})")
+        rig = scale_rig(rig, scale)
+    nav = rig.navigation
+    kw = {}
+    for opt, name, v, ok, rule in (
+            ("--agent-radius", "radius", agent_radius, lambda x: x > 0, "> 0"),
+            ("--agent-height", "height", agent_height, lambda x: x > 0, "> 0"),
+            ("--step-height", "step_height", step_height, lambda x: x >= 0, ">= 0"),
+            ("--cell-size", "cell_size", cell_size, lambda x: x > 0, "> 0")):
+        v = num(v, opt)
+        if v is not None:
+            if not ok(v):
+                raise ConfigError(f"{opt} must be {rule} metres (got {v:g})")
+            kw[name] = v
+    slope = num(max_slope_deg, "--max-slope")
+    if slope is not None:
+        if not 0 < slope < 90:
+            raise ConfigError(f"--max-slope must be in (0, 90) degrees (got {slope:g})")
+        kw["max_slope"] = math.radians(slope)
+    if kw:
+        rig = replace(rig, navigation=replace(nav, **kw))
+    return rig

@@ -14,8 +14,8 @@ def spine_metrics(traj: Trajectory, rays, *, spacing: float, clearance: float,
                   max_slope: float, body_length: float) -> dict:
     """Spine metrics over every frame.
 
-    - clearance: height of each trunk joint above the first surface straight below it,
-      as a multiple of the rig clearance (the issue bound is [0, 2]);
+    - clearance: height of each trunk joint (less its cobra lift) above the first surface
+      straight below it, as a multiple of the rig clearance (the issue bound is [0, 2]);
     - spacing: relative error of the distance between neighbouring spine joints;
     - head slope: angle of the surface under the head (max slope is the walkable limit);
     - rotation: largest change of any joint's world orientation between frames;
@@ -25,14 +25,17 @@ def spine_metrics(traj: Trajectory, rays, *, spacing: float, clearance: float,
     F, S, _ = pos.shape
     nan = int(np.count_nonzero(~np.isfinite(pos)) + np.count_nonzero(~np.isfinite(traj.spine_rotations)))
 
-    trunk = pos[:, 1:].reshape(-1, 3)
+    # Cobra lift is deliberate: measure the trunk's clearance below its lifted position.
+    lift = traj.cobra_lift if traj.cobra_lift is not None else np.zeros(pos.shape[:2])
+    trunk = (pos[:, 1:] - lift[:, 1:, None] * UP).reshape(-1, 3)
     down = np.tile(-UP, (len(trunk), 1))
     h = rays.first_hit(trunk, down, max_distance=10.0 * max(clearance, 1e-3))
     ratio = np.where(h.hit, h.distance / max(clearance, 1e-12), np.inf)
 
     gaps = np.linalg.norm(np.diff(pos, axis=1), axis=2) / spacing - 1.0
 
-    hh = rays.first_hit(pos[:, 0], np.tile(-UP, (F, 1)), max_distance=10.0 * max(clearance, 1e-3))
+    hh = rays.first_hit(pos[:, 0] - lift[:, :1] * UP, np.tile(-UP, (F, 1)),
+                        max_distance=10.0 * max(clearance, 1e-3))
     cosang = np.abs(hh.normals[hh.hit, 1])
     slope = np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0))) if len(cosang) else np.zeros(1)
 

@@ -101,18 +101,42 @@ def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
     if cfg.debug_navmesh:
         v, f = nav_debug.walkable_mesh(nav)
         debug_meshes = (("navmesh", v, f, (0.1, 0.6, 1.0, 0.5)),)
+    props = prey_props(cfg.rig, traj)
+    segments = behaviour_clips(clip, traj.events, cfg.fps) if cfg.clips else ()
+    scene = dict(extras=extras, debug_meshes=debug_meshes, props=props, extra_clips=segments)
     written: dict[str, Path] = {}
     with ctx.stage("export"):
         if "glb" in paths:
-            data = build_glb(env, rig, clip, extras=extras, debug_meshes=debug_meshes)
-            atomic_write_bytes(paths["glb"], data)
+            atomic_write_bytes(paths["glb"], build_glb(env, rig, clip, **scene))
             written["glb"] = paths["glb"]
         for fmt in ("usd", "usda"):
             if fmt in paths:
-                write_usd(paths[fmt], env, rig, clip, fps=cfg.fps, extras=extras,
-                          debug_meshes=debug_meshes)
+                write_usd(paths[fmt], env, rig, clip, fps=cfg.fps, **scene)
                 written[fmt] = paths[fmt]
     written["json"] = paths["json"]
     rep = report_mod.build_report(cfg, env, nav, traj, motion, ctx, written)
     atomic_write_bytes(paths["json"], report_mod.to_json_bytes(rep))
     return BakeResult(outputs=written, report=rep, trajectory=traj, clip=clip)
+
+
+def prey_props(rig_cfg, traj) -> tuple:
+    """(name, vertices, faces, rgba) of every prey capsule in the trajectory."""
+    from baker.rig.props import capsule_mesh
+
+    if not traj.prey_names:
+        return ()
+    v, f = capsule_mesh(rig_cfg.prey.length, rig_cfg.prey.radius)
+    rgba = tuple(rig_cfg.prey.color) + (1.0,)
+    return tuple((name, v, f, rgba) for name in traj.prey_names)
+
+
+def behaviour_clips(clip, events, fps: int) -> tuple:
+    """One clip per timeline segment, named state_NN, each starting at time 0 and including
+    the frame at its end time (so consecutive clips share their boundary pose)."""
+    out = []
+    for i, e in enumerate(events):
+        f0 = int(round(e["start"] * fps))
+        f1 = min(int(round(e["end"] * fps)) + 1, clip.n_frames)
+        if f1 - f0 >= 2:
+            out.append(clip.segment(f0, f1, f"{e['state']}_{i:02d}"))
+    return tuple(out)

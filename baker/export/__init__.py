@@ -13,7 +13,7 @@ from pathlib import PurePath
 
 import numpy as np
 
-from baker.geometry.transforms import frames_to_quat
+from baker.geometry.transforms import light_rotation  # noqa: F401 (re-export)
 
 
 def jsonable(obj):
@@ -82,10 +82,3 @@ def unit_normals(n: np.ndarray) -> np.ndarray:
     return out.astype(np.float32)
 
 
-def light_rotation(direction_to_sun: np.ndarray) -> np.ndarray:
-    """xyzw rotation whose local -Z points along the light (= -direction_to_sun)."""
-    d = np.asarray(direction_to_sun, dtype=np.float64)
-    d = d / np.linalg.norm(d)
-    up = np.array([0.0, 1.0, 0.0]) if abs(d[1]) < 0.999 else np.array([0.0, 0.0, 1.0])
-    q = frames_to_quat(d, up)      # maps +Z onto the sun direction, so -Z onto the light
-    return q / np.linalg.norm(q)

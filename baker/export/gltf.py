@@ -132,14 +132,19 @@ def _rounded(v) -> list[float]:
 
 
 def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: dict,
-              debug_meshes: Sequence[DebugMesh] = ()) -> bytes:
+              debug_meshes: Sequence[DebugMesh] = (), props: Sequence[DebugMesh] = (),
+              extra_clips: Sequence[Clip] = ()) -> bytes:
     """The whole scene as GLB bytes. Same inputs give identical bytes.
 
     env          : environment meshes (each gets a node and a PBR material) and the sun
     rig          : skeleton + skinned mesh, or None for an environment-only file
-    clip         : animation over rig.skeleton's joints, or None for the rest pose only
+    clip         : animation over rig.skeleton's joints (and its node tracks: prey, sun), or
+                   None for the rest pose only
     extras       : custom data, stored in the scene's and the asset's `extras` (made JSON-safe)
     debug_meshes : (name, vertices (n, 3), faces (m, 3), rgba) extra layers, one node each
+    props        : (name, vertices, faces, rgba) animated scene objects (prey), one node each,
+                   named exactly `name` so the clips' node tracks can drive them
+    extra_clips  : more animations over the same joints and nodes (per-behaviour clips)
     """
     if clip is not None and rig is None:
         raise ExportError("a clip needs a rig to drive")
@@ -148,9 +153,10 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
     b = _Builder(gltf)
     # fixed node names and joint names are reserved first; other names are made unique around them
     names: set[str] = {"Environment", "Sun", "Centipede", "centipede_mesh"}
+    names.update(p[0] for p in props)
     if rig is not None:
         names.update(rig.skeleton.names)
-        if len(names) != 4 + rig.skeleton.n_joints:
+        if len(names) != 4 + len(props) + rig.skeleton.n_joints:
             raise ExportError("joint names clash with the scene's node names "
                               "(Environment, Sun, Centipede, centipede_mesh)")
     scene_nodes: list[int] = []
@@ -176,13 +182,29 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
         "name": "Sun", "type": "directional",
         "color": [float(c) for c in sun.color], "intensity": float(sun.intensity)}]}}
     gltf.extensionsUsed = ["KHR_lights_punctual"]
-    scene_nodes.append(_add_node(gltf, gl.Node(
+    node_by_name: dict[str, int] = {}
+    node_by_name["Sun"] = _add_node(gltf, gl.Node(
         name="Sun", rotation=_rounded(light_rotation(sun.direction)),
-        extensions={"KHR_lights_punctual": {"light": 0}})))
+        extensions={"KHR_lights_punctual": {"light": 0}}))
+    scene_nodes.append(node_by_name["Sun"])
 
-    # -- the creature
+    # -- props (prey): a mesh node each, animated by the clips' node tracks
+    for name, verts, faces, rgba in props:
+        rgba = tuple(float(c) for c in rgba)
+        mat = _material(gltf, name, rgba + (1.0,) * (4 - len(rgba)), 0.0, 0.7, double_sided=False)
+        mesh = _static_mesh(gltf, b, name, verts, faces, None, mat)
+        first = next((t for t in (clip.tracks if clip is not None else ()) if t.node == name), None)
+        rest = {} if first is None or first.translations is None else dict(
+            translation=_rounded(first.translations[0]), rotation=_rounded(first.rotations[0]))
+        node_by_name[name] = _add_node(gltf, gl.Node(name=name, mesh=mesh, **rest))
+        scene_nodes.append(node_by_name[name])
+
+    # -- the creature and its animations
     if rig is not None:
-        scene_nodes.extend(_add_creature(gltf, b, names, rig, clip))
+        roots, node_of = _add_creature(gltf, b, names, rig)
+        scene_nodes.extend(roots)
+        for c in ([clip] if clip is not None else []) + list(extra_clips):
+            _add_animation(gltf, b, c, node_of, node_by_name)
 
     # -- debug overlays
     for name, verts, faces, rgba in debug_meshes:
@@ -220,10 +242,9 @@ def _glb_container(json_bytes: bytes, blob: bytes) -> bytes:
     return b"".join(out)
 
 
-def _add_creature(gltf: gl.GLTF2, b: _Builder, names: set[str], rig: Rig,
-                  clip: Clip | None) -> list[int]:
-    """Joint nodes under a non-joint `Centipede` node, the skinned mesh node, the animation.
-    Returns the scene-root node indices it added."""
+def _add_creature(gltf: gl.GLTF2, b: _Builder, names: set[str], rig: Rig):
+    """Joint nodes under a non-joint `Centipede` node and the skinned mesh node.
+    Returns (the scene-root node indices it added, the node index of every joint)."""
     skel = rig.skeleton
     j_count = skel.n_joints
 
@@ -264,12 +285,11 @@ def _add_creature(gltf: gl.GLTF2, b: _Builder, names: set[str], rig: Rig,
     mesh_node = _add_node(gltf, gl.Node(name="centipede_mesh",
                                         mesh=len(gltf.meshes) - 1, skin=skin))
 
-    if clip is not None:
-        _add_animation(gltf, b, clip, node_of)
-    return [placement, mesh_node]
+    return [placement, mesh_node], node_of
 
 
-def _add_animation(gltf: gl.GLTF2, b: _Builder, clip: Clip, node_of: np.ndarray) -> None:
+def _add_animation(gltf: gl.GLTF2, b: _Builder, clip: Clip, node_of: np.ndarray,
+                   node_by_name: dict[str, int]) -> None:
     f_count, j_count = clip.translations.shape[:2]
     if j_count != len(node_of):
         raise ExportError(f"clip has {j_count} joints, the skeleton {len(node_of)}")
@@ -293,4 +313,12 @@ def _add_animation(gltf: gl.GLTF2, b: _Builder, clip: Clip, node_of: np.ndarray)
         channel(node_of[j], "rotation", rot[:, j])
         if animate_scale:
             channel(node_of[j], "scale", scl[:, j])
+    for tr in clip.tracks:
+        node = node_by_name.get(tr.node)
+        if node is None:
+            raise ExportError(f"clip {clip.name!r} animates node {tr.node!r}, which is not in the scene")
+        for path, values in (("translation", tr.translations), ("rotation", tr.rotations),
+                             ("scale", tr.scales)):
+            if values is not None:
+                channel(node, path, np.asarray(values, dtype=np.float32))
     gltf.animations.append(gl.Animation(name=clip.name, samplers=samplers, channels=channels))

@@ -8,7 +8,9 @@ Stage layout (defaultPrim /World):
       Centipede                    SkelRoot
         Skeleton                   joints as paths, bindTransforms (world), restTransforms (local)
         Animation                  SkelAnimation, time samples keyed by frame number
+        Clips/<name>               optional per-behaviour SkelAnimations (not bound)
         body, legs                 skinned Meshes (one per material)
+      Prey/<name>                  animated Xform (translate, orient, scale, visibility) + mesh
       Debug/<name>                 optional overlay meshes
       Looks/<material>             Materials
 
@@ -112,9 +114,57 @@ def _mesh(stage, path, vertices, faces, normals, rgba, material, double_sided: b
     return mesh
 
 
+def _skel_animation(stage, path, joints, clip: Clip):
+    """A SkelAnimation prim with the clip's joint TRS, time samples keyed by frame number."""
+    _, Sdf, Usd, _, _, _, UsdSkel, Vt = _pxr()
+    anim = UsdSkel.Animation.Define(stage, path)
+    anim.CreateJointsAttr(joints)
+    t_attr = anim.CreateTranslationsAttr()
+    r_attr = anim.CreateRotationsAttr()
+    s_attr = anim.CreateScalesAttr()
+    tr = np.ascontiguousarray(clip.translations, dtype=np.float32)
+    rot = np.ascontiguousarray(clip.rotations, dtype=np.float32)      # xyzw == GfQuatf memory
+    sc = np.ascontiguousarray(clip.scales, dtype=np.float16)
+    with Sdf.ChangeBlock():
+        for f in range(clip.n_frames):
+            tc = Usd.TimeCode(float(f))
+            t_attr.Set(Vt.Vec3fArray.FromNumpy(tr[f]), tc)
+            r_attr.Set(Vt.QuatfArray.FromNumpy(rot[f]), tc)
+            s_attr.Set(Vt.Vec3hArray.FromNumpy(sc[f]), tc)
+    return anim
+
+
+def _animate_xform(xf, track) -> None:
+    """translate / orient / scale ops on an Xformable, sampled per frame from a NodeTrack."""
+    Gf, Sdf, Usd, UsdGeom, _, _, _, _ = _pxr()
+    ops = []
+    if track.translations is not None:
+        ops.append((xf.AddTranslateOp(), [Gf.Vec3d(*map(float, v)) for v in track.translations]))
+    if track.rotations is not None:
+        ops.append((xf.AddOrientOp(),
+                    [Gf.Quatf(float(q[3]), float(q[0]), float(q[1]), float(q[2])) for q in track.rotations]))
+    if track.scales is not None:
+        ops.append((xf.AddScaleOp(), [Gf.Vec3f(*map(float, v)) for v in track.scales]))
+        vis = xf.CreateVisibilityAttr()
+        for f, v in enumerate(track.scales):
+            vis.Set(UsdGeom.Tokens.inherited if v[0] > 0 else UsdGeom.Tokens.invisible,
+                    Usd.TimeCode(float(f)))
+    with Sdf.ChangeBlock():
+        for op, values in ops:
+            for f, v in enumerate(values):
+                op.Set(v, Usd.TimeCode(float(f)))
+
+
 def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dict,
-                debug_meshes: Sequence = ()):
-    """The scene as an in-memory Usd.Stage (see the module docstring for its layout)."""
+                debug_meshes: Sequence = (), props: Sequence = (),
+                extra_clips: Sequence[Clip] = ()):
+    """The scene as an in-memory Usd.Stage (see the module docstring for its layout).
+
+    props       : (name, vertices, faces, rgba) animated objects (prey) under /World/Prey,
+                  driven by the clip's node tracks of the same name
+    extra_clips : per-behaviour clips, written as SkelAnimation prims under
+                  /World/Centipede/Clips (not bound: the Skeleton plays the full clip)
+    """
     Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdSkel, Vt = _pxr()
     if fps <= 0:
         raise ExportError(f"fps must be > 0 (got {fps})")
@@ -157,8 +207,12 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
     # -- sun: DistantLight shines along its local -Z
     sun = env.sun
     light = UsdLux.DistantLight.Define(stage, "/World/Sun")
-    q = light_rotation(sun.direction)
-    light.AddOrientOp().Set(Gf.Quatf(float(q[3]), float(q[0]), float(q[1]), float(q[2])))
+    tracks = {t.node: t for t in clip.tracks}
+    if "Sun" in tracks:
+        _animate_xform(light, tracks["Sun"])
+    else:
+        q = light_rotation(sun.direction)
+        light.AddOrientOp().Set(Gf.Quatf(float(q[3]), float(q[0]), float(q[1]), float(q[2])))
     light.CreateIntensityAttr().Set(float(sun.intensity))
     light.CreateColorAttr().Set(Gf.Vec3f(*[float(c) for c in sun.color]))
 
@@ -172,21 +226,27 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
     sk.CreateBindTransformsAttr(_matrices(skel.world_bind()))
     sk.CreateRestTransformsAttr(_matrices(skel.local_rest_matrices()))
 
-    anim = UsdSkel.Animation.Define(stage, "/World/Centipede/Animation")
-    anim.CreateJointsAttr(joints)
-    t_attr = anim.CreateTranslationsAttr()
-    r_attr = anim.CreateRotationsAttr()
-    s_attr = anim.CreateScalesAttr()
-    tr = np.ascontiguousarray(clip.translations, dtype=np.float32)
-    rot = np.ascontiguousarray(clip.rotations, dtype=np.float32)      # xyzw == GfQuatf memory
-    sc = np.ascontiguousarray(clip.scales, dtype=np.float16)
-    with Sdf.ChangeBlock():
-        for f in range(f_count):
-            tc = Usd.TimeCode(float(f))
-            t_attr.Set(Vt.Vec3fArray.FromNumpy(tr[f]), tc)
-            r_attr.Set(Vt.QuatfArray.FromNumpy(rot[f]), tc)
-            s_attr.Set(Vt.Vec3hArray.FromNumpy(sc[f]), tc)
+    anim = _skel_animation(stage, "/World/Centipede/Animation", joints, clip)
     UsdSkel.BindingAPI.Apply(sk.GetPrim()).CreateAnimationSourceRel().SetTargets([anim.GetPath()])
+    if extra_clips:
+        clips_path = UsdGeom.Scope.Define(stage, "/World/Centipede/Clips").GetPath()
+        for c in extra_clips:
+            if c.translations.shape[1] != j_count:
+                raise ExportError(f"clip {c.name!r} has {c.translations.shape[1]} joints, "
+                                  f"the skeleton {j_count}")
+            _skel_animation(stage, clips_path.AppendChild(c.name), joints, c)
+
+    # -- props (prey)
+    if props:
+        prey_path = UsdGeom.Xform.Define(stage, "/World/Prey").GetPath()
+        for name, verts, faces, rgba in props:
+            xf = UsdGeom.Xform.Define(stage, prey_path.AppendChild(name))
+            if name in tracks:
+                _animate_xform(xf, tracks[name])
+            rgba = tuple(float(c) for c in rgba) + (1.0,) * (4 - len(rgba))
+            mat = _material(stage, looks, safe_name(f"prey_{name}", mat_names), rgba, 1.0, 0.0, 0.7)
+            _mesh(stage, xf.GetPath().AppendChild("mesh"), verts, faces, None, rgba, mat,
+                  double_sided=False)
 
     mesh = rig.mesh
     identity = Gf.Matrix4d(1.0)
@@ -224,7 +284,8 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
 
 
 def write_usd(path: Path, env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dict,
-              debug_meshes: Sequence = ()) -> None:
+              debug_meshes: Sequence = (), props: Sequence = (),
+              extra_clips: Sequence[Clip] = ()) -> None:
     """Write the stage to `path`: `.usda` gives text, `.usd`/`.usdc` crate (binary).
 
     Written to a temporary file in the same folder and renamed, so a failure leaves any previous
@@ -233,7 +294,8 @@ def write_usd(path: Path, env: Environment, rig: Rig, clip: Clip, *, fps: int, e
     path = Path(path)
     if path.suffix not in (".usd", ".usda", ".usdc"):
         raise ExportError(f"cannot write {path}: USD output needs a .usd, .usda or .usdc suffix")
-    stage = build_stage(env, rig, clip, fps=fps, extras=extras, debug_meshes=debug_meshes)
+    stage = build_stage(env, rig, clip, fps=fps, extras=extras, debug_meshes=debug_meshes,
+                        props=props, extra_clips=extra_clips)
     with atomic_output(path) as tmp:
         args = {"format": "usdc"} if path.suffix == ".usd" else {}
         if not stage.GetRootLayer().Export(str(tmp), args=args):

@@ -83,3 +83,14 @@ def trs_to_matrix(t: np.ndarray, q: np.ndarray, s: np.ndarray | None = None) -> 
     m[..., :3, 3] = t
     m[..., 3, 3] = 1.0
     return m
+
+
+def light_rotation(direction_to_sun: np.ndarray) -> np.ndarray:
+    """xyzw rotations whose local -Z points along the light (= -direction_to_sun).
+
+    direction_to_sun : (..., 3) -> (..., 4)
+    """
+    d = normalize(np.asarray(direction_to_sun, dtype=np.float64))
+    up = np.where(np.abs(d[..., 1:2]) < 0.999, np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]))
+    q = frames_to_quat(d, up)      # maps +Z onto the sun direction, so -Z onto the light
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)

@@ -19,17 +19,20 @@ from baker.environment.rays import RayCaster
 from baker.geometry import polyline
 from baker.geometry.conventions import UP
 from baker.geometry.transforms import frames_to_quat, normalize
+from baker.locomotion.cobra import raise_front
 
 
 @dataclass(frozen=True)
 class BodyFrames:
     """positions : (F, S, 3) float64 metres, world; rotations : (F, S, 4) xyzw world;
-    normals : (F, S, 3) unit surface normals under each joint; ground : (F, S) surface heights."""
+    normals : (F, S, 3) unit surface normals under each joint; ground : (F, S) surface heights;
+    lift : (F, S) cobra lift applied to each joint, metres (None: no lift requested)."""
 
     positions: np.ndarray
     rotations: np.ndarray
     normals: np.ndarray
     ground: np.ndarray
+    lift: np.ndarray | None = None
 
 
 def project_to_surface(rays: RayCaster, points: np.ndarray, probe: float):
@@ -100,20 +103,31 @@ def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: flo
 
 
 def body_frames(trail: Trail, head_arc: np.ndarray, spacing: float, segments: int,
-                clearance: float) -> BodyFrames:
+                clearance: float, *, lift: np.ndarray | None = None, rays=None,
+                ceiling_margin: float = 0.0) -> BodyFrames:
     """Place the spine on the trail.
 
     head_arc : (F,) float, 3D arc length of the head along the trail at each frame
+    lift     : (F, S) optional cobra lift per joint (metres), limited by upward rays on `rays`
     """
     s = head_arc[:, None] - spacing * np.arange(segments)[None, :]            # (F, S)
     virt = polyline.sample(trail.points, trail.cum, s)                         # (F, S, 3)
     normals = normalize(polyline.sample(trail.normals, trail.cum, s))
     ground = np.interp(s, trail.cum, trail.ground)
     pos = virt + clearance * UP
+    if lift is not None and lift.max(initial=0.0) > 0.0:
+        pos, lift = raise_front(trail.points, trail.cum, head_arc, pos, lift, spacing, clearance,
+                                rays, ceiling_margin)
+        ground = ground.copy()
+        raised = lift.max(axis=1) > 0
+        if raised.any():  # re-read the surface under the re-placed joints
+            g = project_to_surface(rays, pos[raised].reshape(-1, 3) - (clearance + lift[raised]).reshape(-1, 1) * UP,
+                                   spacing)[0][:, 1]
+            ground[raised] = g.reshape(-1, segments)
     forward = np.empty_like(pos)
     forward[:, 1:] = pos[:, :-1] - pos[:, 1:]
     head_dir = polyline.tangents(trail.points, trail.cum, head_arc)
     ahead = pos[:, 0] - pos[:, 1]
     forward[:, 0] = np.where(np.linalg.norm(head_dir, axis=1, keepdims=True) > 0.5, head_dir, ahead)
     rot = frames_to_quat(forward, normals)
-    return BodyFrames(positions=pos, rotations=rot, normals=normals, ground=ground)
+    return BodyFrames(positions=pos, rotations=rot, normals=normals, ground=ground, lift=lift)

@@ -1,9 +1,10 @@
 """The fixed-step simulation loop. Phases, in order, every step:
-1. brain   — the behaviour may choose a new target (and the agent plans a path to it);
+1. brain   — perception and decisions; a new target means a new path for the agent;
 2. agent   — the navigation agent moves along its path;
-3. head    — the head follows the agent with the slither;
-4. record  — the head's position is appended to the trail.
-After the loop, the body is placed on the trail for every exported frame in one vectorized pass.
+3. head    — the head follows the agent with the slither; its position extends the trail;
+4. prey    — every prey wanders or flees from the head.
+After the loop, the body (with the cobra lift), the legs and the prey are placed for every
+exported frame in vectorized passes.
 """
 
 from __future__ import annotations
@@ -12,13 +13,20 @@ import logging
 
 import numpy as np
 
-from baker.behaviour.wander import WanderBrain
+from scipy.spatial.transform import Rotation
+
+from baker.behaviour.brain import Brain, Senses
+from baker.behaviour.prey import HELD, HIDDEN, Prey
+from baker.behaviour.sun import SunPath, parse_sun_path
 from baker.config import BakeConfig
 from baker.context import Context
 from baker.errors import NavError
 from baker.geometry import polyline
 from baker.locomotion.agent import PathAgent
-from baker.locomotion.body import body_frames, build_trail
+from baker.geometry.conventions import UP
+from baker.geometry.transforms import frames_to_quat, quat_mul, quat_rotate
+from baker.locomotion.body import body_frames, build_trail, project_to_surface
+from baker.locomotion.cobra import lift_profile
 from baker.locomotion.head import HeadSteer
 from baker.locomotion.legs import leg_frames
 from baker.sim.trajectory import Trajectory
@@ -50,12 +58,13 @@ def choose_start(nav, env, body_length: float, rng: np.random.Generator):
 
 
 def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) -> Trajectory:
-    """Run the bake's simulation and return the spine's world frames at the export fps."""
+    """Run the bake's simulation and return the creature's world frames at the export fps."""
     rig = cfg.rig
     body, loco, navc = rig.body, rig.locomotion, rig.navigation
     dt = 1.0 / cfg.sim_rate
     n_steps = int(round(cfg.seconds * cfg.sim_rate))
     per_frame = cfg.sim_rate // cfg.fps
+    n_frames = n_steps // per_frame + 1
 
     start, heading = choose_start(nav, env, body.length, rng)
     agent = PathAgent(start, loco.max_speed, loco.acceleration, loco.stopping_distance)
@@ -64,36 +73,46 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     head = HeadSteer(start, heading, max_speed=loco.max_speed, turn_radius=turn_radius,
                      lead=turn_radius, turn_rate=loco.head_turn_rate,
                      amplitude=loco.slither_amplitude, max_offset=0.4 * navc.radius)
-    brain = WanderBrain(nav, rig.wander.interval, rig.wander.radius, rng)
+    sun = (parse_sun_path(cfg.sun_path, cfg.seconds) if cfg.sun_path
+           else SunPath(np.asarray(env.sun.direction, float)[None], cfg.seconds))
+    preys = spawn_prey(cfg.prey, start, nav, rig, rng)
+    brain = Brain(rig, nav, env.rays, sun, rng, preys, mode=cfg.behaviour, cobra_mode=cfg.cobra)
 
     # The body starts straight behind the head.
     tail = start[None, :] - heading[None, :] * np.linspace(body.length * 1.05, 0, 22)[:, None]
     heads = np.empty((n_steps + 1, 3))
     heads[0] = start
-    events: list[dict] = []
+    rec = Recorder(n_frames, len(preys))
+    rec.sample(0, brain, preys, 0.0)
+    ramp = dt / rig.cobra.ramp_time
+    cobra = brain.cobra
     for k in range(1, n_steps + 1):
         t = (k - 1) * dt
-        intent = brain.step(t, head.position)
-        if intent is not None:
-            if events:
-                events[-1]["end"] = round(t, 6)
-            details = dict(intent.details)
-            if intent.target is not None:
-                path = nav.find_path(agent.position, intent.target)
-                agent.set_path(path.points)
-                details["path_complete"] = bool(path.complete)
-                details["path_length"] = round(float(polyline.arc_lengths(path.points)[-1]), 4)
-            events.append({"start": round(t, 6), "end": None, "state": intent.state,
-                           "details": details})
-        # The agent waits while the head lags behind it (a sharp turn).
+        # 1. brain: perception, the d10, hunting; a new target means a new path
+        brain.step(Senses(t, head.position, head.heading, agent.arrived))
+        if brain.new_target:
+            agent.set_path(nav.find_path(agent.position, brain.target).points)
+        elif brain.halt:
+            agent.set_path(agent.position[None])
+        agent.speed_scale = brain.speed_scale
+        agent.stopping_distance = brain.stopping_distance
+        head.turn_rate_scale = brain.turn_scale
+        head.max_speed = loco.max_speed * brain.speed_scale
+        # 2. agent: waits while the head lags behind it (a sharp turn)
         gap = float(np.hypot(*(agent.position - head.base)[[0, 2]]))
         agent.step(dt, slack=2.0 - gap / turn_radius)
+        # 3. head
         head.step(dt, agent.position, agent.speed)
         heads[k] = head.position
+        # 4. prey react to the head
+        for p in preys:
+            p.step(t, dt, head.position)
+        cobra += max(-ramp, min(ramp, brain.cobra - cobra))
+        if k % per_frame == 0:
+            rec.sample(k // per_frame, brain, preys, cobra)
         if k % 2400 == 0:
             ctx.report_progress("simulate", k / n_steps)
-    if events:
-        events[-1]["end"] = round(cfg.seconds, 6)
+    events = brain.finish(cfg.seconds)
 
     # The trail: head path (preceded by the initial body line) projected onto the surface, with
     # rays searched from below the agent's free height so overhangs are never hit.
@@ -108,19 +127,93 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     cum_h = polyline.arc_lengths(flat)
     frame_steps = np.arange(0, n_steps + 1, per_frame)
     head_arc = trail.arc_at(cum_h[len(tail) - 1 + frame_steps])
-    bf = body_frames(trail, head_arc, body.spacing, body.segments, body.clearance)
+    lift = lift_profile(rec.cobra, rig.cobra.curve, rig.cobra.height, body.segments)
+    bf = body_frames(trail, head_arc, body.spacing, body.segments, body.clearance, lift=lift,
+                     rays=env.rays, ceiling_margin=rig.cobra.ceiling_margin)
     # Legs, antennae and ultimate legs for all frames at once, from the placed spine.
     limbs = {}
     if rig.legs.enabled:
         lf = leg_frames(bf, head_arc, frame_steps * dt, env.rays, rig)
         limbs = dict(joint_names=lf.names, joint_positions=lf.positions,
                      joint_rotations=lf.rotations, foot_contacts=lf.contacts)
+    prey_t = prey_frames(rec, preys, bf, env.rays, rig, probe) if preys else {}
     return Trajectory(
         times=frame_steps * dt,
         spine_positions=bf.positions,
         spine_rotations=bf.rotations,
         head_surface_normal=bf.normals[:, 0],
         ground_heights=bf.ground,
-        events=tuple(events),
+        events=events,
+        cobra_lift=bf.lift,
+        warning=rec.warning,
+        sun_directions=sun.at(frame_steps * dt),
         **limbs,
+        **prey_t,
     )
+
+
+def spawn_prey(count: int, start: np.ndarray, nav, rig, rng: np.random.Generator) -> list[Prey]:
+    """`count` prey at reachable points between 1.5 and 3 detection ranges from the start."""
+    preys = []
+    r = rig.behaviour.detection_range
+    for i in range(count):
+        p = None
+        for _ in range(32):
+            q = nav.random_point_near(start, 3.0 * r, rng)
+            if q is not None and np.linalg.norm(q - start) >= 1.5 * r:
+                p = q
+                break
+        preys.append(Prey(i, p if p is not None else start.copy(), rig.prey, nav, rng))
+    return preys
+
+
+class Recorder:
+    """Per-frame records of what the loop decided (brain drives and prey states)."""
+
+    def __init__(self, n_frames: int, n_prey: int):
+        self.cobra = np.zeros(n_frames)
+        self.warning = np.zeros(n_frames)
+        self.prey_pos = np.zeros((n_frames, n_prey, 3))
+        self.prey_mode = np.zeros((n_frames, n_prey), dtype=np.int8)
+
+    def sample(self, f: int, brain, preys, cobra: float) -> None:
+        self.cobra[f] = cobra
+        self.warning[f] = brain.warning
+        for j, p in enumerate(preys):
+            self.prey_pos[f, j] = p.position
+            self.prey_mode[f, j] = p.mode
+
+
+def prey_frames(rec: Recorder, preys, bf, rays, rig, probe: float) -> dict:
+    """World frames of every prey capsule: on the surface while free or captured, held at the
+    head while the centipede feeds, hidden (scale 0) once eaten."""
+    pos = rec.prey_pos.copy()
+    F, P, _ = pos.shape
+    flat = pos.reshape(-1, 3)
+    ground, _, hit = project_to_surface(rays, flat, probe)
+    flat[hit] = ground[hit]
+    pos = flat.reshape(F, P, 3) + rig.prey.radius * UP
+    # heading from motion, held when still
+    fwd = np.zeros_like(pos)
+    fwd[1:] = pos[1:] - pos[:-1]
+    fwd[..., 1] = 0.0
+    moving = np.linalg.norm(fwd, axis=-1) > 1e-6
+    fwd[0] = np.array([0.0, 0.0, 1.0])
+    for f in range(1, F):  # carry the last heading through stops (F x P, cheap)
+        fwd[f][~moving[f]] = fwd[f - 1][~moving[f]]
+    rot = frames_to_quat(fwd, np.broadcast_to(UP, fwd.shape))
+    held = rec.prey_mode == HELD
+    if held.any():
+        head_p = bf.positions[:, 0]
+        head_q = bf.rotations[:, 0]
+        ahead = quat_rotate(head_q, np.array([0.0, 0.0, 1.0]))
+        below = quat_rotate(head_q, np.array([0.0, -1.0, 0.0]))
+        grip = (head_p + ahead * (0.5 * rig.prey.length + 0.25 * rig.body.spacing)
+                + below * 0.25 * rig.prey.radius)
+        f_idx, j_idx = np.nonzero(held)
+        pos[f_idx, j_idx] = grip[f_idx]
+        side = quat_mul(head_q, Rotation.from_euler("y", np.pi / 2).as_quat())
+        rot[f_idx, j_idx] = side[f_idx]
+    return dict(prey_names=tuple(p.name for p in preys), prey_positions=pos,
+                prey_rotations=rot, prey_visible=rec.prey_mode != HIDDEN,
+                prey_modes=rec.prey_mode)

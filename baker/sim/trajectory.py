@@ -26,6 +26,16 @@ class Trajectory:
     joint_rotations : (F, K, 4) float64, xyzw, world; limb bones run along local +Y
     foot_contacts   : (F, L) bool, walking leg planted, legs ordered L_01, R_01, L_02, ...
                       (None without legs)
+
+    Behaviour channels:
+    cobra_lift      : (F, S) float64 metres, cobra lift applied to each spine joint (or None)
+    warning         : (F,) float64 0..1, Posture 1 (ultimate legs raised) request (or None)
+    sun_directions  : (F, 3) float64 unit vectors toward the sun (or None: the environment's)
+    prey_names      : P prey node names
+    prey_positions  : (F, P, 3) float64 metres, world capsule centres
+    prey_rotations  : (F, P, 4) float64 xyzw world; capsule long axis along local +Z
+    prey_visible    : (F, P) bool, False once eaten
+    prey_modes      : (F, P) int8, behaviour.prey FREE / CAPTURED / HELD / HIDDEN
     """
 
     times: np.ndarray
@@ -38,6 +48,14 @@ class Trajectory:
     joint_positions: np.ndarray | None = None
     joint_rotations: np.ndarray | None = None
     foot_contacts: np.ndarray | None = None
+    cobra_lift: np.ndarray | None = None
+    warning: np.ndarray | None = None
+    sun_directions: np.ndarray | None = None
+    prey_names: tuple[str, ...] = ()
+    prey_positions: np.ndarray | None = None
+    prey_rotations: np.ndarray | None = None
+    prey_visible: np.ndarray | None = None
+    prey_modes: np.ndarray | None = None
 
     @property
     def n_frames(self) -> int:

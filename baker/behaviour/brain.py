@@ -1,0 +1,260 @@
+"""The brain: a state machine that picks what the centipede does, from SEED.md's behaviours.
+
+States
+    wander         walk to a random reachable point; a new one every decision interval
+    seek_shade     walk to a remembered shaded spot
+    rest_in_shade  stay put in shade
+    cobra          scout: rear the front third up for a look when prey is first detected
+    hunt           onslaught: speed x2, slither turn rate x2, stop at strike range
+    strike         the bite: the prey stops
+    feed           hold the prey at the head, then it is gone
+    warning        Posture 1 (ultimate legs raised) when the shade it rested in is lost
+
+Every `decision_interval` seconds a d10 (0-9) is rolled: with enough known shade spots and a
+roll <= shade_roll_max the centipede goes to a random known spot, or stays if it is already in
+shade; otherwise it wanders. Prey within detection range interrupts that with scout -> hunt ->
+strike -> feed, or gives up (back to wander) when the prey gets away. Every transition is
+logged and recorded in the timeline as (start, end, state, details).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from baker.behaviour import perception
+from baker.behaviour.prey import CAPTURED, FREE, HELD, HIDDEN, Prey
+from baker.behaviour.sun import SunPath
+from baker.config import RigConfig
+
+log = logging.getLogger(__name__)
+
+STATES = ("wander", "seek_shade", "rest_in_shade", "cobra", "hunt", "strike", "feed", "warning")
+MODES = ("auto", "wander", "shade", "hunt")
+
+
+@dataclass
+class Senses:
+    """What the brain is told each step about the body."""
+
+    t: float
+    head: np.ndarray          # (3,) world
+    heading: np.ndarray       # (3,) unit, horizontal
+    arrived: bool             # the agent reached its target (within stopping distance)
+
+
+class Brain:
+    """Chooses targets and drives. The simulation loop reads the drive attributes each step:
+
+    speed_scale, turn_scale : multipliers on max speed and slither turn rate
+    stopping_distance       : metres
+    cobra                   : 0/1 request for the cobra lift (smoothed by the body stage)
+    warning                 : 0/1 request for Posture 1
+    """
+
+    def __init__(self, rig: RigConfig, nav, rays, sun: SunPath, rng: np.random.Generator,
+                 preys: list[Prey], *, mode: str = "auto", cobra_mode: str = "auto"):
+        self.rig = rig
+        self.b = rig.behaviour
+        self.nav = nav
+        self.rays = rays
+        self.sun = sun
+        self.rng = rng
+        self.preys = preys
+        self.shade_on = mode in ("auto", "shade")
+        self.hunt_on = mode in ("auto", "hunt")
+        self.cobra_mode = cobra_mode
+        self.state = ""
+        self.since = 0.0
+        self.events: list[dict] = []
+        self.shade_spots: list[np.ndarray] = []
+        self._last_memory = -math.inf
+        self._next_decision = 0.0
+        self._next_perception = 0.0
+        self._next_replan = 0.0
+        self._obstacle_until = -1.0
+        self.shaded = False
+        self.prey: Prey | None = None
+        self.target: np.ndarray | None = None
+        self.new_target = False
+        self.halt = False
+        self.speed_scale = 1.0
+        self.turn_scale = 1.0
+        self.stopping_distance = rig.locomotion.stopping_distance
+        self.cobra = 1.0 if cobra_mode == "always" else 0.0
+        self.warning = 0.0
+
+    # ------------------------------------------------------------------ transitions
+    def _enter(self, state: str, t: float, **details) -> None:
+        if self.events:
+            self.events[-1]["end"] = round(t, 6)
+        self.events.append({"start": round(t, 6), "end": None, "state": state,
+                            "details": details})
+        log.info("t=%.2f %s -> %s %s", t, self.state or "start", state, details or "")
+        self.state, self.since = state, t
+        hunting = state in ("hunt",)
+        self.speed_scale = self.b.onslaught_speed if hunting else 1.0
+        self.turn_scale = self.b.onslaught_turn_rate if hunting else 1.0
+        # While hunting the agent runs onto the prey; the strike check stops it.
+        self.stopping_distance = 0.0 if hunting else self.rig.locomotion.stopping_distance
+
+    def _go(self, target: np.ndarray | None) -> None:
+        self.target = target
+        self.new_target = target is not None
+
+    def _stop(self, head: np.ndarray) -> None:
+        """Stop where the agent is (the head closes up behind it)."""
+        self.target = None
+        self.halt = True
+
+    def finish(self, t: float) -> tuple[dict, ...]:
+        if self.events:
+            self.events[-1]["end"] = round(t, 6)
+        return tuple(self.events)
+
+    # ------------------------------------------------------------------ the step
+    def step(self, s: Senses) -> None:
+        t = s.t
+        self.new_target = False
+        self.halt = False
+        if t + 1e-9 >= self._next_perception:
+            self._next_perception = t + 1.0 / self.b.perception_rate
+            self._perceive(s)
+        decide = t + 1e-9 >= self._next_decision
+        getattr(self, "_" + (self.state or "start"))(s, decide)
+        if self.cobra_mode == "always":
+            self.cobra = 1.0
+        elif self.cobra_mode == "never":
+            self.cobra = 0.0
+        else:
+            self.cobra = 1.0 if (self.state == "cobra" or t < self._obstacle_until) else 0.0
+        self.warning = 1.0 if self.state == "warning" else 0.0
+
+    def _perceive(self, s: Senses) -> None:
+        sun = self.sun.at(s.t)
+        head = s.head.copy()
+        h = self.nav.surface_height(head[None])[0]
+        if np.isfinite(h):
+            head[1] = h
+        self.shaded = bool(perception.in_shade(self.rays, head[None], sun, self.rig.body.clearance)[0])
+        if self.shade_on and self.shaded and s.t - self._last_memory >= self.b.shade_memory_interval:
+            if all(np.linalg.norm(p - s.head) >= self.b.shade_spot_spacing for p in self.shade_spots):
+                self.shade_spots.append(s.head.copy())
+                self._last_memory = s.t
+        if self.cobra_mode == "auto" and self.state in ("wander", "seek_shade"):
+            step = self.rig.navigation.step_height
+            if perception.obstacle_ahead(self.rays, s.head, s.heading, self.rig.cobra.obstacle_probe,
+                                         low=1.5 * step, high=self.rig.cobra.height):
+                self._obstacle_until = s.t + 1.0
+        if self.hunt_on and self.state not in ("cobra", "hunt", "strike", "feed"):
+            prey = self._closest_prey(s.head)
+            if prey is not None:
+                self.prey = prey
+                self._enter("cobra", s.t, prey=prey.name, reason="prey detected")
+                self._stop(s.head)
+
+    def _closest_prey(self, head: np.ndarray) -> Prey | None:
+        free = [p for p in self.preys if p.mode == FREE]
+        if not free:
+            return None
+        d = [float(np.linalg.norm(p.position - head)) for p in free]
+        i = int(np.argmin(d))
+        return free[i] if d[i] <= self.b.detection_range else None
+
+    def _recheck_spots(self, t: float) -> None:
+        """Drop remembered spots that are no longer shaded (the sun moved)."""
+        if self.shade_spots and self.sun.moving:
+            pts = np.array(self.shade_spots)
+            ok = perception.in_shade(self.rays, pts, self.sun.at(t), self.rig.body.clearance)
+            self.shade_spots = [p for p, k in zip(self.shade_spots, ok) if k]
+
+    def _roll(self, s: Senses) -> None:
+        """SEED's d10: shade (go or stay) on a low roll when enough spots are known, else wander."""
+        self._next_decision = s.t + self.b.decision_interval
+        self._recheck_spots(s.t)
+        roll = int(self.rng.integers(0, 10))
+        if self.shade_on and len(self.shade_spots) >= self.b.shade_min_spots and roll <= self.b.shade_roll_max:
+            if self.shaded:
+                if self.state != "rest_in_shade":
+                    self._enter("rest_in_shade", s.t, roll=roll, spot=_r(s.head))
+                    self._stop(s.head)
+                return
+            if self.state == "seek_shade":
+                return  # keep walking to the chosen spot
+            k = int(self.rng.integers(0, len(self.shade_spots)))
+            spot = self.shade_spots[k]
+            self._enter("seek_shade", s.t, roll=roll, spot=_r(spot), spot_index=k)
+            self._go(spot.copy())
+            return
+        target = self.nav.random_point_near(s.head, self.rig.wander.radius, self.rng)
+        self._enter("wander", s.t, roll=roll, target=_r(target) if target is not None else None)
+        self._go(target)
+
+    # ------------------------------------------------------------------ states
+    def _start(self, s: Senses, decide: bool) -> None:
+        self._roll(s)
+
+    def _wander(self, s: Senses, decide: bool) -> None:
+        if decide:
+            self._roll(s)
+
+    def _seek_shade(self, s: Senses, decide: bool) -> None:
+        if decide:
+            self._roll(s)
+        elif s.arrived and self.shaded:
+            self._enter("rest_in_shade", s.t, spot=_r(s.head))
+            self._stop(s.head)
+
+    def _rest_in_shade(self, s: Senses, decide: bool) -> None:
+        if not self.shaded and self.sun.moving:
+            self._enter("warning", s.t, reason="shade lost")
+            return
+        if decide:
+            self._roll(s)
+
+    def _warning(self, s: Senses, decide: bool) -> None:
+        if s.t - self.since >= self.b.warning_time:
+            self._roll(s)
+
+    def _cobra(self, s: Senses, decide: bool) -> None:
+        if s.t - self.since >= self.b.scout_time:
+            self._enter("hunt", s.t, prey=self.prey.name)
+            self._next_replan = s.t
+
+    def _hunt(self, s: Senses, decide: bool) -> None:
+        prey = self.prey
+        d = float(np.linalg.norm(prey.position - s.head))
+        if d > self.b.detection_range:
+            self.events[-1]["details"]["outcome"] = "escaped"
+            self.prey = None
+            target = self.nav.random_point_near(s.head, self.rig.wander.radius, self.rng)
+            self._enter("wander", s.t, reason="prey escaped", target=_r(target) if target is not None else None)
+            self._go(target)
+            return
+        if d - self.rig.prey.radius <= self.b.strike_range + self.rig.body.spacing:
+            self.events[-1]["details"]["outcome"] = "caught"
+            prey.mode = CAPTURED
+            self._enter("strike", s.t, prey=prey.name)
+            self._stop(s.head)
+            return
+        if s.t >= self._next_replan:
+            self._next_replan = s.t + 0.25
+            self._go(prey.position.copy())
+
+    def _strike(self, s: Senses, decide: bool) -> None:
+        if s.t - self.since >= self.b.strike_time:
+            self.prey.mode = HELD
+            self._enter("feed", s.t, prey=self.prey.name)
+
+    def _feed(self, s: Senses, decide: bool) -> None:
+        if s.t - self.since >= self.b.feed_time:
+            self.prey.mode = HIDDEN
+            self.prey = None
+            self._roll(s)
+
+
+def _r(p) -> list[float]:
+    return [round(float(x), 4) for x in p]
