@@ -53,7 +53,7 @@ def gait_clock(arc: np.ndarray, times: np.ndarray, max_speed: float, stride_min:
     travel = np.cumsum(ds)
     dt = np.diff(times, prepend=times[0] - (times[1] - times[0]) if len(times) > 1 else 1.0)
     speed = ds / np.maximum(dt, 1e-12)
-    if len(times) > 2:
+    if len(times) > 2 and smooth_s > 0:
         sigma = smooth_s / float(np.median(np.diff(times)))
         speed = gaussian_filter1d(speed, sigma, mode="nearest")
     stride = stride_length(speed, max_speed, stride_min, stride_max)

@@ -1,0 +1,117 @@
+"""Gait clock, leg layout and the walking legs on synthetic bodies over flat ground."""
+
+import numpy as np
+import pytest
+
+from baker.environment.model import Environment, Sun
+from baker.geometry.transforms import normalize
+from baker.locomotion.body import BodyFrames
+from baker.locomotion.gait import gait_clock, leg_phase, stance_mask, stride_length
+from baker.locomotion.legs import leg_frames, walking_legs
+from baker.rig.limbs import leg_layout
+from conftest import flat_ground
+
+
+def test_phase_advances_with_distance_not_time():
+    t = np.arange(301) / 30.0
+    v = np.where(t < 4.0, 0.2, 0.0)                      # walk 4 s, then stand still 6 s
+    arc = np.concatenate([[0.0], np.cumsum(v[1:] / 30.0)])
+    c = gait_clock(arc, t, max_speed=0.2, stride_min=0.04, stride_max=0.075, smooth_s=0.0)
+    walking = t < 3.9
+    np.testing.assert_allclose(np.diff(c.phase)[walking[1:]], (0.2 / 30.0) / 0.075, rtol=1e-9)
+    assert np.all(np.diff(c.phase)[t[1:] > 4.05] == 0.0)  # stopped body: the gait stops
+    assert np.all(np.diff(c.phase) >= 0)
+
+
+def test_stride_grows_with_speed():
+    s = stride_length(np.array([0.0, 0.05, 0.1, 0.2, 0.4]), 0.2, 0.04, 0.075)
+    assert np.all(np.diff(s) >= 0) and s[0] == 0.04 and s[-1] == 0.075
+
+
+def test_layout_is_a_retrograde_two_wave_gait_in_antiphase(rig_config):
+    lay = leg_layout(rig_config)
+    assert lay.n_legs == 2 * (rig_config.body.segments - 1)
+    assert lay.upper_names[:3] == ("leg_L_01_upper", "leg_R_01_upper", "leg_L_02_upper")
+    assert lay.tip_names[13] == "leg_R_07_tip"
+    left, right = lay.lag[0::2], lay.lag[1::2]
+    d = (left[:-1] - left[1:]) % 1.0                      # rear leg lags its front neighbour
+    np.testing.assert_allclose(d, rig_config.legs.waves / (rig_config.body.segments - 1))
+    np.testing.assert_allclose(d * 360.0, 36.0)
+    np.testing.assert_allclose((right - left) % 1.0, 0.5)
+    phase = np.linspace(0, 5, 501)[:, None] + lay.lag[None, :]
+    duty = stance_mask(phase, rig_config.legs.duty).mean()
+    assert abs(duty - rig_config.legs.duty) < 0.01
+
+
+def _straight_body(cfg, speed, seconds=6.0, stop_at=None, fps=30):
+    """BodyFrames of a spine walking along +Z on y = 0 ground at `speed`, optionally stopping."""
+    b = cfg.body
+    t = np.arange(int(seconds * fps) + 1) / fps
+    v = np.full(len(t), speed)
+    if stop_at is not None:
+        v[t >= stop_at] = 0.0
+    arc = np.concatenate([[0.0], np.cumsum(v[1:] / fps)]) + b.length
+    z = arc[:, None] - b.spacing * np.arange(b.segments)[None, :]
+    pos = np.stack([np.zeros_like(z), np.full_like(z, b.clearance), z - 1.0], -1)
+    rot = np.zeros(z.shape + (4,))
+    rot[..., 3] = 1.0
+    normals = np.zeros_like(pos)
+    normals[..., 1] = 1.0
+    return BodyFrames(positions=pos, rotations=rot, normals=normals,
+                      ground=np.zeros_like(z)), arc, t
+
+
+@pytest.fixture(scope="module")
+def flat_env():
+    return Environment(meshes=(flat_ground(size=8.0, n=8),), sun=Sun(direction=normalize(
+        np.array([0.3, 0.9, 0.2]))), source="", name="flat")
+
+
+def test_walking_legs_plant_feet_and_keep_the_rhythm(rig_config, flat_env):
+    bf, arc, t = _straight_body(rig_config, speed=0.15, seconds=8.0)
+    w = walking_legs(bf, arc, t, flat_env.rays, rig_config)
+    feet, c = w["feet"], w["contacts"]
+    bl = rig_config.body.length
+    # planted feet do not move, and sit on the ground
+    still = c[1:] & c[:-1]
+    step = np.linalg.norm(np.diff(feet, axis=0), axis=-1)
+    assert step[still].max() < 1e-9
+    assert np.abs(feet[..., 1][c]).max() < 1e-9
+    # swinging feet stay above the ground and land exactly where they were aimed
+    assert feet[..., 1].min() > -1e-9
+    assert np.linalg.norm(w["feet"] - w["targets"], axis=-1).max() < 1e-9
+    # duty factor near the setting, rhythm as set
+    assert 0.45 < c[30:].mean() < 0.65
+    td = c[1:] & ~c[:-1]
+    for a in range(0, 36, 7):
+        fa = np.nonzero(td[:, a])[0]
+        fr = np.nonzero(td[:, a + 2])[0]
+        k = np.searchsorted(fa, fr) - 1
+        ok = (k >= 0) & (k < len(fa) - 1)
+        lag = (arc[fr[ok] + 1] - arc[fa[k[ok]] + 1]) / (arc[fa[k[ok] + 1] + 1] - arc[fa[k[ok]] + 1])
+        assert abs(np.median(lag) - 0.1) < 0.05
+    # no neighbouring feet on one side closer than 20% of the spacing
+    gaps = np.linalg.norm(feet[:, 2:] - feet[:, :-2], axis=-1)
+    assert gaps.min() > 0.2 * rig_config.body.spacing
+    assert np.all(np.isfinite(w["rotations"]))
+    assert step.max() < 0.2 * bl
+
+
+def test_feet_settle_when_the_body_stops(rig_config, flat_env):
+    bf, arc, t = _straight_body(rig_config, speed=0.2, seconds=6.0, stop_at=3.0)
+    w = walking_legs(bf, arc, t, flat_env.rays, rig_config)
+    after = t >= 3.0 + rig_config.legs.settle_time + 2.0 / 30.0
+    assert w["contacts"][after].all()                     # every foot is down ...
+    f = w["feet"][after]
+    assert np.abs(np.diff(f, axis=0)).max() < 1e-12       # ... and stays put
+
+
+def test_leg_frames_names_and_shapes(rig, rig_config, flat_env):
+    bf, arc, t = _straight_body(rig_config, speed=0.1, seconds=2.0)
+    lf = leg_frames(bf, arc, t, flat_env.rays, rig_config)
+    names = set(rig.skeleton.names)
+    assert set(lf.names) <= names
+    assert {"leg_L_07_upper", "leg_R_20_tip", "ultimate_L_upper", "antenna_R_2"} <= set(lf.names)
+    assert lf.positions.shape == (len(t), len(lf.names), 3)
+    assert lf.rotations.shape == (len(t), len(lf.names), 4)
+    np.testing.assert_allclose(np.linalg.norm(lf.rotations, axis=-1), 1.0, atol=1e-9)
