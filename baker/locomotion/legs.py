@@ -40,6 +40,8 @@ from baker.rig.limbs import chains, leg_layout, leg_pole
 
 #: the reachable fraction of the full leg length used for planning footholds
 PLAN_REACH = 0.9
+#: a planted foot lifts before its hip gets further than this fraction of the leg's length
+LIFT_REACH = 0.86
 #: fan of foothold rays: tilt from the segment's down axis toward the body [rad]
 FAN = np.radians([0.0, 25.0, 45.0, 65.0])
 #: foothold fans also start from origins pulled this fraction of the way toward the hip
@@ -96,15 +98,16 @@ def _axes(q: np.ndarray):
 
 
 def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarray,
-                      hips: np.ndarray, reach: float, probe: float) -> np.ndarray:
+                      hips: np.ndarray, reach: float, probe: float,
+                      min_out: np.ndarray | float = 0.0) -> np.ndarray:
     """Footholds on the surface near `points`, all in one batch of ray casts.
 
     points, up, inward, hips : (n, 3); up = segment normal, inward = toward the body's centre line
     Candidates, in order of preference: a ray straight down (along -up) from `probe` above the
     point; rays tilted toward the body (the fan, for a log's or a ledge's edge); the same from
     origins pulled toward the body. A candidate counts when it hits a surface that faces up
-    (within FOOT_SLOPE of the segment's up) within `reach` of its hip. Without one, the point
-    itself is kept.
+    (within FOOT_SLOPE of the segment's up) within `reach` of its hip and at least `min_out`
+    (scalar or (n,)) outward from it. Without one, the point itself is kept.
     """
     n = len(points)
     if n == 0:
@@ -122,7 +125,8 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     h = rays.first_hit(o, d, max_distance=4.0 * probe + reach)
     pts = h.points.reshape(k, n, 3)
     facing = np.sum(h.normals.reshape(k, n, 3) * up[None], -1) > np.cos(FOOT_SLOPE)
-    ok = (h.hit.reshape(k, n) & facing
+    out_dist = -np.sum((pts - hips[None]) * inward[None], -1)
+    ok = (h.hit.reshape(k, n) & facing & (out_dist >= np.broadcast_to(min_out, (n,))[None])
           & (np.linalg.norm(pts - hips[None], axis=-1) < reach))
     first = np.argmax(ok, axis=0)
     any_ok = ok.any(axis=0)
@@ -184,7 +188,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     A = 0.5 * duty * D                                                # half stance sweep (F,)
     # how far behind its anchor a planted foot may fall before it must lift
     lat0 = np.linalg.norm(lay.anchor[:, [0, 1]] - lay.hip[:, [0, 1]], axis=1)
-    span = PLAN_REACH * (lay.l1 + lay.l2)
+    span = LIFT_REACH * (lay.l1 + lay.l2)
     a_back = np.sqrt(np.maximum(span ** 2 - lat0 ** 2, 0.0))         # (L,)
     a_back = np.minimum(a_back, 1.5 * 0.5 * lg.duty * lg.stride_max)   # (L,)
     # a planted foot also lifts when the body turns so that it would come under the body
@@ -193,6 +197,27 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     legs = np.arange(L)
     q_inv = q * np.array([-1.0, -1.0, -1.0, 1.0])
     win = np.arange(LIFT_WINDOW)[None, :]
+
+    def first_bad(hold, start, stop):
+        """(L,) first frame in [start, stop) where a foot planted at `hold` (L, 3) would be out
+        of reach, too far behind, or under the body; F where there is none. Checked
+        LIFT_WINDOW frames at a time."""
+        out = np.full(L, F, dtype=np.int64)
+        start = start.copy()
+        open_ = start < stop
+        while open_.any():
+            ll = legs[open_]
+            fw = np.minimum(start[open_, None] + win, F - 1)
+            rel = quat_rotate(q_inv[fw, ll[:, None]], hold[open_, None, :] - hip[fw, ll[:, None]])
+            bad = ((rel[..., 0] * lay.side[ll, None] < foot_x_min[ll, None])
+                   | (np.linalg.norm(rel, axis=-1) > span) | (rel[..., 2] < -a_back[ll, None]))
+            found = bad.any(1)
+            # lift one frame before it happens: a fast body can stretch a leg a lot in a frame
+            first = fw[found, np.argmax(bad[found], 1)]
+            out[ll[found]] = np.maximum(first - 1, np.minimum(start[open_][found], first))
+            start[open_] += LIFT_WINDOW
+            open_ &= (out == F) & (start < stop)
+        return out
 
     # -- step events, one cycle at a time for all legs
     T = np.zeros(L, dtype=np.int64)
@@ -207,19 +232,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         # body-frame check of the planted foot, LIFT_WINDOW frames at a time, up to the phase's
         # liftoff: lift early when it would fall out of reach or come under the body
         hold = anchor[Tc, legs] + fwd[Tc, legs] * x[:, None]
-        lo_body = np.full(L, F, dtype=np.int64)
-        start = Tc.copy()
-        open_ = start < np.minimum(lo_phase, F)
-        while open_.any():
-            ll = legs[open_]
-            fw = np.minimum(start[open_, None] + win, F - 1)
-            rel = quat_rotate(q_inv[fw, ll[:, None]], hold[open_, None, :] - hip[fw, ll[:, None]])
-            bad = ((rel[..., 0] * lay.side[ll, None] < foot_x_min[ll, None])
-                   | (np.linalg.norm(rel, axis=-1) > span) | (rel[..., 2] < -a_back[ll, None]))
-            found = bad.any(1)
-            lo_body[ll[found]] = fw[found, np.argmax(bad[found], 1)]
-            start[open_] += LIFT_WINDOW
-            open_ &= (lo_body == F) & (start < np.minimum(lo_phase, F))
+        lo_body = first_bad(hold, Tc, np.minimum(lo_phase, F))
         LO = np.clip(np.minimum(np.minimum(lo_phase, lo_body), lo_reach), T, F)
         LOc = np.minimum(LO, F - 1)
         td_phase = np.searchsorted(phi, i + 1 - lag, side="left")
@@ -246,7 +259,14 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     holds = project_footholds(rays, pts.reshape(-1, 3), up[fr, legs[None, :]].reshape(-1, 3),
                               inward.reshape(-1, 3), hip[fr, legs[None, :]].reshape(-1, 3),
                               PLAN_REACH * (lay.l1 + lay.l2),
-                              probe=body.clearance + 2.0 * lg.lift).reshape(C1, L, 3)
+                              probe=body.clearance + 2.0 * lg.lift,
+                              min_out=np.tile(foot_x_min - np.abs(lay.hip[:, 0]), C1)
+                              ).reshape(C1, L, 3)
+    # the surface put some feet elsewhere than planned: lift those early where they would now
+    # fall out of reach or under the body (touchdowns stay; the next swing just starts sooner)
+    for c in range(C1 - 1):
+        bad = first_bad(holds[c], np.minimum(Ts[c], F - 1), np.minimum(LOs[c], F))
+        LOs[c] = np.clip(np.minimum(LOs[c], bad), Ts[c], F)
 
     # -- per-frame foot targets
     f_idx = np.arange(F)
