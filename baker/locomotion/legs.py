@@ -41,11 +41,13 @@ from baker.rig.limbs import chains, leg_layout, leg_pole
 #: the reachable fraction of the full leg length used for planning footholds
 PLAN_REACH = 0.9
 #: a planted foot lifts before its hip gets further than this fraction of the leg's length
-LIFT_REACH = 0.86
+LIFT_REACH = 0.8
 #: fan of foothold rays: tilt from the segment's down axis toward the body [rad]
 FAN = np.radians([0.0, 25.0, 45.0, 65.0])
 #: foothold fans also start from origins pulled this fraction of the way toward the hip
 FAN_PULL = (0.0, 0.35, 0.6)
+#: a foothold lies at most this many times its outward distance below its hip
+MAX_DROP = 1.2
 #: a foothold's surface faces at most this far from the segment's up [rad]
 FOOT_SLOPE = np.radians(65.0)
 #: inside a bend of radius R, feet stay within INNER_REACH * R of the centre line
@@ -60,6 +62,8 @@ LIFT_WINDOW = 48
 SWEEP_LIMIT = np.radians(80.0)
 #: knee swivels about the hip->foot axis tried when a leg bone would go through something [rad]
 KNEE_SWIVELS = np.radians([20.0, -20.0, 40.0, -40.0, 60.0, -60.0, 85.0, -85.0])
+#: swings turning the leg by more than this in a frame are re-timed to an even pace [rad]
+EVEN_SWING = np.radians(18.0)
 #: swing wall checks: at most this many half-lift raises
 WALL_STEPS = 4
 #: planted feet of neighbouring legs keep at least this many segment spacings apart
@@ -107,7 +111,9 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     point; rays tilted toward the body (the fan, for a log's or a ledge's edge); the same from
     origins pulled toward the body. A candidate counts when it hits a surface that faces up
     (within FOOT_SLOPE of the segment's up) within `reach` of its hip and at least `min_out`
-    (scalar or (n,)) outward from it. Without one, the point itself is kept.
+    (scalar or (n,)) outward from it, and no steeper below it than MAX_DROP (a leg does not
+    reach straight down a ledge beside the body), and in sight of its hip. Without one, the
+    point itself is kept.
     """
     n = len(points)
     if n == 0:
@@ -126,8 +132,18 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     pts = h.points.reshape(k, n, 3)
     facing = np.sum(h.normals.reshape(k, n, 3) * up[None], -1) > np.cos(FOOT_SLOPE)
     out_dist = -np.sum((pts - hips[None]) * inward[None], -1)
+    drop = -np.sum((pts - hips[None]) * up[None], -1)
     ok = (h.hit.reshape(k, n) & facing & (out_dist >= np.broadcast_to(min_out, (n,))[None])
+          & (drop <= MAX_DROP * out_dist)
           & (np.linalg.norm(pts - hips[None], axis=-1) < reach))
+    # the hip must see its foothold (no wall or log side between them)
+    kk, nn = np.nonzero(ok)
+    if len(kk):
+        v = pts[kk, nn] - hips[nn]
+        dist = np.linalg.norm(v, axis=1)
+        lift = 0.02 * reach * up[nn]               # aim just above the hold: it lies on a surface
+        blocked = rays.first_hit(hips[nn], v + lift, max_distance=dist).hit
+        ok[kk[blocked], nn[blocked]] = False
     first = np.argmax(ok, axis=0)
     any_ok = ok.any(axis=0)
     out = points.copy()
@@ -198,11 +214,12 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     q_inv = q * np.array([-1.0, -1.0, -1.0, 1.0])
     win = np.arange(LIFT_WINDOW)[None, :]
 
-    def first_bad(hold, start, stop):
+    def first_bad(hold, start, stop, sight=False):
         """(L,) first frame in [start, stop) where a foot planted at `hold` (L, 3) would be out
-        of reach, too far behind, or under the body; F where there is none. Checked
-        LIFT_WINDOW frames at a time."""
+        of reach, too far behind, or under the body (with `sight`, also: hidden from its hip
+        behind a wall); F where there is none. Checked LIFT_WINDOW frames at a time."""
         out = np.full(L, F, dtype=np.int64)
+        t0 = start
         start = start.copy()
         open_ = start < stop
         while open_.any():
@@ -211,10 +228,16 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
             rel = quat_rotate(q_inv[fw, ll[:, None]], hold[open_, None, :] - hip[fw, ll[:, None]])
             bad = ((rel[..., 0] * lay.side[ll, None] < foot_x_min[ll, None])
                    | (np.linalg.norm(rel, axis=-1) > span) | (rel[..., 2] < -a_back[ll, None]))
+            if sight:
+                hp = hip[fw, ll[:, None]].reshape(-1, 3)
+                v = np.broadcast_to(hold[open_, None, :], fw.shape + (3,)).reshape(-1, 3) - hp
+                dist = np.linalg.norm(v, axis=1)
+                aim = v + 0.02 * span * up[fw, ll[:, None]].reshape(-1, 3)
+                bad |= rays.first_hit(hp, aim, max_distance=dist).hit.reshape(fw.shape)
             found = bad.any(1)
             # lift one frame before it happens: a fast body can stretch a leg a lot in a frame
             first = fw[found, np.argmax(bad[found], 1)]
-            out[ll[found]] = np.maximum(first - 1, np.minimum(start[open_][found], first))
+            out[ll[found]] = np.maximum(first - 1, np.minimum(t0[ll[found]], first))
             start[open_] += LIFT_WINDOW
             open_ &= (out == F) & (start < stop)
         return out
@@ -232,7 +255,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         # body-frame check of the planted foot, LIFT_WINDOW frames at a time, up to the phase's
         # liftoff: lift early when it would fall out of reach or come under the body
         hold = anchor[Tc, legs] + fwd[Tc, legs] * x[:, None]
-        lo_body = first_bad(hold, Tc, np.minimum(lo_phase, F))
+        lo_body = first_bad(hold, Tc, np.minimum(lo_phase + 1, F))
         LO = np.clip(np.minimum(np.minimum(lo_phase, lo_body), lo_reach), T, F)
         LOc = np.minimum(LO, F - 1)
         td_phase = np.searchsorted(phi, i + 1 - lag, side="left")
@@ -262,11 +285,6 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
                               probe=body.clearance + 2.0 * lg.lift,
                               min_out=np.tile(foot_x_min - np.abs(lay.hip[:, 0]), C1)
                               ).reshape(C1, L, 3)
-    # the surface put some feet elsewhere than planned: lift those early where they would now
-    # fall out of reach or under the body (touchdowns stay; the next swing just starts sooner)
-    for c in range(C1 - 1):
-        bad = first_bad(holds[c], np.minimum(Ts[c], F - 1), np.minimum(LOs[c], F))
-        LOs[c] = np.clip(np.minimum(LOs[c], bad), Ts[c], F)
 
     # -- per-frame foot targets
     f_idx = np.arange(F)
@@ -284,6 +302,14 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         contact[:, leg] = f_idx < LOs[c, leg]
     holds = _spread_neighbours(holds, Ts, cidx, contact, NEIGHBOUR_GAP * body.spacing, rays,
                                up, probe=body.clearance + 2.0 * lg.lift)
+    # the surface (and the neighbours) put some feet elsewhere than planned: lift those early
+    # where they would now fall out of reach, under the body or behind a wall (touchdowns stay;
+    # the next swing just starts sooner)
+    for c in range(C1 - 1):
+        bad = first_bad(holds[c], np.minimum(Ts[c], F - 1), np.minimum(LOs[c] + 1, F), sight=True)
+        LOs[c] = np.clip(np.minimum(LOs[c], bad), Ts[c], F)
+    for leg in range(L):
+        contact[:, leg] = f_idx < LOs[cidx[:, leg], leg]
     for leg in range(L):
         c = cidx[:, leg]
         lo = LOs[c, leg]
@@ -327,6 +353,9 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     chord = r0 + (r1 - r0) * h
     ends = (np.cos(np.pi * u) ** 8)[..., None]
     rel = ends * chord + (1.0 - ends) * rel
+    # the arc never bulges further out than its ends (a wall beside the body stays clear)
+    out_max = np.maximum(s_ * r0[..., 0], s_ * r1[..., 0])
+    rel[..., 0] = s_ * np.minimum(s_ * rel[..., 0], out_max)
     rel[..., 1] += lift * arch
     swing_pts = hip + quat_rotate(q, rel)
     target = np.where(sw[..., None], swing_pts, target)
@@ -343,6 +372,16 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         need = hh.points[:, 1] + 0.35 * (lift * arch)[sw]
         y = np.where(hh.hit, np.maximum(sp[:, 1], need), sp[:, 1])
         sp[:, 1] = y
+        # a swinging foot stays on its hip's side of a wall: pulled back toward the hip where
+        # the hip->foot line meets a steep face (eased in and out; re-timed below)
+        hp = hip[sw]
+        v = sp - hp
+        dist = np.linalg.norm(v, axis=1)
+        wall = rays.first_hit(hp, v + 0.02 * span * up[sw], max_distance=dist)
+        steep = wall.hit & (np.abs(np.sum(wall.normals * up[sw], -1)) < 0.5)
+        if steep.any():
+            keep = np.maximum(wall.distance[steep] - 0.25 * lg.lift, 0.0)
+            sp[steep] = hp[steep] + v[steep] / dist[steep, None] * keep[:, None]
         target[sw] = sp
         # a swinging foot never goes into a wall: where its path from the previous frame is
         # blocked (or it ends inside something), it goes over, raised in lift-sized steps
@@ -379,6 +418,10 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         leg = np.where(sw[f, k + 2], k + 2, k)           # the rear one when both swing
         np.add.at(target, (f, leg), up[f, leg] * (1.2 * (gap - d[f, k]))[:, None])
 
+    # swings that turn the leg unevenly (over an obstacle, down a ledge) are re-timed so the
+    # leg turns by equal angles each frame
+    target = _even_swings(target, hip, q, q_inv, cidx, LOs, Ts, sw, EVEN_SWING)
+
     # -- IK, all frames x legs
     pole = leg_pole(lay, hip, target, fwd, left, lg.knee_out)
     sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
@@ -390,7 +433,39 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     positions = np.stack([hip, mid], axis=2).reshape(F, 2 * L, 3)
     rotations = np.stack([q_u, q_t], axis=2).reshape(F, 2 * L, 4)
     return dict(names=names, positions=positions, rotations=rotations, feet=sol.end,
-                targets=target, contacts=contact, touchdown=td_flag, lag=lag)
+                targets=target, contacts=contact, touchdown=td_flag, lag=lag,
+                touchdowns=Ts, liftoffs=LOs, holds=holds)
+
+
+def _even_swings(target, hip, q, q_inv, cidx, LOs, Ts, sw, limit):
+    """Re-time swings whose largest per-frame turn of the hip->foot direction (segment frame)
+    exceeds `limit` [rad]: the same path, walked at an even angular pace between liftoff and
+    touchdown (both ends unchanged)."""
+    F, L, _ = target.shape
+    rel = quat_rotate(q_inv, target - hip)
+    d = normalize(rel)
+    step = np.arccos(np.clip(np.sum(d[1:] * d[:-1], -1), -1.0, 1.0))      # (F-1, L)
+    big = (step > limit) & (sw[1:] | sw[:-1])
+    if not big.any():
+        return target
+    f, l = np.nonzero(big)
+    c = cidx[f + 1, l]
+    c = np.where(sw[f + 1, l], c, cidx[f, l])                  # the swing this step belongs to
+    out = target.copy()
+    for cc, ll in set(zip(c.tolist(), l.tolist())):
+        a, b = int(LOs[cc, ll]), int(min(Ts[cc + 1, ll], F - 1))
+        if b - a < 2:
+            continue
+        seg = rel[a:b + 1, ll]
+        cum = np.concatenate([[0.0], np.cumsum(step[a:b, ll])])
+        if cum[-1] <= 0:
+            continue
+        want = cum[-1] * np.arange(b - a + 1) / (b - a)
+        j = np.clip(np.searchsorted(cum, want, side="right") - 1, 0, b - a - 1)
+        t = np.clip((want - cum[j]) / np.maximum(cum[j + 1] - cum[j], 1e-12), 0.0, 1.0)
+        new = seg[j] + (seg[j + 1] - seg[j]) * t[:, None]
+        out[a + 1:b, ll] = hip[a + 1:b, ll] + quat_rotate(q[a + 1:b, ll], new[1:-1])
+    return out
 
 
 def _bones_hit(rays, hip, mid, end, l1, l2, tol):
@@ -403,8 +478,9 @@ def _bones_hit(rays, hip, mid, end, l1, l2, tol):
 
 def _clear_knees(rays, hip, mid, end, hinge, l1, l2, tol):
     """Swivel knees about the hip->foot axis where a leg bone would pass through the
-    environment (the foot stays where it is). Candidate swivels are tried smallest first; the
-    chosen angle is smoothed over time per leg so the knee glides rather than jumps.
+    environment (the foot stays where it is). Each run of consecutive offending frames of a leg
+    gets one swivel angle: the smallest candidate that clears the most of its frames; the angle
+    eases in and out over neighbouring frames so the knee glides rather than jumps.
 
     hip, mid, end, hinge : (F, L, 3). Returns (mid, hinge) adjusted.
     """
@@ -414,25 +490,33 @@ def _clear_knees(rays, hip, mid, end, hinge, l1, l2, tol):
     if not hit.any():
         return mid, hinge
     axis = normalize(end - hip)
-    angle = np.zeros((F, L))
-    f, l = np.nonzero(hit)
-    todo = np.ones(len(f), bool)
+    # runs of offending frames per leg (bridging gaps of up to 4 frames)
+    near = maximum_filter1d(hit.astype(np.uint8), 5, axis=0, mode="constant").astype(bool)
+    lt = near.T                                           # (L, F)
+    start = lt & ~np.concatenate([np.zeros((L, 1), bool), lt[:, :-1]], 1)
+    run_id = np.cumsum(start.ravel()).reshape(L, F).T - 1  # (F, L), valid where near
+    n_runs = int(start.sum())
+    f, l = np.nonzero(near)
+    r = run_id[f, l]
+    best = np.full(n_runs, -1.0)                          # fewest hits per run so far
+    angle_run = np.zeros(n_runs)
+    bad0 = np.bincount(r, weights=hit[f, l], minlength=n_runs)
+    best[:] = bad0
     for a in KNEE_SWIVELS:
-        if not todo.any():
+        m = _swivel(mid[f, l], hip[f, l], axis[f, l], a)
+        bad = _bones_hit(rays, hip[f, l], m, end[f, l], l1, l2, tol)
+        cnt = np.bincount(r, weights=bad, minlength=n_runs)
+        better = cnt < best
+        best[better] = cnt[better]
+        angle_run[better] = a
+        if not best.any():
             break
-        ff, ll = f[todo], l[todo]
-        m = _swivel(mid[ff, ll], hip[ff, ll], axis[ff, ll], a)
-        ok = ~_bones_hit(rays, hip[ff, ll], m, end[ff, ll], l1, l2, tol)
-        idx = np.nonzero(todo)[0][ok]
-        angle[f[idx], l[idx]] = a
-        todo[idx] = False
-    # spread each swivel over neighbouring frames (max of |angle| keeps it clear, then smooth)
-    mag = maximum_filter1d(np.abs(angle), 5, axis=0, mode="nearest")
-    sign = np.sign(gaussian_filter1d(angle, 3.0, axis=0, mode="nearest"))
-    smooth = gaussian_filter1d(mag, 1.5, axis=0, mode="nearest") * sign
-    smooth = np.where(hit, np.where(np.abs(smooth) >= np.abs(angle), smooth, angle), smooth)
-    new_mid = _swivel(mid, hip, axis, smooth)
-    new_hinge = _swivel(hinge, np.zeros_like(hinge), axis, smooth)
+    angle = np.zeros((F, L))
+    angle[f, l] = angle_run[r]
+    angle = gaussian_filter1d(angle, 1.5, axis=0, mode="nearest")
+    angle[f, l] = angle_run[r]                            # full swivel on the run itself
+    new_mid = _swivel(mid, hip, axis, angle)
+    new_hinge = _swivel(hinge, np.zeros_like(hinge), axis, angle)
     return new_mid, new_hinge
 
 
