@@ -50,6 +50,8 @@ FAN_PULL = (0.0, 0.35, 0.6)
 MAX_DROP = 1.2
 #: a foothold's surface faces at most this far from the segment's up [rad]
 FOOT_SLOPE = np.radians(65.0)
+#: next to a wall, feet stay within this fraction of the free distance from hip to wall
+WALL_FOLD = 0.7
 #: inside a bend of radius R, feet stay within INNER_REACH * R of the centre line
 INNER_REACH = 0.6
 #: swing progress peak rate relative to its mean (see _swing_shape)
@@ -188,6 +190,18 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     inner = kappa * lay.side[None, :] > 0
     lat_max = np.where(inner, INNER_REACH / np.maximum(np.abs(kappa), 1e-9), np.inf)
     lat_min = np.abs(lay.hip[:, 0]) + 0.35 * (lg.reach - np.abs(lay.hip[:, 0]))
+    # ... and next to a wall they fold in: the free distance from each hip outward (one batch
+    # of rays at hip and at knee height), eased over time
+    out_dir = left * lay.side[None, :, None]
+    free = np.full((F, L), np.inf)
+    for h in (0.0, 0.5 * lay.l1):
+        o = hip + h * up
+        hw = rays.first_hit(o.reshape(-1, 3), out_dir.reshape(-1, 3), max_distance=lg.reach * 1.2)
+        free = np.minimum(free, np.where(hw.hit, hw.distance, np.inf).reshape(F, L))
+    free = -maximum_filter1d(-free, 9, axis=0, mode="nearest")
+    free = np.where(np.isfinite(free), free, lg.reach * 2.0)
+    free = gaussian_filter1d(free, 2.0, axis=0, mode="nearest")
+    lat_max = np.minimum(lat_max, np.abs(lay.hip[None, :, 0]) + WALL_FOLD * free)
     lat = np.clip(lat_max, lat_min[None, :], lg.reach) * lay.side[None, :]
     anc = np.broadcast_to(lay.anchor, q.shape[:-1] + (3,)).copy()
     anc[..., 0] = lat
@@ -380,7 +394,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         wall = rays.first_hit(hp, v + 0.02 * span * up[sw], max_distance=dist)
         steep = wall.hit & (np.abs(np.sum(wall.normals * up[sw], -1)) < 0.5)
         if steep.any():
-            keep = np.maximum(wall.distance[steep] - 0.25 * lg.lift, 0.0)
+            keep = np.maximum(wall.distance[steep] - 0.25 * lg.lift, 0.6 * dist[steep])
             sp[steep] = hp[steep] + v[steep] / dist[steep, None] * keep[:, None]
         target[sw] = sp
         # a swinging foot never goes into a wall: where its path from the previous frame is
