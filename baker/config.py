@@ -108,6 +108,8 @@ class BehaviourConfig:
     shade_min_spots: int = 2          # [>=1] known shade spots needed before seeking shade
     shade_memory_interval: float = 5.0  # [>0] [s] at most one new shade spot this often
     shade_spot_spacing: float = 0.25  # [>0] [m] remembered spots are at least this far apart
+    shade_sense_radius: float = 0.5   # [>=0] [m] it also notices shade this far around its head
+                                      # (light/dark contrast; 0: only where the head is)
     perception_rate: float = 10.0     # [>0] [Hz] shade, prey and obstacle checks
     detection_range: float = 1.0      # [>0] [m] prey closer than this starts a hunt (SEED: 20 units)
     strike_range: float = 0.05        # [>0] [m] head to prey surface distance for a capture
@@ -178,6 +180,11 @@ class BakeConfig:
     prey: int = 0                # [0..16] prey capsules
     sun_path: str | None = None  # "AZ,EL;AZ,EL;..." degrees, evenly spaced over the bake
     clips: bool = False          # also write one animation per behaviour segment
+    start: tuple[float, float, float] | None = None  # [m] creature start (snapped to the
+                                 # walkable surface); None: random near the scene centre
+    start_heading: tuple[float, float, float] | None = None  # horizontal facing at the start
+    prey_positions: tuple[tuple[float, float, float], ...] = ()  # [m] explicit prey starts
+                                 # (snapped); when given, they replace the `prey` count
     nav_cache_dir: Path | None = None  # None: no on-disk navigation cache
 
     @property
@@ -284,8 +291,8 @@ def load_rig_config(path: Path | str) -> RigConfig:
                      **{k: deg for k in ("ultimate_raise", "ultimate_spread", "antenna_sweep",
                                          "max_swing_rate")}})
     behaviour = _section(BehaviourConfig, data.get("behaviour", {}), f"{path} [behaviour]",
-                         {k: length for k in ("shade_spot_spacing", "detection_range",
-                                              "strike_range")})
+                         {k: length for k in ("shade_spot_spacing", "shade_sense_radius",
+                                              "detection_range", "strike_range")})
     cobra = _section(CobraConfig, data.get("cobra", {}), f"{path} [cobra]",
                      {k: length for k in ("height", "obstacle_probe", "ceiling_margin")})
     prey = _section(PreyConfig, data.get("prey", {}), f"{path} [prey]",
@@ -365,7 +372,8 @@ def scale_rig(rig: RigConfig, factor: float) -> RigConfig:
         wander=sc(rig.wander, ["radius"]),
         navigation=sc(rig.navigation, ["radius", "height", "step_height", "cell_size"]),
         legs=sc(rig.legs, list(_LEG_LENGTHS)),
-        behaviour=sc(rig.behaviour, ["shade_spot_spacing", "detection_range", "strike_range"]),
+        behaviour=sc(rig.behaviour, ["shade_spot_spacing", "shade_sense_radius", "detection_range",
+                                     "strike_range"]),
         cobra=sc(rig.cobra, ["height", "obstacle_probe", "ceiling_margin"]),
         prey=sc(rig.prey, ["length", "radius", "wander_speed", "flee_speed", "tired_speed",
                            "flee_trigger", "acceleration"]),

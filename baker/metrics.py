@@ -226,3 +226,66 @@ def quat_rotate_y(q: np.ndarray) -> np.ndarray:
     from baker.geometry.transforms import quat_rotate
 
     return quat_rotate(q, np.broadcast_to([0.0, 1.0, 0.0], q.shape[:-1] + (3,)))
+
+
+def state_frames(events, n_frames: int, fps: int) -> np.ndarray:
+    """(F,) object array: the timeline state of every frame (a frame on a boundary belongs to
+    the segment that starts there)."""
+    out = np.full(n_frames, "", dtype=object)
+    for e in events:
+        f0 = int(round(e["start"] * fps))
+        f1 = int(round(e["end"] * fps))
+        out[f0:f1] = e["state"]
+    if len(events):
+        out[int(round(events[-1]["start"] * fps)):] = events[-1]["state"]
+    return out
+
+
+def head_in_shade(traj: Trajectory, rays) -> np.ndarray:
+    """(F,) bool: a ray from the head (less its cobra lift) toward that frame's sun is blocked."""
+    F = traj.n_frames
+    if traj.sun_directions is None:
+        return np.zeros(F, dtype=bool)
+    lift = traj.cobra_lift if traj.cobra_lift is not None else np.zeros(traj.spine_positions.shape[:2])
+    head = traj.spine_positions[:, 0] - lift[:, :1] * UP
+    return rays.occluded(head, traj.sun_directions)
+
+
+def behaviour_metrics(traj: Trajectory, rays, *, fps: int, clearance: float) -> dict:
+    """What the brain did, measured from the output:
+
+    - shade: fraction of frames with the head in shade (a ray from the head toward that
+      frame's sun is blocked);
+    - seconds per state and the number of transitions; gaps/overlaps in the timeline;
+    - cruise head speed (90th percentile of per-frame speed) per state, and the onslaught
+      ratio hunt / wander;
+    - hunt outcomes.
+    """
+    F = traj.n_frames
+    shaded = head_in_shade(traj, rays)
+    events = list(traj.events)
+    seconds: dict[str, float] = {}
+    for e in events:
+        seconds[e["state"]] = seconds.get(e["state"], 0.0) + e["end"] - e["start"]
+    gaps = sum(1 for a, b in zip(events, events[1:]) if abs(a["end"] - b["start"]) > 1e-9)
+    states = state_frames(events, F, fps)
+    step = np.zeros(F)
+    d = traj.spine_positions[1:, 0] - traj.spine_positions[:-1, 0]
+    step[1:] = np.hypot(d[:, 0], d[:, 2]) * fps
+    cruise = {s: float(np.percentile(step[states == s], 90)) for s in seconds
+              if np.count_nonzero(states == s) >= 10}
+    outcomes = [e["details"].get("outcome") for e in events if e["state"] == "hunt"]
+    return {
+        "shade_fraction": float(shaded.mean()) if F else 0.0,
+        "state_seconds": {k: round(v, 4) for k, v in seconds.items()},
+        "distinct_states": len(seconds),
+        "transitions": max(len(events) - 1, 0),
+        "timeline_gaps_or_overlaps": int(gaps),
+        "timeline_covers": [events[0]["start"], events[-1]["end"]] if events else None,
+        "cruise_speed_by_state_m_s": cruise,
+        "onslaught_speed_ratio": (cruise["hunt"] / cruise["wander"]
+                                  if cruise.get("hunt") and cruise.get("wander") else None),
+        "hunts": len(outcomes),
+        "captures": outcomes.count("caught"),
+        "escapes": outcomes.count("escaped"),
+    }

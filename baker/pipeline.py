@@ -94,6 +94,8 @@ def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
                 body_length=cfg.rig.body.length,
                 lag_setting_deg=360.0 * cfg.rig.legs.waves / (cfg.rig.body.segments - 1),
                 max_speed=cfg.rig.locomotion.max_speed)
+        motion["behaviour"] = metrics.behaviour_metrics(traj, env.rays, fps=cfg.fps,
+                                                        clearance=cfg.rig.body.clearance)
 
     # Step 7: files. Every file is complete before it replaces an older one.
     extras = report_mod.extras(cfg, traj)

@@ -4,16 +4,18 @@ States
     wander         walk to a random reachable point; a new one every decision interval
     seek_shade     walk to a remembered shaded spot
     rest_in_shade  stay put in shade
-    cobra          scout: rear the front third up for a look when prey is first detected
-    hunt           onslaught: speed x2, slither turn rate x2, stop at strike range
+    cobra          scout: rear the front third up for a look over an obstacle ahead (taller than
+                   a step, lower than the cobra height) while walking on
+    hunt           onslaught: speed x2, slither turn rate x2, runs onto the prey; the front is
+                   raised for a look (scouting) for its first moments
     strike         the bite: the prey stops
     feed           hold the prey at the head, then it is gone
     warning        Posture 1 (ultimate legs raised) when the shade it rested in is lost
 
 Every `decision_interval` seconds a d10 (0-9) is rolled: with enough known shade spots and a
 roll <= shade_roll_max the centipede goes to a random known spot, or stays if it is already in
-shade; otherwise it wanders. Prey within detection range interrupts that with scout -> hunt ->
-strike -> feed, or gives up (back to wander) when the prey gets away. Every transition is
+shade; otherwise it wanders. Prey within detection range interrupts that with hunt -> strike ->
+feed, or gives up (back to wander) when the prey gets away. Every transition is
 logged and recorded in the timeline as (start, end, state, details).
 """
 
@@ -75,7 +77,18 @@ class Brain:
         self._next_decision = 0.0
         self._next_perception = 0.0
         self._next_replan = 0.0
-        self._obstacle_until = -1.0
+        self._scout_until = -1.0
+        self._ignore: dict[str, float] = {}   # prey given up on, until this time
+        self._now = 0.0
+        # two rings of points around the head where shade is noticed (8 at half the sense
+        # radius, 16 at the full radius)
+        r = self.b.shade_sense_radius
+        rings = []
+        for frac, n in ((0.5, 8), (1.0, 16)):
+            a = np.linspace(0.0, 2.0 * math.pi, n, endpoint=False)
+            rings.append(np.stack([np.sin(a), np.zeros_like(a), np.cos(a)], 1) * (frac * r))
+        self._ring = np.vstack(rings) if r > 0 else np.zeros((0, 3))
+        self._resume = ("wander", None)
         self.shaded = False
         self.prey: Prey | None = None
         self.target: np.ndarray | None = None
@@ -98,8 +111,10 @@ class Brain:
         hunting = state in ("hunt",)
         self.speed_scale = self.b.onslaught_speed if hunting else 1.0
         self.turn_scale = self.b.onslaught_turn_rate if hunting else 1.0
-        # While hunting the agent runs onto the prey; the strike check stops it.
-        self.stopping_distance = 0.0 if hunting else self.rig.locomotion.stopping_distance
+        # While hunting the agent runs onto the prey (the strike check stops it); a shade spot
+        # is walked right onto, since its shadow may be small.
+        self.stopping_distance = (0.0 if hunting else self.rig.body.spacing if state == "seek_shade"
+                                  else self.rig.locomotion.stopping_distance)
 
     def _go(self, target: np.ndarray | None) -> None:
         self.target = target
@@ -118,6 +133,7 @@ class Brain:
     # ------------------------------------------------------------------ the step
     def step(self, s: Senses) -> None:
         t = s.t
+        self._now = t
         self.new_target = False
         self.halt = False
         if t + 1e-9 >= self._next_perception:
@@ -130,7 +146,7 @@ class Brain:
         elif self.cobra_mode == "never":
             self.cobra = 0.0
         else:
-            self.cobra = 1.0 if (self.state == "cobra" or t < self._obstacle_until) else 0.0
+            self.cobra = 1.0 if (self.state == "cobra" or t < self._scout_until) else 0.0
         self.warning = 1.0 if self.state == "warning" else 0.0
 
     def _perceive(self, s: Senses) -> None:
@@ -139,25 +155,41 @@ class Brain:
         h = self.nav.surface_height(head[None])[0]
         if np.isfinite(h):
             head[1] = h
-        self.shaded = bool(perception.in_shade(self.rays, head[None], sun, self.rig.body.clearance)[0])
-        if self.shade_on and self.shaded and s.t - self._last_memory >= self.b.shade_memory_interval:
-            if all(np.linalg.norm(p - s.head) >= self.b.shade_spot_spacing for p in self.shade_spots):
-                self.shade_spots.append(s.head.copy())
-                self._last_memory = s.t
+        # the head, then a ring of points around it (light/dark contrast), in one ray batch
+        pts = np.vstack([head[None], head + self._ring])
+        h = self.nav.surface_height(pts)
+        ok = np.isfinite(h)
+        ok[0] = True
+        pts[1:, 1] = np.where(ok[1:], h[1:], pts[1:, 1])
+        ok[1:] &= self.nav.is_walkable(pts[1:])
+        shade = perception.in_shade(self.rays, pts, sun, self.rig.body.clearance) & ok
+        self.shaded = bool(shade[0])
+        if self.shade_on and shade.any() and s.t - self._last_memory >= self.b.shade_memory_interval:
+            here = self.nav.component_of(head)
+            for p in pts[shade]:
+                if (all(np.linalg.norm(q - p) >= self.b.shade_spot_spacing for q in self.shade_spots)
+                        and self.nav.component_of(p) == here):
+                    self.shade_spots.append(p.copy())
+                    self._last_memory = s.t
+                    break
         if self.cobra_mode == "auto" and self.state in ("wander", "seek_shade"):
             step = self.rig.navigation.step_height
             if perception.obstacle_ahead(self.rays, s.head, s.heading, self.rig.cobra.obstacle_probe,
                                          low=1.5 * step, high=self.rig.cobra.height):
-                self._obstacle_until = s.t + 1.0
-        if self.hunt_on and self.state not in ("cobra", "hunt", "strike", "feed"):
+                # rear up for a look over it, then carry on with the same path
+                self._resume = (self.state, self.target)
+                self._enter("cobra", s.t, reason="obstacle ahead")
+        if self.hunt_on and self.state not in ("hunt", "strike", "feed"):
             prey = self._closest_prey(s.head)
             if prey is not None:
+                # onslaught at once, scouting with the front raised for the first moments
                 self.prey = prey
-                self._enter("cobra", s.t, prey=prey.name, reason="prey detected")
-                self._stop(s.head)
+                self._enter("hunt", s.t, prey=prey.name)
+                self._scout_until = s.t + self.b.scout_time
+                self._next_replan = s.t
 
     def _closest_prey(self, head: np.ndarray) -> Prey | None:
-        free = [p for p in self.preys if p.mode == FREE]
+        free = [p for p in self.preys if p.mode == FREE and self._ignore.get(p.name, -1.0) < self._now]
         if not free:
             return None
         d = [float(np.linalg.norm(p.position - head)) for p in free]
@@ -220,15 +252,17 @@ class Brain:
             self._roll(s)
 
     def _cobra(self, s: Senses, decide: bool) -> None:
-        if s.t - self.since >= self.b.scout_time:
-            self._enter("hunt", s.t, prey=self.prey.name)
-            self._next_replan = s.t
+        """Scouting over an obstacle while walking on; then back to what it was doing."""
+        if s.t - self.since >= max(self.b.scout_time, self.rig.cobra.ramp_time * 2):
+            state, target = self._resume
+            self._enter(state, s.t, reason="scouted", target=_r(target) if target is not None else None)
 
     def _hunt(self, s: Senses, decide: bool) -> None:
         prey = self.prey
         d = float(np.linalg.norm(prey.position - s.head))
-        if d > self.b.detection_range:
+        if d > 1.2 * self.b.detection_range:   # a margin, so a hunt does not flicker at the edge
             self.events[-1]["details"]["outcome"] = "escaped"
+            self._ignore[prey.name] = s.t + 2.0 * self.b.decision_interval
             self.prey = None
             target = self.nav.random_point_near(s.head, self.rig.wander.radius, self.rng)
             self._enter("wander", s.t, reason="prey escaped", target=_r(target) if target is not None else None)

@@ -34,21 +34,29 @@ from baker.sim.trajectory import Trajectory
 log = logging.getLogger(__name__)
 
 
-def choose_start(nav, env, body_length: float, rng: np.random.Generator):
-    """A walkable start point near the middle of the scene, and a heading whose straight body
-    line behind the head is as walkable as possible.
+def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None, heading=None):
+    """A walkable start point near the middle of the scene (or the one nearest to `at`), and a
+    heading (or `heading`) whose straight body line behind the head is as walkable as possible.
 
     returns (position (3,), heading (3,) unit horizontal)
     """
     lo, hi = env.bounds
-    centre = 0.5 * (lo + hi)
-    anchor = nav.nearest(centre, np.inf)
+    if at is not None:
+        anchor = nav.nearest(np.asarray(at, dtype=np.float64), np.inf)
+    else:  # the largest walkable component's sample closest to the middle of the scene
+        centre = 0.5 * (lo + hi)
+        main = np.nonzero(nav.component == 0)[0]
+        d = np.linalg.norm(nav.positions[main] - centre.astype(np.float32), axis=1)
+        anchor = nav.positions[main[np.argmin(d)]].astype(np.float64) if len(main) else None
     if anchor is None:
         raise NavError("environment has no walkable surface")
     extent = float(np.max(hi - lo))
-    start = nav.random_point_near(anchor, 0.2 * extent, rng)
+    start = anchor if at is not None else nav.random_point_near(anchor, 0.2 * extent, rng)
     if start is None:
         start = anchor
+    if heading is not None:
+        h = np.array([heading[0], 0.0, heading[2]], dtype=np.float64)
+        return start, h / max(np.linalg.norm(h), 1e-12)
     angles = rng.uniform(0, 2 * np.pi) + np.linspace(0, 2 * np.pi, 16, endpoint=False)
     dirs = np.stack([np.sin(angles), np.zeros_like(angles), np.cos(angles)], axis=1)
     d = np.linspace(0, body_length, 9)
@@ -66,7 +74,7 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     per_frame = cfg.sim_rate // cfg.fps
     n_frames = n_steps // per_frame + 1
 
-    start, heading = choose_start(nav, env, body.length, rng)
+    start, heading = choose_start(nav, env, body.length, rng, cfg.start, cfg.start_heading)
     agent = PathAgent(start, loco.max_speed, loco.acceleration, loco.stopping_distance)
     # Pure pursuit: the head chases the agent one turning radius ahead on the path.
     turn_radius = max(navc.radius, 3.0 * body.spacing)
@@ -75,7 +83,9 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
                      amplitude=loco.slither_amplitude, max_offset=0.4 * navc.radius)
     sun = (parse_sun_path(cfg.sun_path, cfg.seconds) if cfg.sun_path
            else SunPath(np.asarray(env.sun.direction, float)[None], cfg.seconds))
-    preys = spawn_prey(cfg.prey, start, nav, rig, rng)
+    preys = ([Prey(i, nav.nearest(p, np.inf), rig.prey, nav, rng)
+              for i, p in enumerate(cfg.prey_positions)]
+             if cfg.prey_positions else spawn_prey(cfg.prey, start, nav, rig, rng))
     brain = Brain(rig, nav, env.rays, sun, rng, preys, mode=cfg.behaviour, cobra_mode=cfg.cobra)
 
     # The body starts straight behind the head.
@@ -83,9 +93,9 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     heads = np.empty((n_steps + 1, 3))
     heads[0] = start
     rec = Recorder(n_frames, len(preys))
-    rec.sample(0, brain, preys, 0.0)
     ramp = dt / rig.cobra.ramp_time
     cobra = brain.cobra
+    rec.sample(0, brain, preys, cobra)
     for k in range(1, n_steps + 1):
         t = (k - 1) * dt
         # 1. brain: perception, the d10, hunting; a new target means a new path
@@ -153,14 +163,14 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
 
 
 def spawn_prey(count: int, start: np.ndarray, nav, rig, rng: np.random.Generator) -> list[Prey]:
-    """`count` prey at reachable points between 1.5 and 3 detection ranges from the start."""
+    """`count` prey at reachable points between 1.2 and 2 detection ranges from the start."""
     preys = []
     r = rig.behaviour.detection_range
     for i in range(count):
         p = None
         for _ in range(32):
-            q = nav.random_point_near(start, 3.0 * r, rng)
-            if q is not None and np.linalg.norm(q - start) >= 1.5 * r:
+            q = nav.random_point_near(start, 2.0 * r, rng)
+            if q is not None and np.linalg.norm(q - start) >= 1.2 * r:
                 p = q
                 break
         preys.append(Prey(i, p if p is not None else start.copy(), rig.prey, nav, rng))
