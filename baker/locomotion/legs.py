@@ -192,12 +192,14 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     lat_min = np.abs(lay.hip[:, 0]) + 0.35 * (lg.reach - np.abs(lay.hip[:, 0]))
     # ... and next to a wall they fold in: the free distance from each hip outward (one batch
     # of rays at hip and at knee height), eased over time
-    out_dir = left * lay.side[None, :, None]
     free = np.full((F, L), np.inf)
-    for h in (0.0, 0.5 * lay.l1):
-        o = hip + h * up
-        hw = rays.first_hit(o.reshape(-1, 3), out_dir.reshape(-1, 3), max_distance=lg.reach * 1.2)
-        free = np.minimum(free, np.where(hw.hit, hw.distance, np.inf).reshape(F, L))
+    for yaw in np.radians([0.0, 40.0, -40.0]):       # straight out, ahead and behind
+        out_dir = np.cos(yaw) * left * lay.side[None, :, None] + np.sin(yaw) * fwd
+        for h in (0.0, 0.5 * lay.l1):
+            o = hip + h * up
+            hw = rays.first_hit(o.reshape(-1, 3), out_dir.reshape(-1, 3),
+                                max_distance=lg.reach * 1.2)
+            free = np.minimum(free, np.where(hw.hit, hw.distance * np.cos(yaw), np.inf).reshape(F, L))
     free = -maximum_filter1d(-free, 9, axis=0, mode="nearest")
     free = np.where(np.isfinite(free), free, lg.reach * 2.0)
     free = gaussian_filter1d(free, 2.0, axis=0, mode="nearest")
