@@ -423,6 +423,10 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
             cur[below, 1] = np.maximum(cur[below, 1], lift_to)
             target[sw] = cur
 
+    # swings that turn the leg unevenly (over an obstacle, down a ledge) are re-timed so the
+    # leg turns by equal angles each frame
+    target = _even_swings(target, hip, q, q_inv, cidx, LOs, Ts, sw, EVEN_SWING)
+
     # a swinging foot that would pass too close to its neighbour's foot goes over it
     gap = NEIGHBOUR_GAP * body.spacing
     for _ in range(6):
@@ -433,10 +437,6 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         f, k = np.nonzero(conf)
         leg = np.where(sw[f, k + 2], k + 2, k)           # the rear one when both swing
         np.add.at(target, (f, leg), up[f, leg] * (1.2 * (gap - d[f, k]))[:, None])
-
-    # swings that turn the leg unevenly (over an obstacle, down a ledge) are re-timed so the
-    # leg turns by equal angles each frame
-    target = _even_swings(target, hip, q, q_inv, cidx, LOs, Ts, sw, EVEN_SWING)
 
     # -- IK, all frames x legs
     pole = leg_pole(lay, hip, target, fwd, left, lg.knee_out)
