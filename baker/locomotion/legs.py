@@ -1,22 +1,30 @@
 """Legs for the whole bake in one vectorized pass after the spine (like body.py).
 
 Walking legs (two bones each, one pair per trunk segment):
-1. Gait clock (gait.py): phase advances with the distance the body travels along its trail.
-2. Steps: for each leg, touchdown when its phase crosses an integer, liftoff at integer + duty.
-   A foothold is the leg's anchor in the segment frame, placed ahead by half the stance sweep
-   (duty * stride / 2) at touchdown. Two safety rules keep every foot reachable:
+1. Gait clock (gait.py): the phase advances with the distance the body travels along its
+   trail; the duty factor is the setting, lowered at high speed so no leg sweeps faster than
+   `max_swing_rate`.
+2. Anchors: each leg's neutral foot spot in its segment frame, pulled in on the inside of tight
+   bends and next to walls (one batch of horizontal rays from the hips).
+3. Steps: touchdown when a leg's phase crosses an integer, liftoff at integer + duty. A foothold
+   is the anchor placed ahead by half the stance sweep (duty * stride / 2) at touchdown. Safety
+   rules keep every planted foot usable:
    - a swing lasts at most `settle_time` seconds: when the body slows or stops, the foot lands
      (at most half a stance sweep ahead of its anchor) and stays put;
-   - a planted foot lifts early when the body has carried its anchor so far ahead that the
-     foot would fall out of reach.
-   The loop runs over step cycles (a few hundred), vectorized over legs.
-3. Footholds: one batch of ray casts for every touchdown of every leg, along the segment's down
-   axis; when a ray misses or lands out of reach (a log's edge), a fan of rays tilted toward the
-   body is tried.
-4. Swing: an arc from the old foothold to the new one, lifted along the segment normal, raised
-   further where the surface below it is higher (one batch of down rays), landing exactly on the
-   foothold.
-5. Two-bone IK for all frames x legs at once (geometry/ik.py), knee pole up and outward.
+   - a planted foot lifts early (a frame before it happens) when the body would carry it out of
+     reach, too far behind, under the body, or behind a wall.
+   The loop runs over step cycles (a few hundred a minute), vectorized over legs.
+4. Footholds: one batch of ray casts for every touchdown of every leg: straight down the
+   segment's up axis, then fans tilted toward the body, also from origins pulled in. A hold must
+   face up, be in reach, outside the body, not straight down a ledge and in sight of its hip.
+   Planted feet of neighbouring legs are then pushed apart ("legs that know where their
+   neighbours are").
+5. Swing: the foot sweeps around its hip in the segment frame, from the old hold as seen at
+   liftoff to the new one as seen at touchdown, with a lift; raised where the surface below or
+   a wall is in the way; lifted over a neighbour's foot; re-timed to an even angular pace where
+   the path is uneven. It lands exactly on the hold.
+6. Two-bone IK for all frames x legs at once (geometry/ik.py), knee pole across the leg (up and
+   out); knees swivel about the hip->foot line where a bone would touch the environment.
 
 Ultimate legs and antennae are posed by angles in their segment's frame; their raise/pitch is
 lifted where a bone would go through the environment (candidate angles, one batch of rays).
