@@ -264,9 +264,8 @@ class Brain:
             self.events[-1]["details"]["outcome"] = "escaped"
             self._ignore[prey.name] = s.t + 2.0 * self.b.decision_interval
             self.prey = None
-            target = self.nav.random_point_near(s.head, self.rig.wander.radius, self.rng)
-            self._enter("wander", s.t, reason="prey escaped", target=_r(target) if target is not None else None)
-            self._go(target)
+            self._roll(s)        # gives up: back to the d10 (wander, or shade)
+            self.events[-1]["details"]["reason"] = "prey escaped"
             return
         if d - self.rig.prey.radius <= self.b.strike_range + self.rig.body.spacing:
             self.events[-1]["details"]["outcome"] = "caught"

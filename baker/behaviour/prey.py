@@ -43,7 +43,8 @@ class Prey:
         c = self.cfg
         away = self.position - threat if threat is not None else None
         dist = math.hypot(away[0], away[2]) if away is not None else math.inf
-        self.fleeing = dist < c.flee_trigger
+        # flee when the centipede comes within the trigger; keep running until well clear
+        self.fleeing = dist < c.flee_trigger * (1.5 if self.fleeing else 1.0)
         if self.fleeing:
             self.stamina = max(self.stamina - dt, 0.0)
             self.agent.max_speed = c.flee_speed if self.stamina > 0 else c.tired_speed
