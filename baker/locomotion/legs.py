@@ -74,6 +74,8 @@ SWEEP_LIMIT = np.radians(80.0)
 KNEE_SWIVELS = np.radians([20.0, -20.0, 40.0, -40.0, 60.0, -60.0, 85.0, -85.0])
 #: swings turning the leg by more than this in a frame are re-timed to an even pace [rad]
 EVEN_SWING = np.radians(18.0)
+#: a swinging foot rises at most this many upper-bone lengths above its hip
+SWING_CEILING = 0.8
 #: swing wall checks: at most this many half-lift raises
 WALL_STEPS = 4
 #: planted feet of neighbouring legs keep at least this many segment spacings apart
@@ -429,6 +431,13 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
             cur[blocked] += 0.5 * lg.lift * UP
             lift_to = cur[below, 1] + top - hb.distance[below] + 0.1 * lg.lift
             cur[below, 1] = np.maximum(cur[below, 1], lift_to)
+            # never above knee height over the hip: something that tall is not stepped over,
+            # the foot is drawn back toward the hip instead
+            hp = hip[sw]
+            too_high = cur[:, 1] > hp[:, 1] + SWING_CEILING * lay.l1
+            if too_high.any():
+                cur[too_high, 1] = hp[too_high, 1] + SWING_CEILING * lay.l1
+                cur[too_high] = hp[too_high] + 0.7 * (cur[too_high] - hp[too_high])
             target[sw] = cur
 
     # swings that turn the leg unevenly (over an obstacle, down a ledge) are re-timed so the
