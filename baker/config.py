@@ -93,6 +93,8 @@ class LegsConfig:
     ultimate_raise: float = math.radians(15.0)   # [0..pi/2] [rad] pitch above the body axis
                                                  # (warning posture: up to vertical)
     ultimate_spread: float = math.radians(20.0)  # [0..pi/2] [rad] outward from the body axis
+    ultimate_warning_raise: float = math.radians(80.0)  # [0..pi/2) [rad] raise at full warning
+                                    # (Posture 1: proportional to Trajectory.warning)
     antenna_length: float = 0.03    # [>0] [m] each of the two antenna joints
     antenna_sweep: float = math.radians(25.0)    # [0..pi/2] [rad] side-to-side sweep amplitude
     antenna_rate: float = 1.3       # [>=0] [Hz] sweep frequency
@@ -289,7 +291,7 @@ def load_rig_config(path: Path | str) -> RigConfig:
     legs = _section(LegsConfig, data.get("legs", {}), f"{path} [legs]",
                     {**{k: length for k in _LEG_LENGTHS},
                      **{k: deg for k in ("ultimate_raise", "ultimate_spread", "antenna_sweep",
-                                         "max_swing_rate")}})
+                                         "max_swing_rate", "ultimate_warning_raise")}})
     behaviour = _section(BehaviourConfig, data.get("behaviour", {}), f"{path} [behaviour]",
                          {k: length for k in ("shade_spot_spacing", "shade_sense_radius",
                                               "detection_range", "strike_range")})
@@ -347,7 +349,7 @@ def validate_rig(rig: RigConfig, where: str = "rig") -> RigConfig:
         (0 <= lg.hip_width <= 1.5, "legs.hip_width must be in [0, 1.5]"),
         (lg.knee_out >= 0, "legs.knee_out must be >= 0"),
         (all(0 <= getattr(lg, k) <= math.pi / 2 for k in
-             ("ultimate_raise", "ultimate_spread", "antenna_sweep")),
+             ("ultimate_raise", "ultimate_spread", "antenna_sweep", "ultimate_warning_raise")),
          "legs angles must be in [0, 90] deg"),
         (lg.antenna_rate >= 0, "legs.antenna_rate must be >= 0"),
     ]

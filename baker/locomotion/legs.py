@@ -616,10 +616,22 @@ def _chain_dirs(side, yaw, pitch, backward):
                      f * np.cos(yaw) * np.cos(pitch)], -1)
 
 
-def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig, clock_phase=None):
-    """Ultimate legs and antennae: angle-driven two-bone chains, lifted clear of the surface."""
+def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
+                 warning: np.ndarray | None = None):
+    """Ultimate legs and antennae: angle-driven two-bone chains, lifted clear of the surface.
+
+    warning : (F,) float 0..1 or None, Posture 1 strength: the ultimate legs rise from
+              legs.ultimate_raise toward legs.ultimate_warning_raise in proportion (eased over
+              about a quarter of a second)
+    """
     lg = cfg.legs
     F = len(times)
+    fps = (F - 1) / max(float(times[-1] - times[0]), 1e-9) if F > 1 else 30.0
+    if warning is None:
+        warn = np.zeros(F)
+    else:
+        warn = gaussian_filter1d(np.clip(np.asarray(warning, float), 0.0, 1.0), 0.12 * fps,
+                                 mode="nearest")
     names, pos, rot = [], [], []
     raise_steps = np.radians([0.0, 6.0, 12.0, 20.0, 30.0, 45.0, 60.0, 80.0])
     for ch in chains(cfg):
@@ -646,6 +658,8 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig, clock_
             grope = 0.5 + 0.5 * np.sin(0.5 * w * t + (1.0 if s > 0 else 2.5))
             dpitch = -np.radians(22.0) * grope ** 3
         base_pitch = pit1 + dpitch
+        if back:                       # Posture 1: raised in proportion to the warning
+            base_pitch = base_pitch + warn * (lg.ultimate_warning_raise - pit1)
         # candidates: raise the chain until both bones clear the environment
         k = len(raise_steps)
         pitch = base_pitch[:, None] + raise_steps[None, :]            # (F, k)
@@ -675,18 +689,19 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig, clock_
     return names, np.stack(pos, 1), np.stack(rot, 1)
 
 
-def leg_frames(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: RigConfig
-               ) -> LegFrames:
+def leg_frames(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: RigConfig,
+               warning: np.ndarray | None = None) -> LegFrames:
     """All limbs for all frames.
 
-    bf    : the spine's BodyFrames (F frames)
-    arc   : (F,) float, metres, the head's arc length along the trail (every segment moves by
-            the same amount)
-    times : (F,) float, seconds
-    rays  : the environment's RayCaster
+    bf      : the spine's BodyFrames (F frames)
+    arc     : (F,) float, metres, the head's arc length along the trail (every segment moves by
+              the same amount)
+    times   : (F,) float, seconds
+    rays    : the environment's RayCaster
+    warning : (F,) float 0..1 or None, Posture 1 strength (raises the ultimate legs)
     """
     w = walking_legs(bf, np.asarray(arc, float), np.asarray(times, float), rays, cfg)
-    cn, cp, cq = posed_chains(bf, times, rays, cfg)
+    cn, cp, cq = posed_chains(bf, np.asarray(times, float), rays, cfg, warning=warning)
     return LegFrames(names=w["names"] + tuple(cn),
                      positions=np.concatenate([w["positions"], cp], axis=1),
                      rotations=np.concatenate([w["rotations"], cq], axis=1),

@@ -143,7 +143,7 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     # Legs, antennae and ultimate legs for all frames at once, from the placed spine.
     limbs = {}
     if rig.legs.enabled:
-        lf = leg_frames(bf, head_arc, frame_steps * dt, env.rays, rig)
+        lf = leg_frames(bf, head_arc, frame_steps * dt, env.rays, rig, warning=rec.warning)
         limbs = dict(joint_names=lf.names, joint_positions=lf.positions,
                      joint_rotations=lf.rotations, foot_contacts=lf.contacts)
     prey_t = prey_frames(rec, preys, bf, env.rays, rig, probe) if preys else {}

@@ -115,3 +115,18 @@ def test_leg_frames_names_and_shapes(rig, rig_config, flat_env):
     assert lf.positions.shape == (len(t), len(lf.names), 3)
     assert lf.rotations.shape == (len(t), len(lf.names), 4)
     np.testing.assert_allclose(np.linalg.norm(lf.rotations, axis=-1), 1.0, atol=1e-9)
+
+
+def test_warning_raises_the_ultimate_legs(rig_config, flat_env):
+    bf, arc, t = _straight_body(rig_config, speed=0.0, seconds=3.0)
+    warning = (t >= 1.0).astype(float)
+    lf = leg_frames(bf, arc, t, flat_env.rays, rig_config, warning=warning)
+    from baker.metrics import quat_rotate_y
+
+    i = lf.names.index("ultimate_L_upper")
+    y = quat_rotate_y(lf.rotations[:, i])                 # bone direction, world (+Y up here)
+    pitch = np.degrees(np.arcsin(np.clip(y[:, 1], -1, 1)))
+    assert abs(pitch[0] - np.degrees(rig_config.legs.ultimate_raise)) < 8.0
+    assert pitch[-1] > 70.0                               # Posture 1: raised near vertical
+    steps = np.abs(np.diff(pitch))
+    assert steps.max() < 15.0                             # eased, not snapped
