@@ -15,6 +15,7 @@ import numpy as np
 
 from baker.errors import ConfigError
 from baker.geometry.conventions import SIM_RATE_HZ
+from baker.geometry.transforms import direction_from_angles
 
 PACKAGE_ROOT = Path(__file__).resolve().parent
 REPO_ROOT = PACKAGE_ROOT.parent
@@ -230,9 +231,7 @@ def validate_bake(cfg: BakeConfig) -> BakeConfig:
     if not 0 <= cfg.prey <= 16:
         raise ConfigError(f"--prey must be in 0..16 (got {cfg.prey})")
     if cfg.sun_path is not None:
-        from baker.behaviour.sun import parse_sun_path
-
-        parse_sun_path(cfg.sun_path, cfg.seconds)
+        parse_sun_path(cfg.sun_path)
     if cfg.sun_direction is not None:
         d = np.asarray(cfg.sun_direction, dtype=float)
         if d.shape != (3,) or not np.all(np.isfinite(d)) or np.linalg.norm(d) < 1e-9:
@@ -425,3 +424,24 @@ def override_rig(rig: RigConfig, *, scale: float | None = None, agent_radius: fl
     if kw:
         rig = replace(rig, navigation=replace(nav, **kw))
     return rig
+
+
+def parse_sun_path(text: str, samples_per_key: int = 16) -> np.ndarray:
+    """'AZ,EL;AZ,EL;...' in degrees (azimuth from +Z toward +X, elevation above the horizon),
+    evenly spaced over the bake -> (K, 3) unit directions toward the sun, densified so that
+    interpolating them follows the sky (azimuth and elevation are interpolated, not vectors)."""
+    try:
+        pairs = [tuple(float(v) for v in part.split(",")) for part in text.split(";") if part.strip()]
+    except ValueError:
+        raise ConfigError("--sun-path must look like 'AZ,EL;AZ,EL' in degrees, e.g. '90,30;270,30'") from None
+    if len(pairs) < 1 or any(len(p) != 2 for p in pairs):
+        raise ConfigError("--sun-path must look like 'AZ,EL;AZ,EL' in degrees, e.g. '90,30;270,30'")
+    ang = np.radians(np.array(pairs))
+    if np.any(ang[:, 1] <= 0) or np.any(ang[:, 1] > math.pi / 2):
+        raise ConfigError("--sun-path elevations must be in (0, 90] degrees")
+    if len(ang) == 1:
+        return direction_from_angles(ang[:1, 0], ang[:1, 1])
+    u = np.linspace(0, len(ang) - 1, (len(ang) - 1) * samples_per_key + 1)
+    az = np.interp(u, np.arange(len(ang)), ang[:, 0])
+    el = np.interp(u, np.arange(len(ang)), ang[:, 1])
+    return direction_from_angles(az, el)

@@ -2,20 +2,11 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from baker.errors import ConfigError
 from baker.geometry.transforms import normalize
-
-
-def direction_from_angles(azimuth: np.ndarray, elevation: np.ndarray) -> np.ndarray:
-    """Unit vectors toward the sun. Azimuth is measured from +Z toward +X, elevation from the
-    horizon, both in radians. Shapes broadcast; returns (..., 3)."""
-    az, el = np.broadcast_arrays(np.asarray(azimuth, float), np.asarray(elevation, float))
-    return np.stack([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)], axis=-1)
 
 
 @dataclass(frozen=True)
@@ -45,21 +36,8 @@ class SunPath:
         return normalize(self.keys[i] * (1 - f) + self.keys[i + 1] * f)
 
 
-def parse_sun_path(text: str, duration: float, samples_per_key: int = 16) -> SunPath:
-    """'AZ,EL;AZ,EL;...' in degrees, evenly spaced over the bake, densified so that the
-    interpolation follows the sky (azimuth and elevation are interpolated, not vectors)."""
-    try:
-        pairs = [tuple(float(v) for v in part.split(",")) for part in text.split(";") if part.strip()]
-    except ValueError:
-        raise ConfigError("--sun-path must look like 'AZ,EL;AZ,EL' in degrees, e.g. '90,30;270,30'") from None
-    if len(pairs) < 1 or any(len(p) != 2 for p in pairs):
-        raise ConfigError("--sun-path must look like 'AZ,EL;AZ,EL' in degrees, e.g. '90,30;270,30'")
-    ang = np.radians(np.array(pairs))
-    if np.any(ang[:, 1] <= 0) or np.any(ang[:, 1] > math.pi / 2):
-        raise ConfigError("--sun-path elevations must be in (0, 90] degrees")
-    if len(ang) == 1:
-        return SunPath(direction_from_angles(ang[:1, 0], ang[:1, 1]), duration)
-    u = np.linspace(0, len(ang) - 1, (len(ang) - 1) * samples_per_key + 1)
-    az = np.interp(u, np.arange(len(ang)), ang[:, 0])
-    el = np.interp(u, np.arange(len(ang)), ang[:, 1])
-    return SunPath(direction_from_angles(az, el), duration)
+def sun_path(keys: np.ndarray | None, fixed: np.ndarray, duration: float) -> SunPath:
+    """The bake's sun: `keys` (K, 3) from config.parse_sun_path, or the fixed direction."""
+    if keys is None:
+        return SunPath(np.asarray(fixed, dtype=np.float64)[None], duration)
+    return SunPath(np.asarray(keys, dtype=np.float64), duration)

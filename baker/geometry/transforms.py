@@ -94,3 +94,10 @@ def light_rotation(direction_to_sun: np.ndarray) -> np.ndarray:
     up = np.where(np.abs(d[..., 1:2]) < 0.999, np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]))
     q = frames_to_quat(d, up)      # maps +Z onto the sun direction, so -Z onto the light
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def direction_from_angles(azimuth: np.ndarray, elevation: np.ndarray) -> np.ndarray:
+    """Unit vectors toward the sun. Azimuth is measured from +Z toward +X, elevation from the
+    horizon, both in radians. Shapes broadcast; returns (..., 3)."""
+    az, el = np.broadcast_arrays(np.asarray(azimuth, float), np.asarray(elevation, float))
+    return np.stack([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)], axis=-1)

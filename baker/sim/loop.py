@@ -17,8 +17,8 @@ from scipy.spatial.transform import Rotation
 
 from baker.behaviour.brain import Brain, Senses
 from baker.behaviour.prey import HELD, HIDDEN, Prey
-from baker.behaviour.sun import SunPath, parse_sun_path
-from baker.config import BakeConfig
+from baker.behaviour.sun import sun_path
+from baker.config import BakeConfig, parse_sun_path
 from baker.context import Context
 from baker.errors import NavError
 from baker.geometry import polyline
@@ -81,8 +81,8 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     head = HeadSteer(start, heading, max_speed=loco.max_speed, turn_radius=turn_radius,
                      lead=turn_radius, turn_rate=loco.head_turn_rate,
                      amplitude=loco.slither_amplitude, max_offset=0.4 * navc.radius)
-    sun = (parse_sun_path(cfg.sun_path, cfg.seconds) if cfg.sun_path
-           else SunPath(np.asarray(env.sun.direction, float)[None], cfg.seconds))
+    sun = sun_path(parse_sun_path(cfg.sun_path) if cfg.sun_path else None, env.sun.direction,
+                   cfg.seconds)
     preys = ([Prey(i, nav.nearest(p, np.inf), rig.prey, nav, rng)
               for i, p in enumerate(cfg.prey_positions)]
              if cfg.prey_positions else spawn_prey(cfg.prey, start, nav, rig, rng))

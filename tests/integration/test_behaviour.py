@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from baker.behaviour.prey import HELD
-from baker.behaviour.sun import direction_from_angles
+from baker.geometry.transforms import direction_from_angles
 from baker.config import DEFAULT_RIG, BakeConfig, load_rig_config
 from baker.environment.model import EnvMesh, Environment, Sun
 from baker.export.gltf import build_glb

@@ -1,0 +1,78 @@
+"""The package's dependencies point one way (DESIGN.md): geometry <- environment <- navmesh <-
+behaviour/locomotion <- sim <- clip <- export, with the pipeline and CLI on top. Only
+environment/ reads scene files and only export/ (plus the navigation cache and its debug map)
+writes files."""
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+PKG = Path(__file__).resolve().parents[2] / "baker"
+
+#: what each part may import from baker (besides itself, errors and geometry)
+ALLOWED = {
+    "geometry": set(),
+    "errors": set(),
+    "config": set(),
+    "context": set(),
+    "environment": set(),
+    "navmesh": {"environment", "config"},
+    "locomotion": {"environment", "config", "rig"},
+    "behaviour": {"environment", "navmesh", "locomotion", "config"},
+    "rig": {"config"},
+    "sim": {"environment", "navmesh", "behaviour", "locomotion", "config", "context"},
+    "metrics": {"sim"},
+    "clip": {"rig", "sim"},
+    "export": {"clip", "rig", "sim", "environment", "config", "navmesh"},
+}
+TOP = {"pipeline", "cli", "__init__", "__main__"}
+
+
+def part_of(path: Path) -> str:
+    rel = path.relative_to(PKG)
+    return rel.parts[0] if len(rel.parts) > 1 else rel.stem
+
+
+def baker_imports(path: Path):
+    tree = ast.parse(path.read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("baker"):
+            yield node.module
+        elif isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.startswith("baker"):
+                    yield a.name
+
+
+MODULES = sorted(p for p in PKG.rglob("*.py"))
+
+
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(PKG)))
+def test_imports_point_one_way(path):
+    part = part_of(path)
+    if part in TOP:
+        return
+    allowed = ALLOWED[part] | {part, "errors", "geometry"}
+    for mod in baker_imports(path):
+        parts = mod.split(".")
+        target = parts[1] if len(parts) > 1 else "__init__"
+        if target == "__init__":
+            continue
+        assert target in allowed, f"{path.relative_to(PKG)} imports {mod}"
+
+
+WRITERS = {"export", "navmesh/cache.py", "navmesh/debug.py", "navmesh/report.py"}
+
+
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(PKG)))
+def test_only_export_writes_files(path):
+    rel = str(path.relative_to(PKG))
+    if rel.split("/")[0] in WRITERS or rel in WRITERS or part_of(path) in TOP:
+        return
+    text = path.read_text()
+    for call in ("write_bytes(", "write_text(", ".savefig(", "np.save", "os.replace(",
+                 ".Export(", "mkstemp("):
+        assert call not in text, f"{rel} writes files ({call})"
+    assert not re.search(r"open\([^)]*[\"'][wax]b?[\"']", text), f"{rel} opens a file for writing"
