@@ -28,6 +28,7 @@ class Context:
     def stage(self, name: str):
         """Time a named stage; repeated names accumulate."""
         log.debug("stage %s: start", name)
+        self.report_progress(name, 0.0)
         t = time.perf_counter()
         try:
             yield
