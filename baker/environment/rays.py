@@ -1,17 +1,24 @@
-"""Batched ray queries on the environment (Embree through trimesh/embreex).
+"""Batched ray queries on the environment, straight on Embree (embreex).
 
-Every query takes arrays of rays and casts them in one call. Faces are treated as two-sided:
-face winding never matters.
+Every query takes arrays of rays and casts them in one call. Faces are two-sided: winding never
+matters. The Embree scene is float32, so it is re-centred on the mesh's bounding box (origins
+are shifted in float64 before rounding); that keeps millimetre precision on kilometre levels.
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
 import trimesh
 
 from baker.geometry.transforms import normalize
+
+log = logging.getLogger(__name__)
+
+#: rays per Embree call (bounds the float32 staging buffers)
+CHUNK_RAYS = 1 << 20
 
 
 @dataclass(frozen=True)
@@ -33,17 +40,83 @@ class Hits:
 
 
 class RayCaster:
-    """First-hit and occlusion queries against one triangle mesh."""
+    """First-hit and occlusion queries against one triangle mesh.
+
+    face_normals : (m, 3) float64 unit normals as wound (zero for degenerate faces)
+    shift        : (3,) float64, the scene's centre (subtracted before float32 rounding)
+    """
 
     def __init__(self, mesh: trimesh.Trimesh):
         self.mesh = mesh
-        self._face_normals = np.asarray(mesh.face_normals, dtype=np.float64)
+        v = np.asarray(mesh.vertices, dtype=np.float64)
+        f = np.asarray(mesh.faces, dtype=np.int64)
+        self.vertices, self.faces = v, f
+        self.shift = (v.min(axis=0) + v.max(axis=0)) * 0.5 if len(v) else np.zeros(3)
+        fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]) if len(f) else np.zeros((0, 3))
+        ln = np.linalg.norm(fn, axis=1)
+        fn[ln > 0] /= ln[ln > 0, None]
+        self.face_normals = fn
+        self._scene = None
         try:
-            from trimesh.ray.ray_pyembree import RayMeshIntersector
+            from embreex import rtcore_scene
+            from embreex.mesh_construction import TriangleMesh
 
-            self._intersector = RayMeshIntersector(mesh, scale_to_box=False)
-        except Exception:  # pragma: no cover - embreex missing: fall back, slower
-            self._intersector = trimesh.ray.ray_triangle.RayMeshIntersector(mesh)
+            if len(f):
+                self._scene = rtcore_scene.EmbreeScene()
+                TriangleMesh(scene=self._scene, vertices=(v - self.shift).astype(np.float32),
+                             indices=f.astype(np.int32))
+        except ImportError:  # pragma: no cover - embreex missing: trimesh's slower casts
+            log.warning("embreex unavailable: ray casts fall back to trimesh")
+            self._fallback = trimesh.ray.ray_triangle.RayMeshIntersector(mesh)
+
+    def cast(self, origins: np.ndarray, directions: np.ndarray,
+             max_distance: float | np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The raw batch query.
+
+        origins, directions : (n, 3) float (directions unit length)
+        max_distance        : scalar, (n,) or None (unbounded)
+        returns (t (n,) float64 with inf on a miss, prim (n,) int32 with -1 on a miss)
+        """
+        origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
+        directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+        n = len(origins)
+        t = np.full(n, np.inf)
+        prim = np.full(n, -1, dtype=np.int32)
+        if n == 0 or len(self.faces) == 0:
+            return t, prim
+        if self._scene is None:  # pragma: no cover
+            return self._cast_fallback(origins, directions, max_distance)
+        dist = None if max_distance is None else np.broadcast_to(
+            np.asarray(max_distance, dtype=np.float64), (n,))
+        for a in range(0, n, CHUNK_RAYS):
+            b = min(n, a + CHUNK_RAYS)
+            o = np.empty((b - a, 3), np.float32)
+            np.subtract(origins[a:b], self.shift, out=o, casting="same_kind")
+            d = np.ascontiguousarray(directions[a:b], dtype=np.float32)
+            if dist is None:
+                r = self._scene.run(o, d, output=1)
+            else:
+                r = self._scene.run(o, d, dists=np.minimum(dist[a:b], 3e38).astype(np.float32),
+                                    output=1)
+            p = r["primID"]
+            hit = p >= 0
+            prim[a:b] = p
+            t[a:b][hit] = r["tfar"][hit]
+        return t, prim
+
+    def _cast_fallback(self, origins, directions, max_distance):  # pragma: no cover
+        n = len(origins)
+        t = np.full(n, np.inf)
+        prim = np.full(n, -1, dtype=np.int32)
+        loc, ray_idx, tri_idx = self._fallback.intersects_location(origins, directions,
+                                                                   multiple_hits=False)
+        if len(ray_idx):
+            d = np.einsum("ij,ij->i", loc - origins[ray_idx], directions[ray_idx])
+            lim = np.inf if max_distance is None else np.broadcast_to(max_distance, (n,))[ray_idx]
+            keep = d <= lim
+            t[ray_idx[keep]] = d[keep]
+            prim[ray_idx[keep]] = tri_idx[keep]
+        return t, prim
 
     def first_hit(self, origins: np.ndarray, directions: np.ndarray,
                   max_distance: float | np.ndarray = np.inf) -> Hits:
@@ -55,29 +128,17 @@ class RayCaster:
         """
         origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
         directions = normalize(np.asarray(directions, dtype=np.float64).reshape(-1, 3))
+        t, prim = self.cast(origins, directions, max_distance)
+        hit = prim >= 0
         n = len(origins)
-        hit = np.zeros(n, dtype=bool)
-        dist = np.full(n, np.inf)
         pts = np.full((n, 3), np.nan)
         nrm = np.full((n, 3), np.nan)
-        faces = np.full(n, -1, dtype=np.int64)
-        if n == 0:
-            return Hits(hit, dist, pts, nrm, faces)
-        loc, ray_idx, tri_idx = self._intersector.intersects_location(
-            origins, directions, multiple_hits=False)
-        if len(ray_idx):
-            d = np.einsum("ij,ij->i", loc - origins[ray_idx], directions[ray_idx])
-            keep = d <= np.broadcast_to(max_distance, (n,))[ray_idx]
-            r, t, l, d = ray_idx[keep], tri_idx[keep], loc[keep], d[keep]
-            hit[r] = True
-            dist[r] = d
-            pts[r] = l
-            faces[r] = t
-            fn = self._face_normals[t]
-            flip = np.einsum("ij,ij->i", fn, directions[r]) > 0
-            fn[flip] *= -1.0
-            nrm[r] = fn
-        return Hits(hit, dist, pts, nrm, faces)
+        pts[hit] = origins[hit] + t[hit, None] * directions[hit]
+        fn = self.face_normals[prim[hit]]
+        flip = np.einsum("ij,ij->i", fn, directions[hit]) > 0
+        fn[flip] *= -1.0
+        nrm[hit] = fn
+        return Hits(hit, t, pts, nrm, np.where(hit, prim, -1).astype(np.int64))
 
     def cast_down(self, points: np.ndarray, height: float | np.ndarray,
                   max_distance: float | np.ndarray = np.inf) -> Hits:
@@ -95,4 +156,5 @@ class RayCaster:
     def occluded(self, origins: np.ndarray, directions: np.ndarray,
                  max_distance: float | np.ndarray = np.inf) -> np.ndarray:
         """(n,) bool: True where something blocks the ray within max_distance."""
-        return self.first_hit(origins, directions, max_distance).hit
+        directions = normalize(np.asarray(directions, dtype=np.float64).reshape(-1, 3))
+        return self.cast(origins, directions, max_distance)[1] >= 0

@@ -35,8 +35,6 @@ from baker.navmesh.surface import DIRS, OPPOSITE, NavSurface
 
 log = logging.getLogger(__name__)
 
-#: Rays per Embree call (bounds the temporary memory of a pass).
-CHUNK_RAYS = 1 << 20
 #: Vertical offset below a hit before casting again (metres).
 LAYER_EPS = 1e-4
 #: Safety cap on the number of layers per column.
@@ -51,87 +49,25 @@ TILE_COLUMNS = 1 << 20
 
 # --------------------------------------------------------------------------- ray casting
 class _Caster:
-    """Batched first-hit rays straight on embreex (float32 scene re-centred on the mesh for
-    precision). Falls back to the environment's RayCaster when embreex is missing."""
+    """The environment's batched Embree rays (baker.environment.rays), plus column helpers."""
 
     def __init__(self, env):
-        mesh = env.mesh
-        v = np.asarray(mesh.vertices, dtype=np.float64)
-        f = np.asarray(mesh.faces, dtype=np.int64)
-        self.shift = (v.min(axis=0) + v.max(axis=0)) * 0.5 if len(v) else np.zeros(3)
-        fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-        ln = np.linalg.norm(fn, axis=1)
-        fn[ln > 0] /= ln[ln > 0, None]
-        self.face_normals = fn
-        self.vertices, self.faces = v, f
-        self._env = env
-        try:
-            from embreex import rtcore_scene
-            from embreex.mesh_construction import TriangleMesh
-
-            self._scene = rtcore_scene.EmbreeScene()
-            TriangleMesh(scene=self._scene, vertices=(v - self.shift).astype(np.float32),
-                         indices=f.astype(np.int32))
-        except Exception:  # pragma: no cover - embreex missing
-            log.warning("embreex unavailable: navigation build uses slower ray casts")
-            self._scene = None
-
-    def _run(self, o32: np.ndarray, d32: np.ndarray, max_distance):
-        """One Embree call: o32 origins already shifted (float32). Returns (tfar, primID)."""
-        if max_distance is None:
-            r = self._scene.run(o32, d32, output=1)
-        else:
-            r = self._scene.run(o32, d32, dists=np.full(len(o32), max_distance, np.float32),
-                                output=1)
-        return r["tfar"], r["primID"]
+        self.rays = env.rays
+        self.shift = self.rays.shift
+        self.face_normals = self.rays.face_normals
+        self.vertices, self.faces = self.rays.vertices, self.rays.faces
 
     def cast(self, origins: np.ndarray, directions: np.ndarray,
              max_distance: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """origins, directions (n, 3) (directions unit). Returns (t (n,) float64 with inf on a
-        miss, prim (n,) int32 with -1 on a miss)."""
-        n = len(origins)
-        t = np.full(n, np.inf)
-        prim = np.full(n, -1, dtype=np.int32)
-        for a in range(0, n, CHUNK_RAYS):
-            b = min(n, a + CHUNK_RAYS)
-            if self._scene is None:  # pragma: no cover
-                h = self._env.rays.first_hit(origins[a:b], directions[a:b],
-                                             np.inf if max_distance is None else max_distance)
-                t[a:b] = h.distance
-                prim[a:b] = h.faces
-                continue
-            o = np.empty((b - a, 3), np.float32)
-            np.subtract(origins[a:b], self.shift, out=o, casting="same_kind")
-            tf, p = self._run(o, np.ascontiguousarray(directions[a:b], np.float32),
-                              max_distance)
-            hit = p >= 0
-            prim[a:b] = p
-            t[a:b][hit] = tf[hit]
-        return t, prim
+        """(t (n,) float64, inf on a miss; prim (n,) int32, -1 on a miss)."""
+        return self.rays.cast(origins, directions, max_distance)
 
     def cast_down(self, col: np.ndarray, oy: np.ndarray, x0, z0, nz, cell):
-        """Downward rays from height oy (n,) through the centres of columns col (n,).
-        Returns (t (n,) float64, inf on a miss; prim (n,) int32, -1 on a miss)."""
-        if self._scene is None:  # pragma: no cover
-            o = np.stack([x0 + (col // nz + 0.5) * cell, oy, z0 + (col % nz + 0.5) * cell], 1)
-            return self.cast(o, np.broadcast_to([0.0, -1.0, 0.0], o.shape))
-        n = len(col)
-        t = np.full(n, np.inf)
-        prim = np.full(n, -1, dtype=np.int32)
-        d = np.zeros((min(n, CHUNK_RAYS), 3), np.float32)
+        """Downward rays from height oy (n,) through the centres of columns col (n,)."""
+        o = np.stack([x0 + (col // nz + 0.5) * cell, oy, z0 + (col % nz + 0.5) * cell], 1)
+        d = np.zeros_like(o)
         d[:, 1] = -1.0
-        for a in range(0, n, CHUNK_RAYS):
-            b = min(n, a + CHUNK_RAYS)
-            c = col[a:b]
-            o = np.empty((b - a, 3), np.float32)
-            o[:, 0] = x0 + (c // nz + 0.5) * cell - self.shift[0]
-            o[:, 1] = oy[a:b] - self.shift[1]
-            o[:, 2] = z0 + (c % nz + 0.5) * cell - self.shift[2]
-            tf, p = self._run(o, d[: b - a], None)
-            hit = p >= 0
-            prim[a:b] = p
-            t[a:b][hit] = tf[hit]
-        return t, prim
+        return self.rays.cast(o, d)
 
 
 def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray]:
