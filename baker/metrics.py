@@ -19,7 +19,9 @@ def spine_metrics(traj: Trajectory, rays, *, spacing: float, clearance: float,
     - spacing: relative error of the distance between neighbouring spine joints;
     - head slope: angle of the surface under the head (max slope is the walkable limit);
     - rotation: largest change of any joint's world orientation between frames;
-    - NaN count over positions and rotations.
+    - NaN count over positions and rotations;
+    - trunk inside geometry: (frame, trunk joint) pairs inside a solid (see inside_geometry),
+      and the frames with at least one.
     """
     pos = traj.spine_positions
     F, S, _ = pos.shape
@@ -43,6 +45,8 @@ def spine_metrics(traj: Trajectory, rays, *, spacing: float, clearance: float,
     dq = quat_mul(quat_conj(q[:-1]), q[1:]) if F > 1 else np.zeros((0, S, 4)) + [0, 0, 0, 1]
     rot = np.degrees(2.0 * np.arccos(np.clip(np.abs(dq[..., 3]), 0.0, 1.0)))
 
+    inside = inside_geometry(pos[:, 1:].reshape(-1, 3), rays).reshape(F, S - 1)
+
     step = np.linalg.norm(np.diff(pos[:, 0], axis=0), axis=1)
     return {
         "frames": int(F),
@@ -57,6 +61,87 @@ def spine_metrics(traj: Trajectory, rays, *, spacing: float, clearance: float,
         "frames_on_unwalkable_slope": int(np.count_nonzero(slope > np.degrees(max_slope) + 1e-6)),
         "max_joint_rotation_per_frame_deg": float(rot.max()) if rot.size else 0.0,
         "nan_count": nan,
+        "trunk_inside_geometry": int(np.count_nonzero(inside)),
+        "trunk_inside_geometry_frames": int(np.count_nonzero(inside.any(axis=1))),
+    }
+
+
+#: the six axis directions cast by inside_geometry
+_AXES6 = np.array([[0, 1, 0], [0, -1, 0], [1, 0, 0], [-1, 0, 0], [0, 0, 1], [0, 0, -1]], float)
+
+
+def inside_geometry(points: np.ndarray, rays) -> np.ndarray:
+    """(n,) bool: each point is inside a solid of the environment.
+
+    points : (n, 3) float, metres, world. Six axis rays per point, cast in one batch; each first
+    hit votes "back" when the ray leaves through the face's back (its raw face normal, as wound,
+    points along the ray) and "front" otherwise. A point is inside when back votes outnumber
+    front votes. On a closed, consistently outward-wound mesh every first hit from inside is a
+    back face, so this is exact there; the majority vote tolerates a few flipped faces and open
+    meshes (a one-sided ground plane: a point below it sees its back from below and nothing
+    else, so it counts as inside; a one-sided deck overhead with a floor below is one vote each,
+    so not inside).
+    Limitation: it trusts the winding. A mesh wound inward throughout, or an object whose faces
+    are mostly flipped, reads inside-out; faces are two-sided everywhere else in baker (the
+    navigation build tells solids apart by hit parity instead), so only this metric depends on it.
+    """
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    n = len(p)
+    if n == 0:
+        return np.zeros(0, dtype=bool)
+    d = np.tile(_AXES6, (n, 1))
+    h = rays.first_hit(np.repeat(p, 6, axis=0), d)
+    fn = getattr(rays, "face_normals", None)  # raw, as wound
+    fn = np.asarray(rays.mesh.face_normals if fn is None else fn, dtype=np.float64)
+    vote = np.zeros(len(d))
+    vote[h.hit] = np.sign(np.einsum("ij,ij->i", fn[h.faces[h.hit]], d[h.hit]))
+    vote = vote.reshape(n, 6)
+    return np.count_nonzero(vote > 0, axis=1) > np.count_nonzero(vote < 0, axis=1)
+
+
+def surface_metrics(traj: Trajectory, nav, *, clearance: float) -> dict:
+    """How far the spine strays from the walkable navigation surface (`nav`, a NavSurface).
+
+    The navigation surface is eroded by the agent radius: a point within that radius
+    (horizontally) of it is still on walkable ground, so only points beyond it count as off.
+    Each joint's point on the ground (its ground height, or its height less `clearance`) is
+    looked up in its own column with a vertical tolerance of half the agent height (which picks
+    the layer: a log top and the floor inside it are at least an agent height apart); off points
+    are then probed on rings of 0.5 and 1 agent radius (16 points each).
+
+    - head_off_navmesh_frames: the head's column has no walkable sample on its layer (strict);
+    - head_off_walkable_frames / trunk_off_walkable: farther than the agent radius from it;
+    - head_off_navmesh_max_m: largest 3D distance from the head's ground point to the surface.
+    """
+    pos = traj.spine_positions
+    F, S, _ = pos.shape
+    g = pos.copy()
+    gh = np.asarray(traj.ground_heights, dtype=np.float64)
+    g[..., 1] = np.where(np.isfinite(gh), gh, pos[..., 1] - clearance)
+    pts = g.reshape(-1, 3)
+    tol = 0.5 * float(nav.agent_height)
+    r = float(nav.agent_radius)
+    on = nav.is_walkable(pts, tol)
+    near = on.copy()
+    off = np.nonzero(~on)[0]
+    if len(off):
+        a = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
+        ring = np.concatenate([np.stack([np.cos(a), np.zeros(16), np.sin(a)], 1) * f
+                               for f in (0.5 * r, r)])
+        q = (pts[off, None, :] + ring[None]).reshape(-1, 3)
+        near[off] = nav.is_walkable(q, tol).reshape(len(off), -1).any(axis=1)
+    on, near = on.reshape(F, S), near.reshape(F, S)
+    head_off = np.nonzero(~on[:, 0])[0]
+    dmax = 0.0
+    for f in head_off[:: max(1, len(head_off) // 500)].tolist():  # at most ~500 exact lookups
+        q = nav.nearest(g[f, 0])
+        dmax = max(dmax, float(np.linalg.norm(q - g[f, 0])) if q is not None else np.inf)
+    return {
+        "head_off_navmesh_frames": int(len(head_off)),
+        "head_off_navmesh_max_m": dmax,
+        "head_off_walkable_frames": int(np.count_nonzero(~near[:, 0])),
+        "trunk_off_walkable": int(np.count_nonzero(~near[:, 1:])),
+        "trunk_off_walkable_frames": int(np.count_nonzero((~near[:, 1:]).any(axis=1))),
     }
 
 

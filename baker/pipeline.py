@@ -5,7 +5,7 @@
     Step 3  build the rig                  rig.build_rig
     Step 4  simulate                       sim.loop.simulate -> Trajectory
     Step 5  pose                           clip.build_clip   -> Clip
-    Step 6  measure                        metrics.spine_metrics, metrics.leg_metrics
+    Step 6  measure                        metrics.spine_metrics, surface_metrics, leg_metrics
     Step 7  export                         export.gltf / export.usd / export.report
 """
 
@@ -88,6 +88,7 @@ def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
         motion = metrics.spine_metrics(
             traj, env.rays, spacing=cfg.rig.body.spacing, clearance=cfg.rig.body.clearance,
             max_slope=cfg.rig.navigation.max_slope, body_length=cfg.rig.body.length)
+        motion.update(metrics.surface_metrics(traj, nav, clearance=cfg.rig.body.clearance))
         if cfg.rig.legs.enabled:
             motion["legs"] = metrics.leg_metrics(
                 traj, env.rays, cfg.rig.legs, spacing=cfg.rig.body.spacing,

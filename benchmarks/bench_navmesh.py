@@ -5,7 +5,7 @@
 Scenes:
 - generated: ~1M triangles on 200 x 200 m (terrain, hollow half logs, rocks), agent radius
   0.3 m, cell 0.1 m (issue 3's scale target: build <= 10 s, <= 2 GB peak);
-- default:   environments/rainforest_floor.glb with the default NavAgentConfig
+- default:   environments/rainforest_floor.glb with the default rig's agent (as `baker bake`)
   (target: ready in <= 5 s);
 - nav_test:  ../shared/fixtures/nav_test.obj (Recast's demo level) with Recast's demo agent
   (radius 0.6, height 2.0, climb 0.9, slope 45 deg, cell 0.3 as in the demo and 0.1).
@@ -32,7 +32,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from baker.config import NavAgentConfig  # noqa: E402
+from baker.config import DEFAULT_RIG, NavAgentConfig, load_rig_config  # noqa: E402
 from baker.environment.model import EnvMesh, Environment, Sun  # noqa: E402
 from baker.navmesh import build  # noqa: E402
 
@@ -164,7 +164,9 @@ def main(argv=None) -> int:
         p = ROOT / "environments" / "rainforest_floor.glb"
         if p.exists():
             env = load_environment(p)
-            bench("default (rainforest_floor.glb)", env, NavAgentConfig(), 2.5, a.repeat)
+            # the agent `baker bake` uses on it: the default rig's navigation section
+            agent = load_rig_config(DEFAULT_RIG).navigation
+            bench("default (rainforest_floor.glb)", env, agent, 2.5, a.repeat)
         else:
             print(f"default: {p} not found, skipped")
     if a.scene in ("nav_test", "all"):

@@ -50,6 +50,7 @@ def test_motion_metrics_over_every_frame(baked):
     # the surface under the head is never steeper than 60 degrees
     assert m["head_slope_max_deg"] <= 60.0
     assert m["frames_on_unwalkable_slope"] == 0
+    assert m["trunk_inside_geometry"] == 0  # no trunk joint inside a solid, any frame
     assert m["head_unsupported_frames"] == 0
     assert m["distance_walked_body_lengths"] > 10
 

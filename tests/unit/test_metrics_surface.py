@@ -1,0 +1,94 @@
+"""metrics.inside_geometry (joints inside solids) and metrics.surface_metrics (spine off the
+walkable navigation surface) on scenes built in code."""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import trimesh
+
+from baker.config import NavAgentConfig
+from baker.environment.model import EnvMesh, Environment, Sun
+from baker.metrics import inside_geometry, surface_metrics
+from baker.navmesh import build
+
+
+def env_of(*meshes) -> Environment:
+    return Environment(tuple(EnvMesh(f"m{i}", np.asarray(m.vertices, np.float32),
+                                     np.asarray(m.faces, np.uint32)) for i, m in enumerate(meshes)),
+                       Sun(np.array([0.0, 1.0, 0.0])))
+
+
+def floor(size=2.0):
+    h = size / 2
+    return trimesh.Trimesh([[-h, 0, -h], [h, 0, -h], [h, 0, h], [-h, 0, h]],
+                           [[0, 2, 1], [0, 3, 2]], process=False)  # one-sided, normal up
+
+
+def box(centre, extents):
+    b = trimesh.creation.box(extents=extents)
+    b.apply_translation(centre)
+    return b
+
+
+def test_inside_a_closed_box_and_below_an_open_floor():
+    env = env_of(floor(), box((0.5, 0.1, 0.5), (0.2, 0.2, 0.2)))
+    pts = np.array([
+        [0.5, 0.1, 0.5],     # in the box
+        [0.45, 0.02, 0.55],  # in the box, near its bottom
+        [0.0, 0.01, 0.0],    # on the floor
+        [0.5, 0.25, 0.5],    # on the box
+        [0.0, -0.05, 0.0],   # under the one-sided floor: inside the ground
+        [0.3, 0.05, 0.5],    # beside the box
+    ])
+    assert inside_geometry(pts, env.rays).tolist() == [True, True, False, False, True, False]
+
+
+def test_inside_is_winding_majority_not_single_face():
+    b = box((0.0, 0.5, 0.0), (1.0, 1.0, 1.0))
+    f = np.asarray(b.faces).copy()
+    f[0] = f[0][::-1]  # one flipped triangle
+    env = env_of(trimesh.Trimesh(b.vertices, f, process=False))
+    rng = np.random.default_rng(0)
+    inner = rng.uniform([-0.45, 0.05, -0.45], [0.45, 0.95, 0.45], (200, 3))
+    outer = inner + [0.0, 1.5, 0.0]
+    assert inside_geometry(inner, env.rays).all()
+    assert not inside_geometry(outer, env.rays).any()
+    # a one-sided deck overhead (normal up) with the floor below: not inside
+    deck = floor(1.0)
+    deck.apply_translation((0, 1.0, 0))
+    env2 = env_of(floor(), deck)
+    assert not inside_geometry([[0.0, 0.5, 0.0]], env2.rays).any()
+
+
+class _Traj:
+    def __init__(self, pos, ground):
+        self.spine_positions = pos
+        self.ground_heights = ground
+
+
+def test_surface_metrics_counts_only_beyond_the_agent_radius():
+    # floor 2 x 2 m with a wall-less edge: the eroded surface ends `radius` inside the edge
+    env = env_of(floor())
+    agent = NavAgentConfig(radius=0.05, height=0.1, step_height=0.02, max_slope=math.radians(60),
+                           cell_size=0.01)
+    nav = build(env, agent)
+    xs = np.array([0.0, 0.9, 0.94, 0.99])  # 0.95 is the eroded edge
+    pos = np.zeros((len(xs), 3, 3))
+    pos[:, :, 0] = xs[:, None] - np.array([0.0, 0.02, 0.04])[None]
+    pos[:, :, 1] = 0.01
+    tr = _Traj(pos, np.zeros((len(xs), 3)))
+    m = surface_metrics(tr, nav, clearance=0.01)
+    assert m["head_off_navmesh_frames"] == 1          # x = 0.99 is past the eroded edge
+    assert 0.03 < m["head_off_navmesh_max_m"] < 0.05
+    assert m["head_off_walkable_frames"] == 0         # but within the radius of it
+    far = replace_x(pos, 1.2)
+    m = surface_metrics(_Traj(far, np.full((len(xs), 3), np.nan)), nav, clearance=0.01)
+    assert m["head_off_walkable_frames"] == len(xs)
+    assert m["trunk_off_walkable"] == 2 * len(xs)
+
+
+def replace_x(pos, x):
+    p = pos.copy()
+    p[:, :, 0] = x
+    return p
