@@ -10,6 +10,7 @@ import pytest
 import trimesh
 
 from baker.cli import main
+from baker.config import DEFAULT_RIG, load_rig_config
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -17,7 +18,7 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 @pytest.fixture(scope="module")
 def scene(tmp_path_factory) -> Path:
     """A 2 x 2 m floor with a 0.5 x 0.5 m block 3 cm high in one corner (a riser between the
-    default step height, 1.4 cm, and 5 cm)."""
+    default rig's step height and 5 cm)."""
     d = tmp_path_factory.mktemp("navscene")
     floor = trimesh.Trimesh([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]],
                             [[0, 2, 1], [0, 3, 2]], process=False)
@@ -104,11 +105,11 @@ def test_agent_overrides_and_scale(scene, capsys):
     assert value(out, r"columns of ([\d.]+) m") == pytest.approx(0.02)
     code, out, _ = run(["navmesh", scene, "--no-cache", "--scale", "3"], capsys)
     assert code == 0
-    # the default rig's agent (radius 0.02 m, cell 0.015 m, step 0.014 m) tripled
-    assert value(out, r"agent radius ([\d.]+) m") == pytest.approx(0.06)
-    assert value(out, r"columns of ([\d.]+) m") == pytest.approx(0.045)
-    assert value(out, r"step ([\d.]+) m") == pytest.approx(0.042)
-    assert value(out, r"(\d+) components") == 1  # a 4.2 cm riser climbs the block
+    base = load_rig_config(DEFAULT_RIG).navigation  # tripled
+    assert value(out, r"agent radius ([\d.]+) m") == pytest.approx(3 * base.radius, rel=1e-3)
+    assert value(out, r"columns of ([\d.]+) m") == pytest.approx(3 * base.cell_size, rel=1e-3)
+    assert value(out, r"step ([\d.]+) m") == pytest.approx(3 * base.step_height, rel=1e-3)
+    assert value(out, r"height ([\d.]+) m") == pytest.approx(3 * base.height, rel=1e-3)
 
 
 def test_bake_takes_scale_and_overrides(scene, tmp_path, capsys):
@@ -118,7 +119,8 @@ def test_bake_takes_scale_and_overrides(scene, tmp_path, capsys):
     rep = json.loads((tmp_path / "g.json").read_text())
     assert rep["parameters"]["rig"]["body"]["length"] == pytest.approx(0.5)
     assert rep["navmesh"]["agent"]["max_slope"] == pytest.approx(np.radians(50.0))
-    assert rep["navmesh"]["cell_size"] == pytest.approx(0.03)
+    base = load_rig_config(DEFAULT_RIG).navigation
+    assert rep["navmesh"]["cell_size"] == pytest.approx(2 * base.cell_size)
 
 
 @pytest.mark.parametrize("args,word", [
