@@ -19,7 +19,7 @@ from baker.environment.rays import RayCaster
 from baker.geometry import polyline
 from baker.geometry.conventions import UP
 from baker.geometry.transforms import frames_to_quat, normalize
-from baker.locomotion.cobra import raise_front
+from baker.locomotion.cobra import limit_lift
 
 
 @dataclass(frozen=True)
@@ -36,20 +36,30 @@ class BodyFrames:
 
 
 def project_to_surface(rays: RayCaster, points: np.ndarray, probe: float):
-    """Drop points onto the surface below them.
+    """Drop points onto the surface nearest to them below or just above.
 
-    points : (n, 3) float, near the surface (within `probe` metres above or below it)
+    points : (n, 3) float, within `probe` metres of the surface (above or below it)
+    Two downward rays per point, one from `probe` above it and one from a tenth of that; the
+    hit closer in height to the point wins. So a point beside an overhang (the inside of a
+    hollow log near its wall) lands on the floor under it, not on the overhang.
     returns (surface points (n, 3), up-facing unit normals (n, 3), hit (n,) bool); points that
     miss keep their position and get UP as the normal.
     """
-    hits = rays.cast_down(points, probe, max_distance=3.0 * probe)
+    n = len(points)
+    far = rays.cast_down(points, probe, max_distance=3.0 * probe)
+    near = rays.cast_down(points, 0.1 * probe, max_distance=2.1 * probe)
+    use_near = near.hit & (~far.hit | (np.abs(near.points[:, 1] - points[:, 1])
+                                       < np.abs(far.points[:, 1] - points[:, 1])))
+    hit = far.hit | near.hit
+    hp = np.where(use_near[:, None], near.points, far.points)
+    hn = np.where(use_near[:, None], near.normals, far.normals)
     out = points.copy()
-    nrm = np.tile(UP, (len(points), 1))
-    out[hits.hit] = hits.points[hits.hit]
-    n = hits.normals[hits.hit]
-    n[n[:, 1] < 0] *= -1.0
-    nrm[hits.hit] = n
-    return out, nrm, hits.hit
+    nrm = np.tile(UP, (n, 1))
+    out[hit] = hp[hit]
+    h = hn[hit]
+    h[h[:, 1] < 0] *= -1.0
+    nrm[hit] = h
+    return out, nrm, hit
 
 
 @dataclass(frozen=True)
@@ -93,37 +103,75 @@ def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: flo
     ground_pts, normals, _ = project_to_surface(rays, pts, probe)
     ground = ground_pts[:, 1]
     sigma = 2.0 * spacing / res
-    smooth = gaussian_filter1d(ground, sigma, mode="nearest")
     band = 0.95 * clearance
-    y = np.clip(smooth, ground - band, ground + band)
+    # smooth, keep inside the band, repeat: alternating projections soften the kinks that
+    # the band leaves at creases and steps
+    y = ground
+    for _ in range(16):
+        y = np.clip(gaussian_filter1d(y, sigma, mode="nearest"), ground - band, ground + band)
     pts = ground_pts.copy()
     pts[:, 1] = y
     normals = normalize(gaussian_filter1d(normals, 0.5 * sigma, axis=0, mode="nearest"))
     return Trail(points=pts, normals=normals, ground=ground, cum=polyline.arc_lengths(pts), cum_h=s)
 
 
+def place_chain(trail: Trail, head_arc: np.ndarray, offset: np.ndarray, spacing: float):
+    """Follow-the-leader placement: the head at its arc length on the trail, every other joint
+    on the trail exactly `spacing` (3D) behind the joint ahead, each raised by its offset.
+
+    offset : (F, S) metres above the trail (clearance + any cobra lift)
+    returns (positions (F, S, 3), arc lengths on the trail (F, S))
+    On a smooth trail this is the joint's fixed arc length behind the head to within a
+    fraction of a percent; where the trail bends over a crease or a small step, keeping the
+    chord exact keeps the body's segments rigid.
+    """
+    F, S = offset.shape
+    pos = np.empty((F, S, 3))
+    arc = np.empty((F, S))
+    arc[:, 0] = head_arc
+    pos[:, 0] = polyline.sample(trail.points, trail.cum, head_arc) + offset[:, :1] * UP
+    steps = np.linspace(0.0, 4.0 * spacing, 33)
+    rows = np.arange(F)
+    for i in range(1, S):
+        prev = pos[:, i - 1]
+        off = offset[:, i:i + 1] * UP
+        # bracket: the first of a few arc steps back whose point is a spacing away (the trail
+        # can fold back on itself over a crease or in a tight turn)
+        cand = arc[:, i - 1:i] - steps[None, :]
+        q = polyline.sample(trail.points, trail.cum, cand) + off[:, None, :]
+        beyond = np.linalg.norm(q - prev[:, None, :], axis=2) > spacing
+        k = np.where(beyond.any(axis=1), np.argmax(beyond, axis=1), len(steps) - 1)
+        hi = cand[rows, np.maximum(k, 1)]
+        lo = cand[rows, np.maximum(k - 1, 0)]
+        for _ in range(16):   # bisection on the arc: distance to the joint ahead == spacing
+            mid = 0.5 * (lo + hi)
+            q = polyline.sample(trail.points, trail.cum, mid) + off
+            far = np.linalg.norm(q - prev, axis=1) > spacing
+            hi = np.where(far, mid, hi)
+            lo = np.where(far, lo, mid)
+        arc[:, i] = 0.5 * (lo + hi)
+        pos[:, i] = polyline.sample(trail.points, trail.cum, arc[:, i]) + off
+    return pos, arc
+
+
 def body_frames(trail: Trail, head_arc: np.ndarray, spacing: float, segments: int,
                 clearance: float, *, lift: np.ndarray | None = None, rays=None,
-                ceiling_margin: float = 0.0) -> BodyFrames:
+                ceiling_margin: float = 0.0, fps: int = 30, ramp_time: float = 0.4) -> BodyFrames:
     """Place the spine on the trail.
 
     head_arc : (F,) float, 3D arc length of the head along the trail at each frame
     lift     : (F, S) optional cobra lift per joint (metres), limited by upward rays on `rays`
     """
-    s = head_arc[:, None] - spacing * np.arange(segments)[None, :]            # (F, S)
-    virt = polyline.sample(trail.points, trail.cum, s)                         # (F, S, 3)
+    F = len(head_arc)
+    if lift is not None and lift.max(initial=0.0) > 0.0:
+        s0 = head_arc[:, None] - spacing * np.arange(segments)[None, :]
+        flat = polyline.sample(trail.points, trail.cum, s0) + clearance * UP
+        lift = limit_lift(flat, lift, spacing, rays, ceiling_margin, int(round(ramp_time * fps)))
+    else:
+        lift = np.zeros((F, segments))
+    pos, s = place_chain(trail, head_arc, clearance + lift, spacing)
     normals = normalize(polyline.sample(trail.normals, trail.cum, s))
     ground = np.interp(s, trail.cum, trail.ground)
-    pos = virt + clearance * UP
-    if lift is not None and lift.max(initial=0.0) > 0.0:
-        pos, lift = raise_front(trail.points, trail.cum, head_arc, pos, lift, spacing, clearance,
-                                rays, ceiling_margin)
-        ground = ground.copy()
-        raised = lift.max(axis=1) > 0
-        if raised.any():  # re-read the surface under the re-placed joints
-            g = project_to_surface(rays, pos[raised].reshape(-1, 3) - (clearance + lift[raised]).reshape(-1, 1) * UP,
-                                   spacing)[0][:, 1]
-            ground[raised] = g.reshape(-1, segments)
     forward = np.empty_like(pos)
     forward[:, 1:] = pos[:, :-1] - pos[:, 1:]
     head_dir = polyline.tangents(trail.points, trail.cum, head_arc)

@@ -2,18 +2,18 @@
 trail. The curve is sampled at 1 - i/n for joint i of n (SEED.md): the head gets the curve's
 value at 1, the tail its value near 0.
 
-Raised joints keep their spacing: each joint is re-placed on the trail at the point whose 3D
-distance to the joint ahead is exactly the rig spacing, so the raised neck pulls the body
-forward along its path instead of stretching it. Lifts are limited by upward rays so a raised
-joint never enters geometry above it.
+Raised joints keep their spacing (the body stage places every joint exactly one spacing from
+the joint ahead), so the raised neck pulls the body forward along its path instead of
+stretching it. Lifts are limited by upward rays so a raised joint never enters geometry above
+it, and the limit is smoothed along the body and over time.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
+from scipy.ndimage import minimum_filter1d, uniform_filter1d
 
-from baker.geometry import polyline
 from baker.geometry.conventions import UP
 
 
@@ -36,57 +36,27 @@ def lift_profile(amount: np.ndarray, keys, height: float, segments: int) -> np.n
     return height * ease[:, None] * curve_values(keys, x)[None, :]
 
 
-def raise_front(trail_points: np.ndarray, trail_cum: np.ndarray, head_arc: np.ndarray,
-                positions: np.ndarray, lift: np.ndarray, spacing: float, clearance: float,
-                rays, margin: float) -> tuple[np.ndarray, np.ndarray]:
-    """Spine positions with the lift applied.
-
-    trail_points, trail_cum : the trail polyline and its 3D arc lengths
-    head_arc  : (F,) head arc length on the trail
-    positions : (F, S, 3) unraised spine (trail point + clearance * UP)
-    lift      : (F, S) requested lift, metres
-    returns (positions (F, S, 3), applied lift (F, S)); frames without lift are unchanged.
-    """
-    out = positions.copy()
-    lift = lift.copy()
-    frames = np.nonzero(lift.max(axis=1) > 1e-9)[0]
-    if len(frames) == 0:
-        return out, lift
-    L = lift[frames]
-    S = L.shape[1]
-    # Ceiling: rays up from each raised joint's unraised position.
-    f_idx, j_idx = np.nonzero(L > 1e-9)
-    base = positions[frames][f_idx, j_idx]
+def limit_lift(positions: np.ndarray, lift: np.ndarray, spacing: float, rays, margin: float,
+               fps_frames: int) -> np.ndarray:
+    """Requested lift (F, S) limited by the room above each joint's unraised position (rays
+    up). The limit is smoothed over time (the lift lowers ahead of an overhang, over
+    `fps_frames` frames, rather than snapping down under it) and applied as one factor per
+    frame, so the raised front keeps the curve's shape, only lower."""
+    f_idx, j_idx = np.nonzero(lift > 1e-9)
+    if len(f_idx) == 0:
+        return lift.copy()
+    base = positions[f_idx, j_idx]
     up = np.tile(UP, (len(base), 1))
-    hits = rays.first_hit(base, up, max_distance=L[f_idx, j_idx] + margin + 1e-6)
-    room = np.where(hits.hit, hits.distance - margin, np.inf)
-    L[f_idx, j_idx] = np.clip(np.minimum(L[f_idx, j_idx], room), 0.0, None)
-    # Smooth the clamped profile along the body so a low ceiling bends, not breaks, the neck.
-    for _ in range(2):
-        L = np.minimum(L, np.concatenate([L[:, :1], L[:, :-1]], axis=1) + 0.5 * spacing)
-    lift[frames] = L
-
-    ha = head_arc[frames]
-    p = np.empty((len(frames), S, 3))
-    p[:, 0] = polyline.sample(trail_points, trail_cum, ha) + (clearance + L[:, 0:1]) * UP
-    u_prev = np.zeros(len(frames))
-    for i in range(1, S):
-        prev = p[:, i - 1]
-        off = (clearance + L[:, i:i + 1]) * UP
-
-        def dist(u):
-            q = polyline.sample(trail_points, trail_cum, ha - u) + off
-            return np.linalg.norm(q - prev, axis=1), q
-
-        lo = u_prev.copy()
-        hi = u_prev + 2.0 * spacing
-        for _ in range(24):  # bisection on the arc: distance to the joint ahead == spacing
-            mid = 0.5 * (lo + hi)
-            d, _ = dist(mid)
-            far = d > spacing
-            hi = np.where(far, mid, hi)
-            lo = np.where(far, lo, mid)
-        u_prev = 0.5 * (lo + hi)
-        _, p[:, i] = dist(u_prev)
-    out[frames] = p
-    return out, lift
+    t, _ = rays.cast(base, up, lift[f_idx, j_idx] + margin + 1e-6)
+    room = np.full(lift.shape, np.inf)
+    room[f_idx, j_idx] = np.where(np.isfinite(t), t - margin, np.inf)
+    if not np.isfinite(room).any():
+        return lift.copy()
+    w = max(int(fps_frames), 1)
+    capped = np.minimum(room, lift.max())
+    capped = minimum_filter1d(capped, size=2 * w + 1, axis=0, mode="nearest")
+    capped = uniform_filter1d(capped, size=w + 1, axis=0, mode="nearest")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(lift > 1e-9, np.clip(capped, 0.0, None) / lift, np.inf)
+    factor = np.clip(ratio.min(axis=1), 0.0, 1.0)
+    return lift * factor[:, None]

@@ -101,7 +101,8 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
         # 1. brain: perception, the d10, hunting; a new target means a new path
         brain.step(Senses(t, head.position, head.heading, agent.arrived))
         if brain.new_target:
-            agent.set_path(nav.find_path(agent.position, brain.target).points)
+            # dense path points carry the walked layer's heights (chords cut through bumps)
+            agent.set_path(nav.resample_path(nav.find_path(agent.position, brain.target).points))
         elif brain.halt:
             agent.set_path(agent.position[None])
         agent.speed_scale = brain.speed_scale
@@ -128,8 +129,9 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     # rays searched from below the agent's free height so overhangs are never hit.
     probe = 0.5 * navc.height
     path = np.vstack([tail[:-1], heads])
-    # Path heights are exact only at path corners: start the rays from the navigation surface.
-    h = nav.surface_height(path)
+    # Path heights are exact only at path corners: start the rays from the navigation surface
+    # (the layer nearest the path, never one a free agent height above or below it).
+    h = nav.surface_height(path, tol=0.5 * navc.height)
     path[np.isfinite(h), 1] = h[np.isfinite(h)]
     trail = build_trail(path, env.rays, probe=probe, spacing=body.spacing, clearance=body.clearance)
     flat = path.copy()
@@ -139,7 +141,8 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     head_arc = trail.arc_at(cum_h[len(tail) - 1 + frame_steps])
     lift = lift_profile(rec.cobra, rig.cobra.curve, rig.cobra.height, body.segments)
     bf = body_frames(trail, head_arc, body.spacing, body.segments, body.clearance, lift=lift,
-                     rays=env.rays, ceiling_margin=rig.cobra.ceiling_margin)
+                     rays=env.rays, ceiling_margin=rig.cobra.ceiling_margin, fps=cfg.fps,
+                     ramp_time=rig.cobra.ramp_time)
     # Legs, antennae and ultimate legs for all frames at once, from the placed spine.
     limbs = {}
     if rig.legs.enabled:
