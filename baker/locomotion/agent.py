@@ -47,6 +47,18 @@ class PathAgent:
     def arrived(self) -> bool:
         return self.remaining <= self.stopping_distance + 1e-9 and self.speed == 0.0
 
+    def height_behind(self, distance: float) -> float:
+        """Height of the path `distance` metres behind the agent (the walked layer, where a
+        follower trailing the agent is)."""
+        s = max(self._s - distance, 0.0)
+        i = int(np.searchsorted(self._cum, s, side="right")) - 1
+        i = min(max(i, 0), len(self._cum) - 2) if len(self._cum) > 1 else 0
+        if len(self._cum) == 1:
+            return float(self._points[0, 1])
+        seg = self._cum[i + 1] - self._cum[i]
+        t = (s - self._cum[i]) / seg if seg > 0 else 0.0
+        return float(self._points[i, 1] + t * (self._points[i + 1, 1] - self._points[i, 1]))
+
     @property
     def goal(self) -> np.ndarray:
         return self._points[-1]

@@ -36,20 +36,33 @@ class BodyFrames:
 
 
 def project_to_surface(rays: RayCaster, points: np.ndarray, probe: float):
-    """Drop points onto the surface nearest to them below or just above.
+    """Drop points onto the floor nearest to them below or just above.
 
     points : (n, 3) float, within `probe` metres of the surface (above or below it)
-    Two downward rays per point, one from `probe` above it and one from a tenth of that; the
-    hit closer in height to the point wins. So a point beside an overhang (the inside of a
-    hollow log near its wall) lands on the floor under it, not on the overhang.
+    Two downward rays per point, one from `probe` above it and one from a tenth of that. A hit
+    counts as floor when there is at least `probe` of free space above it (so the underside of
+    an overhang, or a surface buried inside another solid where meshes interpenetrate, is
+    not); among floors, the one closer in height to the point wins (beside an overhang, the
+    inside of a hollow log near its wall, that is the floor under it, not the overhang).
     returns (surface points (n, 3), up-facing unit normals (n, 3), hit (n,) bool); points that
     miss keep their position and get UP as the normal.
     """
     n = len(points)
     far = rays.cast_down(points, probe, max_distance=3.0 * probe)
     near = rays.cast_down(points, 0.1 * probe, max_distance=2.1 * probe)
-    use_near = near.hit & (~far.hit | (np.abs(near.points[:, 1] - points[:, 1])
-                                       < np.abs(far.points[:, 1] - points[:, 1])))
+    up = np.tile(UP, (n, 1))
+
+    def floor(h):
+        ok = h.hit.copy()
+        if ok.any():
+            t, _ = rays.cast(h.points[ok] + 1e-4 * UP, up[ok], probe)
+            ok[ok] = ~np.isfinite(t)
+        return ok
+
+    f_ok, n_ok = floor(far), floor(near)
+    closer = np.abs(near.points[:, 1] - points[:, 1]) < np.abs(far.points[:, 1] - points[:, 1])
+    # rank: a floor beats a non-floor; then the closer in height
+    use_near = near.hit & (~far.hit | (n_ok & ~f_ok) | ((n_ok == f_ok) & closer))
     hit = far.hit | near.hit
     hp = np.where(use_near[:, None], near.points, far.points)
     hn = np.where(use_near[:, None], near.normals, far.normals)

@@ -115,6 +115,7 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
         # 3. head
         head.step(dt, agent.position, agent.speed)
         heads[k] = head.position
+        heads[k, 1] = agent.height_behind(gap)   # the head is on the path's layer, behind the agent
         # 4. prey react to the head
         for p in preys:
             p.step(t, dt, head.position)
