@@ -48,7 +48,7 @@ def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
     from baker.clip import build_clip
     from baker.environment import load_environment
     from baker.export import report as report_mod
-    from baker.export.atomic import atomic_write_bytes, check_writable
+    from baker.atomic import atomic_write_bytes, check_writable
     from baker.export.gltf import build_glb
     from baker.export.usd import write_usd
     from baker.navmesh import debug as nav_debug

@@ -32,7 +32,7 @@ from baker.clip import Clip
 from baker.environment.model import Environment
 from baker.errors import ExportError
 from baker.export import jsonable, light_rotation, safe_name, unit_normals, vertex_normals
-from baker.export.atomic import atomic_output
+from baker.atomic import atomic_output
 from baker.rig.build import Rig
 
 log = logging.getLogger(__name__)

@@ -4,14 +4,13 @@ summarise it, and optionally draw its top-down map with a path. The CLI only cal
 from __future__ import annotations
 
 import logging
-import os
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from baker.atomic import atomic_output, check_writable
 from baker.errors import ConfigError
 
 log = logging.getLogger(__name__)
@@ -84,23 +83,11 @@ def _draw(surface, png: Path, path, name: str) -> Path:
     """Draw to a temporary file beside `png`, then rename (no half-written map)."""
     from baker.navmesh.debug import draw_map
 
-    try:
-        png.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=png.stem, suffix=".tmp.png", dir=png.parent)
-        os.close(fd)
-    except OSError as exc:
-        raise ConfigError(f"cannot write --png {png}: {exc.strerror or exc}") from None
     title = (f"{name}: walkable {surface.walkable_area:.2f} m^2, "
              f"{surface.n_components} components")
-    try:
+    check_writable(png.parent)
+    with atomic_output(png) as tmp:
         draw_map(surface, tmp, paths=() if path is None else (path,), title=title)
-        os.replace(tmp, png)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
     return png
 
 

@@ -7,7 +7,7 @@ import sys
 import pytest
 
 from baker.errors import ExportError
-from baker.export.atomic import atomic_output, atomic_write_bytes, check_writable
+from baker.atomic import atomic_output, atomic_write_bytes, check_writable
 
 
 def test_writes_and_replaces(tmp_path):

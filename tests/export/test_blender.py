@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from baker.export.atomic import atomic_write_bytes
+from baker.atomic import atomic_write_bytes
 from baker.export.gltf import build_glb
 from baker.export.usd import write_usd
 

@@ -5,7 +5,7 @@ import pytest
 from glb_read import Glb
 from validator import gltf_validate, issues_summary
 
-from baker.export.atomic import atomic_write_bytes
+from baker.atomic import atomic_write_bytes
 from baker.export.gltf import build_glb
 from baker.geometry.transforms import quat_rotate
 

@@ -1,7 +1,7 @@
 """The package's dependencies point one way (DESIGN.md): geometry <- environment <- navmesh <-
 behaviour/locomotion <- sim <- clip <- export, with the pipeline and CLI on top. Only
 environment/ reads scene files and only export/ (plus the navigation cache and its debug map)
-writes files."""
+writes files, all through baker/atomic.py (temporary file, then rename)."""
 
 import ast
 import re
@@ -15,17 +15,18 @@ PKG = Path(__file__).resolve().parents[2] / "baker"
 ALLOWED = {
     "geometry": set(),
     "errors": set(),
+    "atomic": set(),
     "config": set(),
     "context": set(),
     "environment": set(),
-    "navmesh": {"environment", "config"},
+    "navmesh": {"environment", "config", "atomic"},
     "locomotion": {"environment", "config", "rig"},
     "behaviour": {"environment", "navmesh", "locomotion", "config"},
     "rig": {"config"},
     "sim": {"environment", "navmesh", "behaviour", "locomotion", "config", "context"},
     "metrics": {"sim"},
     "clip": {"rig", "sim"},
-    "export": {"clip", "rig", "sim", "environment", "config", "navmesh"},
+    "export": {"clip", "rig", "sim", "environment", "config", "navmesh", "atomic"},
 }
 TOP = {"pipeline", "cli", "__init__", "__main__"}
 
@@ -63,7 +64,7 @@ def test_imports_point_one_way(path):
         assert target in allowed, f"{path.relative_to(PKG)} imports {mod}"
 
 
-WRITERS = {"export", "navmesh/cache.py", "navmesh/debug.py", "navmesh/report.py"}
+WRITERS = {"export", "atomic.py", "navmesh/cache.py", "navmesh/debug.py", "navmesh/report.py"}
 
 
 @pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(PKG)))
