@@ -11,24 +11,16 @@ from __future__ import annotations
 import argparse
 import statistics
 import tempfile
-import time
 from dataclasses import replace
 from pathlib import Path
 
-from baker.config import DEFAULT_RIG, BakeConfig, load_rig_config
-from baker.context import Context
-from baker.pipeline import bake
+from baker.config import DEFAULT_RIG, load_rig_config
+from bench_bake import timed_bake
 
 
 def one(seconds: float, legs: bool, cache: Path, out: Path):
     rig = load_rig_config(DEFAULT_RIG)
-    rig = replace(rig, legs=replace(rig.legs, enabled=legs))
-    cfg = BakeConfig(seconds=seconds, fps=30, seed=0, rig=rig, out=out / "bench",
-                     nav_cache_dir=cache)
-    ctx = Context()
-    t = time.perf_counter()
-    bake(cfg, ctx=ctx)
-    return time.perf_counter() - t, dict(ctx.timings)
+    return timed_bake(seconds, cache, out, rig=replace(rig, legs=replace(rig.legs, enabled=legs)))
 
 
 def main():
