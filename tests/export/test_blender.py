@@ -60,3 +60,25 @@ def test_blender_imports_the_animation(tmp_path, suffix, small_env, rig, clip, t
         p = world[f]
         want = np.stack([p[:, 0], -p[:, 2], p[:, 1]], -1)          # +Y up -> Blender's +Z up
         assert np.abs(got - want).max() < 1e-5
+
+
+@pytest.mark.slow
+def test_blender_imports_each_behaviour_clip_as_an_action(tmp_path):
+    """`--clips`: every per-behaviour glTF animation arrives in Blender as its own action."""
+    exe = _blender_python()
+    from baker.config import DEFAULT_RIG, BakeConfig, load_rig_config
+    from baker.pipeline import bake
+    from glb_read import Glb
+
+    r = bake(BakeConfig(seconds=20, seed=0, rig=load_rig_config(DEFAULT_RIG), prey=2, clips=True,
+                        out=tmp_path / "clips", formats=("glb",), nav_cache_dir=tmp_path / "cache"))
+    names = [a["name"] for a in Glb(r.outputs["glb"].read_bytes()).doc["animations"]]
+    assert len(names) >= 3 and names[0] == "bake"
+    d = _probe(exe, r.outputs["glb"], 30, [0])
+    for name in names:
+        assert name in d["actions"], (name, sorted(d["actions"]))
+    for i, e in enumerate(r.report["timeline"]):
+        name = f"{e['state']}_{i:02d}"
+        if name in names:
+            f0, f1 = round(e["start"] * 30), round(e["end"] * 30)
+            assert d["actions"][name] == [0.0, float(f1 - f0)]

@@ -39,4 +39,5 @@ meshes = [o for o in scene.objects
           if o.type == "MESH" and any(m.type == "ARMATURE" and m.object == arm for m in o.modifiers)]
 out["skinned_meshes"] = sorted(m.name for m in meshes)
 out["skinned_vertices"] = sum(len(m.data.vertices) for m in meshes)
+out["actions"] = {a.name: list(a.frame_range) for a in bpy.data.actions}
 print("PROBE_JSON " + json.dumps(out))
