@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
+from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from baker.environment.rays import RayCaster
 from baker.geometry import polyline
@@ -117,9 +117,10 @@ def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: flo
     ground = ground_pts[:, 1]
     sigma = 2.0 * spacing / res
     band = 0.95 * clearance
-    # smooth, keep inside the band, repeat: alternating projections soften the kinks that
-    # the band leaves at creases and steps
-    y = ground
+    # start from the highest ground within half a spacing (so the body rises before a step
+    # up and clears its edge), then smooth and keep inside the band, repeatedly: alternating
+    # projections soften the kinks that the band leaves at creases and steps
+    y = maximum_filter1d(ground, size=max(int(round(0.5 * spacing / res)), 1) * 2 + 1, mode="nearest")
     for _ in range(16):
         y = np.clip(gaussian_filter1d(y, sigma, mode="nearest"), ground - band, ground + band)
     pts = ground_pts.copy()
