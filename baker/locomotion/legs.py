@@ -12,7 +12,8 @@ Walking legs (two bones each, one pair per trunk segment):
    - a swing lasts at most `settle_time` seconds: when the body slows or stops, the foot lands
      (at most half a stance sweep ahead of its anchor) and stays put;
    - a planted foot lifts early (a frame before it happens) when the body would carry it out of
-     reach, too far behind, under the body, or behind a wall.
+     reach, too far behind, under the body, or behind a wall, or turn its leg round the hip by
+     more than STANCE_TURN in one frame (a fast, tight turn).
    The loop runs over step cycles (a few hundred a minute), vectorized over legs.
 4. Footholds: one batch of ray casts for every touchdown of every leg: straight down the
    segment's up axis, then fans tilted toward the body, also from origins pulled in. A hold must
@@ -22,12 +23,17 @@ Walking legs (two bones each, one pair per trunk segment):
 5. Swing: the foot sweeps around its hip in the segment frame, from the old hold as seen at
    liftoff to the new one as seen at touchdown, with a lift; raised where the surface below or
    a wall is in the way; lifted over a neighbour's foot; re-timed to an even angular pace where
-   the path is uneven. It lands exactly on the hold.
+   the path is uneven. Swings (from the last planted frame) in which a leg joint would still
+   turn more than EVEN_JOINT in a frame are re-timed to an even pace in joint space. A
+   swinging leg that would still reach through something (past a wall's corner) is drawn in
+   toward its hip, eased in and out. It lands exactly on the hold.
 6. Two-bone IK for all frames x legs at once (geometry/ik.py), knee pole across the leg (up and
-   out); knees swivel about the hip->foot line where a bone would touch the environment.
+   out); knees swivel about the hip->foot line where a bone would touch the environment, the
+   swivel easing in and out at most SWIVEL_RATE per frame.
 
 Ultimate legs and antennae are posed by angles in their segment's frame; their raise/pitch is
-lifted where a bone would go through the environment (candidate angles, one batch of rays).
+lifted where a bone would go through the environment (candidate angles, one batch of rays),
+easing in and out at most CHAIN_RAISE_RATE per frame and never below a raise that clears.
 Forcipules keep their rest posture on the head (not driven here).
 """
 
@@ -72,8 +78,22 @@ LIFT_WINDOW = 48
 SWEEP_LIMIT = np.radians(80.0)
 #: knee swivels about the hip->foot axis tried when a leg bone would go through something [rad]
 KNEE_SWIVELS = np.radians([20.0, -20.0, 40.0, -40.0, 60.0, -60.0, 85.0, -85.0])
+#: a knee swivel (clearing the environment) changes by at most this much per frame [rad]
+SWIVEL_RATE = np.radians(8.0)
+#: a planted foot lifts before the body turns its leg by more than this in one frame [rad]
+STANCE_TURN = np.radians(24.0)
+#: an ultimate leg or antenna raised clear of the environment rises and falls at most this much
+#: per frame [rad]
+CHAIN_RAISE_RATE = np.radians(4.0)
+#: a swinging foot whose leg would pass through the environment is drawn toward its hip to
+#: the first of these fractions of its distance that clears
+PULL_IN = (0.85, 0.7, 0.55, 0.4)
+#: ... with the pull changing by at most this fraction per frame
+PULL_RATE = 0.1
 #: swings turning the leg by more than this in a frame are re-timed to an even pace [rad]
 EVEN_SWING = np.radians(18.0)
+#: swings turning a leg joint (IK) by more than this in a frame are re-timed in joint space [deg]
+EVEN_JOINT = 24.0
 #: a swinging foot rises at most this many upper-bone lengths above its hip
 SWING_CEILING = 0.8
 #: swing wall checks: at most this many half-lift raises
@@ -238,7 +258,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     lag = lay.lag
     legs = np.arange(L)
     q_inv = q * np.array([-1.0, -1.0, -1.0, 1.0])
-    win = np.arange(LIFT_WINDOW)[None, :]
+    win_ext = np.arange(LIFT_WINDOW + 1)[None, :]
 
     def first_bad(hold, start, stop, sight=False):
         """(L,) first frame in [start, stop) where a foot planted at `hold` (L, 3) would be out
@@ -250,10 +270,17 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         open_ = start < stop
         while open_.any():
             ll = legs[open_]
-            fw = np.minimum(start[open_, None] + win, F - 1)
-            rel = quat_rotate(q_inv[fw, ll[:, None]], hold[open_, None, :] - hip[fw, ll[:, None]])
+            fw_ext = np.clip(start[open_, None] - 1 + win_ext, 0, F - 1)
+            rel_ext = quat_rotate(q_inv[fw_ext, ll[:, None]],
+                                  hold[open_, None, :] - hip[fw_ext, ll[:, None]])
+            fw, rel = fw_ext[:, 1:], rel_ext[:, 1:]
+            n_ext = np.sqrt(np.einsum("lwi,lwi->lw", rel_ext, rel_ext))
             bad = ((rel[..., 0] * lay.side[ll, None] < foot_x_min[ll, None])
-                   | (np.linalg.norm(rel, axis=-1) > span) | (rel[..., 2] < -a_back[ll, None]))
+                   | (n_ext[:, 1:] > span) | (rel[..., 2] < -a_back[ll, None]))
+            # a fast turn would swing the planted leg round its hip too fast: lift first
+            cos_t = np.einsum("lwi,lwi->lw", rel, rel_ext[:, :-1]) / np.maximum(
+                n_ext[:, 1:] * n_ext[:, :-1], 1e-300)
+            bad |= cos_t < np.cos(STANCE_TURN)
             if sight:
                 hp = hip[fw, ll[:, None]].reshape(-1, 3)
                 v = np.broadcast_to(hold[open_, None, :], fw.shape + (3,)).reshape(-1, 3) - hp
@@ -444,6 +471,21 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     # leg turns by equal angles each frame
     target = _even_swings(target, hip, q, q_inv, cidx, LOs, Ts, sw, EVEN_SWING)
 
+    # swings (and liftoffs) that still turn a leg joint by more than EVEN_JOINT in a frame are
+    # re-timed to an even pace in joint space (the rotations the IK will give each bone)
+    moved = np.zeros((F, L), bool)
+    for _ in range(2):
+        target, m = _even_joint_swings(target, hip, q, q_inv, fwd, left, lay, lg.knee_out,
+                                       cidx, LOs, Ts, sw, EVEN_JOINT)
+        moved |= m
+    # ... and a re-timed swinging foot still stays above the surface below it
+    if np.any(moved):
+        sp = target[moved]
+        probe = body.clearance + 2.0 * lg.lift
+        hh = rays.cast_down(sp, probe, max_distance=2.0 * probe)
+        sp[:, 1] = np.where(hh.hit, np.maximum(sp[:, 1], hh.points[:, 1]), sp[:, 1])
+        target[moved] = sp
+
     # a swinging foot that would pass too close to its neighbour's foot goes over it
     gap = NEIGHBOUR_GAP * body.spacing
     for _ in range(6):
@@ -454,6 +496,11 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         f, k = np.nonzero(conf)
         leg = np.where(sw[f, k + 2], k + 2, k)           # the rear one when both swing
         np.add.at(target, (f, leg), up[f, leg] * (1.2 * (gap - d[f, k]))[:, None])
+
+    # a swinging foot whose leg would still reach through the environment (past a wall's
+    # corner) is drawn in toward its hip, eased in and out
+    target = _pull_in_swings(rays, hip, target, sw, fwd, left, lay, lg.knee_out,
+                             0.005 * cfg.body.length)
 
     # -- IK, all frames x legs
     pole = leg_pole(lay, hip, target, fwd, left, lg.knee_out)
@@ -501,6 +548,110 @@ def _even_swings(target, hip, q, q_inv, cidx, LOs, Ts, sw, limit):
     return out
 
 
+def _joint_steps(hip, target, q_inv, fwd, left, lay, knee_out):
+    """(F-1, L) degrees: the largest per-frame rotation of a leg's upper bone (relative to its
+    segment) or tip bone (relative to the upper bone) that the IK gives for these targets."""
+    pole = leg_pole(lay, hip, target, fwd, left, knee_out)
+    sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
+    m = quat_rotate(q_inv, sol.mid - hip)
+    e = quat_rotate(q_inv, sol.end - hip)
+    hg = quat_rotate(q_inv, sol.hinge)
+    # upper bone frame (x hinge, y along the bone, z = x cross y): rotation angle between frames
+    # from the trace of R1^T R2
+    y = normalize(m)
+    x = normalize(hg - np.sum(hg * y, -1, keepdims=True) * y)
+    z = np.cross(x, y)
+    tr = sum(np.sum(a[1:] * a[:-1], -1) for a in (x, y, z))
+    up_step = np.degrees(np.arccos(np.clip(0.5 * (tr - 1.0), -1.0, 1.0)))
+    # the tip turns about the same hinge: its step is the change of the knee angle
+    knee = np.arccos(np.clip(np.sum(y * normalize(e - m), -1), -1.0, 1.0))
+    return np.maximum(up_step, np.degrees(np.abs(np.diff(knee, axis=0))))
+
+
+def _even_joint_swings(target, hip, q, q_inv, fwd, left, lay, knee_out, cidx, LOs, Ts, sw,
+                       limit_deg):
+    """Re-time swings in which a leg joint turns by more than `limit_deg` in one frame (from the
+    last planted frame to touchdown): the same path (segment frame), walked so that the joint
+    rotation per frame is even. Both ends are unchanged. Returns (targets, (F, L) bool: the
+    frames re-timed)."""
+    F, L, _ = target.shape
+    moved = np.zeros((F, L), bool)
+    step = _joint_steps(hip, target, q_inv, fwd, left, lay, knee_out)       # (F-1, L)
+    big = (step > limit_deg) & (sw[1:] | sw[:-1])
+    if not big.any():
+        return target, moved
+    rel = quat_rotate(q_inv, target - hip)
+    f, l = np.nonzero(big)
+    c = np.where(sw[f + 1, l], cidx[f + 1, l], cidx[f, l])     # the swing this step belongs to
+    out = target.copy()
+    for cc, ll in set(zip(c.tolist(), l.tolist())):
+        a, b = int(LOs[cc, ll]) - 1, int(min(Ts[cc + 1, ll], F - 1))
+        a = max(a, 0)
+        if b - a < 2:
+            continue
+        seg = rel[a:b + 1, ll]
+        cum = np.concatenate([[0.0], np.cumsum(step[a:b, ll] + 1e-3)])
+        want = cum[-1] * np.arange(b - a + 1) / (b - a)
+        j = np.clip(np.searchsorted(cum, want, side="right") - 1, 0, b - a - 1)
+        t = np.clip((want - cum[j]) / np.maximum(cum[j + 1] - cum[j], 1e-12), 0.0, 1.0)
+        new = seg[j] + (seg[j + 1] - seg[j]) * t[:, None]
+        out[a + 1:b, ll] = hip[a + 1:b, ll] + quat_rotate(q[a + 1:b, ll], new[1:-1])
+        moved[a + 1:b, ll] = True
+    return out, moved
+
+
+def _pull_in_swings(rays, hip, target, sw, fwd, left, lay, knee_out, tol):
+    """Swinging feet drawn toward their hips (by the smallest of PULL_IN that works) in frames
+    where the leg (IK bones, or the straight hip->foot line) would pass through the
+    environment; the pull changes by at most PULL_RATE per frame and is zero on planted
+    frames (so at most PULL_RATE one frame after liftoff or before touchdown)."""
+    F, L, _ = target.shape
+    f, l = np.nonzero(sw)
+    if len(f) == 0:
+        return target
+    hp, tg = hip[f, l], target[f, l]
+    todo = _leg_blocked(rays, lay, l, hp, tg, fwd[f, l], left[f, l], knee_out, tol)
+    if not todo.any():
+        return target
+    need = np.zeros(len(f))
+    for k in PULL_IN:
+        i = np.nonzero(todo)[0]
+        if len(i) == 0:
+            break
+        ok = ~_leg_blocked(rays, lay, l[i], hp[i], hp[i] + k * (tg[i] - hp[i]), fwd[f[i], l[i]],
+                           left[f[i], l[i]], knee_out, tol)
+        need[i[ok]] = 1.0 - k
+        todo[i[ok]] = False
+    if not need.any():
+        return target
+    pull = np.zeros((F, L))
+    pull[f, l] = need
+    pull = _ramp(pull, PULL_RATE)
+    # ... and grows from nothing at liftoff and back to nothing at touchdown
+    run = np.zeros((F, L))
+    for i in range(1, F):
+        run[i] = np.where(sw[i], run[i - 1] + 1.0, 0.0)
+    back = np.zeros((F, L))
+    for i in range(F - 2, -1, -1):
+        back[i] = np.where(sw[i], back[i + 1] + 1.0, 0.0)
+    pull = np.minimum(pull, PULL_RATE * np.minimum(run, back))
+    return hip + (1.0 - pull)[..., None] * (target - hip)
+
+
+def _leg_blocked(rays, lay, legs, hip, target, fwd, left, knee_out, tol):
+    """(n,) bool for flat batches of (frame, leg) samples of legs `legs`: the straight
+    hip->foot line or either IK bone (knee pole as in rig.limbs.leg_pole) passes through the
+    environment."""
+    u = normalize(target - hip)
+    s = lay.side[legs][:, None]
+    pole = s * np.cross(fwd, u) + knee_out * s * left
+    sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
+    v = sol.end - hip
+    dist = np.linalg.norm(v, axis=1)
+    line = rays.first_hit(hip, v, max_distance=np.maximum(dist - tol, 0.0)).hit
+    return line | _bones_hit(rays, hip, sol.mid, sol.end, lay.l1, lay.l2, tol)
+
+
 def _bones_hit(rays, hip, mid, end, l1, l2, tol):
     """(n,) bool: either bone of each leg passes through the environment (the last `tol` of the
     tip bone is not tested, so a foot resting on the surface does not count)."""
@@ -546,11 +697,24 @@ def _clear_knees(rays, hip, mid, end, hinge, l1, l2, tol):
             break
     angle = np.zeros((F, L))
     angle[f, l] = angle_run[r]
-    angle = gaussian_filter1d(angle, 1.5, axis=0, mode="nearest")
-    angle[f, l] = angle_run[r]                            # full swivel on the run itself
+    # the swivel eases in and out at most SWIVEL_RATE per frame (full swivel on the run itself)
+    angle = _ramp(np.maximum(angle, 0.0), SWIVEL_RATE) - _ramp(np.maximum(-angle, 0.0), SWIVEL_RATE)
     new_mid = _swivel(mid, hip, axis, angle)
     new_hinge = _swivel(hinge, np.zeros_like(hinge), axis, angle)
     return new_mid, new_hinge
+
+
+def _ramp(a: np.ndarray, rate: float) -> np.ndarray:
+    """The smallest function >= a (a >= 0) that changes by at most `rate` per frame along
+    axis 0: the cone dilation max_j a[j] - rate * |i - j| (offsets beyond max(a) / rate add
+    nothing)."""
+    out = np.array(a, dtype=float, copy=True)
+    if out.size == 0 or out.max() <= 0.0:
+        return out
+    for d in range(1, min(int(np.ceil(out.max() / rate)), len(out) - 1) + 1):
+        np.maximum(out[d:], a[:-d] - rate * d, out=out[d:])
+        np.maximum(out[:-d], a[d:] - rate * d, out=out[:-d])
+    return out
 
 
 def _swivel(p, origin, axis, angle):
@@ -676,12 +840,25 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
             hits = rays.first_hit(start.reshape(-1, 3), d.reshape(-1, 3), max_distance=ln * 1.05)
             ok_all &= ~hits.hit.reshape(F, k)
         choice = np.where(ok_all.any(1), np.argmax(ok_all, 1), k - 1)
-        lift = raise_steps[choice]
-        lift = gaussian_filter1d(maximum_filter1d(lift, 9, mode="nearest"), 2.0, mode="nearest")
-        pitch = base_pitch + lift
-        d1 = quat_rotate(q, _chain_dirs(s, yaw1 + dyaw, pitch, back))
-        d2 = quat_rotate(q, _chain_dirs(s, yaw2 + dyaw, pitch + (pit2 - pit1), back))
-        knee = o + d1 * l1
+        raw = raise_steps[choice]
+        # eased in and out (at most CHAIN_RAISE_RATE per frame), never below what clears; a
+        # frame on the way up or down that touches something (a raise that clears below and
+        # above but not in between) takes the next clearing raise above it
+        for it in range(4):
+            lift = _ramp(raw[:, None], CHAIN_RAISE_RATE)[:, 0]
+            pitch = base_pitch + lift
+            d1 = quat_rotate(q, _chain_dirs(s, yaw1 + dyaw, pitch, back))
+            d2 = quat_rotate(q, _chain_dirs(s, yaw2 + dyaw, pitch + (pit2 - pit1), back))
+            knee = o + d1 * l1
+            if it == 3:
+                break
+            bad = (rays.first_hit(o, d1, max_distance=l1 * 1.05).hit
+                   | rays.first_hit(knee, d2, max_distance=l2 * 1.05).hit)
+            if not bad.any():
+                break
+            above = ok_all & (raise_steps[None, :] > lift[:, None] + 1e-9)
+            nxt = np.where(above.any(1), raise_steps[np.argmax(above, 1)], raise_steps[-1])
+            raw = np.where(bad, np.maximum(raw, nxt), raw)
         hinge = normalize(np.cross(up, d1))
         names += list(ch.names)
         pos += [o, knee]
