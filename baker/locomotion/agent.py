@@ -47,17 +47,20 @@ class PathAgent:
     def arrived(self) -> bool:
         return self.remaining <= self.stopping_distance + 1e-9 and self.speed == 0.0
 
+    def _at(self, s: float) -> np.ndarray:
+        """Point at arc length s (scalar fast path of polyline.sample, for the step loop)."""
+        cum, pts = self._cum, self._points
+        if len(cum) == 1:
+            return pts[0].copy()
+        i = min(max(int(np.searchsorted(cum, s, side="right")) - 1, 0), len(cum) - 2)
+        seg = cum[i + 1] - cum[i]
+        t = (s - cum[i]) / seg if seg > 0 else 0.0
+        return pts[i] + t * (pts[i + 1] - pts[i])
+
     def height_behind(self, distance: float) -> float:
         """Height of the path `distance` metres behind the agent (the walked layer, where a
         follower trailing the agent is)."""
-        s = max(self._s - distance, 0.0)
-        i = int(np.searchsorted(self._cum, s, side="right")) - 1
-        i = min(max(i, 0), len(self._cum) - 2) if len(self._cum) > 1 else 0
-        if len(self._cum) == 1:
-            return float(self._points[0, 1])
-        seg = self._cum[i + 1] - self._cum[i]
-        t = (s - self._cum[i]) / seg if seg > 0 else 0.0
-        return float(self._points[i, 1] + t * (self._points[i + 1, 1] - self._points[i, 1]))
+        return float(self._at(max(self._s - distance, 0.0))[1])
 
     @property
     def goal(self) -> np.ndarray:
@@ -77,4 +80,4 @@ class PathAgent:
         if free <= 0.0:
             self.speed = max(self.speed - dv, 0.0)
         self._s = min(self._s + self.speed * dt, float(self._cum[-1]))
-        self.position = polyline.sample(self._points, self._cum, self._s)
+        self.position = self._at(self._s)
