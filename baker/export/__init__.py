@@ -82,3 +82,19 @@ def unit_normals(n: np.ndarray) -> np.ndarray:
     return out.astype(np.float32)
 
 
+def checked_mesh(name: str, vertices, faces, normals):
+    """Validate a static mesh for writing: (vertices (n, 3) float32, faces (m, 3) int64,
+    unit vertex normals (n, 3) float32, computed when missing or malformed).
+    ExportError names the mesh when it is empty, out of range or non-finite."""
+    from baker.errors import ExportError
+
+    v = np.ascontiguousarray(vertices, dtype=np.float32).reshape(-1, 3)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if not len(v) or not len(f):
+        raise ExportError(f"mesh {name!r} has no vertices or no faces")
+    if f.min() < 0 or f.max() >= len(v):
+        raise ExportError(f"mesh {name!r} has face indices out of range")
+    if not np.all(np.isfinite(v)):
+        raise ExportError(f"mesh {name!r} has non-finite vertices")
+    n = vertex_normals(v, f) if normals is None or np.shape(normals) != v.shape else unit_normals(normals)
+    return v, f, n

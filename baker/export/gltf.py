@@ -24,7 +24,7 @@ import baker
 from baker.clip import Clip
 from baker.environment.model import Environment
 from baker.errors import ExportError
-from baker.export import jsonable, light_rotation, safe_name, unit_normals, vertex_normals
+from baker.export import checked_mesh, jsonable, light_rotation, safe_name
 from baker.rig.build import Rig
 
 ANIM_LINEAR = "LINEAR"   # animation interpolation (NOT pygltflib.LINEAR, the texture filter 9729)
@@ -101,18 +101,7 @@ def _material(gltf: gl.GLTF2, name: str, rgba, metallic: float, roughness: float
 
 def _static_mesh(gltf: gl.GLTF2, b: _Builder, name: str, vertices, faces, normals,
                  material: int) -> int:
-    v = np.asarray(vertices, dtype=np.float32).reshape(-1, 3)
-    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    if not len(v) or not len(f):
-        raise ExportError(f"mesh {name!r} has no vertices or no faces")
-    if f.min() < 0 or f.max() >= len(v):
-        raise ExportError(f"mesh {name!r} has face indices out of range")
-    if not np.all(np.isfinite(v)):
-        raise ExportError(f"mesh {name!r} has non-finite vertices")
-    if normals is None or np.shape(normals) != v.shape:
-        n = vertex_normals(v, f)
-    else:
-        n = unit_normals(normals)
+    v, f, n = checked_mesh(name, vertices, faces, normals)
     prim = gl.Primitive(
         attributes=gl.Attributes(
             POSITION=b.accessor(v, FLOAT, target=ARRAY_BUFFER, minmax=True),

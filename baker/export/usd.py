@@ -31,7 +31,7 @@ import numpy as np
 from baker.clip import Clip
 from baker.environment.model import Environment
 from baker.errors import ExportError
-from baker.export import jsonable, light_rotation, safe_name, unit_normals, vertex_normals
+from baker.export import checked_mesh, jsonable, light_rotation, safe_name
 from baker.atomic import atomic_output
 from baker.rig.build import Rig
 
@@ -84,18 +84,7 @@ def _material(stage, looks_path, name: str, rgb, opacity: float, metallic: float
 
 def _mesh(stage, path, vertices, faces, normals, rgba, material, double_sided: bool):
     Gf, Sdf, _, UsdGeom, _, UsdShade, _, Vt = _pxr()
-    v = np.ascontiguousarray(vertices, dtype=np.float32).reshape(-1, 3)
-    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    if not len(v) or not len(f):
-        raise ExportError(f"mesh {path.name!r} has no vertices or no faces")
-    if f.min() < 0 or f.max() >= len(v):
-        raise ExportError(f"mesh {path.name!r} has face indices out of range")
-    if not np.all(np.isfinite(v)):
-        raise ExportError(f"mesh {path.name!r} has non-finite vertices")
-    if normals is None or np.shape(normals) != v.shape:
-        n = vertex_normals(v, f)
-    else:
-        n = unit_normals(normals)
+    v, f, n = checked_mesh(path.name, vertices, faces, normals)
     mesh = UsdGeom.Mesh.Define(stage, path)
     mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(v))
     mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(f), 3, dtype=np.int32)))
