@@ -75,20 +75,11 @@ def check_writable(folder: Path) -> None:
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
     """Write `data` to `path` atomically. ExportError (one line) when it cannot be written."""
-    path = Path(path)
-    tmp = _mkstemp(path)
-    try:
+    with atomic_output(Path(path)) as tmp:
         with open(tmp, "wb") as f:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
-    except OSError as e:
-        _unlink(tmp)
-        raise ExportError(f"cannot write {path}: {e.strerror or e}") from None
-    except BaseException:
-        _unlink(tmp)
-        raise
-    _replace(tmp, path)
 
 
 @contextmanager
