@@ -50,7 +50,24 @@ def extras(cfg, traj) -> dict:
         "seconds": float(cfg.seconds),
         "rig": rig_summary(cfg.rig),
         "timeline": jsonable(list(traj.events)),
+        "foot_contacts": foot_contacts(traj),
     }
+
+
+def foot_contacts(traj) -> dict:
+    """Planted intervals per walking leg, as inclusive [first, last] frame pairs:
+    {"leg_L_01": [[0, 11], [19, 30], ...], ...} (legs ordered L_01, R_01, L_02, ...)."""
+    c = traj.foot_contacts
+    if c is None:
+        return {}
+    c = np.asarray(c, dtype=bool)
+    out = {}
+    for k in range(c.shape[1]):
+        name = f"leg_{'LR'[k % 2]}_{k // 2 + 1:02d}"
+        d = np.diff(np.concatenate([[0], c[:, k].astype(np.int8), [0]]))
+        starts, ends = np.nonzero(d == 1)[0], np.nonzero(d == -1)[0] - 1
+        out[name] = [[int(a), int(b)] for a, b in zip(starts, ends)]
+    return out
 
 
 def package_versions() -> dict:

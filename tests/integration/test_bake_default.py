@@ -122,6 +122,13 @@ def test_report_contents(baked):
     doc = Glb(baked.outputs["glb"].read_bytes()).doc
     assert doc["asset"]["extras"]["seed"] == 0
     assert doc["asset"]["extras"]["timeline"] == tl
+    # planted intervals per leg agree with the trajectory's contact flags
+    contacts = doc["asset"]["extras"]["foot_contacts"]
+    assert len(contacts) == 40
+    flags = np.zeros(baked.trajectory.n_frames, dtype=bool)
+    for a, b in contacts["leg_R_07"]:
+        flags[a:b + 1] = True
+    assert np.array_equal(flags, baked.trajectory.foot_contacts[:, 2 * 6 + 1])
 
 
 def test_same_seed_same_bytes_different_seed_different_path(tmp_path):
