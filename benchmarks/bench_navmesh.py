@@ -178,7 +178,7 @@ def main(argv=None) -> int:
             for cell in (0.3, 0.1):
                 agent = NavAgentConfig(radius=0.6, height=2.0, step_height=0.9,
                                        max_slope=math.radians(45.0), cell_size=cell)
-                bench(f"nav_test.obj (Recast demo level)", env, agent, 20.0, a.repeat)
+                bench("nav_test.obj (Recast demo level)", env, agent, 20.0, a.repeat)
         else:
             print(f"nav_test: {p} not found, skipped")
     if a.scene in ("generated", "all"):

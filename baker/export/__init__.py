@@ -13,7 +13,6 @@ from pathlib import PurePath
 
 import numpy as np
 
-from baker.geometry.transforms import light_rotation  # noqa: F401 (re-export)
 
 
 def jsonable(obj):

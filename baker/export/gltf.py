@@ -24,7 +24,8 @@ import baker
 from baker.clip import Clip
 from baker.environment.model import Environment
 from baker.errors import ExportError
-from baker.export import checked_mesh, jsonable, light_rotation, safe_name
+from baker.export import checked_mesh, jsonable, safe_name
+from baker.geometry.transforms import light_rotation
 from baker.rig.build import Rig
 
 ANIM_LINEAR = "LINEAR"   # animation interpolation (NOT pygltflib.LINEAR, the texture filter 9729)

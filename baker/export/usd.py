@@ -31,7 +31,8 @@ import numpy as np
 from baker.clip import Clip
 from baker.environment.model import Environment
 from baker.errors import ExportError
-from baker.export import checked_mesh, jsonable, light_rotation, safe_name
+from baker.export import checked_mesh, jsonable, safe_name
+from baker.geometry.transforms import light_rotation
 from baker.atomic import atomic_output
 from baker.rig.build import Rig
 

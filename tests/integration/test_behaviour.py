@@ -12,7 +12,7 @@ import pytest
 from baker.behaviour.prey import HELD
 from baker.geometry.transforms import direction_from_angles
 from baker.config import DEFAULT_RIG, BakeConfig, load_rig_config
-from baker.environment.model import EnvMesh, Environment, Sun
+from baker.environment.model import Environment, Sun
 from baker.export.gltf import build_glb
 from baker.metrics import head_in_shade, state_frames
 from baker.pipeline import bake

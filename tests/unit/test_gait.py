@@ -6,7 +6,7 @@ import pytest
 from baker.environment.model import Environment, Sun
 from baker.geometry.transforms import normalize
 from baker.locomotion.body import BodyFrames
-from baker.locomotion.gait import gait_clock, leg_phase, stance_mask, stride_length
+from baker.locomotion.gait import gait_clock, stance_mask, stride_length
 from baker.locomotion.legs import leg_frames, walking_legs
 from baker.rig.limbs import leg_layout
 from conftest import flat_ground

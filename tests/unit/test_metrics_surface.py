@@ -2,7 +2,6 @@
 walkable navigation surface) on scenes built in code."""
 
 import math
-from dataclasses import replace
 
 import numpy as np
 import trimesh
