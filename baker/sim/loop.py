@@ -213,8 +213,10 @@ def prey_frames(rec: Recorder, preys, bf, rays, rig, probe: float) -> dict:
     fwd[..., 1] = 0.0
     moving = np.linalg.norm(fwd, axis=-1) > 1e-6
     fwd[0] = np.array([0.0, 0.0, 1.0])
-    for f in range(1, F):  # carry the last heading through stops (F x P, cheap)
-        fwd[f][~moving[f]] = fwd[f - 1][~moving[f]]
+    moving[0] = True
+    # carry the last heading through stops: forward-fill the index of the last moving frame
+    last = np.maximum.accumulate(np.where(moving, np.arange(F)[:, None], 0), axis=0)
+    fwd = fwd[last, np.arange(P)[None, :]]
     rot = frames_to_quat(fwd, np.broadcast_to(UP, fwd.shape))
     held = rec.prey_mode == HELD
     if held.any():
