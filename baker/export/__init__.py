@@ -97,3 +97,16 @@ def checked_mesh(name: str, vertices, faces, normals):
         raise ExportError(f"mesh {name!r} has non-finite vertices")
     n = vertex_normals(v, f) if normals is None or np.shape(normals) != v.shape else unit_normals(normals)
     return v, f, n
+
+
+def environment_parts(env):
+    """The environment's non-empty meshes with their base colour as an RGBA tuple (empty
+    meshes are skipped with a warning), in file order: (EnvMesh, rgba)."""
+    import logging
+
+    for m in env.meshes:
+        if len(m.vertices) == 0 or len(m.faces) == 0:
+            logging.getLogger(__name__).warning("skipping empty environment mesh %r", m.name)
+            continue
+        rgba = tuple(float(c) for c in m.color)
+        yield m, rgba + (1.0,) * (4 - len(rgba))

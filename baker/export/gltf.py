@@ -24,7 +24,7 @@ import baker
 from baker.clip import Clip
 from baker.environment.model import Environment
 from baker.errors import ExportError
-from baker.export import checked_mesh, jsonable, safe_name
+from baker.export import checked_mesh, environment_parts, jsonable, safe_name
 from baker.geometry.transforms import light_rotation
 from baker.rig.build import Rig
 
@@ -153,14 +153,9 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
 
     # -- environment
     env_children = []
-    for m in env.meshes:
-        if len(m.vertices) == 0 or len(m.faces) == 0:
-            log.warning("skipping empty environment mesh %r", m.name)
-            continue
+    for m, rgba in environment_parts(env):
         nm = safe_name(m.name, names, "env_mesh")
-        color = tuple(float(c) for c in m.color)
-        mat = _material(gltf, nm, color + (1.0,) * (4 - len(color)), m.metallic, m.roughness,
-                        double_sided=True)
+        mat = _material(gltf, nm, rgba, m.metallic, m.roughness, double_sided=True)
         mesh = _static_mesh(gltf, b, nm, m.vertices, m.faces, m.normals, mat)
         env_children.append(_add_node(gltf, gl.Node(name=nm, mesh=mesh)))
     if env_children:

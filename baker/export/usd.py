@@ -31,7 +31,7 @@ import numpy as np
 from baker.clip import Clip
 from baker.environment.model import Environment
 from baker.errors import ExportError
-from baker.export import checked_mesh, jsonable, safe_name
+from baker.export import checked_mesh, environment_parts, jsonable, safe_name
 from baker.geometry.transforms import light_rotation
 from baker.atomic import atomic_output
 from baker.rig.build import Rig
@@ -184,12 +184,8 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
     # -- environment
     env_path = UsdGeom.Xform.Define(stage, "/World/Environment").GetPath()
     taken: set[str] = set()
-    for m in env.meshes:
-        if len(m.vertices) == 0 or len(m.faces) == 0:
-            log.warning("skipping empty environment mesh %r", m.name)
-            continue
+    for m, rgba in environment_parts(env):
         nm = safe_name(m.name, taken, "env_mesh")
-        rgba = tuple(float(c) for c in m.color)
         mat = _material(stage, looks, safe_name(nm, mat_names), rgba, 1.0, m.metallic, m.roughness)
         _mesh(stage, env_path.AppendChild(nm), m.vertices, m.faces, m.normals, rgba, mat,
               double_sided=True)

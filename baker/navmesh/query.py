@@ -476,18 +476,22 @@ def _closest_in_component(s: NavSurface, comp: int, b: np.ndarray) -> int:
     return int(idx[int(np.argmin(dd))])
 
 
-def _coarse_astar(s: NavSurface, u0: int, u1: int) -> list[int] | None:
-    indptr, indices, pos = _coarse_lists(s)
-    gx, gy, gz = pos[u1]
+def _astar(start: int, goal: int, neighbours, point) -> list[int] | None:
+    """A* with Euclidean costs and heuristic.
+
+    neighbours(u) -> iterable of node ids; point(u) -> (x, y, z) floats.
+    Returns the node path start..goal, or None when goal is unreachable.
+    """
     sqrt = math.sqrt
-    g = {u0: 0.0}
-    parent = {u0: -1}
-    ux, uy, uz = pos[u0]
-    heap = [(sqrt((ux - gx) ** 2 + (uy - gy) ** 2 + (uz - gz) ** 2), 0.0, u0)]
+    gx, gy, gz = point(goal)
+    g = {start: 0.0}
+    parent = {start: -1}
+    ux, uy, uz = point(start)
+    heap = [(sqrt((ux - gx) ** 2 + (uy - gy) ** 2 + (uz - gz) ** 2), 0.0, start)]
     closed = set()
     while heap:
         _, gu, u = heapq.heappop(heap)
-        if u == u1:
+        if u == goal:
             out = [u]
             while parent[out[-1]] >= 0:
                 out.append(parent[out[-1]])
@@ -495,11 +499,11 @@ def _coarse_astar(s: NavSurface, u0: int, u1: int) -> list[int] | None:
         if u in closed:
             continue
         closed.add(u)
-        ux, uy, uz = pos[u]
-        for v in indices[indptr[u]:indptr[u + 1]]:
+        ux, uy, uz = point(u)
+        for v in neighbours(u):
             if v in closed:
                 continue
-            vx, vy, vz = pos[v]
+            vx, vy, vz = point(v)
             ng = gu + sqrt((vx - ux) ** 2 + (vy - uy) ** 2 + (vz - uz) ** 2)
             if ng < g.get(v, math.inf):
                 g[v] = ng
@@ -509,37 +513,20 @@ def _coarse_astar(s: NavSurface, u0: int, u1: int) -> list[int] | None:
     return None
 
 
+def _coarse_astar(s: NavSurface, u0: int, u1: int) -> list[int] | None:
+    """A* over the coarse graph (plain lists: the hot path of long queries)."""
+    indptr, indices, pos = _coarse_lists(s)
+    return _astar(u0, u1, lambda u: indices[indptr[u]:indptr[u + 1]], pos.__getitem__)
+
+
 def _fine_astar(s: NavSurface, a: int, b: int, allowed: set[int]) -> list[int] | None:
     """A* over sample links, restricted to samples whose coarse node is in `allowed`."""
-    pos = s.positions
-    co = s.coarse_of
-    links = s.links
-    goal = pos[b].astype(np.float64)
-    g = {a: 0.0}
-    parent = {a: -1}
-    heap = [(0.0, 0.0, a)]
-    closed = set()
-    while heap:
-        _, gu, u = heapq.heappop(heap)
-        if u == b:
-            out = [u]
-            while parent[out[-1]] >= 0:
-                out.append(parent[out[-1]])
-            return out[::-1]
-        if u in closed:
-            continue
-        closed.add(u)
-        pu = pos[u].astype(np.float64)
-        for v in links[u].tolist():
-            if v < 0 or v in closed or int(co[v]) not in allowed:
-                continue
-            pv = pos[v].astype(np.float64)
-            ng = gu + float(np.linalg.norm(pv - pu))
-            if ng < g.get(v, math.inf):
-                g[v] = ng
-                parent[v] = u
-                heapq.heappush(heap, (ng + float(np.linalg.norm(goal - pv)), ng, v))
-    return None
+    pos, co, links = s.positions, s.coarse_of, s.links
+
+    def neighbours(u):
+        return [v for v in links[u].tolist() if v >= 0 and int(co[v]) in allowed]
+
+    return _astar(a, b, neighbours, lambda u: tuple(float(x) for x in pos[u]))
 
 
 def find_path(s: NavSurface, a, b) -> PathResult:
