@@ -57,11 +57,6 @@ class PathAgent:
         t = (s - cum[i]) / seg if seg > 0 else 0.0
         return pts[i] + t * (pts[i + 1] - pts[i])
 
-    def height_behind(self, distance: float) -> float:
-        """Height of the path `distance` metres behind the agent (the walked layer, where a
-        follower trailing the agent is)."""
-        return float(self._at(max(self._s - distance, 0.0))[1])
-
     @property
     def goal(self) -> np.ndarray:
         return self._points[-1]

@@ -121,8 +121,14 @@ def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: flo
     # up and clears its edge), then smooth and keep inside the band, repeatedly: alternating
     # projections soften the kinks that the band leaves at creases and steps
     y = maximum_filter1d(ground, size=max(int(round(0.5 * spacing / res)), 1) * 2 + 1, mode="nearest")
+    # and never below the top of a step within a quarter spacing: at a riser between two
+    # samples the trail's chord would otherwise cut the step's edge (a joint on it is a quarter
+    # clearance above the edge; risers up to the step height stay within the band)
+    near = maximum_filter1d(ground, size=2 * int(np.ceil(0.25 * spacing / res)) + 1, mode="nearest")
+    lo = np.maximum(ground - band, near - 0.75 * clearance)
+    hi = np.maximum(ground + band, lo)
     for _ in range(16):
-        y = np.clip(gaussian_filter1d(y, sigma, mode="nearest"), ground - band, ground + band)
+        y = np.clip(gaussian_filter1d(y, sigma, mode="nearest"), lo, hi)
     pts = ground_pts.copy()
     pts[:, 1] = y
     normals = normalize(gaussian_filter1d(normals, 0.5 * sigma, axis=0, mode="nearest"))

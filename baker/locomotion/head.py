@@ -10,8 +10,13 @@ surface with ray casts.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
+
+#: Turn angles tried, in order, when a step would leave the walkable surface (radians added to
+#: the wanted turn, toward the agent's side first): up to a right angle, in 7.5 degree steps.
+_DEFLECT = np.radians(7.5) * np.arange(1, 13)
 
 
 class HeadSteer:
@@ -42,7 +47,15 @@ class HeadSteer:
         self.speed = 0.0
         self.position = self.base.copy()
 
-    def step(self, dt: float, agent_pos: np.ndarray, agent_speed: float) -> None:
+    def step(self, dt: float, agent_pos: np.ndarray, agent_speed: float,
+             allowed: Callable[[float, float], bool] | None = None) -> None:
+        """Advance by dt seconds toward the agent.
+
+        allowed : optional test of a base position (x, z) -> on the walkable surface. While the
+                  base is on it, a step that would leave it turns instead (tighter toward the
+                  agent, else sliding along the edge), or, when no direction is free, turns on
+                  the spot: Detour's move-along-surface for the head.
+        """
         to = agent_pos - self.base
         to[1] = 0.0
         dist = math.hypot(to[0], to[2])
@@ -65,6 +78,8 @@ class HeadSteer:
                 step = min(step, self.max_yaw_rate * self.turn_radius * dt)
                 lim = step / self.turn_radius
             a = max(-lim, min(lim, ang))
+            if allowed is not None and allowed(self.base[0], self.base[2]):
+                a, step = self._contain(a, ang, step, dt, allowed)
             c, s = math.cos(a), math.sin(a)
             hx, hz = self.heading[0], self.heading[2]
             self.heading = np.array([c * hx + s * hz, 0.0, -s * hx + c * hz])
@@ -84,3 +99,26 @@ class HeadSteer:
         self.lateral_amp += max(-dmax, min(dmax, want - self.lateral_amp))
         left = np.array([self.heading[2], 0.0, -self.heading[0]])
         self.position = self.base + left * (self.lateral_amp * math.sin(self.phase))
+
+    def _contain(self, a: float, ang: float, step: float, dt: float, allowed) -> tuple[float, float]:
+        """The turn angle and step length that keep the base on the walkable surface.
+
+        a : wanted turn this step; ang : full angle to the agent. Returns (a, step), or a turn
+        on the spot (step 0) toward the agent at the yaw-rate limit when no direction is free.
+        """
+        hx, hz = self.heading[0], self.heading[2]
+        bx, bz = self.base[0], self.base[2]
+
+        def free(t: float) -> bool:
+            c, s = math.cos(t), math.sin(t)
+            return allowed(bx + (c * hx + s * hz) * step, bz + (-s * hx + c * hz) * step)
+
+        if free(a):
+            return a, step
+        side = 1.0 if ang >= a else -1.0
+        for d in _DEFLECT:
+            for t in (a + side * d, a - side * d):
+                if free(t):
+                    return t, step
+        turn = self.max_yaw_rate * dt
+        return max(-turn, min(turn, ang)), 0.0

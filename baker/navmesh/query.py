@@ -217,6 +217,28 @@ def _locate(s: NavSurface, points: np.ndarray, tol: float, _retry: bool = True):
     return best, besth
 
 
+def layer_height(s: NavSurface, x: float, y: float, z: float, tol: float) -> float:
+    """Scalar surface_height for one point (the per-step fast path of the simulation loop):
+    the height of the walkable layer in the column of (x, z) closest to y, NaN if none is
+    within tol. Unlike _locate it does not retry neighbouring columns on cell borders."""
+    c = s.cell_size
+    ix = math.floor((x - s.origin[0]) / c)
+    iz = math.floor((z - s.origin[1]) / c)
+    nx, nz = s.shape
+    if not (0 <= ix < nx and 0 <= iz < nz):
+        return math.nan
+    col = ix * nz + iz
+    a, b = int(s.col_start[col]), int(s.col_start[col + 1])
+    best, bestd = math.nan, tol
+    for k in range(a, b):
+        px, py, pz = s.positions[k].tolist()
+        nxk, nyk, nzk = s.normals[k].tolist()
+        h = py - (nxk * (x - px) + nzk * (z - pz)) / nyk
+        if abs(h - y) <= bestd:
+            best, bestd = h, abs(h - y)
+    return best
+
+
 def _default_tol(s: NavSurface) -> float:
     return max(0.5 * s.step_height, 1e-3 * s.cell_size, 1e-6)
 

@@ -174,6 +174,12 @@ class NavSurface:
         from baker.navmesh import query
         return query.surface_height(self, points, tol)
 
+    def layer_height(self, x: float, y: float, z: float, tol: float) -> float:
+        """Height of the walkable layer in the column of (x, z) closest to y (within tol, else
+        NaN): a scalar surface_height for per-step use."""
+        from baker.navmesh import query
+        return query.layer_height(self, x, y, z, tol)
+
     def resample_path(self, points, spacing: float | None = None) -> np.ndarray:
         """(m, 3) points along a path every `spacing` m, heights on the walked surface."""
         from baker.navmesh import query

@@ -10,6 +10,7 @@ exported frame in vectorized passes.
 from __future__ import annotations
 
 import logging
+import math
 
 import numpy as np
 
@@ -95,6 +96,8 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     rec = Recorder(n_frames, len(preys))
     ramp = dt / rig.cobra.ramp_time
     cobra = brain.cobra
+    probe = 0.5 * navc.height
+    layer_tol = 0.5 * navc.height
     rec.sample(0, brain, preys, cobra)
     for k in range(1, n_steps + 1):
         t = (k - 1) * dt
@@ -113,9 +116,9 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
         gap = float(np.hypot(*(agent.position - head.base)[[0, 2]]))
         agent.step(dt, slack=2.0 - gap / turn_radius)
         # 3. head
-        head.step(dt, agent.position, agent.speed)
+        head.step(dt, agent.position, agent.speed, allowed=on_layer(nav, heads[k - 1, 1], layer_tol))
         heads[k] = head.position
-        heads[k, 1] = agent.height_behind(gap)   # the head is on the path's layer, behind the agent
+        heads[k, 1] = follow_layer(nav, env.rays, head.position, heads[k - 1, 1], layer_tol, probe)
         # 4. prey react to the head
         for p in preys:
             p.step(t, dt, head.position)
@@ -128,7 +131,6 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
 
     # The trail: head path (preceded by the initial body line) projected onto the surface, with
     # rays searched from below the agent's free height so overhangs are never hit.
-    probe = 0.5 * navc.height
     path = np.vstack([tail[:-1], heads])
     # Path heights are exact only at path corners: start the rays from the navigation surface
     # (the layer nearest the path, never one a free agent height above or below it).
@@ -164,6 +166,23 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
         **limbs,
         **prey_t,
     )
+
+
+def on_layer(nav, y: float, tol: float):
+    """(x, z) -> True when the column of (x, z) has a walkable sample within tol of height y."""
+    return lambda x, z: not math.isnan(nav.layer_height(x, y, z, tol))
+
+
+def follow_layer(nav, rays, p: np.ndarray, prev_y: float, tol: float, probe: float) -> float:
+    """Height of the surface under the head at p = (x, _, z), continuing the layer it was on:
+    the walkable layer in its column closest to the previous height `prev_y` (a step moves the
+    head millimetres, so this never jumps to a floor above or below); off the eroded surface
+    (the slither, a corner), the floor found by rays near that height; else `prev_y`."""
+    y = nav.layer_height(float(p[0]), prev_y, float(p[2]), tol)
+    if y == y:  # not NaN
+        return y
+    g, _, hit = project_to_surface(rays, np.array([[p[0], prev_y, p[2]]]), probe)
+    return float(g[0, 1]) if hit[0] else prev_y
 
 
 def spawn_prey(count: int, start: np.ndarray, nav, rig, rng: np.random.Generator) -> list[Prey]:

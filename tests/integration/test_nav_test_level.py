@@ -36,17 +36,6 @@ MIN_DWELL_S = 1.0
 
 needs_fixture = pytest.mark.skipif(not FIXTURE.is_file(), reason=f"{FIXTURE} not available")
 
-#: Known shortfall of the simulation (2026-11-22), measured by these tests. Fixed since first
-#: measured: the head now takes its height from the agent's path behind it, and the trail's
-#: surface probes skip overhang undersides and surfaces buried in interpenetrating slabs (trunk
-#: joints inside geometry went from 587/639/361 to 184/209/234 joint-frames in seeds 0-2). What
-#: remains is the head's pursuit cutting corners (it chases the agent one turning radius
-#: ahead, 3 segment spacings): where the ramp slab and terrain interpenetrate, the cut puts the
-#: body inside the slab. A 1.5-spacing turning radius brings it down to 28/61/8, but makes the
-#: legs' swings too fast on the default scene, so it is not the default. Remove once fixed.
-SIM_SHORTFALL = pytest.mark.xfail(strict=False, reason="the head's pursuit cuts corners, see above")
-
-
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("nav_test")
@@ -80,7 +69,6 @@ def test_no_head_position_on_steep_ground(runs, seed):
 
 
 @needs_fixture
-@SIM_SHORTFALL
 @pytest.mark.parametrize("seed", SEEDS)
 def test_no_trunk_joint_inside_geometry(runs, seed):
     m = runs[seed].report["metrics"]
@@ -88,7 +76,6 @@ def test_no_trunk_joint_inside_geometry(runs, seed):
 
 
 @needs_fixture
-@SIM_SHORTFALL
 @pytest.mark.parametrize("seed", SEEDS)
 def test_head_stays_within_the_agent_radius_of_the_walkable_surface(runs, seed):
     m = runs[seed].report["metrics"]
