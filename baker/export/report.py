@@ -102,6 +102,7 @@ def build_report(cfg, env, nav, traj, motion: dict, ctx, written: dict) -> dict:
         },
         "navmesh": getattr(nav, "stats", lambda: {})() if callable(getattr(nav, "stats", None)) else {},
         "navmesh_cache_hit": ctx.notes.get("navmesh_cache_hit"),
+        "path_replans": ctx.notes.get("path_replans"),
         "versions": package_versions(),
         "timings_s": {k: round(v, 4) for k, v in ctx.timings.items()},
         "metrics": motion,

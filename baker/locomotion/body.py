@@ -194,8 +194,12 @@ def body_frames(trail: Trail, head_arc: np.ndarray, spacing: float, segments: in
     ground = np.interp(s, trail.cum, trail.ground)
     forward = np.empty_like(pos)
     forward[:, 1:] = pos[:, :-1] - pos[:, 1:]
-    head_dir = polyline.tangents(trail.points, trail.cum, head_arc)
+    # the head faces along its trail: the chord from half a spacing behind it (the tangent of
+    # a single trail segment flips at the trail's millimetre-scale kinks, where it folds back)
+    behind = polyline.sample(trail.points, trail.cum, np.maximum(head_arc - 0.5 * spacing, 0.0))
+    head_dir = polyline.sample(trail.points, trail.cum, head_arc) - behind
     ahead = pos[:, 0] - pos[:, 1]
-    forward[:, 0] = np.where(np.linalg.norm(head_dir, axis=1, keepdims=True) > 0.5, head_dir, ahead)
+    forward[:, 0] = np.where(np.linalg.norm(head_dir, axis=1, keepdims=True) > 0.25 * spacing,
+                             head_dir, ahead)
     rot = frames_to_quat(forward, normals)
     return BodyFrames(positions=pos, rotations=rot, normals=normals, ground=ground, lift=lift)

@@ -1,7 +1,8 @@
 """The fixed-step simulation loop. Phases, in order, every step:
 1. brain   — perception and decisions; a new target means a new path for the agent;
-2. agent   — the navigation agent moves along its path;
-3. head    — the head follows the agent with the slither; its position extends the trail;
+2. agent   — the navigation agent moves along its path (sim/follow.py);
+3. head    — the head follows the agent on the walkable surface, with the slither; its
+             position extends the trail;
 4. prey    — every prey wanders or flees from the head.
 After the loop, the body (with the cobra lift), the legs and the prey are placed for every
 exported frame in vectorized passes.
@@ -10,7 +11,6 @@ exported frame in vectorized passes.
 from __future__ import annotations
 
 import logging
-import math
 
 import numpy as np
 
@@ -23,13 +23,12 @@ from baker.config import BakeConfig, parse_sun_path
 from baker.context import Context
 from baker.errors import NavError
 from baker.geometry import polyline
-from baker.locomotion.agent import PathAgent
 from baker.geometry.conventions import UP
 from baker.geometry.transforms import frames_to_quat, quat_mul, quat_rotate
 from baker.locomotion.body import body_frames, build_trail, project_to_surface
 from baker.locomotion.cobra import lift_profile
-from baker.locomotion.head import HeadSteer
 from baker.locomotion.legs import leg_frames
+from baker.sim.follow import Follower
 from baker.sim.trajectory import Trajectory
 
 log = logging.getLogger(__name__)
@@ -69,19 +68,15 @@ def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None
 def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) -> Trajectory:
     """Run the bake's simulation and return the creature's world frames at the export fps."""
     rig = cfg.rig
-    body, loco, navc = rig.body, rig.locomotion, rig.navigation
+    body, navc = rig.body, rig.navigation
     dt = 1.0 / cfg.sim_rate
     n_steps = int(round(cfg.seconds * cfg.sim_rate))
     per_frame = cfg.sim_rate // cfg.fps
     n_frames = n_steps // per_frame + 1
 
     start, heading = choose_start(nav, env, body.length, rng, cfg.start, cfg.start_heading)
-    agent = PathAgent(start, loco.max_speed, loco.acceleration, loco.stopping_distance)
-    # Pure pursuit: the head chases the agent one turning radius ahead on the path.
-    turn_radius = max(navc.radius, 3.0 * body.spacing)
-    head = HeadSteer(start, heading, max_speed=loco.max_speed, turn_radius=turn_radius,
-                     lead=turn_radius, turn_rate=loco.head_turn_rate,
-                     amplitude=loco.slither_amplitude, max_offset=0.4 * navc.radius)
+    follow = Follower(nav, env.rays, start, heading, rig)
+    head = follow.head
     sun = sun_path(parse_sun_path(cfg.sun_path) if cfg.sun_path else None, env.sun.direction,
                    cfg.seconds)
     preys = ([Prey(i, nav.nearest(p, np.inf), rig.prey, nav, rng)
@@ -96,41 +91,33 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     rec = Recorder(n_frames, len(preys))
     ramp = dt / rig.cobra.ramp_time
     cobra = brain.cobra
-    probe = 0.5 * navc.height
-    layer_tol = 0.5 * navc.height
     rec.sample(0, brain, preys, cobra)
     for k in range(1, n_steps + 1):
         t = (k - 1) * dt
         # 1. brain: perception, the d10, hunting; a new target means a new path
-        brain.step(Senses(t, head.position, head.heading, agent.arrived))
+        brain.step(Senses(t, follow.position, head.heading, follow.agent.arrived))
         if brain.new_target:
-            # dense path points carry the walked layer's heights (chords cut through bumps)
-            agent.set_path(nav.resample_path(nav.find_path(agent.position, brain.target).points))
+            follow.go(brain.target)
         elif brain.halt:
-            agent.set_path(agent.position[None])
-        agent.speed_scale = brain.speed_scale
-        agent.stopping_distance = brain.stopping_distance
-        head.turn_rate_scale = brain.turn_scale
-        head.max_speed = loco.max_speed * brain.speed_scale
-        # 2. agent: waits while the head lags behind it (a sharp turn)
-        gap = float(np.hypot(*(agent.position - head.base)[[0, 2]]))
-        agent.step(dt, slack=2.0 - gap / turn_radius)
-        # 3. head
-        head.step(dt, agent.position, agent.speed, allowed=on_layer(nav, heads[k - 1, 1], layer_tol))
-        heads[k] = head.position
-        heads[k, 1] = follow_layer(nav, env.rays, head.position, heads[k - 1, 1], layer_tol, probe)
+            follow.halt()
+        follow.drive(brain.speed_scale, brain.stopping_distance, brain.turn_scale)
+        # 2.-3. the agent walks its path and the head follows it on the walkable surface
+        follow.step(dt)
+        heads[k] = follow.position
         # 4. prey react to the head
         for p in preys:
-            p.step(t, dt, head.position)
+            p.step(t, dt, heads[k])
         cobra += max(-ramp, min(ramp, brain.cobra - cobra))
         if k % per_frame == 0:
             rec.sample(k // per_frame, brain, preys, cobra)
         if k % 2400 == 0:
             ctx.report_progress("simulate", k / n_steps)
     events = brain.finish(cfg.seconds)
+    ctx.notes["path_replans"] = follow.replans
 
     # The trail: head path (preceded by the initial body line) projected onto the surface, with
     # rays searched from below the agent's free height so overhangs are never hit.
+    probe = 0.5 * navc.height
     path = np.vstack([tail[:-1], heads])
     # Path heights are exact only at path corners: start the rays from the navigation surface
     # (the layer nearest the path, never one a free agent height above or below it).
@@ -166,23 +153,6 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
         **limbs,
         **prey_t,
     )
-
-
-def on_layer(nav, y: float, tol: float):
-    """(x, z) -> True when the column of (x, z) has a walkable sample within tol of height y."""
-    return lambda x, z: not math.isnan(nav.layer_height(x, y, z, tol))
-
-
-def follow_layer(nav, rays, p: np.ndarray, prev_y: float, tol: float, probe: float) -> float:
-    """Height of the surface under the head at p = (x, _, z), continuing the layer it was on:
-    the walkable layer in its column closest to the previous height `prev_y` (a step moves the
-    head millimetres, so this never jumps to a floor above or below); off the eroded surface
-    (the slither, a corner), the floor found by rays near that height; else `prev_y`."""
-    y = nav.layer_height(float(p[0]), prev_y, float(p[2]), tol)
-    if y == y:  # not NaN
-        return y
-    g, _, hit = project_to_surface(rays, np.array([[p[0], prev_y, p[2]]]), probe)
-    return float(g[0, 1]) if hit[0] else prev_y
 
 
 def spawn_prey(count: int, start: np.ndarray, nav, rig, rng: np.random.Generator) -> list[Prey]:

@@ -1,0 +1,117 @@
+"""Path following on the walkable surface: the navigation agent walks its planned path and the
+head follows it (Detour's corridor following, for a creature with a turning radius).
+
+Every step:
+- the agent advances along its path, and waits while the head lags more than two turning radii
+  behind it (a sharp turn);
+- the head chases the agent with a bounded turning radius, and is kept on the walkable surface
+  of its own layer (a step that would leave it turns or slides along the edge instead);
+- the head's height continues the layer it is on (never a floor above or below it);
+- when the head has been held back for REPLAN_AFTER seconds (blocked, or off the agent's
+  corridor), the path is planned again from the head.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from baker.config import RigConfig
+from baker.locomotion.agent import PathAgent
+from baker.locomotion.body import project_to_surface
+from baker.locomotion.head import HeadSteer
+
+#: [s] how long the agent waits for the head before the path is planned again from the head
+REPLAN_AFTER = 1.5
+
+
+class Follower:
+    """The navigation agent and the head that follows it.
+
+    nav  : NavSurface; rays : RayCaster of the environment
+    start: (3,) on the walkable surface; heading : (3,) unit horizontal
+    position : (3,) the head (slither included), height on its layer
+    """
+
+    def __init__(self, nav, rays, start: np.ndarray, heading: np.ndarray, rig: RigConfig):
+        body, loco, navc = rig.body, rig.locomotion, rig.navigation
+        self.nav, self.rays = nav, rays
+        self.max_speed = loco.max_speed
+        self.turn_radius = max(navc.radius, 3.0 * body.spacing)
+        self.tol = 0.5 * navc.height     # vertical reach of a layer lookup
+        self.probe = 0.5 * navc.height   # floor search above and below the head off the surface
+        self.agent = PathAgent(start, loco.max_speed, loco.acceleration, loco.stopping_distance)
+        # Pure pursuit: the head chases the agent one turning radius ahead on the path.
+        self.head = HeadSteer(start, heading, max_speed=loco.max_speed,
+                              turn_radius=self.turn_radius, lead=self.turn_radius,
+                              turn_rate=loco.head_turn_rate, amplitude=loco.slither_amplitude,
+                              max_offset=0.4 * navc.radius)
+        self.height = float(start[1])
+        self.target: np.ndarray | None = None
+        self.waited = 0.0
+        self.replans = 0
+
+    @property
+    def position(self) -> np.ndarray:
+        p = self.head.position.copy()
+        p[1] = self.height
+        return p
+
+    def go(self, target: np.ndarray) -> None:
+        """A new path from the agent to `target` (a partial one when it is out of reach)."""
+        self.target = np.asarray(target, dtype=np.float64)
+        self._plan(self.agent.position)
+
+    def halt(self) -> None:
+        """Stop where the agent is; the head closes up behind it."""
+        self.target = None
+        self.agent.set_path(self.agent.position[None])
+
+    def drive(self, speed_scale: float, stopping_distance: float, turn_scale: float) -> None:
+        """The brain's gait: speed factor, stopping distance and slither turn-rate factor."""
+        self.agent.speed_scale = speed_scale
+        self.agent.stopping_distance = stopping_distance
+        self.head.turn_rate_scale = turn_scale
+        self.head.max_speed = self.max_speed * speed_scale
+
+    def step(self, dt: float) -> None:
+        agent, head = self.agent, self.head
+        gap = math.hypot(agent.position[0] - head.base[0], agent.position[2] - head.base[2])
+        self.waited = self.waited + dt if gap >= 2.0 * self.turn_radius else 0.0
+        if self.waited >= REPLAN_AFTER:
+            self.replan()
+            gap = math.hypot(agent.position[0] - head.base[0], agent.position[2] - head.base[2])
+        agent.step(dt, slack=2.0 - gap / self.turn_radius)
+        y, nav, tol = self.height, self.nav, self.tol
+        head.step(dt, agent.position, agent.speed,
+                  allowed=lambda x, z: not math.isnan(nav.layer_height(x, y, z, tol)))
+        self.height = self._layer_height(head.position)
+
+    def replan(self) -> None:
+        """Plan again from the head: the agent restarts at the surface point nearest it."""
+        self.waited = 0.0
+        p = self.nav.nearest(np.array([self.head.base[0], self.height, self.head.base[2]]))
+        if p is None:
+            return
+        self.replans += 1
+        self.agent.position = p
+        if self.target is None:
+            self.agent.set_path(p[None])
+        else:
+            self._plan(p)
+
+    def _plan(self, a: np.ndarray) -> None:
+        # dense path points carry the walked layer's heights (chords cut through bumps)
+        self.agent.set_path(self.nav.resample_path(self.nav.find_path(a, self.target).points))
+
+    def _layer_height(self, p: np.ndarray) -> float:
+        """Height of the surface under the head at p = (x, _, z), continuing its layer: the
+        walkable layer in its column closest to the previous height (a step moves the head
+        millimetres, so this never jumps to a floor above or below); off the eroded surface
+        (the slither), the floor found by rays near that height; else the previous height."""
+        y = self.nav.layer_height(float(p[0]), self.height, float(p[2]), self.tol)
+        if not math.isnan(y):
+            return y
+        g, _, hit = project_to_surface(self.rays, np.array([[p[0], self.height, p[2]]]), self.probe)
+        return float(g[0, 1]) if hit[0] else self.height

@@ -1,0 +1,179 @@
+"""Following a path on the walkable surface (sim/follow.py, locomotion/head.py, body.py), on
+scenes built in code, with the default rig (0.25 m: agent radius 0.02 m, turning radius
+3 spacings = 0.036 m, cell 0.015 m):
+- the head stays on the walkable surface where its turning circle does not fit;
+- a head held back from the agent re-plans from where it is;
+- the head's height continues its own layer under a bridge deck;
+- the body's trail clears the edge of a step wherever it falls between trail samples.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from baker.config import DEFAULT_RIG, load_rig_config
+from baker.locomotion.body import build_trail, place_chain
+from baker.metrics import inside_geometry
+from baker.navmesh import build
+from baker.sim import follow as follow_mod
+from baker.sim.follow import Follower
+from test_navmesh_scenes import box, env_of, floor, quad
+
+RIG = load_rig_config(DEFAULT_RIG)
+DT = 1.0 / 120.0
+
+
+def run(f: Follower, seconds: float) -> np.ndarray:
+    """Step the follower; returns the head's base positions (with its layer height), (n, 3)."""
+    out = []
+    for _ in range(int(seconds / DT)):
+        f.step(DT)
+        out.append([f.head.base[0], f.height, f.head.base[2]])
+    return np.array(out)
+
+
+class Unbounded:
+    """A navigation surface whose every column is walkable at height 0 (no containment)."""
+
+    def __init__(self, nav):
+        self._nav = nav
+
+    def __getattr__(self, name):
+        return getattr(self._nav, name)
+
+    def layer_height(self, x, y, z, tol):
+        return 0.0
+
+
+# --------------------------------------------------------------------------- the head on the surface
+W = 0.09  # strip width: eroded by the radius on both sides it leaves 0.05 m, less than 2 R
+
+
+@pytest.fixture(scope="module")
+def strip():
+    return env_of(floor(0.0, 1.0, 0.0, W)), build(env_of(floor(0.0, 1.0, 0.0, W)), RIG.navigation)
+
+
+def u_turn(env, nav):
+    start = nav.nearest([0.7, 0.0, W / 2])
+    f = Follower(nav, env.rays, start, np.array([1.0, 0.0, 0.0]), RIG)
+    f.go(np.array([0.2, 0.0, W / 2]))
+    return f
+
+
+def test_u_turn_in_a_strip_narrower_than_the_turning_circle_stays_on_the_surface(strip):
+    env, nav = strip
+    assert 2 * max(RIG.navigation.radius, 3 * RIG.body.spacing) > W - 2 * RIG.navigation.radius
+    f = u_turn(env, nav)
+    base = run(f, 12.0)
+    assert nav.is_walkable(base).all()
+    assert np.linalg.norm(base[-1] - [0.2, 0.0, W / 2]) < RIG.locomotion.stopping_distance + 0.05
+    # the same turn without the surface test swings off the strip
+    f = u_turn(env, Unbounded(nav))
+    free = run(f, 12.0)
+    assert not nav.is_walkable(free).all()
+
+
+# --------------------------------------------------------------------------- re-planning
+@pytest.fixture(scope="module")
+def walled():
+    """A 1 x 1 m floor and a zero-thickness wall at x = 0.5 from z = 0 to z = 0.7."""
+    env = env_of(floor(), quad((0.5, 0, 0), (0.5, 0.1, 0), (0.5, 0.1, 0.7), (0.5, 0, 0.7)))
+    return env, build(env, RIG.navigation)
+
+
+def crosses_wall(p: np.ndarray) -> bool:
+    side = np.sign(p[:, 0] - 0.5)
+    flip = np.nonzero(side[1:] != side[:-1])[0]
+    return bool(np.any(p[flip, 2] < 0.7) or np.any(p[flip + 1, 2] < 0.7))
+
+
+def test_a_head_held_back_behind_a_wall_replans_from_where_it_is(walled):
+    env, nav = walled
+    f = Follower(nav, env.rays, nav.nearest([0.4, 0.0, 0.3]), np.array([1.0, 0.0, 0.0]), RIG)
+    goal = np.array([0.6, 0.0, 0.3])
+    f.go(goal)
+    # the agent is put across the wall (as if its path had been planned from there): the head
+    # cannot follow it straight, so it is held back until the path is planned from the head
+    f.agent.position = nav.nearest(goal)
+    f.agent.set_path(f.agent.position[None])
+    base = run(f, 15.0)
+    assert f.replans >= 1
+    assert np.linalg.norm(base[-1] - goal) < RIG.locomotion.stopping_distance + 0.05
+    assert nav.is_walkable(base).all()
+    assert not crosses_wall(base)
+
+
+def test_no_replan_on_an_open_floor(walled):
+    env, nav = walled
+    f = Follower(nav, env.rays, nav.nearest([0.2, 0.0, 0.2]), np.array([0.0, 0.0, 1.0]), RIG)
+    f.go(np.array([0.2, 0.0, 0.8]))
+    run(f, 5.0)
+    f.go(np.array([0.3, 0.0, 0.1]))  # a target behind: a U-turn
+    run(f, 8.0)
+    assert f.replans == 0
+    assert np.linalg.norm(f.head.base - [0.3, 0.0, 0.1]) < RIG.locomotion.stopping_distance + 0.05
+
+
+# --------------------------------------------------------------------------- layers
+def test_head_height_continues_its_layer_under_a_deck():
+    """A floor at y = 0 and a deck 0.06 m up (more than the agent height 0.05 m) over half of
+    it: walking under the deck the head stays on the floor, walking on the deck it stays on it."""
+    env = env_of(floor(), box((0.4, 0.055, 0.0), (1.0, 0.06, 1.0)), floor(0.4, 1.0, 0.0, 1.0, y=0.06))
+    nav = build(env, RIG.navigation)
+    f = Follower(nav, env.rays, nav.nearest([0.2, 0.0, 0.5]), np.array([1.0, 0.0, 0.0]), RIG)
+    f.go(np.array([0.95, 0.0, 0.5]))
+    base = run(f, 8.0)
+    assert base[-1, 0] > 0.7
+    assert np.abs(base[:, 1]).max() < 1e-6
+    g = Follower(nav, env.rays, nav.nearest([0.6, 0.06, 0.2]), np.array([0.0, 0.0, 1.0]), RIG)
+    g.go(np.array([0.8, 0.06, 0.8]))
+    base = run(g, 8.0)
+    assert np.abs(base[:, 1] - 0.06).max() < 1e-6
+
+
+def test_layer_height_is_surface_height_for_single_points():
+    from test_navmesh_scenes import bridge_scene
+    nav = build(bridge_scene(), RIG.navigation)
+    rng = np.random.default_rng(3)
+    y = rng.choice([0.0, 0.3], 400) + rng.uniform(-0.03, 0.03, 400)
+    pts = np.column_stack([rng.uniform(0, 1, 400), y, rng.uniform(0, 1, 400)])
+    want = nav.surface_height(pts, tol=0.02)
+    got = np.array([nav.layer_height(*p, 0.02) for p in pts])
+    # _locate also retries neighbouring columns for points exactly on a cell border
+    assert np.array_equal(np.isnan(got), np.isnan(want))
+    assert np.allclose(got[~np.isnan(got)], want[~np.isnan(want)])
+    assert (~np.isnan(got)).sum() > 50 and np.isnan(got).sum() > 50
+
+
+# --------------------------------------------------------------------------- the trail at a step
+@pytest.mark.parametrize("shift", np.linspace(0.0, 1.0, 7))
+def test_trail_clears_the_edge_of_a_step(shift):
+    """A 27 degree ramp up to a platform whose edge stands 0.95 x the step height above the
+    ramp's top (the platform's box overlaps the ramp's end, as where Recast's demo level's ramp
+    meets its platform). The head's path crosses the edge at a different point between two
+    trail samples in each case. No spine joint is ever inside the platform or the ramp."""
+    body = RIG.body
+    h = 0.95 * RIG.navigation.step_height
+    top = 0.2 * np.tan(np.radians(27.0))
+    env = env_of(floor(0.0, 0.3, 0.0, 0.2),
+                 quad((0.3, 0, 0), (0.3, 0, 0.2), (0.5, top, 0.2), (0.5, top, 0)),
+                 box((0.48, 0.0, 0.0), (1.0, top + h, 0.2)))
+    res = body.spacing / 8.0
+    x0 = 0.1 + shift * res
+    path = np.column_stack([np.linspace(x0, 0.9, 400), np.zeros(400), np.full(400, 0.1)])
+    path[:, 1] = np.clip((path[:, 0] - 0.3) * np.tan(np.radians(27.0)), 0.0, top)
+    trail = build_trail(path, env.rays, probe=0.025, spacing=body.spacing,
+                        clearance=body.clearance)
+    arcs = np.linspace(trail.cum[-1] * 0.3, trail.cum[-1], 400)
+    pos, _ = place_chain(trail, arcs, np.full((len(arcs), body.segments), body.clearance),
+                         body.spacing)
+    assert not inside_geometry(pos.reshape(-1, 3), env.rays).any()
+    # on the platform the body rides within its clearance band above the top
+    on = pos[..., 0] > 0.52
+    assert np.all(np.abs(pos[..., 1][on] - top - h - body.clearance) < 0.95 * body.clearance)
+
+
+def test_replan_after_is_a_bounded_wait():
+    assert 0.5 <= follow_mod.REPLAN_AFTER <= 3.0
