@@ -34,6 +34,9 @@ from baker.config import RigConfig
 
 log = logging.getLogger(__name__)
 
+#: [s] after the agent has arrived at a shade spot, how long the head has to get into its shade
+SETTLE_TIME = 1.0
+
 STATES = ("wander", "seek_shade", "rest_in_shade", "cobra", "hunt", "strike", "feed", "warning")
 MODES = ("auto", "wander", "shade", "hunt")
 
@@ -90,6 +93,8 @@ class Brain:
         self._ring = np.vstack(rings) if r > 0 else np.zeros((0, 3))
         self._resume = ("wander", None)
         self.shaded = False
+        self._sought = None        # the remembered shade spot being walked to
+        self._arrived_at = None    # when the agent reached it
         self.prey: Prey | None = None
         self.target: np.ndarray | None = None
         self.new_target = False
@@ -219,6 +224,7 @@ class Brain:
             k = int(self.rng.integers(0, len(self.shade_spots)))
             spot = self.shade_spots[k]
             self._enter("seek_shade", s.t, roll=roll, spot=_r(spot), spot_index=k)
+            self._sought = spot
             self._go(spot.copy())
             return
         target = self.nav.random_point_near(s.head, self.rig.wander.radius, self.rng)
@@ -234,11 +240,20 @@ class Brain:
             self._roll(s)
 
     def _seek_shade(self, s: Senses, decide: bool) -> None:
+        if not s.arrived:
+            self._arrived_at = None
+        elif self._arrived_at is None:
+            self._arrived_at = s.t
         if decide:
             self._roll(s)
         elif s.arrived and self.shaded:
             self._enter("rest_in_shade", s.t, spot=_r(s.head))
             self._stop(s.head)
+        elif s.arrived and s.t - self._arrived_at >= SETTLE_TIME:
+            # arrived, but the head is not in shade (a sliver of shade the head cannot reach):
+            # forget the spot and roll again
+            self.shade_spots = [p for p in self.shade_spots if p is not self._sought]
+            self._roll(s)
 
     def _rest_in_shade(self, s: Senses, decide: bool) -> None:
         if not self.shaded and self.sun.moving:

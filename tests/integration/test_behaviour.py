@@ -247,12 +247,17 @@ def test_cobra_lift_is_limited_under_a_low_ceiling(tmp_path):
 
 # ------------------------------------------------------------------------------ whole bake
 def test_auto_bake_default_scene_with_prey_and_clips(tmp_path):
-    cfg = BakeConfig(seconds=300, seed=0, rig=RIG, out=tmp_path / "auto", prey=2, clips=True,
+    # one prey just ahead of the start (a hunt, a strike and a meal for certain), one farther
+    # off; the rest of the story is the d10's
+    cfg = BakeConfig(seconds=300, seed=0, rig=RIG, out=tmp_path / "auto", clips=True,
+                     start=(0.0, 0.0, 0.0), start_heading=(0.0, 0.0, 1.0),
+                     prey_positions=((0.0, 0.0, 0.12), (1.5, 0.0, -1.0)),
                      nav_cache_dir=tmp_path / "cache")
     r = bake(cfg)
     b = r.report["metrics"]["behaviour"]
     print("states", b["state_seconds"])
     assert b["distinct_states"] >= 4
+    assert {"wander", "hunt", "strike", "feed"} <= set(b["state_seconds"])
     tl = r.report["timeline"]
     assert tl[0]["start"] == 0.0 and tl[-1]["end"] == 300
     assert all(x["end"] == y["start"] and x["end"] > x["start"] - 1e-9 for x, y in zip(tl, tl[1:]))
