@@ -83,6 +83,10 @@ def cli(verbose: int):
 @click.option("--cache-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Navigation cache folder [default: ~/.cache/baker/navmesh].")
 @click.option("--no-cache", is_flag=True, help="Always rebuild the navigation surface.")
+@click.option("--nav-build", type=click.Choice(["auto", "full", "lazy"]), default="auto",
+              show_default=True,
+              help="Build the navigation surface for the whole level, or lazily in windows "
+                   "around where the creatures go (auto: lazily on levels over 6 million columns).")
 @click.option("--behaviour", type=click.Choice(["auto", "wander", "shade", "hunt"]), default="auto",
               show_default=True, help="auto lets the brain choose; the others force one drive.")
 @click.option("--prey", type=int, default=0, show_default=True, help="Number of prey capsules (0-16).")
@@ -94,7 +98,7 @@ def cli(verbose: int):
               help="Also write one animation per behaviour segment (glTF animations, USD SkelAnimations).")
 @rig_options
 def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_navmesh,
-         cache_dir, no_cache, behaviour, prey, cobra, sun_path, clips, **rig_overrides):
+         cache_dir, no_cache, nav_build, behaviour, prey, cobra, sun_path, clips, **rig_overrides):
     """Bake a centipede on ENVIRONMENT (glTF/GLB, OBJ, PLY, STL or USD).
 
     With no ENVIRONMENT, the bundled rainforest floor is used."""
@@ -110,7 +114,7 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
         rig=override_rig(load_rig_config(rig_path), **rig_overrides), out=out,
         formats=formats, sun_direction=parse_vec3(sun, "--sun"), debug_navmesh=debug_navmesh,
         nav_cache_dir=None if no_cache else (cache_dir or default_cache_dir()),
-        behaviour=behaviour, prey=prey, cobra=cobra, sun_path=sun_path, clips=clips,
+        nav_build=nav_build, behaviour=behaviour, prey=prey, cobra=cobra, sun_path=sun_path, clips=clips,
     )
     progress = TerminalProgress()
     try:

@@ -189,6 +189,8 @@ class BakeConfig:
     prey_positions: tuple[tuple[float, float, float], ...] = ()  # [m] explicit prey starts
                                  # (snapped); when given, they replace the `prey` count
     nav_cache_dir: Path | None = None  # None: no on-disk navigation cache
+    nav_build: str = "auto"      # auto | full | lazy: the whole level at once, or windows
+                                 # around where the creatures go (auto: lazy on big levels)
 
     @property
     def sim_rate(self) -> int:
@@ -228,6 +230,8 @@ def validate_bake(cfg: BakeConfig) -> BakeConfig:
         raise ConfigError(f"--behaviour must be auto, wander, shade or hunt (got {cfg.behaviour})")
     if cfg.cobra not in ("auto", "always", "never"):
         raise ConfigError(f"--cobra must be auto, always or never (got {cfg.cobra})")
+    if cfg.nav_build not in ("auto", "full", "lazy"):
+        raise ConfigError(f"--nav-build must be auto, full or lazy (got {cfg.nav_build})")
     if not 0 <= cfg.prey <= 16:
         raise ConfigError(f"--prey must be in 0..16 (got {cfg.prey})")
     if cfg.sun_path is not None:

@@ -42,6 +42,28 @@ def make_rng(seed: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(int(seed)))
 
 
+def navigation_surface(cfg: BakeConfig, env):
+    """(surface, from cache): the whole level's, or (nav_build "lazy", or "auto" on a level of
+    more than LAZY_ABOVE_COLUMNS columns) a LazyNav whose first window is centred on the start
+    (or the level's centre) and holds the wander radius, the prey range and the body."""
+    from baker.navmesh.cache import load_or_build
+    from baker.navmesh.lazy import LAZY_ABOVE_COLUMNS, LazyNav, full_columns
+
+    agent = cfg.rig.navigation
+    mode = cfg.nav_build
+    if mode == "auto":
+        mode = "lazy" if full_columns(env, agent.cell_size) > LAZY_ABOVE_COLUMNS else "full"
+    if mode == "full":
+        return load_or_build(env, agent, cfg.nav_cache_dir)
+    lo, hi = env.bounds
+    centre = np.asarray(cfg.start, dtype=np.float64) if cfg.start is not None else 0.5 * (lo + hi)
+    rig = cfg.rig
+    half = (rig.wander.radius + 2.0 * rig.behaviour.detection_range + rig.body.length
+            + 4.0 * agent.radius)
+    nav = LazyNav(env, agent, cfg.nav_cache_dir, centre, half)
+    return nav, nav.cache_hits == 1
+
+
 def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
          ctx: Context | None = None) -> BakeResult:
     from baker import metrics
@@ -52,7 +74,6 @@ def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
     from baker.export.gltf import build_glb
     from baker.export.usd import write_usd
     from baker.navmesh import debug as nav_debug
-    from baker.navmesh.cache import load_or_build
     from baker.rig import build_rig
     from baker.sim.loop import simulate
 
@@ -68,7 +89,7 @@ def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
 
     # Step 2: the navigation surface for this rig's agent size (cached by content + params).
     with ctx.stage("navmesh"):
-        nav, cache_hit = load_or_build(env, cfg.rig.navigation, cfg.nav_cache_dir)
+        nav, cache_hit = navigation_surface(cfg, env)
     ctx.notes["navmesh_cache_hit"] = cache_hit
 
     # Step 3: skeleton and skinned mesh.

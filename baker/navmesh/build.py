@@ -262,7 +262,8 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
     if ncols > MAX_COLUMNS:
         raise NavError(f"navigation grid too large: {nx} x {nz} columns at cell size {cell:g} m "
                        f"(limit {MAX_COLUMNS:,}); use a larger cell size (at least "
-                       f"{cell * math.sqrt(ncols / MAX_COLUMNS):.3g} m) or smaller bounds")
+                       f"{cell * math.sqrt(ncols / MAX_COLUMNS):.3g} m) or smaller bounds "
+                       "(baker bake --nav-build lazy builds only where the creature goes)")
     caster = _Caster(env)
     face_comp, comp_closed = _solid_components(mesh)
     timings["setup"] = time.perf_counter() - t0

@@ -34,8 +34,10 @@ from baker.sim.trajectory import Trajectory
 log = logging.getLogger(__name__)
 
 
-def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None, heading=None):
-    """A walkable start point near the middle of the scene (or the one nearest to `at`), and a
+def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None, heading=None,
+                 spread: float = np.inf):
+    """A walkable start point near the middle of the scene (within a fifth of its extent, at
+    most `spread` metres; or the one nearest to `at`), and a
     heading (or `heading`) whose straight body line behind the head is as walkable as possible.
 
     returns (position (3,), heading (3,) unit horizontal)
@@ -51,7 +53,8 @@ def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None
     if anchor is None:
         raise NavError("environment has no walkable surface")
     extent = float(np.max(hi - lo))
-    start = anchor if at is not None else nav.random_point_near(anchor, 0.2 * extent, rng)
+    start = anchor if at is not None else nav.random_point_near(anchor, min(0.2 * extent, spread),
+                                                                rng)
     if start is None:
         start = anchor
     if heading is not None:
@@ -74,7 +77,8 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     per_frame = cfg.sim_rate // cfg.fps
     n_frames = n_steps // per_frame + 1
 
-    start, heading = choose_start(nav, env, body.length, rng, cfg.start, cfg.start_heading)
+    start, heading = choose_start(nav, env, body.length, rng, cfg.start, cfg.start_heading,
+                                   spread=rig.wander.radius)
     follow = Follower(nav, env.rays, start, heading, rig)
     head = follow.head
     sun = sun_path(parse_sun_path(cfg.sun_path) if cfg.sun_path else None, env.sun.direction,
