@@ -108,17 +108,19 @@ class HeadSteer:
         """
         hx, hz = self.heading[0], self.heading[2]
         bx, bz = self.base[0], self.base[2]
-
-        def free(t: float) -> bool:
-            c, s = math.cos(t), math.sin(t)
-            return allowed(bx + (c * hx + s * hz) * step, bz + (-s * hx + c * hz) * step)
-
-        if free(a):
-            return a, step
         side = 1.0 if ang >= a else -1.0
-        for d in _DEFLECT:
-            for t in (a + side * d, a - side * d):
-                if free(t):
-                    return t, step
+        # look a quarter turning radius ahead first, so an edge is met with a few small turns
+        # rather than one sharp one; then just the step itself
+        for reach in (max(0.25 * self.turn_radius, step), step):
+            def free(t: float) -> bool:
+                c, s = math.cos(t), math.sin(t)
+                return allowed(bx + (c * hx + s * hz) * reach, bz + (-s * hx + c * hz) * reach)
+
+            if free(a):
+                return a, step
+            for d in _DEFLECT:
+                for t in (a + side * d, a - side * d):
+                    if free(t):
+                        return t, step
         turn = self.max_yaw_rate * dt
         return max(-turn, min(turn, ang)), 0.0
