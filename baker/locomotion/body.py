@@ -22,6 +22,11 @@ from baker.geometry.transforms import frames_to_quat, normalize
 from baker.locomotion.cobra import limit_lift
 
 
+#: the smoothed trail stays at most this many clearances below the surface under it (so a
+#: joint rides at least 1 - BELOW clearances above it, on convex crests too)
+BELOW = 0.5
+
+
 @dataclass(frozen=True)
 class BodyFrames:
     """positions : (F, S, 3) float64 metres, world; rotations : (F, S, 4) xyzw world;
@@ -125,7 +130,7 @@ def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: flo
     # samples the trail's chord would otherwise cut the step's edge (a joint on it is a quarter
     # clearance above the edge; risers up to the step height stay within the band)
     near = maximum_filter1d(ground, size=2 * int(np.ceil(0.25 * spacing / res)) + 1, mode="nearest")
-    lo = np.maximum(ground - band, near - 0.75 * clearance)
+    lo = np.maximum(ground - BELOW * clearance, near - 0.75 * clearance)
     hi = np.maximum(ground + band, lo)
     for _ in range(16):
         y = np.clip(gaussian_filter1d(y, sigma, mode="nearest"), lo, hi)
