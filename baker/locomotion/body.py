@@ -25,6 +25,8 @@ from baker.locomotion.cobra import limit_lift
 #: the smoothed trail stays at most this many clearances below the surface under it (so a
 #: joint rides at least 1 - BELOW clearances above it, on convex crests too)
 BELOW = 0.5
+#: slope (rise over run) at which the bound a step puts on the trail falls away (35 degrees)
+STEP_FALL = 0.7
 
 
 @dataclass(frozen=True)
@@ -126,11 +128,7 @@ def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: flo
     # up and clears its edge), then smooth and keep inside the band, repeatedly: alternating
     # projections soften the kinks that the band leaves at creases and steps
     y = maximum_filter1d(ground, size=max(int(round(0.5 * spacing / res)), 1) * 2 + 1, mode="nearest")
-    # and never below the top of a step within a quarter spacing: at a riser between two
-    # samples the trail's chord would otherwise cut the step's edge (a joint on it is a quarter
-    # clearance above the edge; risers up to the step height stay within the band)
-    near = maximum_filter1d(ground, size=2 * int(np.ceil(0.25 * spacing / res)) + 1, mode="nearest")
-    lo = np.maximum(ground - BELOW * clearance, near - 0.75 * clearance)
+    lo = step_lower_bound(ground, res, spacing, clearance)
     hi = np.maximum(ground + band, lo)
     for _ in range(16):
         y = np.clip(gaussian_filter1d(y, sigma, mode="nearest"), lo, hi)
@@ -138,6 +136,46 @@ def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: flo
     pts[:, 1] = y
     normals = normalize(gaussian_filter1d(normals, 0.5 * sigma, axis=0, mode="nearest"))
     return Trail(points=pts, normals=normals, ground=ground, cum=polyline.arc_lengths(pts), cum_h=s)
+
+
+def step_lower_bound(ground: np.ndarray, res: float, spacing: float,
+                     clearance: float) -> np.ndarray:
+    """(T,) the lowest the smoothed trail may go at each sample: BELOW clearances under the
+    surface, and more near a step.
+
+    A step is where the ground jumps by more than half a clearance between neighbouring samples
+    (a 60 degree slope rises a third of that). Within a quarter spacing of the step the trail
+    stays within 0.75 clearance under the step's top (so its chords never cut the edge; a joint
+    is a quarter clearance above it). Beyond, that bound falls away at STEP_FALL (the body goes
+    down a step over about a spacing, not in one sample), asks for at most 0.9 clearance above
+    the surface once half a spacing away, and fades out over the half spacing before two
+    spacings, so the bound has no jump anywhere.
+    """
+    base = ground - BELOW * clearance
+    e = np.nonzero(np.abs(np.diff(ground)) > 0.5 * clearance)[0]
+    if len(e) == 0:
+        return base
+    top = np.full(len(ground), -np.inf)
+    hi = np.maximum(ground[e], ground[e + 1])
+    np.maximum.at(top, e, hi)
+    np.maximum.at(top, e + 1, hi)
+    flat, reach, fade = 0.25 * spacing, 2.0 * spacing, 0.5 * spacing
+    cap = ground + 0.9 * clearance
+    out = base.copy()
+    for m in range(0, int(np.ceil((flat + reach) / res)) + 1):
+        d = max(m * res - flat, 0.0)
+        w = min(max((reach - d) / fade, 0.0), 1.0)
+        if w <= 0.0:
+            break
+        for src, dst in ((slice(m, None), slice(None, len(top) - m)),
+                         (slice(None, len(top) - m), slice(m, None))):
+            need = top[src] - 0.75 * clearance
+            # the cap gives way to the step's own need at the step, fading over half a spacing
+            c = cap[dst] + np.maximum(need - cap[dst], 0.0) * max(1.0 - d / fade, 0.0)
+            want = np.minimum(need - STEP_FALL * d, c)
+            lift = np.maximum(want - base[dst], 0.0)
+            np.maximum(out[dst], base[dst] + w * lift, out=out[dst])
+    return out
 
 
 def place_chain(trail: Trail, head_arc: np.ndarray, offset: np.ndarray, spacing: float):

@@ -177,3 +177,25 @@ def test_trail_clears_the_edge_of_a_step(shift):
 
 def test_replan_after_is_a_bounded_wait():
     assert 0.5 <= follow_mod.REPLAN_AFTER <= 3.0
+
+
+def test_trail_takes_a_step_at_a_ramp_top_over_a_spacing():
+    """A 27 degree ramp whose top meets a platform about a clearance higher (0.6 step heights):
+    the trail's height profile gets from one to the other at no more than 40 degrees over any
+    half spacing (it used to jump up in a few samples, pitching the body's joints by 50 degrees
+    or more in a frame)."""
+    body = RIG.body
+    h = 0.6 * RIG.navigation.step_height
+    top = 0.2 * np.tan(np.radians(27.0))
+    env = env_of(floor(0.0, 0.3, 0.0, 0.2),
+                 quad((0.3, 0, 0), (0.3, 0, 0.2), (0.5, top, 0.2), (0.5, top, 0)),
+                 box((0.497, 0.0, 0.0), (1.0, top + h, 0.2)))
+    for x0 in 0.1 + np.linspace(0.0, 1.0, 5) * body.spacing / 8.0:
+        path = np.column_stack([np.linspace(x0, 0.9, 400), np.zeros(400), np.full(400, 0.1)])
+        path[:, 1] = np.clip((path[:, 0] - 0.3) * np.tan(np.radians(27.0)), 0.0, top)
+        p = build_trail(path, env.rays, probe=0.025, spacing=body.spacing,
+                        clearance=body.clearance).points
+        k = 4  # samples per half spacing
+        rise = np.abs(p[k:, 1] - p[:-k, 1])
+        run = np.hypot(p[k:, 0] - p[:-k, 0], p[k:, 2] - p[:-k, 2])
+        assert np.degrees(np.arctan2(rise, run)).max() <= 40.0
