@@ -24,6 +24,7 @@ import math
 
 import numpy as np
 
+from baker.errors import NavError
 from baker.navmesh.cache import load_or_build
 from baker.navmesh.surface import NavSurface
 
@@ -60,7 +61,14 @@ class LazyNav:
         self.windows: list[tuple[float, float, float, float]] = []
         self.cache_hits = 0
         self.surface: NavSurface
-        self._build(c - half, c + half)
+        while True:  # a window with no walkable surface in it is widened until the level ends
+            try:
+                self._build(c - half, c + half)
+                break
+            except NavError:
+                if self._whole(c - half, c + half):
+                    raise
+                half *= 2.0
 
     # ------------------------------------------------------------------ the window
     @property
@@ -82,6 +90,10 @@ class LazyNav:
         self.cache_hits += int(hit)
         self.windows.append((float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])))
         log.info("navigation window %s (%s)", self.window, "cache" if hit else "built")
+
+    def _whole(self, lo, hi) -> bool:
+        o, top = self._level
+        return bool(np.all(np.asarray(lo) <= o) and np.all(np.asarray(hi) >= top))
 
     def covers(self, lo, hi) -> bool:
         """True when the window holds the box [lo, hi] (x, z) or the level ends there."""

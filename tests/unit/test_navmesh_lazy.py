@@ -9,7 +9,7 @@ import pytest
 from baker.config import DEFAULT_RIG, load_rig_config
 from baker.navmesh import build
 from baker.navmesh.lazy import TILE_CELLS, LazyNav, full_columns
-from test_navmesh_scenes import box, env_of, floor
+from test_navmesh_scenes import box, env_of, floor, quad
 
 AGENT = load_rig_config(DEFAULT_RIG).navigation
 TILE = TILE_CELLS * AGENT.cell_size
@@ -73,3 +73,19 @@ def test_cached_windows_are_reused(field, tmp_path):
     assert a.cache_hits == 0 and b.cache_hits == 2
     assert a.windows == b.windows
     assert np.array_equal(a.positions, b.positions)
+
+
+def test_a_first_window_with_nothing_walkable_widens():
+    """The start's surroundings are a pond (no floor): the window widens until it finds the
+    shore; a level with no walkable surface at all still raises."""
+    from baker.errors import NavError
+
+    env = env_of(floor(-6.0, 6.0, -6.0, -3.0), floor(-6.0, 6.0, 3.0, 6.0), floor(-6.0, -5.9, -6.0, 6.0))
+    nav = LazyNav(env, AGENT, None, centre=(0.0, 0.0, 0.0), half=1.0)
+    assert nav.n_samples > 0
+    x0, z0, x1, z1 = nav.window
+    assert z0 <= -3.0 or z1 >= 3.0
+    steep = env_of(quad((0, 0, 0), (0, 1, 0), (0, 1, 1), (0, 0, 1)),
+                   quad((5, 0, 0), (5, 1, 0), (5, 1, 1), (5, 0, 1)))
+    with pytest.raises(NavError, match="no walkable surface"):
+        LazyNav(steep, AGENT, None, centre=(2.5, 0.0, 0.5), half=0.5)
