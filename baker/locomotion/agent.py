@@ -38,6 +38,15 @@ class PathAgent:
         self._cum = polyline.arc_lengths(pts)
         self._s = 0.0
 
+    def point_behind(self, distance: float) -> np.ndarray:
+        """The path's point `distance` metres behind the agent (its start at most)."""
+        return self._at(max(self._s - distance, 0.0))
+
+    def skip(self, distance: float) -> None:
+        """Move `distance` metres along the path at once (not past its end)."""
+        self._s = min(self._s + max(distance, 0.0), float(self._cum[-1]))
+        self.position = self._at(self._s)
+
     @property
     def remaining(self) -> float:
         """Metres left along the path."""

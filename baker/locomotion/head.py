@@ -46,19 +46,32 @@ class HeadSteer:
         self.lateral_amp = 0.0
         self.speed = 0.0
         self.position = self.base.copy()
+        self._u_side = 0.0   # the side a U-turn in progress turns to (+1 left, -1 right)
 
     def step(self, dt: float, agent_pos: np.ndarray, agent_speed: float,
-             allowed: Callable[[float, float], bool] | None = None) -> None:
+             allowed: Callable[[float, float], bool] | None = None,
+             aim: np.ndarray | None = None) -> None:
         """Advance by dt seconds toward the agent.
 
         allowed : optional test of a base position (x, z) -> on the walkable surface. While the
                   base is on it, a step that would leave it turns instead (tighter toward the
                   agent, else sliding along the edge), or, when no direction is free, turns on
                   the spot: Detour's move-along-surface for the head.
+        aim     : optional point to steer toward instead of the agent (a point of the agent's
+                  path the head can see); the speed still keeps the head a lead behind the agent
         """
         to = agent_pos - self.base
         to[1] = 0.0
         dist = math.hypot(to[0], to[2])
+        if aim is not None:
+            to = aim - self.base
+            to[1] = 0.0
+            d_aim = math.hypot(to[0], to[2])
+            if d_aim < 1e-9:
+                to = agent_pos - self.base
+                to[1] = 0.0
+            else:  # how far the agent is: via the aim point (around the corner)
+                dist = d_aim + math.hypot(agent_pos[0] - aim[0], agent_pos[2] - aim[2])
         # Speed: match the agent, plus a gain that closes the gap to the lead distance.
         gain = 4.0
         u = max(0.0, min(agent_speed + gain * (dist - self.lead), 1.25 * self.max_speed))
@@ -67,11 +80,12 @@ class HeadSteer:
         if u > 0.0 and dist > 1e-9:
             # Don't overshoot the agent when it has stopped.
             step = min(u * dt, max(dist - 0.25 * self.lead, 0.0)) if agent_speed == 0.0 else u * dt
-            want = to / dist
+            want = to / max(math.hypot(to[0], to[2]), 1e-12)
             # Turn toward the agent by at most step / turn_radius: the path's curvature is bounded.
             cross = self.heading[2] * want[0] - self.heading[0] * want[2]
             dot = self.heading[0] * want[0] + self.heading[2] * want[2]
             ang = math.atan2(cross, dot)
+            ang = self._u_turn(ang, allowed)
             lim = step / self.turn_radius
             if abs(ang) > 0.5:
                 # A sharp turn (a corner, or a new path behind): slow down to bound the yaw rate.
@@ -99,6 +113,36 @@ class HeadSteer:
         self.lateral_amp += max(-dmax, min(dmax, want - self.lateral_amp))
         left = np.array([self.heading[2], 0.0, -self.heading[0]])
         self.position = self.base + left * (self.lateral_amp * math.sin(self.phase))
+
+    def _u_turn(self, ang: float, allowed) -> float:
+        """A target more than a right angle off the heading is a U-turn: it keeps to the side it
+        started on (no dithering when the target is almost straight behind), and with a surface
+        test it starts to the side where more of its turning circle is walkable. Returns the
+        turn angle to use (the long way round when that side is not the shorter one)."""
+        if abs(ang) <= 0.5 * math.pi:
+            self._u_side = 0.0
+            return ang
+        if self._u_side == 0.0:
+            side = 1.0 if ang >= 0.0 else -1.0
+            if allowed is not None:
+                room = [self._circle_room(sd, allowed) for sd in (side, -side)]
+                side = side if room[0] >= room[1] else -side
+            self._u_side = side
+        if ang * self._u_side < 0.0:
+            ang += self._u_side * 2.0 * math.pi
+        return ang
+
+    def _circle_room(self, side: float, allowed) -> int:
+        """How many of 4 points along the turning circle on `side` are walkable."""
+        hx, hz = self.heading[0], self.heading[2]
+        lx, lz = side * hz, -side * hx
+        cx, cz = self.base[0] + self.turn_radius * lx, self.base[2] + self.turn_radius * lz
+        n = 0
+        for th in (0.25 * math.pi, 0.5 * math.pi, 0.75 * math.pi, math.pi):
+            c, s = math.cos(th), math.sin(th)
+            n += bool(allowed(cx + self.turn_radius * (-lx * c + hx * s),
+                              cz + self.turn_radius * (-lz * c + hz * s)))
+        return n
 
     def _contain(self, a: float, ang: float, step: float, dt: float, allowed) -> tuple[float, float]:
         """The turn angle and step length that keep the base on the walkable surface.

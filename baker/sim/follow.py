@@ -22,6 +22,8 @@ from baker.locomotion.agent import PathAgent
 from baker.locomotion.body import project_to_surface
 from baker.locomotion.head import HeadSteer
 
+#: steps between checks of what the head can see of the agent's path
+AIM_EVERY = 4
 #: [s] how long the agent waits for the head before the path is planned again from the head
 REPLAN_AFTER = 1.5
 
@@ -48,6 +50,9 @@ class Follower:
                               turn_rate=loco.head_turn_rate, amplitude=loco.slither_amplitude,
                               max_offset=0.4 * navc.radius)
         self.height = float(start[1])
+        self._steps = 0
+        self._back = 0.0
+        self._backs = self.turn_radius * np.arange(0.0, 4.01, 0.25)
         self.target: np.ndarray | None = None
         self.waited = 0.0
         self.replans = 0
@@ -84,12 +89,43 @@ class Follower:
             gap = math.hypot(agent.position[0] - head.base[0], agent.position[2] - head.base[2])
         agent.step(dt, slack=2.0 - gap / self.turn_radius)
         y, nav, tol = self.height, self.nav, self.tol
+        self._steps += 1
+        if self._steps % AIM_EVERY == 0:
+            self._back = self._aim_back()
+        aim = agent.point_behind(self._back) if self._back > 0.0 else None
         head.step(dt, agent.position, agent.speed,
-                  allowed=lambda x, z: not math.isnan(nav.layer_height(x, y, z, tol)))
+                  allowed=lambda x, z: not math.isnan(nav.layer_height(x, y, z, tol)), aim=aim)
         self.height = self._layer_height(head.position)
 
+    def _aim_back(self) -> float:
+        """How far back along the agent's path the head should aim: 0 (at the agent) when it
+        can walk straight to the agent, else the first point, a quarter turning radius at a
+        time back along the path (up to four turning radii), that it can walk to straight; 0
+        when none is. Pure pursuit would cut the corner round a thin obstacle and chase the
+        agent from its wrong side."""
+        for back in self._backs:
+            p = self.agent.point_behind(back)
+            if self._clear(p):
+                return back
+        return 0.0
+
+    def _clear(self, p: np.ndarray) -> bool:
+        """True when the straight line from the head's base to p stays on the head's layer of
+        the walkable surface (samples every half cell)."""
+        bx, bz = self.head.base[0], self.head.base[2]
+        dx, dz = p[0] - bx, p[2] - bz
+        n = int(math.hypot(dx, dz) / (0.5 * self.nav.cell_size)) + 1
+        y = self.height
+        for i in range(1, n + 1):
+            t = i / n
+            y = self.nav.layer_height(bx + t * dx, y, bz + t * dz, self.tol)
+            if y != y:  # NaN
+                return False
+        return True
+
     def replan(self) -> None:
-        """Plan again from the head: the agent restarts at the surface point nearest it."""
+        """Plan again from the head: the agent restarts a turning radius along a new path from
+        the surface point nearest the head."""
         self.waited = 0.0
         p = self.nav.nearest(np.array([self.head.base[0], self.height, self.head.base[2]]))
         if p is None:
@@ -100,6 +136,8 @@ class Follower:
             self.agent.set_path(p[None])
         else:
             self._plan(p)
+            # the head chases the new path a turning radius ahead, as it does any path
+            self.agent.skip(self.turn_radius)
 
     def _plan(self, a: np.ndarray) -> None:
         # dense path points carry the walked layer's heights (chords cut through bumps)

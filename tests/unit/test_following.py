@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from baker.config import DEFAULT_RIG, load_rig_config
+from baker.config import DEFAULT_RIG, load_rig_config, scale_rig
 from baker.locomotion.body import build_trail, place_chain
 from baker.metrics import inside_geometry
 from baker.navmesh import build
@@ -199,3 +199,45 @@ def test_trail_takes_a_step_at_a_ramp_top_over_a_spacing():
         rise = np.abs(p[k:, 1] - p[:-k, 1])
         run = np.hypot(p[k:, 0] - p[:-k, 0], p[k:, 2] - p[:-k, 2])
         assert np.degrees(np.arctan2(rise, run)).max() <= 40.0
+
+
+# --------------------------------------------------------------------------- aiming and U-turns
+GIANT = scale_rig(RIG, 8.0)   # 2 m: turning radius 0.29 m, agent radius 0.16 m, cell 0.12 m
+
+
+def test_head_aims_at_the_part_of_the_path_it_can_see():
+    """The agent has gone round the end of a zero-thickness wall and is coming back along its
+    other side, within two turning radii of the head: the head aims at the last point of the
+    path before the end of the wall that it can walk to straight, not through the wall (pure
+    pursuit would turn it into the wall and slide it along the wrong side)."""
+    env = env_of(floor(-3.0, 6.0, -3.0, 3.0), quad((0.0, 0, 0), (0.0, 1, 0), (4.0, 1, 0), (4.0, 0, 0)))
+    nav = build(env, GIANT.navigation)
+    head = nav.nearest([0.3, 0.0, 0.3])
+    f = Follower(nav, env.rays, head, np.array([-1.0, 0.0, 0.0]), GIANT)
+    path = np.array([[0.3, 0.0, 0.3], [-0.25, 0.0, 0.3], [-0.25, 0.0, -0.2], [0.3, 0.0, -0.2]])
+    f.agent.set_path(nav.resample_path(path))
+    f.agent.skip(1e9)                                # the agent at the path's end, behind the wall
+    assert np.linalg.norm(f.agent.position - head) < 2 * f.turn_radius
+    assert not f._clear(f.agent.position)           # the straight line crosses the wall
+    back = f._aim_back()
+    assert back > 0.0
+    aim = f.agent.point_behind(back)
+    assert f._clear(aim) and aim[2] > -0.2 + 1e-6   # a visible point, short of the far side
+    assert aim[0] < 0.0                              # round the end of the wall
+    f.agent.set_path(nav.resample_path(path[:2]))   # nothing in the way: aim at the agent
+    f.agent.skip(1e9)
+    assert f._aim_back() == 0.0
+
+
+def test_u_turn_starts_to_the_side_with_room():
+    """Heading +X along the edge of a floor (the edge on its right), with the target behind and
+    a little to the right: the head turns round to its left, where there is room, instead of
+    into the edge."""
+    env = env_of(floor(-3.0, 3.0, -3.0, 0.0))   # the edge is z = 0; heading +X, right is +Z
+    nav = build(env, GIANT.navigation)
+    start = nav.nearest([0.0, 0.0, -0.3])
+    f = Follower(nav, env.rays, start, np.array([1.0, 0.0, 0.0]), GIANT)
+    f.go(nav.nearest([-2.0, 0.0, -0.25]))
+    base = run(f, 10.0)
+    assert base[:, 2].min() < -0.5   # swung out to the left (-Z), away from the edge
+    assert nav.is_walkable(base).all()
