@@ -10,6 +10,7 @@ stays between 0 and 2x the clearance above the surface below it.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +28,8 @@ from baker.locomotion.cobra import limit_lift
 BELOW = 0.5
 #: slope (rise over run) at which the bound a step puts on the trail falls away (35 degrees)
 STEP_FALL = 0.7
+#: [deg/s] fastest turn of the head's facing (where its trail folds back)
+HEAD_TURN_RATE = 540.0
 
 
 @dataclass(frozen=True)
@@ -178,6 +181,40 @@ def step_lower_bound(ground: np.ndarray, res: float, spacing: float,
     return out
 
 
+def limit_turn(dirs: np.ndarray, axes: np.ndarray, max_angle: float) -> np.ndarray:
+    """Directions (F, 3) that follow `dirs` but turn at most `max_angle` radians a frame,
+    swinging about `axes` (F, 3, unit) when the turn is a full reversal. Frames are processed
+    one by one only from the first too-fast turn until the output has caught up again."""
+    d = normalize(np.asarray(dirs, dtype=np.float64))
+    F = len(d)
+    if F < 2:
+        return d
+    cos_lim = math.cos(max_angle)
+    fast = np.nonzero(np.einsum("ij,ij->i", d[:-1], d[1:]) < cos_lim)[0]
+    if len(fast) == 0:
+        return d
+    out = d.copy()
+    f = int(fast[0]) + 1
+    while f < F:
+        prev, want = out[f - 1], d[f]
+        c = float(np.dot(prev, want))
+        if c >= cos_lim:
+            out[f] = want
+            nxt = fast[fast >= f]
+            if len(nxt) == 0:
+                break
+            f = max(f + 1, int(nxt[0]) + 1)
+            continue
+        axis = np.cross(prev, want)
+        n = float(np.linalg.norm(axis))
+        axis = axis / n if n > 1e-9 else axes[f] / max(float(np.linalg.norm(axes[f])), 1e-12)
+        # Rodrigues: prev rotated by max_angle about axis
+        out[f] = (prev * math.cos(max_angle) + np.cross(axis, prev) * math.sin(max_angle)
+                  + axis * float(np.dot(axis, prev)) * (1.0 - math.cos(max_angle)))
+        f += 1
+    return out
+
+
 def place_chain(trail: Trail, head_arc: np.ndarray, offset: np.ndarray, spacing: float):
     """Follow-the-leader placement: the head at its arc length on the trail, every other joint
     on the trail exactly `spacing` (3D) behind the joint ahead, each raised by its offset.
@@ -244,5 +281,8 @@ def body_frames(trail: Trail, head_arc: np.ndarray, spacing: float, segments: in
     ahead = pos[:, 0] - pos[:, 1]
     forward[:, 0] = np.where(np.linalg.norm(head_dir, axis=1, keepdims=True) > 0.25 * spacing,
                              head_dir, ahead)
+    # where the trail folds back on itself (a reversal in a dead end) the head swings round
+    # over a few frames instead of flipping in one
+    forward[:, 0] = limit_turn(forward[:, 0], normals[:, 0], np.radians(HEAD_TURN_RATE) / fps)
     rot = frames_to_quat(forward, normals)
     return BodyFrames(positions=pos, rotations=rot, normals=normals, ground=ground, lift=lift)

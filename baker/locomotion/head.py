@@ -158,7 +158,9 @@ class HeadSteer:
         for reach in (max(0.25 * self.turn_radius, step), step):
             def free(t: float) -> bool:
                 c, s = math.cos(t), math.sin(t)
-                return allowed(bx + (c * hx + s * hz) * reach, bz + (-s * hx + c * hz) * reach)
+                dx, dz = c * hx + s * hz, -s * hx + c * hz
+                return (allowed(bx + dx * step, bz + dz * step)
+                        and (reach == step or allowed(bx + dx * reach, bz + dz * reach)))
 
             if free(a):
                 return a, step
