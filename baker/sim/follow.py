@@ -4,8 +4,10 @@ head follows it (Detour's corridor following, for a creature with a turning radi
 Every step:
 - the agent advances along its path, and waits while the head lags more than two turning radii
   behind it (a sharp turn);
-- the head chases the agent with a bounded turning radius, and is kept on the walkable surface
-  of its own layer (a step that would leave it turns or slides along the edge instead);
+- the head chases the agent with a bounded turning radius (aiming at the agent when it can walk
+  there straight, else at the last point of the agent's path it can), and is kept on the
+  walkable surface of its own layer (a step that would leave it turns or slides along the edge
+  instead);
 - the head's height continues the layer it is on (never a floor above or below it);
 - when the head has been held back for REPLAN_AFTER seconds (blocked, or off the agent's
   corridor), the path is planned again from the head.
