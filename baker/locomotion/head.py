@@ -63,15 +63,12 @@ class HeadSteer:
         to = agent_pos - self.base
         to[1] = 0.0
         dist = math.hypot(to[0], to[2])
-        if aim is not None:
+        if aim is not None and math.hypot(aim[0] - self.base[0], aim[2] - self.base[2]) > 1e-9:
+            # steer at the aim point; the agent is as far as the way round through it
             to = aim - self.base
             to[1] = 0.0
-            d_aim = math.hypot(to[0], to[2])
-            if d_aim < 1e-9:
-                to = agent_pos - self.base
-                to[1] = 0.0
-            else:  # how far the agent is: via the aim point (around the corner)
-                dist = d_aim + math.hypot(agent_pos[0] - aim[0], agent_pos[2] - aim[2])
+            dist = math.hypot(to[0], to[2]) + math.hypot(agent_pos[0] - aim[0],
+                                                         agent_pos[2] - aim[2])
         # Speed: match the agent, plus a gain that closes the gap to the lead distance.
         gain = 4.0
         u = max(0.0, min(agent_speed + gain * (dist - self.lead), 1.25 * self.max_speed))
@@ -155,18 +152,15 @@ class HeadSteer:
         side = 1.0 if ang >= a else -1.0
         # look a quarter turning radius ahead first, so an edge is met with a few small turns
         # rather than one sharp one; then just the step itself
-        for reach in (max(0.25 * self.turn_radius, step), step):
-            def free(t: float) -> bool:
-                c, s = math.cos(t), math.sin(t)
-                dx, dz = c * hx + s * hz, -s * hx + c * hz
-                return (allowed(bx + dx * step, bz + dz * step)
-                        and (reach == step or allowed(bx + dx * reach, bz + dz * reach)))
+        def free(t: float, reach: float) -> bool:
+            c, s = math.cos(t), math.sin(t)
+            dx, dz = c * hx + s * hz, -s * hx + c * hz
+            return (allowed(bx + dx * step, bz + dz * step)
+                    and (reach == step or allowed(bx + dx * reach, bz + dz * reach)))
 
-            if free(a):
-                return a, step
-            for d in _DEFLECT:
-                for t in (a + side * d, a - side * d):
-                    if free(t):
-                        return t, step
+        for reach in (max(0.25 * self.turn_radius, step), step):
+            for t in (a, *(a + sd * d for d in _DEFLECT for sd in (side, -side))):
+                if free(t, reach):
+                    return t, step
         turn = self.max_yaw_rate * dt
         return max(-turn, min(turn, ang)), 0.0

@@ -90,14 +90,16 @@ class Follower:
             self.replan()
             gap = math.hypot(agent.position[0] - head.base[0], agent.position[2] - head.base[2])
         agent.step(dt, slack=2.0 - gap / self.turn_radius)
-        y, nav, tol = self.height, self.nav, self.tol
         self._steps += 1
         if self._steps % AIM_EVERY == 0:
             self._back = self._aim_back()
         aim = agent.point_behind(self._back) if self._back > 0.0 else None
-        head.step(dt, agent.position, agent.speed,
-                  allowed=lambda x, z: not math.isnan(nav.layer_height(x, y, z, tol)), aim=aim)
+        head.step(dt, agent.position, agent.speed, allowed=self._on_layer, aim=aim)
         self.height = self._layer_height(head.position)
+
+    def _on_layer(self, x: float, z: float) -> bool:
+        """True when the column of (x, z) has a walkable sample on the head's layer."""
+        return not math.isnan(self.nav.layer_height(x, self.height, z, self.tol))
 
     def _aim_back(self) -> float:
         """How far back along the agent's path the head should aim: 0 (at the agent) when it

@@ -122,11 +122,12 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     # The trail: head path (preceded by the initial body line) projected onto the surface, with
     # rays searched from below the agent's free height so overhangs are never hit.
     probe = 0.5 * navc.height
-    path = np.vstack([tail[:-1], heads])
-    # Path heights are exact only at path corners: start the rays from the navigation surface
-    # (the layer nearest the path, never one a free agent height above or below it).
-    h = nav.surface_height(path, tol=0.5 * navc.height)
-    path[np.isfinite(h), 1] = h[np.isfinite(h)]
+    # The head's heights are already on its layer; the initial body line (at the start's
+    # height) is put on the layer nearest it, never one a free agent height above or below.
+    line = tail[:-1].copy()
+    h = nav.surface_height(line, tol=0.5 * navc.height)
+    line[np.isfinite(h), 1] = h[np.isfinite(h)]
+    path = np.vstack([line, heads])
     trail = build_trail(path, env.rays, probe=probe, spacing=body.spacing, clearance=body.clearance)
     flat = path.copy()
     flat[:, 1] = 0.0

@@ -109,6 +109,10 @@ def test_a_head_held_back_behind_a_wall_replans_from_where_it_is(walled):
     assert not crosses_wall(base)
 
 
+def test_replan_after_is_a_bounded_wait():
+    assert 0.5 <= follow_mod.REPLAN_AFTER <= 3.0
+
+
 def test_no_replan_on_an_open_floor(walled):
     env, nav = walled
     f = Follower(nav, env.rays, nav.nearest([0.2, 0.0, 0.2]), np.array([0.0, 0.0, 1.0]), RIG)
@@ -152,6 +156,25 @@ def test_layer_height_is_surface_height_for_single_points():
 
 
 # --------------------------------------------------------------------------- the trail at a step
+RAMP_TOP = 0.2 * np.tan(np.radians(27.0))
+
+
+def ramp_to_platform(h: float, edge: float):
+    """Floor to x = 0.3, a 27 degree ramp to x = 0.5 (top RAMP_TOP), and a platform box from
+    x = `edge` (overlapping the ramp's end, as where Recast's demo level's ramp meets its
+    platform) whose top stands `h` above the ramp's top; all 0.2 m wide."""
+    return env_of(floor(0.0, 0.3, 0.0, 0.2),
+                  quad((0.3, 0, 0), (0.3, 0, 0.2), (0.5, RAMP_TOP, 0.2), (0.5, RAMP_TOP, 0)),
+                  box((edge, 0.0, 0.0), (1.0, RAMP_TOP + h, 0.2)))
+
+
+def ramp_path(x0: float) -> np.ndarray:
+    """A head path from x0 up the ramp and along the platform (heights approximate)."""
+    path = np.column_stack([np.linspace(x0, 0.9, 400), np.zeros(400), np.full(400, 0.1)])
+    path[:, 1] = np.clip((path[:, 0] - 0.3) * np.tan(np.radians(27.0)), 0.0, RAMP_TOP)
+    return path
+
+
 @pytest.mark.parametrize("shift", np.linspace(0.0, 1.0, 7))
 def test_trail_clears_the_edge_of_a_step(shift):
     """A 27 degree ramp up to a platform whose edge stands 0.95 x the step height above the
@@ -160,27 +183,16 @@ def test_trail_clears_the_edge_of_a_step(shift):
     trail samples in each case. No spine joint is ever inside the platform or the ramp."""
     body = RIG.body
     h = 0.95 * RIG.navigation.step_height
-    top = 0.2 * np.tan(np.radians(27.0))
-    env = env_of(floor(0.0, 0.3, 0.0, 0.2),
-                 quad((0.3, 0, 0), (0.3, 0, 0.2), (0.5, top, 0.2), (0.5, top, 0)),
-                 box((0.48, 0.0, 0.0), (1.0, top + h, 0.2)))
-    res = body.spacing / 8.0
-    x0 = 0.1 + shift * res
-    path = np.column_stack([np.linspace(x0, 0.9, 400), np.zeros(400), np.full(400, 0.1)])
-    path[:, 1] = np.clip((path[:, 0] - 0.3) * np.tan(np.radians(27.0)), 0.0, top)
-    trail = build_trail(path, env.rays, probe=0.025, spacing=body.spacing,
-                        clearance=body.clearance)
+    env = ramp_to_platform(h, 0.48)
+    trail = build_trail(ramp_path(0.1 + shift * body.spacing / 8.0), env.rays, probe=0.025,
+                        spacing=body.spacing, clearance=body.clearance)
     arcs = np.linspace(trail.cum[-1] * 0.3, trail.cum[-1], 400)
     pos, _ = place_chain(trail, arcs, np.full((len(arcs), body.segments), body.clearance),
                          body.spacing)
     assert not inside_geometry(pos.reshape(-1, 3), env.rays).any()
     # on the platform the body rides within its clearance band above the top
     on = pos[..., 0] > 0.52
-    assert np.all(np.abs(pos[..., 1][on] - top - h - body.clearance) < 0.95 * body.clearance)
-
-
-def test_replan_after_is_a_bounded_wait():
-    assert 0.5 <= follow_mod.REPLAN_AFTER <= 3.0
+    assert np.all(np.abs(pos[..., 1][on] - RAMP_TOP - h - body.clearance) < 0.95 * body.clearance)
 
 
 def test_trail_takes_a_step_at_a_ramp_top_over_a_spacing():
@@ -189,15 +201,9 @@ def test_trail_takes_a_step_at_a_ramp_top_over_a_spacing():
     half spacing (it used to jump up in a few samples, pitching the body's joints by 50 degrees
     or more in a frame)."""
     body = RIG.body
-    h = 0.6 * RIG.navigation.step_height
-    top = 0.2 * np.tan(np.radians(27.0))
-    env = env_of(floor(0.0, 0.3, 0.0, 0.2),
-                 quad((0.3, 0, 0), (0.3, 0, 0.2), (0.5, top, 0.2), (0.5, top, 0)),
-                 box((0.497, 0.0, 0.0), (1.0, top + h, 0.2)))
+    env = ramp_to_platform(0.6 * RIG.navigation.step_height, 0.497)
     for x0 in 0.1 + np.linspace(0.0, 1.0, 5) * body.spacing / 8.0:
-        path = np.column_stack([np.linspace(x0, 0.9, 400), np.zeros(400), np.full(400, 0.1)])
-        path[:, 1] = np.clip((path[:, 0] - 0.3) * np.tan(np.radians(27.0)), 0.0, top)
-        p = build_trail(path, env.rays, probe=0.025, spacing=body.spacing,
+        p = build_trail(ramp_path(x0), env.rays, probe=0.025, spacing=body.spacing,
                         clearance=body.clearance).points
         k = 4  # samples per half spacing
         rise = np.abs(p[k:, 1] - p[:-k, 1])
