@@ -50,20 +50,27 @@ def extras(cfg, traj) -> dict:
         "seconds": float(cfg.seconds),
         "rig": rig_summary(cfg.rig),
         "timeline": jsonable(list(traj.events)),
-        "foot_contacts": foot_contacts(traj),
+        "foot_contacts": foot_contacts(traj, cfg.rig),
     }
 
 
-def foot_contacts(traj) -> dict:
-    """Planted intervals per walking leg, as inclusive [first, last] frame pairs:
-    {"leg_L_01": [[0, 11], [19, 30], ...], ...} (legs ordered L_01, R_01, L_02, ...)."""
+def foot_contacts(traj, rig_cfg) -> dict:
+    """Planted intervals per walking leg, keyed by the leg's foot joint (its end joint at the
+    contact point), as inclusive [first, last] frame pairs:
+    {"leg_L_01_foot": [[0, 11], [19, 30], ...], ...} (legs ordered L_01, R_01, L_02, ...)."""
+    from baker.rig.limbs import leg_layout
+
     c = traj.foot_contacts
     if c is None:
         return {}
     c = np.asarray(c, dtype=bool)
+    feet = leg_layout(rig_cfg).foot_names
+    if len(feet) != c.shape[1]:
+        from baker.errors import ExportError
+
+        raise ExportError(f"foot contacts for {c.shape[1]} legs, the rig has {len(feet)}")
     out = {}
-    for k in range(c.shape[1]):
-        name = f"leg_{'LR'[k % 2]}_{k // 2 + 1:02d}"
+    for k, name in enumerate(feet):
         d = np.diff(np.concatenate([[0], c[:, k].astype(np.int8), [0]]))
         starts, ends = np.nonzero(d == 1)[0], np.nonzero(d == -1)[0] - 1
         out[name] = [[int(a), int(b)] for a, b in zip(starts, ends)]

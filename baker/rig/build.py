@@ -63,6 +63,9 @@ def build_rig(cfg: RigConfig) -> Rig:
 
 
 def _add_limbs(cfg: RigConfig, skeleton: Skeleton, mesh: SkinnedMesh):
+    """The limb joints of rig/limbs.py appended to `skeleton` (local rest TRS from their world
+    rest frames; end joints exactly at (0, length, 0) with the identity rotation), and their
+    skinned tubes appended to `mesh` (end joints carry no weights)."""
     rest = limb_rest(cfg, skeleton.names)
     base = skeleton.n_joints
     index = {n: i for i, n in enumerate(skeleton.names)}
@@ -74,9 +77,15 @@ def _add_limbs(cfg: RigConfig, skeleton: Skeleton, mesh: SkinnedMesh):
     inv = quat_conj(world_q[parents])
     local_t = quat_rotate(inv, rest.positions - world_t[parents])
     local_q = quat_mul(inv, rest.rotations)
+    end = np.asarray(rest.end, dtype=bool)
+    bone = np.nonzero(~end)[0]
+    local_t[end] = 0.0
+    local_t[end, 1] = rest.lengths[bone.reshape(-1, 2)[:, 1]]
+    local_q[end] = [0.0, 0.0, 0.0, 1.0]
     skeleton = skeleton.with_joints(rest.names, parents, local_t, local_q)
-    k = len(rest.names) // 2
-    lv, lf, lj, lw = build_limb_mesh(rest.positions.reshape(k, 2, 3), rest.rotations.reshape(k, 2, 4),
-                                     rest.lengths.reshape(k, 2), rest.radii[0::2],
-                                     (base + np.arange(2 * k)).reshape(k, 2))
+    k = rest.n_limbs
+    lv, lf, lj, lw = build_limb_mesh(rest.positions[bone].reshape(k, 2, 3),
+                                     rest.rotations[bone].reshape(k, 2, 4),
+                                     rest.lengths[bone].reshape(k, 2), rest.radii[bone][0::2],
+                                     (base + bone).reshape(k, 2))
     return skeleton, add_limbs(mesh, lv, lf, lj, lw)

@@ -3,8 +3,10 @@
 One place defines where every limb joint sits, so the skeleton's rest pose (rig/build.py), the
 mesh (rig/mesh.py) and the simulation (locomotion/legs.py) agree. Every limb bone is a joint
 whose local +Y points along the bone (Blender's bone convention) and whose local +X is the
-bend (hinge) axis; a bone ends at its child joint or, for the last bone of a chain, `length`
-along +Y.
+bend (hinge) axis; a bone ends at its child joint. The last bone of every limb ends at an *end
+joint* (`leg_L_07_foot`, `ultimate_L_foot`, `antenna_L_tip`, `forcipule_L_end`): a leaf joint at
+(0, length, 0) in its parent with the identity local rotation and no skin weights, so every bone
+has a length and engines have a joint at the contact point (feet) or the sensing end (antennae).
 
 Segment frame: +X left, +Y up (surface normal), +Z forward; the spine joint at the origin,
 the surface at y = -clearance.
@@ -18,7 +20,7 @@ import numpy as np
 
 from baker.config import RigConfig
 from baker.geometry.ik import bone_frames, two_bone_ik
-from baker.geometry.transforms import normalize
+from baker.geometry.transforms import normalize, quat_rotate
 
 HIP_DROP = 0.35     # hip below the centre line, as a fraction of the segment's half-height
 
@@ -28,6 +30,7 @@ class LegLayout:
     """The walking legs, two per trunk segment, ordered L_01, R_01, L_02, R_02, ...
 
     upper_names, tip_names : (L,) joint names, leg_L_07_upper / leg_L_07_tip
+    foot_names : (L,) end joint names at the contact point, leg_L_07_foot (child of the tip)
     segment : (L,) int64, spine index the leg hangs from (1..S-1)
     side    : (L,) float64, +1 left (+X), -1 right
     hip     : (L, 3) float64, metres, hip (upper joint origin) in the segment frame
@@ -39,6 +42,7 @@ class LegLayout:
 
     upper_names: tuple[str, ...]
     tip_names: tuple[str, ...]
+    foot_names: tuple[str, ...]
     segment: np.ndarray
     side: np.ndarray
     hip: np.ndarray
@@ -58,6 +62,8 @@ class Chain:
     forcipules).
 
     names    : (2,) joint names, base first
+    end      : the end joint's name (child of names[1], at its bone's end): ultimate_L_foot,
+               antenna_L_tip, forcipule_L_end
     parent   : spine index of the parent spine joint
     base     : (3,) base joint position in the parent segment frame
     dirs     : (2, 3) rest bone directions (unit) in the parent segment frame
@@ -77,6 +83,7 @@ class Chain:
     radius: float
     kind: str
     side: float
+    end: str = ""
 
 
 def half_widths(cfg: RigConfig) -> np.ndarray:
@@ -102,8 +109,10 @@ def leg_layout(cfg: RigConfig) -> LegLayout:
     lag = lag - np.floor(lag)
     names_u = tuple(f"leg_{'L' if s > 0 else 'R'}_{k:02d}_upper" for k, s in zip(segs, side))
     names_t = tuple(f"leg_{'L' if s > 0 else 'R'}_{k:02d}_tip" for k, s in zip(segs, side))
-    return LegLayout(upper_names=names_u, tip_names=names_t, segment=segs, side=side, hip=hip,
-                     anchor=anchor, lag=lag, l1=float(lg.upper_length), l2=float(lg.tip_length))
+    names_f = tuple(f"leg_{'L' if s > 0 else 'R'}_{k:02d}_foot" for k, s in zip(segs, side))
+    return LegLayout(upper_names=names_u, tip_names=names_t, foot_names=names_f, segment=segs,
+                     side=side, hip=hip, anchor=anchor, lag=lag, l1=float(lg.upper_length),
+                     l2=float(lg.tip_length))
 
 
 def leg_pole(layout: LegLayout, hip: np.ndarray, target: np.ndarray, fwd: np.ndarray,
@@ -139,7 +148,7 @@ def chains(cfg: RigConfig) -> tuple[Chain, ...]:
         out.append(Chain((f"ultimate_{tag}_upper", f"ultimate_{tag}_tip"), last,
                          np.array([s * 0.6 * w[last], -HIP_DROP * hh[last], -0.3 * sp]),
                          np.stack([d1, d2]), _hinge(d1, s), np.array([lg.ultimate_upper, lg.ultimate_tip]),
-                         lg.radius * 0.9, "ultimate", s))
+                         lg.radius * 0.9, "ultimate", s, end=f"ultimate_{tag}_foot"))
         # antennae: forward, outward and a little up from the front of the head
         a1 = _dir(s, np.radians(28), np.radians(12))
         a2 = _dir(s, np.radians(40), np.radians(2))
@@ -147,7 +156,7 @@ def chains(cfg: RigConfig) -> tuple[Chain, ...]:
                          np.array([s * 0.45 * w[0], 0.35 * hh[0], 0.55 * sp]),
                          np.stack([a1, a2]), _hinge(a1, s),
                          np.array([lg.antenna_length, lg.antenna_length]), lg.radius * 0.45,
-                         "antenna", s))
+                         "antenna", s, end=f"antenna_{tag}_tip"))
         # forcipules: under the head, forward then curving inward (rest posture)
         f1 = _dir(s, np.radians(35), np.radians(-10))
         f2 = _dir(s, np.radians(-55), np.radians(-5))
@@ -155,7 +164,7 @@ def chains(cfg: RigConfig) -> tuple[Chain, ...]:
                          np.array([s * 0.45 * w[0], -0.55 * hh[0], 0.25 * sp]),
                          np.stack([f1, f2]), _hinge(f1, s),
                          np.array([lg.forcipule_length, 0.9 * lg.forcipule_length]),
-                         lg.radius * 0.8, "forcipule", s))
+                         lg.radius * 0.8, "forcipule", s, end=f"forcipule_{tag}_end"))
     return tuple(out)
 
 
@@ -171,12 +180,15 @@ def _hinge(d: np.ndarray, side: float) -> np.ndarray:
 class LimbRest:
     """Rest (bind) pose of every limb joint in the skeleton (= segment frame at rest).
 
-    names     : limb joint names, parents first within each limb
+    Each limb contributes three joints, in order: its two bones' joints, then its end joint.
+
+    names     : (K,) limb joint names, parents first within each limb
     parents   : (K,) parent *names* (spine or limb joint)
     positions : (K, 3) world (skeleton-space) rest positions
-    rotations : (K, 4) xyzw world rest rotations
-    lengths   : (K,) bone lengths [m]
-    radii     : (K,) tube radius at each bone's start [m]
+    rotations : (K, 4) xyzw world rest rotations (an end joint's is its parent's)
+    lengths   : (K,) bone lengths [m] (0 for end joints)
+    radii     : (K,) tube radius at each bone's start [m] (0 for end joints)
+    end       : (K,) bool, True for the end joints (leaves, no skin weights)
     """
 
     names: tuple[str, ...]
@@ -185,10 +197,16 @@ class LimbRest:
     rotations: np.ndarray
     lengths: np.ndarray
     radii: np.ndarray
+    end: np.ndarray
+
+    @property
+    def n_limbs(self) -> int:
+        return len(self.names) // 3
 
 
 def limb_rest(cfg: RigConfig, spine_names: tuple[str, ...]) -> LimbRest:
-    """Rest pose: walking legs standing on their anchors (two-bone IK), chains at rest angles."""
+    """Rest pose: walking legs standing on their anchors (two-bone IK), chains at rest angles;
+    every limb ends in an end joint at (0, length, 0) of its last bone."""
     lay = leg_layout(cfg)
     sp = cfg.body.spacing
     seg_origin = np.stack([np.zeros(lay.n_legs), np.zeros(lay.n_legs), -lay.segment * sp], -1)
@@ -200,26 +218,27 @@ def limb_rest(cfg: RigConfig, spine_names: tuple[str, ...]) -> LimbRest:
                       lay.l1, lay.l2)
     q_u = bone_frames(hip, sol.mid, sol.hinge)
     q_t = bone_frames(sol.mid, sol.end, sol.hinge)
-    names, parents, pos, rot, lens, radii = [], [], [], [], [], []
-    r = cfg.legs.radius
-    for i in range(lay.n_legs):
-        names += [lay.upper_names[i], lay.tip_names[i]]
-        parents += [spine_names[lay.segment[i]], lay.upper_names[i]]
-        pos += [hip[i], sol.mid[i]]
-        rot += [q_u[i], q_t[i]]
-        lens += [lay.l1, lay.l2]
-        radii += [r, 0.7 * r]
+    # (limb names, parent of the first joint, bone starts (2, 3), rotations (2, 4), lengths,
+    # base radius)
+    limbs = [((lay.upper_names[i], lay.tip_names[i], lay.foot_names[i]),
+              spine_names[lay.segment[i]], np.stack([hip[i], sol.mid[i]]),
+              np.stack([q_u[i], q_t[i]]), np.array([lay.l1, lay.l2]), cfg.legs.radius)
+             for i in range(lay.n_legs)]
     for ch in chains(cfg):
-        o = np.array([0.0, 0.0, -ch.parent * sp])
-        p1 = o + ch.base
+        p1 = np.array([0.0, 0.0, -ch.parent * sp]) + ch.base
         p2 = p1 + ch.dirs[0] * ch.lengths[0]
         q = bone_frames(np.stack([p1, p2]), np.stack([p2, p2 + ch.dirs[1]]),
                         np.stack([ch.hinge, ch.hinge]))
-        names += list(ch.names)
-        parents += [spine_names[ch.parent], ch.names[0]]
-        pos += [p1, p2]
-        rot += list(q)
-        lens += list(ch.lengths)
-        radii += [ch.radius, 0.7 * ch.radius]
+        limbs.append((ch.names + (ch.end,), spine_names[ch.parent], np.stack([p1, p2]), q,
+                      np.asarray(ch.lengths, float), ch.radius))
+    names, parents, pos, rot, lens, radii = [], [], [], [], [], []
+    for (n1, n2, n3), parent, start, q, length, r in limbs:
+        names += [n1, n2, n3]
+        parents += [parent, n1, n2]
+        pos += [start[0], start[1], start[1] + quat_rotate(q[1], np.array([0.0, length[1], 0.0]))]
+        rot += [q[0], q[1], q[1]]
+        lens += [length[0], length[1], 0.0]
+        radii += [r, 0.7 * r, 0.0]
     return LimbRest(names=tuple(names), parents=tuple(parents), positions=np.array(pos),
-                    rotations=np.array(rot), lengths=np.array(lens), radii=np.array(radii))
+                    rotations=np.array(rot), lengths=np.array(lens), radii=np.array(radii),
+                    end=np.tile([False, False, True], len(limbs)))

@@ -19,7 +19,8 @@ from baker.geometry.transforms import quat_mul, quat_rotate, trs_to_matrix
 class Skeleton:
     """Joint hierarchy and rest (= bind) pose.
 
-    names             : J joint names, [A-Za-z0-9_], unique, at most 63 bytes; parents first
+    names             : J joint names, [A-Za-z0-9_], unique (also ignoring case), at most 63
+                        bytes; parents first
     parents           : (J,) int32, parent joint index, -1 for the root joint ("head")
     rest_translations : (J, 3) float64, metres, local (relative to the parent joint)
     rest_rotations    : (J, 4) float64, xyzw unit quaternions, local
@@ -47,8 +48,8 @@ class Skeleton:
         bad = [n for n in names if not is_valid_name(n)]
         if bad:
             raise RigError(f"invalid joint name(s) {bad}: use [A-Za-z0-9_], at most 63 bytes")
-        if len(set(names)) != j:
-            raise RigError("joint names must be unique")
+        if len({n.lower() for n in names}) != j:
+            raise RigError("joint names must be unique, also without regard to case")
         if parents[0] != -1 or np.any(parents[1:] < 0):
             raise RigError("the skeleton needs exactly one root joint, first in the list")
         if np.any(parents[1:] >= np.arange(1, j)):

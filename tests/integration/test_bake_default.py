@@ -126,7 +126,7 @@ def test_report_contents(baked):
     contacts = doc["asset"]["extras"]["foot_contacts"]
     assert len(contacts) == 40
     flags = np.zeros(baked.trajectory.n_frames, dtype=bool)
-    for a, b in contacts["leg_R_07"]:
+    for a, b in contacts["leg_R_07_foot"]:
         flags[a:b + 1] = True
     assert np.array_equal(flags, baked.trajectory.foot_contacts[:, 2 * 6 + 1])
 

@@ -108,3 +108,33 @@ def test_times_must_be_frames_at_the_fps(trajectory, rig):
                      ground_heights=trajectory.ground_heights)
     with pytest.raises(ExportError):
         build_clip(odd, rig, fps=30)
+
+
+def test_end_joints_sit_at_their_bone_end_in_every_frame(trajectory, rig):
+    """Driven tip bones with arbitrary rotations: each end joint is posed rigidly at
+    (0, length, 0) of its parent, so a foot is the tip origin + tip_length along the tip's +Y."""
+    from dataclasses import replace
+
+    from baker.geometry.transforms import quat_rotate
+
+    skel = rig.skeleton
+    rest = build_clip(trajectory, rig)
+    wt, wq = rest.world(skel.parents)
+    ends = [j for j, n in enumerate(skel.names) if not skel.children(j)]
+    driven = sorted({int(skel.parents[j]) for j in ends})
+    rng = np.random.default_rng(1)
+    q = rng.normal(size=(trajectory.n_frames, len(driven), 4))
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    traj = replace(trajectory, joint_names=tuple(skel.names[j] for j in driven),
+                   joint_positions=wt[:, driven], joint_rotations=q)
+    clip = build_clip(traj, rig)
+    ct, cq = clip.world(skel.parents)
+    for j in ends:
+        p = skel.parents[j]
+        k = driven.index(p)
+        length = skel.rest_translations[j, 1]
+        want = wt[:, p] + quat_rotate(q[:, k], np.array([0.0, length, 0.0]))
+        assert np.abs(ct[:, j] - want).max() < 2e-6
+        np.testing.assert_array_equal(clip.translations[:, j],
+                                      np.broadcast_to(np.float32([0, length, 0]), (clip.n_frames, 3)))
+        assert np.all(np.abs(clip.rotations[:, j, 3]) == 1.0)

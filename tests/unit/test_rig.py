@@ -156,3 +156,53 @@ def test_normalize_weights_merges_duplicates_and_keeps_four():
     assert jj.tolist() == [[3, 2, 5, 1]]
     assert abs(float(ww.sum(dtype=np.float64)) - 1) <= 2e-7
     np.testing.assert_allclose(ww[0], np.array([0.4, 0.3, 0.15, 0.1]) / 0.95, rtol=1e-6)
+
+
+def _end_joints(cfg):
+    """{end joint: (parent, bone length)} the rig must have."""
+    lg = cfg.legs
+    out = {}
+    for side in "LR":
+        for k in range(1, cfg.body.segments):
+            out[f"leg_{side}_{k:02d}_foot"] = (f"leg_{side}_{k:02d}_tip", lg.tip_length)
+        out[f"ultimate_{side}_foot"] = (f"ultimate_{side}_tip", lg.ultimate_tip)
+        out[f"antenna_{side}_tip"] = (f"antenna_{side}_2", lg.antenna_length)
+        out[f"forcipule_{side}_end"] = (f"forcipule_{side}_tip", 0.9 * lg.forcipule_length)
+    return out
+
+
+def test_end_joints_names_parents_and_lengths(rig):
+    skel = rig.skeleton
+    ends = _end_joints(rig.config)
+    assert len(ends) == 2 * (rig.config.body.segments - 1) + 6
+    for name, (parent, length) in ends.items():
+        j = skel.index(name)
+        assert skel.names[skel.parents[j]] == parent
+        assert skel.rest_translations[j].tolist() == [0.0, length, 0.0]
+        assert skel.rest_rotations[j].tolist() == [0.0, 0.0, 0.0, 1.0]
+    # the end joints are exactly the leaves: every other bone ends at a child joint
+    leaves = {n for j, n in enumerate(skel.names) if not skel.children(j)}
+    assert leaves == set(ends)
+    # names are legal and unique also without regard to case
+    assert len({n.lower() for n in skel.names}) == skel.n_joints
+
+
+def test_feet_rest_on_the_ground_and_carry_no_weights(rig):
+    skel = rig.skeleton
+    cfg = rig.config
+    wb = skel.world_bind()
+    feet = [j for j, n in enumerate(skel.names) if n.startswith("leg_") and n.endswith("_foot")]
+    np.testing.assert_allclose(wb[feet, 1, 3], -cfg.body.clearance, atol=1e-9)
+    for j in feet:   # the foot is the tip bone's end: tip origin + tip_length along its +Y
+        tip = wb[skel.parents[j]]
+        np.testing.assert_allclose(wb[j, :3, 3], tip[:3, 3] + cfg.legs.tip_length * tip[:3, 1],
+                                   atol=1e-12)
+    ends = [skel.index(n) for n in _end_joints(cfg)]
+    m = rig.mesh
+    assert not np.isin(m.joints[m.weights > 0], ends).any()
+
+
+def test_skeleton_rejects_names_equal_ignoring_case():
+    with pytest.raises(RigError, match="case"):
+        Skeleton(names=("head", "Head"), parents=np.array([-1, 0]),
+                 rest_translations=np.zeros((2, 3)), rest_rotations=np.tile([0, 0, 0, 1.0], (2, 1)))
