@@ -1,0 +1,494 @@
+"""Judge a bake from its files alone: read the GLB (and the USD) back, rebuild every joint's
+world transform in float64, and measure the motion-quality limits against the environment
+stored in the same file.
+
+Nothing here uses the simulation's own bookkeeping (gait contacts, clearances, cobra lift): a
+foot is in contact when it is within CONTACT_BL body lengths of the surface in two consecutive
+frames, whatever the gait declares (the GMD-style skate measure), and the environment is the
+`Environment` node's meshes as written.
+
+    scene = read_glb(path)            # BakedScene: joints (F, J) world + environment triangles
+    usd = read_usd(path_usd)          # joints only
+    result = judge(scene, usd)        # {"metrics": {...}, "worst": {...}}
+    failures(result["metrics"])       # the limits that do not hold
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from baker.errors import BakerError
+from baker.geometry.proximity import distance_to_mesh
+from baker.geometry.transforms import quat_conj, quat_mul
+
+#: a foot within this many body lengths of the surface is touching it
+CONTACT_BL = 0.01
+#: the limits of issue 10, as (metric, comparison, bound)
+LIMITS = (
+    ("spacing_error_max", "<=", 0.02),
+    ("head_slope_max_deg", "<=", 60.0),
+    ("spine_inside_geometry", "==", 0),
+    ("skate_median_pct_bl", "<", 0.2),
+    ("skate_ratio", "<", 0.02),
+    ("foot_penetration_max_pct_bl", "<", 0.5),
+    ("leg_bone_hits", "==", 0),
+    ("rotation_max_deg", "<", 30.0),
+    ("neighbour_feet_min_spacing", ">=", 0.2),
+    ("glb_usd_max_m", "<=", 1e-4),
+    ("sim_max_m", "<=", 1e-5),
+    ("validator_errors", "==", 0),
+)
+
+_COMP = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32,
+         5126: np.float32}
+_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
+
+
+class InspectError(BakerError):
+    """A file that is not a baker bake (no skin, no animation) or cannot be read."""
+
+
+@dataclass(frozen=True)
+class BakedScene:
+    """What a bake's file holds, in world coordinates (float64).
+
+    names     : J joint names, parents first
+    parents   : (J,) int, parent joint index, -1 for the root joint
+    positions : (F, J, 3) float64 metres, world joint origins at each frame
+    rotations : (F, J, 4) float64 xyzw, world joint rotations
+    local     : (F, J, 4) float64 xyzw, joint rotations relative to the parent joint (as animated)
+    rest_translations : (J, 3) float64, local rest translations (bone vectors)
+    fps       : frames per second of the frame grid the joints are sampled on
+    env_vertices : (n, 3) float64 world; env_faces : (m, 3) int64 (empty for a USD read)
+    extras    : the file's custom data (glTF asset.extras)
+    """
+
+    names: tuple[str, ...]
+    parents: np.ndarray
+    positions: np.ndarray
+    rotations: np.ndarray
+    local: np.ndarray
+    rest_translations: np.ndarray
+    fps: int
+    env_vertices: np.ndarray
+    env_faces: np.ndarray
+    extras: dict
+
+    @property
+    def n_frames(self) -> int:
+        return self.positions.shape[0]
+
+    def index(self, name: str) -> int:
+        return self.names.index(name)
+
+
+# ---------------------------------------------------------------- glTF
+
+
+class _Glb:
+    def __init__(self, data: bytes):
+        if len(data) < 20 or data[:4] != b"glTF":
+            raise InspectError("not a GLB file")
+        jlen = struct.unpack_from("<I", data, 12)[0]
+        self.doc = json.loads(data[20:20 + jlen])
+        off = 20 + jlen
+        self.bin = data[off + 8:] if off + 8 <= len(data) else b""
+
+    def accessor(self, i: int) -> np.ndarray:
+        acc = self.doc["accessors"][i]
+        view = self.doc["bufferViews"][acc["bufferView"]]
+        width = _WIDTH[acc["type"]]
+        dt = np.dtype(_COMP[acc["componentType"]])
+        start = view.get("byteOffset", 0) + acc.get("byteOffset", 0)
+        a = np.frombuffer(self.bin, dtype=dt, count=acc["count"] * width, offset=start)
+        a = a.astype(np.float64)
+        if acc.get("normalized"):
+            a = np.maximum(a / np.iinfo(dt).max, -1.0)
+        return a.reshape(acc["count"], width) if width > 1 else a
+
+
+def _node_matrix(node: dict) -> np.ndarray:
+    if "matrix" in node:
+        return np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4).T
+    m = np.eye(4)
+    r = node.get("rotation", [0.0, 0.0, 0.0, 1.0])
+    m[:3, :3] = Rotation.from_quat(r).as_matrix() * np.asarray(node.get("scale", [1.0] * 3))
+    m[:3, 3] = node.get("translation", [0.0, 0.0, 0.0])
+    return m
+
+
+def _trs_matrices(t: np.ndarray, q: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """(F, 4, 4) from (F, 3) translations, (F, 4) xyzw rotations, (F, 3) scales."""
+    m = np.zeros((len(t), 4, 4))
+    m[:, :3, :3] = Rotation.from_quat(q).as_matrix() * s[:, None, :]
+    m[:, :3, 3] = t
+    m[:, 3, 3] = 1.0
+    return m
+
+
+def _sample(times: np.ndarray, keys: np.ndarray, values: np.ndarray, rotation: bool) -> np.ndarray:
+    """LINEAR sampling of a glTF channel at `times` (clamped at both ends); rotations slerp."""
+    t = np.clip(times, keys[0], keys[-1])
+    if len(keys) == 1:
+        return np.repeat(values[:1], len(times), axis=0)
+    if rotation:
+        return Slerp(keys, Rotation.from_quat(values))(t).as_quat()
+    return np.stack([np.interp(t, keys, values[:, c]) for c in range(values.shape[1])], 1)
+
+
+def _environment_nodes(doc: dict, world: dict[int, np.ndarray]) -> list[int]:
+    """Mesh nodes of the environment: under the `Environment` node when there is one, else every
+    static mesh node that is not skinned."""
+    nodes = doc.get("nodes", [])
+    env = [i for i, n in enumerate(nodes) if n.get("name") == "Environment"]
+    if env:
+        out, stack = [], list(env)
+        while stack:
+            i = stack.pop()
+            if "mesh" in nodes[i]:
+                out.append(i)
+            stack.extend(nodes[i].get("children", []))
+        return sorted(out)
+    animated = {ch["target"]["node"] for a in doc.get("animations", []) for ch in a["channels"]}
+    return [i for i in world if "mesh" in nodes[i] and "skin" not in nodes[i] and i not in animated]
+
+
+def _environment(g: _Glb, world: dict[int, np.ndarray]):
+    vs, fs, off = [], [], 0
+    for i in _environment_nodes(g.doc, world):
+        m = world[i]
+        for prim in g.doc["meshes"][g.doc["nodes"][i]["mesh"]]["primitives"]:
+            if prim.get("mode", 4) != 4:
+                continue
+            v = g.accessor(prim["attributes"]["POSITION"])
+            f = (g.accessor(prim["indices"]).astype(np.int64) if "indices" in prim
+                 else np.arange(len(v), dtype=np.int64))
+            vs.append(v @ m[:3, :3].T + m[:3, 3])
+            fs.append(f.reshape(-1, 3) + off)
+            off += len(v)
+    if not vs:
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    return np.concatenate(vs), np.concatenate(fs)
+
+
+def read_glb(path: str | Path, animation: str | int = 0) -> BakedScene:
+    """Read a bake's GLB: the skin's joints posed by `animation` (name or index) at every frame
+    of the bake's fps grid, composed with their non-joint ancestors in float64, and the
+    environment's triangles in world coordinates."""
+    g = _Glb(Path(path).read_bytes())
+    doc = g.doc
+    nodes = doc.get("nodes", [])
+    if not doc.get("skins") or not doc.get("animations"):
+        raise InspectError(f"{path}: no skin or no animation")
+    anims = doc["animations"]
+    anim = next((a for a in anims if a.get("name") == animation), None) if isinstance(
+        animation, str) else anims[animation]
+    if anim is None:
+        raise InspectError(f"{path}: no animation named {animation!r}")
+    extras = doc.get("asset", {}).get("extras", {}) or {}
+    parent = {c: i for i, n in enumerate(nodes) for c in n.get("children", [])}
+    # static world matrices of every node in the default scene
+    world: dict[int, np.ndarray] = {}
+    stack = [(i, np.eye(4)) for i in doc["scenes"][doc.get("scene", 0)]["nodes"]]
+    while stack:
+        i, pm = stack.pop()
+        world[i] = pm @ _node_matrix(nodes[i])
+        stack.extend((c, world[i]) for c in nodes[i].get("children", []))
+    chans = {(ch["target"]["node"], ch["target"]["path"]): anim["samplers"][ch["sampler"]]
+             for ch in anim["channels"]}
+    keys = np.concatenate([g.accessor(s["input"]) for s in anim["samplers"]])
+    fps = int(extras.get("fps") or round((len(np.unique(keys)) - 1) / max(keys.max(), 1e-9)))
+    n_frames = int(round(float(keys.max()) * fps)) + 1
+    times = np.arange(n_frames) / fps
+
+    def local_tracks(i: int):
+        n = nodes[i]
+        out = []
+        for p, default, rot in (("translation", [0.0] * 3, False),
+                                ("rotation", [0.0, 0.0, 0.0, 1.0], True),
+                                ("scale", [1.0] * 3, False)):
+            s = chans.get((i, p))
+            if s is None:
+                out.append(np.tile(np.asarray(n.get(p, default), float), (n_frames, 1)))
+            else:
+                out.append(_sample(times, g.accessor(s["input"]), g.accessor(s["output"]), rot))
+        return out
+
+    joints = list(doc["skins"][0]["joints"])
+    jset = set(joints)
+    # joint order parents first (the skin lists them that way in a baker bake; sort to be sure)
+    depth = {}
+    for j in joints:
+        d, k = 0, j
+        while k in parent:
+            k, d = parent[k], d + 1
+        depth[j] = d
+    pos = {j: k for k, j in enumerate(joints)}
+    if any(parent.get(j) in pos and pos[parent[j]] > pos[j] for j in joints):
+        joints.sort(key=lambda j: (depth[j], pos[j]))
+    mats: dict[int, np.ndarray] = {}
+    local_q = np.zeros((n_frames, len(joints), 4))
+    rest_t = np.zeros((len(joints), 3))
+    for k, j in enumerate(joints):
+        t, q, s = local_tracks(j)
+        local_q[:, k] = q
+        rest_t[k] = nodes[j].get("translation", [0.0] * 3)
+        p = parent.get(j)
+        pm = mats[p] if p in mats else (world[p] if p is not None else np.eye(4))
+        mats[j] = pm @ _trs_matrices(t, q, s)
+    m = np.stack([mats[j] for j in joints], axis=1)                     # (F, J, 4, 4)
+    rot = m[..., :3, :3] / np.linalg.norm(m[..., :3, :3], axis=-2, keepdims=True)
+    world_q = Rotation.from_matrix(rot.reshape(-1, 3, 3)).as_quat().reshape(n_frames, -1, 4)
+    index = {j: k for k, j in enumerate(joints)}
+    parents = np.array([index.get(parent.get(j), -1) if parent.get(j) in jset else -1
+                        for j in joints])
+    ev, ef = _environment(g, world)
+    return BakedScene(names=tuple(nodes[j].get("name", f"joint{j}") for j in joints),
+                      parents=parents, positions=m[..., :3, 3].copy(), rotations=world_q,
+                      local=local_q, rest_translations=rest_t, fps=fps, env_vertices=ev,
+                      env_faces=ef, extras=extras)
+
+
+# ---------------------------------------------------------------- USD
+
+
+def read_usd(path: str | Path) -> BakedScene:
+    """Read a bake's USD: the first skeleton's joints, posed by its bound animation at every
+    time code, as world transforms (UsdSkel, double precision). No environment."""
+    from pxr import Usd, UsdGeom, UsdSkel
+
+    stage = Usd.Stage.Open(str(path))
+    if stage is None:
+        raise InspectError(f"{path}: cannot open the USD stage")
+    skel_prim = next((p for p in stage.Traverse() if p.IsA(UsdSkel.Skeleton)), None)
+    root_prim = next((p for p in stage.Traverse() if p.IsA(UsdSkel.Root)), None)
+    if skel_prim is None or root_prim is None:
+        raise InspectError(f"{path}: no UsdSkel skeleton")
+    cache = UsdSkel.Cache()
+    cache.Populate(UsdSkel.Root(root_prim), Usd.TraverseInstanceProxies())
+    sq = cache.GetSkelQuery(UsdSkel.Skeleton(skel_prim))
+    order = [str(j) for j in sq.GetJointOrder()]
+    names = tuple(j.rsplit("/", 1)[-1] for j in order)
+    index = {j: k for k, j in enumerate(order)}
+    parents = np.array([index.get(j.rsplit("/", 1)[0], -1) if "/" in j else -1 for j in order])
+    t0, t1 = stage.GetStartTimeCode(), stage.GetEndTimeCode()
+    codes = np.arange(int(round(t0)), int(round(t1)) + 1)
+    xf = UsdGeom.XformCache()
+    mats = np.empty((len(codes), len(order), 4, 4))
+    for k, c in enumerate(codes):
+        xf.SetTime(Usd.TimeCode(float(c)))
+        mats[k] = np.array(sq.ComputeJointWorldTransforms(xf, False))
+    m = np.transpose(mats, (0, 1, 3, 2))                       # USD row vectors -> columns
+    rot = m[..., :3, :3] / np.linalg.norm(m[..., :3, :3], axis=-2, keepdims=True)
+    world_q = Rotation.from_matrix(rot.reshape(-1, 3, 3)).as_quat().reshape(len(codes), -1, 4)
+    pq = np.where(parents[None, :, None] >= 0, world_q[:, np.maximum(parents, 0)], [0, 0, 0, 1])
+    local = quat_mul(quat_conj(pq), world_q)
+    rest = np.array(sq.GetJointWorldBindTransforms())[:, 3, :3] if len(order) else np.zeros((0, 3))
+    rest_t = rest - np.where(parents[:, None] >= 0, rest[np.maximum(parents, 0)], 0.0)
+    return BakedScene(names=names, parents=parents, positions=m[..., :3, 3].copy(),
+                      rotations=world_q, local=local, rest_translations=rest_t,
+                      fps=int(round(stage.GetTimeCodesPerSecond())),
+                      env_vertices=np.zeros((0, 3)), env_faces=np.zeros((0, 3), np.int64),
+                      extras={})
+
+
+# ---------------------------------------------------------------- judging
+
+
+def _angle_steps(q: np.ndarray) -> np.ndarray:
+    """(F-1, J) degrees turned between consecutive frames by rotations q (F, J, 4)."""
+    dot = np.abs(np.sum(q[1:] * q[:-1], axis=-1)) / (
+        np.linalg.norm(q[1:], axis=-1) * np.linalg.norm(q[:-1], axis=-1))
+    return np.degrees(2.0 * np.arccos(np.clip(dot, 0.0, 1.0)))
+
+
+def _worst(values: np.ndarray, names, largest: bool = True) -> dict:
+    """{value, joint, frame} of the largest (or smallest) entry of a (F, K) array whose columns
+    are named by `names`."""
+    if values.size == 0:
+        return {"value": None, "joint": None, "frame": None}
+    flat = np.nanargmax(values) if largest else np.nanargmin(values)
+    f, k = np.unravel_index(flat, values.shape)
+    return {"value": float(values[f, k]), "joint": names[k], "frame": int(f)}
+
+
+def _legs(names: tuple[str, ...]) -> list[tuple[str, str]]:
+    """(side, number) of every walking leg, ordered L_01, R_01, L_02, ..."""
+    legs = {(n.split("_")[1], n.split("_")[2]) for n in names
+            if n.startswith("leg_") and n.endswith("_upper")}
+    return sorted(legs, key=lambda sl: (sl[1], sl[0]))
+
+
+def _feet(scene: BakedScene, legs) -> tuple[np.ndarray, list[str]]:
+    """(F, L, 3) foot points: the `_foot` end joints, or the tip bone's end (its +Y times the
+    rig's tip length from the extras) in files without them."""
+    names = [f"leg_{s}_{k}_foot" for s, k in legs]
+    if all(n in scene.names for n in names):
+        return scene.positions[:, [scene.index(n) for n in names]], names
+    tip = float(scene.extras["rig"]["legs"]["tip_length"])
+    idx = [scene.index(f"leg_{s}_{k}_tip") for s, k in legs]
+    y = Rotation.from_quat(scene.rotations[:, idx].reshape(-1, 4)).apply([0.0, tip, 0.0])
+    return scene.positions[:, idx] + y.reshape(len(scene.positions), len(idx), 3), names
+
+
+def _bones(scene: BakedScene, prefixes: tuple[str, ...]) -> list[tuple[int, np.ndarray]]:
+    """(joint index, (F, 3) bone vector) of every bone whose joint name starts with one of
+    `prefixes`: from the joint to its child joint (or, for a last bone without an end joint,
+    along +Y by the rig's length from the extras)."""
+    out = []
+    kids = {}
+    for j, p in enumerate(scene.parents):
+        kids.setdefault(int(p), []).append(j)
+    for j, n in enumerate(scene.names):
+        if not n.startswith(prefixes) or n.endswith(("_foot", "_tip")) and j not in kids:
+            continue
+        if j in kids:
+            c = kids[j][0]
+            out.append((j, scene.positions[:, c] - scene.positions[:, j]))
+    return out
+
+
+def judge(scene: BakedScene, usd: BakedScene | None = None,
+          sim: dict[str, np.ndarray] | None = None) -> dict:
+    """The issue-10 quality numbers of one bake, from its files.
+
+    scene : read_glb() of the bake; usd : read_usd() of the same bake (or None)
+    sim   : optional {joint name: (F, 3) float64 world positions} from the simulation itself
+    returns {"metrics": {name: value}, "worst": {name: {value, joint, frame}}}
+    """
+    import trimesh
+
+    from baker.environment.rays import RayCaster
+    from baker.metrics import inside_geometry
+
+    names = scene.names
+    spine = [scene.index("head")] + sorted(
+        (i for i, n in enumerate(names) if n.startswith("trunk_")), key=lambda i: names[i])
+    spacing = float(np.mean(np.linalg.norm(scene.rest_translations[spine[1:]], axis=1)))
+    bl = spacing * (len(spine) - 1)
+    rays = RayCaster(trimesh.Trimesh(scene.env_vertices, scene.env_faces, process=False))
+    F = scene.n_frames
+    m: dict = {"frames": F, "body_length_m": bl}
+    worst: dict = {}
+    sp = scene.positions[:, spine]
+    sn = [names[i] for i in spine]
+
+    err = np.abs(np.linalg.norm(np.diff(sp, axis=1), axis=2) / spacing - 1.0)
+    worst["spacing_error_max"] = _worst(err, sn[1:])
+    m["spacing_error_max"] = worst["spacing_error_max"]["value"]
+
+    down = np.tile([0.0, -1.0, 0.0], (F, 1))
+    h = rays.first_hit(sp[:, 0], down, max_distance=0.5 * bl)
+    slope = np.where(h.hit, np.degrees(np.arccos(np.clip(np.abs(h.normals[:, 1]), 0, 1))), 0.0)
+    worst["head_slope_max_deg"] = _worst(slope[:, None], ["head"])
+    m["head_slope_max_deg"] = worst["head_slope_max_deg"]["value"]
+    m["head_unsupported_frames"] = int(np.count_nonzero(~h.hit))
+
+    inside = inside_geometry(sp.reshape(-1, 3), rays).reshape(F, len(spine))
+    m["spine_inside_geometry"] = int(inside.sum())
+    worst["spine_inside_geometry"] = _worst(inside.astype(float), sn)
+
+    _judge_feet(scene, rays, bl, spacing, m, worst)
+    _judge_bones(scene, rays, bl, m, worst)
+
+    local = _angle_steps(scene.local)
+    world = _angle_steps(scene.rotations)
+    both = np.maximum(local, world)
+    worst["rotation_max_deg"] = _worst(both, names)
+    m["rotation_max_deg"] = worst["rotation_max_deg"]["value"]
+    for group, pref in (("spine", ("head", "trunk_")), ("legs", ("leg_",)),
+                        ("antennae", ("antenna_",)), ("ultimate", ("ultimate_",)),
+                        ("forcipules", ("forcipule_",))):
+        cols = [i for i, n in enumerate(names) if n.startswith(pref)]
+        if cols:
+            m[f"rotation_local_{group}_deg"] = float(local[:, cols].max()) if F > 1 else 0.0
+            m[f"rotation_world_{group}_deg"] = float(world[:, cols].max()) if F > 1 else 0.0
+
+    if usd is not None:
+        idx = [usd.names.index(n) for n in names]
+        n_f = min(F, usd.n_frames)
+        d = np.linalg.norm(usd.positions[:n_f, idx] - scene.positions[:n_f], axis=2)
+        worst["glb_usd_max_m"] = _worst(d, names)
+        m["glb_usd_max_m"] = worst["glb_usd_max_m"]["value"]
+        m["usd_frames"] = usd.n_frames
+    if sim:
+        keys = [n for n in sim if n in names]
+        d = np.stack([np.linalg.norm(scene.positions[:, scene.index(n)] - sim[n], axis=1)
+                      for n in keys], axis=1)
+        worst["sim_max_m"] = _worst(d, keys)
+        m["sim_max_m"] = worst["sim_max_m"]["value"]
+    return {"metrics": m, "worst": worst}
+
+
+def _judge_feet(scene: BakedScene, rays, bl: float, spacing: float, m: dict, worst: dict) -> None:
+    """Skate (contact from the surface distance), penetration and neighbouring-feet distance."""
+    from baker.metrics import inside_geometry
+
+    legs = _legs(scene.names)
+    if not legs:
+        return
+    feet, fnames = _feet(scene, legs)
+    F, L, _ = feet.shape
+    flat = feet.reshape(-1, 3)
+    dist = distance_to_mesh(flat, scene.env_vertices, scene.env_faces, CONTACT_BL * bl)
+    near = np.isfinite(dist).reshape(F, L)
+    pair = near[1:] & near[:-1]
+    step = np.linalg.norm(np.diff(feet, axis=0), axis=2) / bl * 100.0
+    st = step[pair]
+    m["foot_near_ground_fraction"] = float(near.mean())
+    m["skate_median_pct_bl"] = float(np.median(st)) if st.size else 0.0
+    m["skate_ratio"] = float(np.mean(st > 0.5)) if st.size else 0.0
+    m["skate_max_pct_bl"] = float(st.max()) if st.size else 0.0
+    worst["skate_ratio"] = _worst(np.where(pair, step, -np.inf), fnames)
+    inside = inside_geometry(flat, rays)
+    depth = np.zeros(len(flat))
+    if inside.any():
+        d = distance_to_mesh(flat[inside], scene.env_vertices, scene.env_faces, 0.5 * bl)
+        depth[inside] = np.where(np.isfinite(d), d, 0.5 * bl)
+    depth = depth.reshape(F, L) / bl * 100.0
+    worst["foot_penetration_max_pct_bl"] = _worst(depth, fnames)
+    m["foot_penetration_max_pct_bl"] = worst["foot_penetration_max_pct_bl"]["value"]
+    by_side = {}
+    for k, (s, _) in enumerate(legs):
+        by_side.setdefault(s, []).append(k)
+    gaps, gnames = [], []
+    for s, ks in by_side.items():
+        for a, b in zip(ks[:-1], ks[1:]):
+            gaps.append(np.linalg.norm(feet[:, a] - feet[:, b], axis=1) / spacing)
+            gnames.append(fnames[b])
+    if gaps:
+        worst["neighbour_feet_min_spacing"] = _worst(np.stack(gaps, 1), gnames, largest=False)
+        m["neighbour_feet_min_spacing"] = worst["neighbour_feet_min_spacing"]["value"]
+
+
+def _judge_bones(scene: BakedScene, rays, bl: float, m: dict, worst: dict) -> None:
+    """Leg bones (walking and ultimate legs) and antenna bones through the environment: a ray
+    along each bone, less its last 0.5% BL (a foot resting on the ground does not count)."""
+    for key, prefixes in (("leg_bone_hits", ("leg_", "ultimate_")), ("antenna_bone_hits",
+                                                                      ("antenna_",))):
+        bones = _bones(scene, prefixes)
+        if not bones:
+            m[key] = 0
+            continue
+        j = np.array([b[0] for b in bones])
+        vec = np.stack([b[1] for b in bones], axis=1)                  # (F, B, 3)
+        length = np.linalg.norm(vec, axis=2)
+        o = scene.positions[:, j].reshape(-1, 3)
+        hit = rays.first_hit(o, vec.reshape(-1, 3),
+                             max_distance=np.maximum(length.reshape(-1) - 0.005 * bl, 0.0))
+        hits = hit.hit.reshape(len(scene.positions), len(bones))
+        m[key] = int(hits.sum())
+        worst[key] = _worst(hits.astype(float), [scene.names[i] for i in j])
+
+
+def failures(metrics: dict) -> list[str]:
+    """The LIMITS that `metrics` breaks (a metric that is absent or None is not judged)."""
+    ops = {"<=": np.less_equal, "<": np.less, ">=": np.greater_equal, "==": np.equal}
+    return [name for name, op, bound in LIMITS
+            if metrics.get(name) is not None and not ops[op](metrics[name], bound)]
