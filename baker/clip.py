@@ -1,8 +1,15 @@
-"""Trajectory + Skeleton -> Clip: per-frame joint-local TRS arrays, ready for the exporters."""
+"""Trajectory + Skeleton -> Clip: per-frame joint-local TRS arrays, ready for the exporters.
+
+Far from the origin, float32 world positions step in millimetres, so a clip is written relative
+to a *placement*: a world point near the creature's path (`export_origin`: the centre of the
+head path's bounding box rounded to whole metres). The root joint's translations and the prey
+tracks are relative to it (float32, small numbers); the exporters put the placement itself on a
+node or Xform translation, which glTF JSON and USD store in double precision.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -19,7 +26,8 @@ class NodeTrack:
     """Animation of one scene node that is not a joint (a prey capsule, the sun).
 
     node         : node name in the exported scene
-    translations : (F, 3) float32 metres, world (the node sits at the scene root), or None
+    translations : (F, 3) float32 metres, relative to the clip's placement (the node's parent
+                   carries the placement translation), or None
     rotations    : (F, 4) float32 xyzw unit, sign-continuous, or None
     scales       : (F, 3) float32, or None (0 hides the node)
     """
@@ -45,6 +53,9 @@ class Clip:
                    the root joint relative to the creature's placement node)
     rotations    : (F, J, 4) float32, xyzw, joint-local, unit in float32, sign-continuous over F
     scales       : (F, J, 3) float32, joint-local (ones for now)
+    tracks       : animated scene nodes that are not joints (prey, sun)
+    placement    : (3,) float64, metres, world translation of the placement node ("Centipede"
+                   in glTF, the SkelRoot in USD) and of the prey's parent; whole metres
     """
 
     name: str
@@ -54,6 +65,12 @@ class Clip:
     scales: np.ndarray
     fps: int = 30
     tracks: tuple[NodeTrack, ...] = ()
+    placement: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def __post_init__(self) -> None:
+        p = np.array(self.placement, dtype=np.float64).reshape(3)
+        p.setflags(write=False)
+        object.__setattr__(self, "placement", p)
 
     def segment(self, f0: int, f1: int, name: str) -> "Clip":
         """Frames [f0, f1) as a clip of its own, with times starting at 0."""
@@ -63,7 +80,7 @@ class Clip:
         return Clip(name=name, times=times_for(f1 - f0, self.fps),
                     translations=self.translations[f0:f1], rotations=self.rotations[f0:f1],
                     scales=self.scales[f0:f1], fps=self.fps,
-                    tracks=tuple(t.slice(f0, f1) for t in self.tracks))
+                    tracks=tuple(t.slice(f0, f1) for t in self.tracks), placement=self.placement)
 
     @property
     def n_frames(self) -> int:
@@ -74,9 +91,10 @@ class Clip:
         return self.translations.shape[1]
 
     def world(self, parents: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Forward kinematics: (F, J, 3) world translations, (F, J, 4) xyzw world rotations,
-        float64 (scales are ignored; they are ones)."""
-        return forward_kinematics(parents, self.translations, self.rotations)
+        """Forward kinematics: (F, J, 3) world translations (placement + the joint chain, in
+        float64), (F, J, 4) xyzw world rotations (scales are ignored; they are ones)."""
+        t, q = forward_kinematics(parents, self.translations, self.rotations)
+        return t + self.placement, q
 
 
 def times_for(n_frames: int, fps: int) -> np.ndarray:
@@ -111,12 +129,26 @@ def sign_continuous(q: np.ndarray) -> np.ndarray:
     return (q * sign[..., None]).astype(q.dtype)
 
 
-def build_clip(traj: Trajectory, rig: Rig, name: str = "bake", fps: int | None = None) -> Clip:
-    """Convert world spine frames into joint-local TRS.
+def export_origin(head: np.ndarray) -> np.ndarray:
+    """(3,) float64 placement for a clip: the centre of the bounding box of the head's world
+    positions head (F, 3) float64, rounded to whole metres (exact, deterministic)."""
+    head = np.asarray(head, dtype=np.float64).reshape(-1, 3)
+    return np.floor(0.5 * (head.min(axis=0) + head.max(axis=0)) + 0.5)
 
-    traj : spine_positions (F, S, 3) / spine_rotations (F, S, 4) are WORLD transforms of the S
-           spine joints rig.spine; the placement node ("Centipede") is the identity.
-    fps  : export frame rate; None infers it from traj.times (which must be f / fps).
+
+def build_clip(traj: Trajectory, rig: Rig, name: str = "bake", fps: int | None = None,
+               origin=None, placement=None) -> Clip:
+    """Convert the trajectory's spine and limb frames into joint-local TRS.
+
+    traj      : spine_positions (F, S, 3) / spine_rotations (F, S, 4) are the transforms of the
+                S spine joints rig.spine in the trajectory's frame (the environment's local
+                frame: world = origin + position)
+    fps       : export frame rate; None infers it from traj.times (which must be f / fps).
+    origin    : (3,) float64 metres, world position of the trajectory frame's origin
+                (Environment.origin); None: zeros
+    placement : (3,) float64 metres, world translation of the placement node; None: the
+                export_origin of the head's world path. Root joint and prey translations are
+                stored relative to it (computed in float64, rounded to float32 once).
     Limb joints named in traj.joint_names take their world frames from traj.joint_positions /
     joint_rotations. Other joints keep their rest pose relative to their parent.
     """
@@ -134,6 +166,12 @@ def build_clip(traj: Trajectory, rig: Rig, name: str = "bake", fps: int | None =
                           f"{f_count} frames x {len(spine)} spine joints")
     if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(rot))):
         raise ExportError("the trajectory has non-finite positions or rotations")
+    origin = np.zeros(3) if origin is None else np.asarray(origin, dtype=np.float64).reshape(3)
+    if placement is None:
+        placement = export_origin(pos[:, 0] + origin)
+    placement = np.asarray(placement, dtype=np.float64).reshape(3)
+    shift = placement - origin          # trajectory frame -> placement frame
+    pos = pos - shift
     fps = _infer_fps(np.asarray(traj.times)) if fps is None else int(fps)
     if fps <= 0:
         raise ExportError(f"fps must be > 0 (got {fps})")
@@ -163,7 +201,7 @@ def build_clip(traj: Trajectory, rig: Rig, name: str = "bake", fps: int | None =
         if not (np.all(np.isfinite(lp)) and np.all(np.isfinite(lq))):
             raise ExportError("the trajectory has non-finite limb positions or rotations")
         driven[limb] = True
-        world_t[:, limb] = lp
+        world_t[:, limb] = lp - shift
         world_q[:, limb] = lq / np.linalg.norm(lq, axis=-1, keepdims=True)
     for j, p in enumerate(skel.parents):
         if driven[j]:
@@ -185,21 +223,24 @@ def build_clip(traj: Trajectory, rig: Rig, name: str = "bake", fps: int | None =
     clip = Clip(name=name, times=times_for(f_count, fps),
                 translations=local_t.astype(np.float32), rotations=rotations,
                 scales=np.ones((f_count, j_count, 3), dtype=np.float32), fps=fps,
-                tracks=node_tracks(traj))
+                tracks=node_tracks(traj, shift), placement=placement)
     for arr in (clip.times, clip.translations, clip.rotations, clip.scales):
         arr.setflags(write=False)
     return clip
 
 
-def node_tracks(traj: Trajectory) -> tuple[NodeTrack, ...]:
-    """Tracks for the prey capsules (hidden by a zero scale once eaten) and, when the sun
-    moves, the sun's rotation (its local -Z along the light)."""
+def node_tracks(traj: Trajectory, shift=None) -> tuple[NodeTrack, ...]:
+    """Tracks for the prey capsules (hidden by a zero scale once eaten; translations relative
+    to the placement: trajectory position - shift, shift (3,) float64 metres = placement -
+    origin) and, when the sun moves, the sun's rotation (its local -Z along the light)."""
+    shift = np.zeros(3) if shift is None else np.asarray(shift, dtype=np.float64)
     tracks = []
     for j, name in enumerate(traj.prey_names):
         scale = np.where(np.asarray(traj.prey_visible[:, j])[:, None], 1.0, 0.0)
         tracks.append(NodeTrack(
             node=name,
-            translations=np.asarray(traj.prey_positions[:, j], dtype=np.float32),
+            translations=(np.asarray(traj.prey_positions[:, j], dtype=np.float64)
+                          - shift).astype(np.float32),
             rotations=sign_continuous(normalize_quats_f32(traj.prey_rotations[:, j])),
             scales=np.repeat(scale, 3, axis=1).astype(np.float32)))
     sun = traj.sun_directions

@@ -183,11 +183,13 @@ class BakeConfig:
     prey: int = 0                # [0..16] prey capsules
     sun_path: str | None = None  # "AZ,EL;AZ,EL;..." degrees, evenly spaced over the bake
     clips: bool = False          # also write one animation per behaviour segment
-    start: tuple[float, float, float] | None = None  # [m] creature start (snapped to the
-                                 # walkable surface); None: random near the scene centre
+    start: tuple[float, float, float] | None = None  # [m, world] creature start (snapped to
+                                 # the walkable surface); None: random near the scene centre
     start_heading: tuple[float, float, float] | None = None  # horizontal facing at the start
-    prey_positions: tuple[tuple[float, float, float], ...] = ()  # [m] explicit prey starts
-                                 # (snapped); when given, they replace the `prey` count
+    prey_positions: tuple[tuple[float, float, float], ...] = ()  # [m, world] explicit prey
+                                 # starts (snapped); when given, they replace the `prey` count
+                                 # (world positions are moved into the environment's local
+                                 # frame by pipeline.in_local_frame)
     nav_cache_dir: Path | None = None  # None: no on-disk navigation cache
     nav_build: str = "auto"      # auto | full | lazy: the whole level at once, or windows
                                  # around where the creatures go (auto: lazy on big levels)

@@ -7,12 +7,17 @@
     Step 5  pose                           clip.build_clip   -> Clip
     Step 6  measure                        metrics.spine_metrics, surface_metrics, leg_metrics
     Step 7  export                         export.gltf / export.usd / export.report
+
+Frames: the environment is loaded into a local frame (world = env.origin + local, see
+environment.load.choose_origin), and everything from step 2 to step 6 works in it. User inputs
+given in world coordinates (BakeConfig.start, prey_positions) are moved into it before step 2;
+the writers and the report move positions back to world.
 """
 
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -27,19 +32,35 @@ log = logging.getLogger(__name__)
 class BakeResult:
     """What a bake produced.
 
-    outputs : format -> path written
-    report  : the JSON report as a dict
+    outputs    : format -> path written
+    report     : the JSON report as a dict
+    trajectory : the simulation's Trajectory, in the environment's local frame
+    clip       : the exported Clip (root joint relative to clip.placement, world)
+    origin     : (3,) float64, metres, world position of the local frame (env.origin):
+                 world = origin + trajectory position
     """
 
     outputs: dict[str, Path]
     report: dict
     trajectory: object
     clip: object
+    origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
 
 def make_rng(seed: int) -> np.random.Generator:
     """The one generator of a bake. Everything stochastic draws from it, in a fixed order."""
     return np.random.default_rng(np.random.SeedSequence(int(seed)))
+
+
+def in_local_frame(cfg: BakeConfig, origin: np.ndarray) -> BakeConfig:
+    """`cfg` with its world positions (start, prey_positions; metres) moved into the
+    environment's local frame (minus origin (3,) float64, metres)."""
+    o = np.asarray(origin, dtype=np.float64)
+    if not np.any(o != 0):
+        return cfg
+    local = (lambda p: tuple(float(x) for x in np.asarray(p, dtype=np.float64) - o))
+    return replace(cfg, start=None if cfg.start is None else local(cfg.start),
+                   prey_positions=tuple(local(p) for p in cfg.prey_positions))
 
 
 def navigation_surface(cfg: BakeConfig, env):
@@ -87,9 +108,12 @@ def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
     with ctx.stage("load"):
         env = load_environment(cfg.environment, sun_override=cfg.sun_direction)
 
+    # From here on, positions are in the environment's local frame.
+    run_cfg = in_local_frame(cfg, env.origin)
+
     # Step 2: the navigation surface for this rig's agent size (cached by content + params).
     with ctx.stage("navmesh"):
-        nav, cache_hit = navigation_surface(cfg, env)
+        nav, cache_hit = navigation_surface(run_cfg, env)
     ctx.notes["navmesh_cache_hit"] = cache_hit
 
     # Step 3: skeleton and skinned mesh.
@@ -98,11 +122,11 @@ def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
 
     # Step 4: behaviour, agent, head and body, at the fixed simulation rate.
     with ctx.stage("simulate"):
-        traj = simulate(cfg, env, nav, rng, ctx)
+        traj = simulate(run_cfg, env, nav, rng, ctx)
 
-    # Step 5: joint-local transforms at the export fps.
+    # Step 5: joint-local transforms at the export fps, relative to a placement near the path.
     with ctx.stage("pose"):
-        clip = build_clip(traj, rig, name="bake")
+        clip = build_clip(traj, rig, name="bake", origin=env.origin)
 
     # Step 6: motion-quality metrics (independent ray casts against the environment).
     with ctx.stage("metrics"):
@@ -120,7 +144,7 @@ def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
                                                         clearance=cfg.rig.body.clearance)
 
     # Step 7: files. Every file is complete before it replaces an older one.
-    extras = report_mod.extras(cfg, traj)
+    extras = report_mod.extras(cfg, traj, env.origin)
     debug_meshes = ()
     if cfg.debug_navmesh:
         v, f = nav_debug.walkable_mesh(nav)
@@ -140,7 +164,7 @@ def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
     written["json"] = paths["json"]
     rep = report_mod.build_report(cfg, env, nav, traj, motion, ctx, written)
     atomic_write_bytes(paths["json"], report_mod.to_json_bytes(rep))
-    return BakeResult(outputs=written, report=rep, trajectory=traj, clip=clip)
+    return BakeResult(outputs=written, report=rep, trajectory=traj, clip=clip, origin=env.origin)
 
 
 def prey_props(rig_cfg, traj) -> tuple:

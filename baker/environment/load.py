@@ -1,5 +1,8 @@
-"""Load an environment file into an `Environment`: world-space triangle meshes (metres, +Y up)
-with their base colours, plus the sun.
+"""Load an environment file into an `Environment`: triangle meshes (metres, +Y up) with their
+base colours, plus the sun. World vertices are computed in float64 (node transforms included),
+then a local origin is chosen (`choose_origin`: 0 on every axis whose range holds the world
+origin, else the bounds' centre rounded to whole metres), subtracted in float64 and only then
+rounded to float32, so a level 10 km from the origin is as precise as one at the origin.
 
 Formats
 -------
@@ -56,8 +59,9 @@ def load_environment(path: str | Path, sun_override=None) -> Environment:
     path         : .glb/.gltf, .obj, .ply, .stl, .usd/.usda/.usdc
     sun_override : (3,) float toward the sun, or None to use the file's directional light
                    (or DEFAULT_SUN_DIRECTION when the file has none)
-    returns      : Environment with one EnvMesh per source mesh primitive (world space,
-                   metres, +Y up) and the sun
+    returns      : Environment with one EnvMesh per source mesh primitive (metres, +Y up,
+                   float32 vertices relative to the environment's `origin`, chosen by
+                   choose_origin from the float64 world bounds) and the sun
     raises       : EnvironmentLoadError for a missing, unsupported, corrupt or empty file
     """
     path = Path(path)
@@ -84,19 +88,26 @@ def load_environment(path: str | Path, sun_override=None) -> Environment:
         msg = _error_text(exc)
         raise EnvironmentLoadError(f"cannot read environment {path}: {msg}") from exc
 
-    meshes = []
+    kept = []
     names = _unique_names([r[0] for r in raw])
     for name, (_, v, f, n, color, rough, metal) in zip(names, raw):
         cleaned = _clean(v, f, n)
         if cleaned is None:
             log.info("environment %s: dropping mesh %r, it has no usable faces", path, name)
             continue
-        v, f, n = cleaned
-        meshes.append(EnvMesh(name=name, vertices=v, faces=f, normals=n,
-                              color=tuple(float(c) for c in color),
-                              roughness=float(rough), metallic=float(metal)))
-    if not meshes:
+        kept.append((name, cleaned, color, rough, metal))
+    if not kept:
         raise EnvironmentLoadError(f"environment {path} has no triangle faces")
+    world = [v for _, (v, _, _), _, _, _ in kept]
+    origin = choose_origin(np.min([v.min(axis=0) for v in world], axis=0),
+                           np.max([v.max(axis=0) for v in world], axis=0))
+    # world vertices are float64 until here: subtract the origin, then round once to float32
+    meshes = [EnvMesh(name=name, vertices=(v - origin).astype(np.float32), faces=f, normals=n,
+                      color=tuple(float(c) for c in color),
+                      roughness=float(rough), metallic=float(metal))
+              for name, (v, f, n), color, rough, metal in kept]
+    if np.any(origin != 0):
+        log.info("environment %s: local origin at %s m (world)", path, origin.tolist())
     # names may have lost uniqueness only if meshes were dropped: they cannot collide, keep them
 
     if sun_override is not None:
@@ -109,7 +120,22 @@ def load_environment(path: str | Path, sun_override=None) -> Environment:
                     path, np.round(sun.direction, 3).tolist())
 
     return Environment(meshes=tuple(meshes), sun=sun, source=str(path),
-                       name=sanitize_name(path.stem, fallback="environment"))
+                       name=sanitize_name(path.stem, fallback="environment"), origin=origin)
+
+
+def choose_origin(lo, hi) -> np.ndarray:
+    """The local origin of a level, chosen from its world bounds.
+
+    lo, hi  : (3,) float64, metres, world min and max corners of every loaded vertex
+    returns : (3,) float64, metres, world. Per axis: 0 when the level's range on that axis
+              contains 0 (a level built around the world origin keeps its coordinates bit for
+              bit), else the centre of the range rounded to a whole number of metres (exact in
+              float64, so local = world - origin loses nothing before the float32 rounding).
+    """
+    lo = np.asarray(lo, dtype=np.float64)
+    hi = np.asarray(hi, dtype=np.float64)
+    centre = np.floor(0.5 * (lo + hi) + 0.5)
+    return np.where((lo <= 0.0) & (hi >= 0.0), 0.0, centre)
 
 
 def sanitize_name(name: str, fallback: str = "mesh") -> str:
@@ -160,7 +186,7 @@ def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
 
 def _clean(v, f, n):
     """Drop faces with out-of-range indices, non-finite vertices or zero area, and unused
-    vertices. Returns (vertices float32, faces uint32, normals float32|None) or None."""
+    vertices. Returns (vertices float64 world, faces uint32, normals float32|None) or None."""
     v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
     f = np.asarray(f, dtype=np.int64).reshape(-1, 3)
     if len(f) == 0 or len(v) == 0:
@@ -180,7 +206,7 @@ def _clean(v, f, n):
     used = np.unique(f)
     remap = np.full(len(v), -1, dtype=np.int64)
     remap[used] = np.arange(len(used))
-    nv = v[used].astype(np.float32)
+    nv = v[used]
     nf = remap[f].astype(np.uint32)
     nn = None
     if n is not None:

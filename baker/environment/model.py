@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
@@ -11,9 +11,9 @@ import trimesh
 
 @dataclass(frozen=True)
 class EnvMesh:
-    """One exportable piece of the environment, already in world space.
+    """One exportable piece of the environment, in the environment's local frame.
 
-    vertices : (n, 3) float32, metres, world (+Y up)
+    vertices : (n, 3) float32, metres, local (world = Environment.origin + local; +Y up)
     faces    : (m, 3) uint32 indices into vertices
     normals  : (n, 3) float32 unit vertex normals, or None to let writers compute them
     color    : (4,) float, linear RGBA base colour
@@ -47,20 +47,40 @@ class Sun:
 class Environment:
     """Everything the simulation and the writers need to know about the world.
 
-    meshes       : exportable pieces with materials
+    meshes       : exportable pieces with materials, vertices in the local frame
     sun          : the directional light
     source       : file it was loaded from (for the report), or "" when built in code
-    content_hash : sha256 of the merged geometry (cache key for navigation surfaces)
+    origin       : (3,) float64, metres, world position of the local frame's origin. The
+                   simulation works in the local frame (world = origin + local), so levels far
+                   from the world origin keep float32 and Embree precision; only inputs given in
+                   world coordinates and outputs written as world positions add or subtract it
+                   (see environment.load.choose_origin). Zeros for environments built in code.
+    content_hash : sha256 of the merged local geometry (cache key for navigation surfaces: the
+                   surface is in the local frame, so it does not depend on the origin)
     """
 
     meshes: tuple[EnvMesh, ...]
     sun: Sun
     source: str = ""
     name: str = "environment"
+    origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def __post_init__(self) -> None:
+        o = np.array(self.origin, dtype=np.float64).reshape(3)
+        o.setflags(write=False)
+        object.__setattr__(self, "origin", o)
+
+    def to_local(self, p) -> np.ndarray:
+        """World points (..., 3) -> local frame, float64."""
+        return np.asarray(p, dtype=np.float64) - self.origin
+
+    def to_world(self, p) -> np.ndarray:
+        """Local points (..., 3) -> world, float64."""
+        return np.asarray(p, dtype=np.float64) + self.origin
 
     @cached_property
     def mesh(self) -> trimesh.Trimesh:
-        """All pieces merged into one world-space triangle mesh (for ray casts)."""
+        """All pieces merged into one triangle mesh in the local frame (for ray casts)."""
         offset = 0
         vs, fs = [], []
         for m in self.meshes:
@@ -81,7 +101,7 @@ class Environment:
 
     @property
     def bounds(self) -> np.ndarray:
-        """(2, 3) float: min and max corners, metres."""
+        """(2, 3) float: min and max corners, metres, local frame (add `origin` for world)."""
         return self.mesh.bounds
 
     @cached_property

@@ -47,16 +47,17 @@ _BAD = re.compile(r"[^A-Za-z0-9_]")
 
 
 def safe_name(name: str, taken: set[str], fallback: str = "node") -> str:
-    """`name` reduced to [A-Za-z0-9_], at most 63 bytes, made unique against `taken` (updated)."""
+    """`name` reduced to [A-Za-z0-9_], at most 63 bytes, made unique against `taken` (updated
+    with the name and its lower-case form, so names stay unique also without regard to case)."""
     base = _BAD.sub("_", str(name)) or fallback
     if base[0].isdigit():
         base = "_" + base
     base = base[:56]
     out, k = base, 1
-    while out in taken:
+    while out in taken or out.lower() in taken:
         out = f"{base}_{k}"
         k += 1
-    taken.add(out)
+    taken.update((out, out.lower()))
     return out
 
 

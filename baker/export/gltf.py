@@ -3,11 +3,18 @@
 Built with pygltflib objects; the GLB container is assembled here so the output is byte-for-byte
 deterministic and both chunks are padded to 4 bytes. Node layout of the scene:
 
-    Environment            (group)  -> one node per EnvMesh
+    Environment            group, translation = env.origin -> one node per EnvMesh (vertices
+                           in the environment's local frame)
     Sun                    KHR_lights_punctual directional light, local -Z along the light
-    Centipede              non-joint placement node (identity) -> head -> trunk_01 -> ...
+    Prey                   group, translation = clip.placement -> one animated node per prey
+    Centipede              non-joint placement node, translation = clip.placement
+                           -> head -> trunk_01 -> ... (the root joint's keys are relative to it)
     centipede_mesh         skinned mesh, at the scene root with no transform
-    <debug layers>         optional overlays, one node each
+    <debug layers>         optional overlays, one node each, translation = env.origin
+
+Positions far from the world origin stay precise: float32 data (vertices, animation keys) holds
+small numbers relative to a node whose translation, a JSON number, is double precision. A zero
+translation is left out.
 """
 
 from __future__ import annotations
@@ -121,34 +128,47 @@ def _rounded(v) -> list[float]:
     return [float(x) for x in np.asarray(v, dtype=np.float32)]
 
 
+def _offset(v) -> dict:
+    """{"translation": v} in double precision, or {} for a zero offset."""
+    v = np.asarray(v, dtype=np.float64).reshape(3)
+    return {"translation": [float(x) for x in v]} if np.any(v != 0) else {}
+
+
 def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: dict,
               debug_meshes: Sequence[DebugMesh] = (), props: Sequence[DebugMesh] = (),
               extra_clips: Sequence[Clip] = ()) -> bytes:
     """The whole scene as GLB bytes. Same inputs give identical bytes.
 
-    env          : environment meshes (each gets a node and a PBR material) and the sun
+    env          : environment meshes (each gets a node and a PBR material) and the sun; the
+                   Environment group node is translated by env.origin
     rig          : skeleton + skinned mesh, or None for an environment-only file
     clip         : animation over rig.skeleton's joints (and its node tracks: prey, sun), or
-                   None for the rest pose only
+                   None for the rest pose only; clip.placement translates the Centipede and
+                   Prey nodes
     extras       : custom data, stored in the scene's and the asset's `extras` (made JSON-safe)
-    debug_meshes : (name, vertices (n, 3), faces (m, 3), rgba) extra layers, one node each
-    props        : (name, vertices, faces, rgba) animated scene objects (prey), one node each,
-                   named exactly `name` so the clips' node tracks can drive them
+    debug_meshes : (name, vertices (n, 3), faces (m, 3), rgba) extra layers in the
+                   environment's local frame, one node each (translated by env.origin)
+    props        : (name, vertices, faces, rgba) animated scene objects (prey), one node each
+                   under the Prey group, named exactly `name` so the clips' node tracks can
+                   drive them
     extra_clips  : more animations over the same joints and nodes (per-behaviour clips)
     """
     if clip is not None and rig is None:
         raise ExportError("a clip needs a rig to drive")
+    if any(np.any(c.placement != (clip.placement if clip else 0.0)) for c in extra_clips):
+        raise ExportError("every clip of a scene must share the main clip's placement")
     gltf = gl.GLTF2(asset=gl.Asset(version="2.0", generator=f"baker {baker.__version__}"))
     gltf.buffers = []
     b = _Builder(gltf)
     # fixed node names and joint names are reserved first; other names are made unique around them
-    names: set[str] = {"Environment", "Sun", "Centipede", "centipede_mesh"}
-    names.update(p[0] for p in props)
-    if rig is not None:
-        names.update(rig.skeleton.names)
-        if len(names) != 4 + len(props) + rig.skeleton.n_joints:
-            raise ExportError("joint names clash with the scene's node names "
-                              "(Environment, Sun, Centipede, centipede_mesh)")
+    fixed = ["Environment", "Sun", "Centipede", "centipede_mesh"] + (["Prey"] if props else [])
+    reserved = fixed + [p[0] for p in props] + (list(rig.skeleton.names) if rig else [])
+    names: set[str] = {n.lower() for n in reserved}
+    if len(names) != len(reserved):
+        raise ExportError("joint or prey names clash with the scene's node names "
+                          f"({', '.join(fixed)}), also when case is ignored")
+    names.update(reserved)
+    placement = clip.placement if clip is not None else np.zeros(3)
     scene_nodes: list[int] = []
 
     # -- environment
@@ -159,7 +179,8 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
         mesh = _static_mesh(gltf, b, nm, m.vertices, m.faces, m.normals, mat)
         env_children.append(_add_node(gltf, gl.Node(name=nm, mesh=mesh)))
     if env_children:
-        scene_nodes.append(_add_node(gltf, gl.Node(name="Environment", children=env_children)))
+        scene_nodes.append(_add_node(gltf, gl.Node(name="Environment", children=env_children,
+                                                   **_offset(env.origin))))
 
     # -- sun: KHR_lights_punctual directional light; it shines along the node's local -Z
     sun = env.sun
@@ -173,7 +194,9 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
         extensions={"KHR_lights_punctual": {"light": 0}}))
     scene_nodes.append(node_by_name["Sun"])
 
-    # -- props (prey): a mesh node each, animated by the clips' node tracks
+    # -- props (prey): a mesh node each under a static group at the placement, animated by
+    # the clips' node tracks
+    prey_nodes = []
     for name, verts, faces, rgba in props:
         rgba = tuple(float(c) for c in rgba)
         mat = _material(gltf, name, rgba + (1.0,) * (4 - len(rgba)), 0.0, 0.7, double_sided=False)
@@ -182,11 +205,14 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
         rest = {} if first is None or first.translations is None else dict(
             translation=_rounded(first.translations[0]), rotation=_rounded(first.rotations[0]))
         node_by_name[name] = _add_node(gltf, gl.Node(name=name, mesh=mesh, **rest))
-        scene_nodes.append(node_by_name[name])
+        prey_nodes.append(node_by_name[name])
+    if prey_nodes:
+        scene_nodes.append(_add_node(gltf, gl.Node(name="Prey", children=prey_nodes,
+                                                   **_offset(placement))))
 
     # -- the creature and its animations
     if rig is not None:
-        roots, node_of = _add_creature(gltf, b, names, rig)
+        roots, node_of = _add_creature(gltf, b, names, rig, placement)
         scene_nodes.extend(roots)
         for c in ([clip] if clip is not None else []) + list(extra_clips):
             _add_animation(gltf, b, c, node_of, node_by_name)
@@ -200,7 +226,7 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
         rgba = tuple(float(c) for c in rgba)
         mat = _material(gltf, nm, rgba + (1.0,) * (4 - len(rgba)), 0.0, 1.0, double_sided=True)
         mesh = _static_mesh(gltf, b, nm, verts, faces, None, mat)
-        scene_nodes.append(_add_node(gltf, gl.Node(name=nm, mesh=mesh)))
+        scene_nodes.append(_add_node(gltf, gl.Node(name=nm, mesh=mesh, **_offset(env.origin))))
 
     gltf.scenes = [gl.Scene(name="Scene", nodes=scene_nodes)]
     gltf.scene = 0
@@ -227,8 +253,10 @@ def _glb_container(json_bytes: bytes, blob: bytes) -> bytes:
     return b"".join(out)
 
 
-def _add_creature(gltf: gl.GLTF2, b: _Builder, names: set[str], rig: Rig):
-    """Joint nodes under a non-joint `Centipede` node and the skinned mesh node.
+def _add_creature(gltf: gl.GLTF2, b: _Builder, names: set[str], rig: Rig, placement):
+    """Joint nodes under a non-joint `Centipede` node (translated by placement (3,) float64,
+    metres, world) and the skinned mesh node (scene root, no transform; its inverse bind
+    matrices are in the skeleton's own frame, so the placement moves the skin with the joints).
     Returns (the scene-root node indices it added, the node index of every joint)."""
     skel = rig.skeleton
     j_count = skel.n_joints
@@ -242,7 +270,7 @@ def _add_creature(gltf: gl.GLTF2, b: _Builder, names: set[str], rig: Rig):
             name=skel.names[j], translation=_rounded(skel.rest_translations[j]),
             rotation=_rounded(skel.rest_rotations[j]), children=kids or None))
     roots = [int(node_of[j]) for j in range(j_count) if skel.parents[j] < 0]
-    placement = _add_node(gltf, gl.Node(name="Centipede", children=roots))
+    top = _add_node(gltf, gl.Node(name="Centipede", children=roots, **_offset(placement)))
 
     # skin: inverse bind matrices = inverse(world bind), column-major
     ibm = np.linalg.inv(skel.world_bind())
@@ -270,7 +298,7 @@ def _add_creature(gltf: gl.GLTF2, b: _Builder, names: set[str], rig: Rig):
     mesh_node = _add_node(gltf, gl.Node(name="centipede_mesh",
                                         mesh=len(gltf.meshes) - 1, skin=skin))
 
-    return [placement, mesh_node], node_of
+    return [top, mesh_node], node_of
 
 
 def _add_animation(gltf: gl.GLTF2, b: _Builder, clip: Clip, node_of: np.ndarray,

@@ -41,15 +41,36 @@ def rig_summary(rig_cfg) -> dict:
     return jsonable(rig_cfg)
 
 
-def extras(cfg, traj) -> dict:
-    """Deterministic metadata for glTF extras / USD customData (no timings, no versions)."""
+#: Keys of a timeline event's details that hold a position (3 numbers, metres).
+POSITION_KEYS = ("target", "spot", "position")
+
+
+def world_events(events, origin) -> list:
+    """Timeline events {start, end, state, details} with the positions in their details moved
+    from the environment's local frame to world (plus origin (3,) float64, metres; rounded to
+    0.1 mm like the brain's own)."""
+    o = np.asarray(origin, dtype=np.float64).reshape(3)
+    out = []
+    for e in events:
+        d = dict(e.get("details") or {})
+        for k in POSITION_KEYS:
+            v = d.get(k)
+            if isinstance(v, (list, tuple, np.ndarray)) and len(v) == 3:
+                d[k] = [round(float(x) + float(y), 4) for x, y in zip(v, o)]
+        out.append({**e, "details": d} if "details" in e else dict(e))
+    return out
+
+
+def extras(cfg, traj, origin=(0.0, 0.0, 0.0)) -> dict:
+    """Deterministic metadata for glTF extras / USD customData (no timings, no versions).
+    origin : (3,) float64 metres, world position of the trajectory's frame (env.origin)."""
     return {
         "generator": f"baker {baker.__version__}",
         "seed": int(cfg.seed),
         "fps": int(cfg.fps),
         "seconds": float(cfg.seconds),
         "rig": rig_summary(cfg.rig),
-        "timeline": jsonable(list(traj.events)),
+        "timeline": jsonable(world_events(traj.events, origin)),
         "foot_contacts": foot_contacts(traj, cfg.rig),
     }
 
@@ -87,7 +108,21 @@ def package_versions() -> dict:
     return out
 
 
+def navmesh_stats(nav, origin) -> dict:
+    """The navigation surface's stats, with its lazy windows ((x0, z0, x1, z1) metres) in
+    world coordinates."""
+    stats = dict(nav.stats()) if callable(getattr(nav, "stats", None)) else {}
+    if "lazy_windows" in stats:
+        ox, oz = float(origin[0]), float(origin[2])
+        stats["lazy_windows"] = [[round(w[0] + ox, 6), round(w[1] + oz, 6), round(w[2] + ox, 6),
+                                  round(w[3] + oz, 6)] for w in stats["lazy_windows"]]
+    return stats
+
+
 def build_report(cfg, env, nav, traj, motion: dict, ctx, written: dict) -> dict:
+    """The JSON report. Positions (environment bounds, timeline targets and spots, lazy
+    navigation windows) are world coordinates; `environment.origin` is the local frame the
+    simulation ran in."""
     return jsonable({
         "baker_version": baker.__version__,
         "seed": cfg.seed,
@@ -104,16 +139,17 @@ def build_report(cfg, env, nav, traj, motion: dict, ctx, written: dict) -> dict:
             "source": env.source,
             "meshes": len(env.meshes),
             "triangles": int(len(env.mesh.faces)),
-            "bounds": env.bounds,
+            "bounds": env.bounds + env.origin,
+            "origin": env.origin,
             "content_hash": env.content_hash,
         },
-        "navmesh": getattr(nav, "stats", lambda: {})() if callable(getattr(nav, "stats", None)) else {},
+        "navmesh": navmesh_stats(nav, env.origin),
         "navmesh_cache_hit": ctx.notes.get("navmesh_cache_hit"),
         "path_replans": ctx.notes.get("path_replans"),
         "versions": package_versions(),
         "timings_s": {k: round(v, 4) for k, v in ctx.timings.items()},
         "metrics": motion,
-        "timeline": list(traj.events),
+        "timeline": world_events(traj.events, env.origin),
         "outputs": {k: str(v) for k, v in written.items()},
     })
 

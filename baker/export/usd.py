@@ -3,16 +3,23 @@
 Stage layout (defaultPrim /World):
 
     /World                         Xform; customData carries the bake's extras
-      Environment/<mesh>           Mesh, displayColor, UsdPreviewSurface material
+      Environment/<mesh>           Xform translated by env.origin; Meshes, displayColor,
+                                   UsdPreviewSurface material (points in the local frame)
       Sun                          DistantLight, local -Z along the light
-      Centipede                    SkelRoot
-        Skeleton                   joints as paths, bindTransforms (world), restTransforms (local)
+      Centipede                    SkelRoot translated by clip.placement
+        Skeleton                   joints as paths, bindTransforms (skeleton space),
+                                   restTransforms (local)
         Animation                  SkelAnimation, time samples keyed by frame number
         Clips/<name>               optional per-behaviour SkelAnimations (not bound)
         body, legs                 skinned Meshes (one per material)
-      Prey/<name>                  animated Xform (translate, orient, scale, visibility) + mesh
-      Debug/<name>                 optional overlay meshes
+      Prey/<name>                  Xform translated by clip.placement; animated Xforms
+                                   (translate, orient, scale, visibility) + mesh
+      Debug/<name>                 Xform translated by env.origin; optional overlay meshes
       Looks/<material>             Materials
+
+The translations that carry positions far from the world origin are double3 translate ops
+(`UsdGeom.XformOp.PrecisionDouble`), so float32 points and keys stay small; a zero offset
+authors no op.
 
 This is the only module that converts xyzw quaternions to USD's (w, x, y, z): Vt.QuatfArray's
 memory layout is (x, y, z, w), so FromNumpy takes xyzw arrays directly; Gf.Quatf(w, x, y, z) takes
@@ -104,6 +111,14 @@ def _mesh(stage, path, vertices, faces, normals, rgba, material, double_sided: b
     return mesh
 
 
+def _offset(xformable, v) -> None:
+    """A double-precision translate op of v (3,) float64 metres, unless v is zero."""
+    Gf, _, _, UsdGeom, _, _, _, _ = _pxr()
+    v = np.asarray(v, dtype=np.float64).reshape(3)
+    if np.any(v != 0):
+        xformable.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble).Set(Gf.Vec3d(*map(float, v)))
+
+
 def _skel_animation(stage, path, joints, clip: Clip):
     """A SkelAnimation prim with the clip's joint TRS, time samples keyed by frame number."""
     _, Sdf, Usd, _, _, _, UsdSkel, Vt = _pxr()
@@ -152,6 +167,7 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
 
     props       : (name, vertices, faces, rgba) animated objects (prey) under /World/Prey,
                   driven by the clip's node tracks of the same name
+    debug_meshes: (name, vertices, faces, rgba) overlays in the environment's local frame
     extra_clips : per-behaviour clips, written as SkelAnimation prims under
                   /World/Centipede/Clips (not bound: the Skeleton plays the full clip)
     """
@@ -182,7 +198,9 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
     mat_names: set[str] = set()
 
     # -- environment
-    env_path = UsdGeom.Xform.Define(stage, "/World/Environment").GetPath()
+    env_xf = UsdGeom.Xform.Define(stage, "/World/Environment")
+    _offset(env_xf, env.origin)
+    env_path = env_xf.GetPath()
     taken: set[str] = set()
     for m, rgba in environment_parts(env):
         nm = safe_name(m.name, taken, "env_mesh")
@@ -205,6 +223,7 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
     # -- the creature
     root = UsdSkel.Root.Define(stage, "/World/Centipede")
     Usd.ModelAPI(root.GetPrim()).SetKind("component")
+    _offset(root, clip.placement)
     sk = UsdSkel.Skeleton.Define(stage, "/World/Centipede/Skeleton")
     joints = Vt.TokenArray(list(skel.joint_paths()))
     sk.CreateJointsAttr(joints)
@@ -220,11 +239,15 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
             if c.translations.shape[1] != j_count:
                 raise ExportError(f"clip {c.name!r} has {c.translations.shape[1]} joints, "
                                   f"the skeleton {j_count}")
+            if np.any(c.placement != clip.placement):
+                raise ExportError(f"clip {c.name!r} does not share the main clip's placement")
             _skel_animation(stage, clips_path.AppendChild(c.name), joints, c)
 
     # -- props (prey)
     if props:
-        prey_path = UsdGeom.Xform.Define(stage, "/World/Prey").GetPath()
+        prey_xf = UsdGeom.Xform.Define(stage, "/World/Prey")
+        _offset(prey_xf, clip.placement)
+        prey_path = prey_xf.GetPath()
         for name, verts, faces, rgba in props:
             xf = UsdGeom.Xform.Define(stage, prey_path.AppendChild(name))
             if name in tracks:
@@ -255,7 +278,9 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
 
     # -- debug overlays
     if debug_meshes:
-        dbg = UsdGeom.Scope.Define(stage, "/World/Debug").GetPath()
+        dbg_xf = UsdGeom.Xform.Define(stage, "/World/Debug")
+        _offset(dbg_xf, env.origin)
+        dbg = dbg_xf.GetPath()
         dtaken: set[str] = set()
         for name, verts, faces, rgba in debug_meshes:
             if len(verts) == 0 or len(faces) == 0:

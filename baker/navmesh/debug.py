@@ -32,11 +32,13 @@ def walkable_mesh(s: NavSurface, lift: float = 0.002) -> tuple[np.ndarray, np.nd
 
 
 def draw_map(s: NavSurface, path_png, paths=(), points=(), *, dpi: int = 150,
-             title: str | None = None, extent=None) -> Path:
+             title: str | None = None, extent=None, origin=None) -> Path:
     """Draw a top-down map (X right, Z down as seen from above with +Y toward the viewer) of the
     walkable samples coloured by component, with optional paths ((k, 3) arrays or PathResults)
-    and points ((3,) or (k, 3)). extent: optional (xmin, xmax, zmin, zmax) zoom window in
-    metres. Needs matplotlib (optional dependency)."""
+    and points ((3,) or (k, 3)), all in the surface's frame. origin: (3,) metres, world
+    position of that frame (Environment.origin; None: zeros): the axes are labelled in world
+    coordinates. extent: optional (xmin, xmax, zmin, zmax) zoom window in metres, world.
+    Needs matplotlib (optional dependency)."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -48,18 +50,19 @@ def draw_map(s: NavSurface, path_png, paths=(), points=(), *, dpi: int = 150,
     # top layer per column decides the colour
     order = np.argsort(s.positions[:, 1])
     img[s.cells[order, 1], s.cells[order, 0]] = s.component[order] % 20
-    x0, z0 = s.origin
+    ox, oz = (0.0, 0.0) if origin is None else (float(origin[0]), float(origin[2]))
+    x0, z0 = s.origin[0] + ox, s.origin[1] + oz
     ext = (x0, x0 + nx * s.cell_size, z0 + nz * s.cell_size, z0)
     fig, ax = plt.subplots(figsize=(8, 8 * nz / max(nx, 1) if nx else 8))
     ax.imshow(img, extent=ext, cmap="tab20", vmin=0, vmax=19, interpolation="nearest")
     for p in paths:
-        pts = np.asarray(getattr(p, "points", p), dtype=float).reshape(-1, 3)
+        pts = np.asarray(getattr(p, "points", p), dtype=float).reshape(-1, 3) + [ox, 0.0, oz]
         ax.plot(pts[:, 0], pts[:, 2], "-", color="k", lw=1.2)
         if len(pts):
             ax.plot(pts[0, 0], pts[0, 2], "o", color="g", ms=4)
             ax.plot(pts[-1, 0], pts[-1, 2], "s", color="r", ms=4)
     for q in points:
-        q = np.asarray(q, dtype=float).reshape(-1, 3)
+        q = np.asarray(q, dtype=float).reshape(-1, 3) + [ox, 0.0, oz]
         ax.plot(q[:, 0], q[:, 2], ".", color="m", ms=5)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("z [m]")

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -24,8 +24,8 @@ class NavReport:
     seconds    : wall time of the build (or of the cache load)
     cache_hit  : True when the surface came from the cache; None when caching is off
     cache_path : the cache file read or written; None when caching is off
-    path       : PathResult for --from/--to, or None
-    png        : the map written, or None
+    path       : PathResult for --from/--to (points in world coordinates), or None
+    png        : the map written (axes in world coordinates), or None
     """
 
     environment: str
@@ -41,7 +41,8 @@ def run(environment, agent, cache_dir=None, *, png=None, path_from=None, path_to
         surface_out: list | None = None) -> NavReport:
     """Load `environment`, build its surface for `agent` (a NavAgentConfig) or load it from
     `cache_dir` (None: no cache), find the path from `path_from` to `path_to` ((3,) world points,
-    both or neither) and draw the map to `png` (needs matplotlib).
+    both or neither; the surface itself is in the environment's local frame) and draw the map to
+    `png` (needs matplotlib; axes in world coordinates).
     surface_out: optional list that receives the NavSurface (for callers and tests)."""
     from baker.environment import load_environment
     from baker.navmesh import cache as nav_cache
@@ -68,10 +69,12 @@ def run(environment, agent, cache_dir=None, *, png=None, path_from=None, path_to
     stats["largest_component_share"] = (round(float(surface.component_area[0]) / total, 4)
                                         if total > 0 else 0.0)
     path = None
-    if path_from is not None:
-        path = surface.find_path(np.asarray(path_from, float), np.asarray(path_to, float))
+    if path_from is not None:   # world in and out; the surface is in the environment's frame
+        path = surface.find_path(env.to_local(path_from), env.to_local(path_to))
     if png is not None:
-        png = _draw(surface, png, path, Path(environment).name)
+        png = _draw(surface, png, path, Path(environment).name, env.origin)
+    if path is not None:
+        path = replace(path, points=env.to_world(path.points))
     if surface_out is not None:
         surface_out.append(surface)
     return NavReport(environment=str(environment), stats=stats, seconds=seconds,
@@ -79,7 +82,7 @@ def run(environment, agent, cache_dir=None, *, png=None, path_from=None, path_to
                      path=path, png=png)
 
 
-def _draw(surface, png: Path, path, name: str) -> Path:
+def _draw(surface, png: Path, path, name: str, origin) -> Path:
     """Draw to a temporary file beside `png`, then rename (no half-written map)."""
     from baker.navmesh.debug import draw_map
 
@@ -87,7 +90,7 @@ def _draw(surface, png: Path, path, name: str) -> Path:
              f"{surface.n_components} components")
     check_writable(png.parent)
     with atomic_output(png) as tmp:
-        draw_map(surface, tmp, paths=() if path is None else (path,), title=title)
+        draw_map(surface, tmp, paths=() if path is None else (path,), title=title, origin=origin)
     return png
 
 

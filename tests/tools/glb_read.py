@@ -51,3 +51,44 @@ class Glb:
             name = self.doc["nodes"][ch["target"]["node"]]["name"]
             out[(name, ch["target"]["path"])] = (self.accessor(s["input"]), self.accessor(s["output"]))
         return out
+
+    def world_matrices(self, anim: int | None = 0) -> tuple[list[str], np.ndarray]:
+        """Every node's world matrix (column vectors), composed in float64 from the node
+        hierarchy (JSON translations are doubles) and, when `anim` is given, that animation's
+        keys (LINEAR keys, sampled at the keys themselves).
+
+        returns (node names, (F, N, 4, 4) float64); F = 1 without an animation."""
+        from scipy.spatial.transform import Rotation
+
+        nodes = self.doc["nodes"]
+        tracks = {}
+        n_frames = 1
+        if anim is not None:
+            a = self.doc["animations"][anim]
+            for ch in a["channels"]:
+                s = a["samplers"][ch["sampler"]]
+                tracks[(ch["target"]["node"], ch["target"]["path"])] = \
+                    self.accessor(s["output"]).astype(np.float64)
+                n_frames = len(self.accessor(s["input"]))
+
+        def trs(i: int) -> np.ndarray:
+            n = nodes[i]
+            assert "matrix" not in n
+            t = tracks.get((i, "translation"), np.array([n.get("translation", [0.0, 0.0, 0.0])]))
+            q = tracks.get((i, "rotation"), np.array([n.get("rotation", [0.0, 0.0, 0.0, 1.0])]))
+            s = tracks.get((i, "scale"), np.array([n.get("scale", [1.0, 1.0, 1.0])]))
+            m = np.zeros((n_frames, 4, 4))
+            r = Rotation.from_quat(np.broadcast_to(q, (n_frames, 4))).as_matrix()
+            m[:, :3, :3] = r * np.broadcast_to(s, (n_frames, 3))[:, None, :]
+            m[:, :3, 3] = np.broadcast_to(t, (n_frames, 3))
+            m[:, 3, 3] = 1.0
+            return m
+
+        world = np.zeros((n_frames, len(nodes), 4, 4))
+        stack = [(r, np.broadcast_to(np.eye(4), (n_frames, 4, 4)))
+                 for r in self.doc["scenes"][self.doc.get("scene", 0)]["nodes"]]
+        while stack:
+            i, parent = stack.pop()
+            world[:, i] = parent @ trs(i)
+            stack.extend((c, world[:, i]) for c in nodes[i].get("children", []))
+        return [n.get("name") for n in nodes], world

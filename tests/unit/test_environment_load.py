@@ -99,7 +99,7 @@ def test_glb_node_hierarchy_is_applied(tmp_path):
     # Ry(90): (x, y, z) -> (z, y, -x); then scale 2, then translate
     local = np.asarray(QUAD, float)
     expect = np.stack([local[:, 2], local[:, 1], -local[:, 0]], 1) * 2 + [10.0, 1.0, -2.0]
-    _same_point_set(m.vertices, expect)
+    _same_point_set(env.to_world(m.vertices), expect)
     np.testing.assert_allclose(m.color, (0.1, 0.2, 0.3, 0.9), atol=1e-7)
     assert m.roughness == pytest.approx(0.7) and m.metallic == 0.0
     assert len(m.faces) == 2
@@ -119,7 +119,7 @@ def test_glb_from_trimesh_with_matrix_transform(tmp_path):
     env = load_environment(p)
     _assert_env(env, 2)
     world = trimesh.transform_points(mesh.vertices, T)
-    got = [m for m in env.meshes if np.allclose(np.sort(m.vertices, 0), np.sort(world, 0),
+    got = [m for m in env.meshes if np.allclose(np.sort(env.to_world(m.vertices), 0), np.sort(world, 0),
                                                atol=1e-5)]
     assert len(got) == 1
     np.testing.assert_allclose(env.bounds[1], np.maximum(world.max(0), [0.5, 1.0, 1.5]),
@@ -185,7 +185,7 @@ def test_obj_with_material_colour(tmp_path):
     _assert_env(env, 1)
     m = env.meshes[0]
     assert len(m.faces) == 2  # quad triangulated
-    _same_point_set(m.vertices, [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    _same_point_set(env.to_world(m.vertices), [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
     np.testing.assert_allclose(m.color[:3], (0.2, 0.4, 0.6), atol=1 / 255)
 
 
@@ -204,7 +204,7 @@ def test_ply_round_trip_with_face_colours(tmp_path):
     mesh.export(p)
     env = load_environment(p)
     _assert_env(env, 1)
-    _same_point_set(env.meshes[0].vertices, mesh.vertices)
+    _same_point_set(env.to_world(env.meshes[0].vertices), mesh.vertices)
     # sRGB 188 is linear ~0.5
     np.testing.assert_allclose(env.meshes[0].color[:3], [0.5029] * 3, atol=2e-3)
 
@@ -216,7 +216,7 @@ def test_stl_round_trip(tmp_path):
     env = load_environment(p)
     _assert_env(env, 1)
     assert len(env.meshes[0].faces) == 12
-    _same_point_set(env.meshes[0].vertices, mesh.vertices)
+    _same_point_set(env.to_world(env.meshes[0].vertices), mesh.vertices)
     assert env.name == "c"
 
 
@@ -302,10 +302,10 @@ def test_usda_z_up_centimetres(tmp_path):
     pts_cm = np.array([[0, 0, 0], [100, 0, 0], [100, 100, 0], [0, 100, 0], [200, 50, 0]], float)
     world_m = (pts_cm + [100, 200, 300]) * 0.01
     expect = np.stack([world_m[:, 0], world_m[:, 2], -world_m[:, 1]], 1)  # Z up -> Y up
-    _same_point_set(floor.vertices, expect)
+    _same_point_set(env.to_world(floor.vertices), expect)
     np.testing.assert_allclose(floor.color, (0.25, 0.5, 0.75, 1.0), atol=1e-6)
     # all faces of the (z = const) floor are horizontal in +Y-up space
-    tm = trimesh.Trimesh(floor.vertices, floor.faces, process=False)
+    tm = trimesh.Trimesh(env.to_world(floor.vertices), floor.faces, process=False)
     np.testing.assert_allclose(np.abs(tm.face_normals[:, 1]), 1.0, atol=1e-6)
 
     painted = next(m for m in env.meshes if m.name == "painted")
@@ -332,7 +332,7 @@ def test_usd_binary_crate(tmp_path):
     stage.GetRootLayer().Save()
     env = load_environment(p)
     _assert_env(env, 1)
-    _same_point_set(env.meshes[0].vertices, [[0, 0, 0], [1, 0, 0], [0, 0, 1]])
+    _same_point_set(env.to_world(env.meshes[0].vertices), [[0, 0, 0], [1, 0, 0], [0, 0, 1]])
     assert env.meshes[0].color == (0.5, 0.5, 0.5, 1.0)
 
 
@@ -343,7 +343,7 @@ def test_usd_unauthored_units_are_centimetres(tmp_path):
                  '    int[] faceVertexIndices = [0, 1, 2]\n'
                  '    point3f[] points = [(0, 0, 0), (100, 0, 0), (0, 0, 100)]\n}\n')
     env = load_environment(p)
-    _same_point_set(env.meshes[0].vertices, [[0, 0, 0], [1, 0, 0], [0, 0, 1]])
+    _same_point_set(env.to_world(env.meshes[0].vertices), [[0, 0, 0], [1, 0, 0], [0, 0, 1]])
 
 
 def test_usd_instances_are_expanded(tmp_path):
@@ -377,7 +377,7 @@ def Xform "B" (instanceable = true
 """)
     env = load_environment(p)
     _assert_env(env, 2)
-    xs = sorted(float(m.vertices[:, 0].min()) for m in env.meshes)
+    xs = sorted(float(env.to_world(m.vertices)[:, 0].min()) for m in env.meshes)
     assert xs == [-5.0, 5.0]
 
 
@@ -402,7 +402,7 @@ def test_gltf_json_with_data_uri_and_external_bin(tmp_path):
     p.write_text(json.dumps(doc))
     env = load_environment(p)
     _assert_env(env, 1)
-    _same_point_set(env.meshes[0].vertices, pos + [0, 3, 0])
+    _same_point_set(env.to_world(env.meshes[0].vertices), pos + [0, 3, 0])
     (tmp_path / "idx.bin").unlink()
     with pytest.raises(EnvironmentLoadError, match="q.gltf"):
         load_environment(p)
