@@ -4,10 +4,12 @@ Steps (all vectorized over columns / samples; rays are cast in batched chunks):
 1. Column heightfield: cast a ray straight down through every column centre from above the
    scene, then again from just below each hit, until no column hits anything: every surface
    layer of every column is found (log top and the floor inside it, bridge and road).
-   Faces are two-sided, so a downward ray always sees a surface from above. For closed
-   (watertight) mesh components, hits are counted per component down each column: an even
-   count means "entering the solid" (its top), an odd count means "leaving it" (the inside of
-   its bottom shell), which is not a floor. This does not depend on face winding.
+   Faces are two-sided, so a downward ray always sees a surface from above. A hit on a closed
+   (watertight) mesh component either enters the solid (its top) or leaves it (the inside of
+   its bottom shell, not a floor): told by the face's winding where the solid's faces agree
+   (outward or inward, found from its signed volume), so that a hit lost to a coincident face
+   (a slab resting on a lintel) can be restored; by counting hits down the column otherwise.
+   A file's winding convention never matters.
 2. Walkable samples: slope within max_slope and at least agent height of free space up to the
    next hit above.
 3. Links between 4-neighbour samples whose heights differ by at most the step height and whose
@@ -70,13 +72,19 @@ class _Caster:
         return self.rays.cast(o, d)
 
 
-def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray]:
-    """Per face: connected component id (vertices welded by position), and per component:
-    True when it is closed (every edge shared by exactly two faces). Winding is not used."""
+def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Closed mesh components and how they are wound.
+
+    Returns (face_comp (F,) int64: connected component of each face, vertices welded by
+    position; closed (K,) bool: every edge of the component is shared by exactly two faces;
+    wind (K,) int8: +1 when a closed component is consistently wound with outward normals
+    (positive signed volume), -1 when consistently wound inward, 0 when not closed or not
+    consistently wound). A file's winding convention therefore never matters, only whether a
+    solid's faces agree with each other."""
     v = np.asarray(mesh.vertices, dtype=np.float64)
     f = np.asarray(mesh.faces, dtype=np.int64)
     if len(f) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, bool)
+        return np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.int8)
     lo = v.min(axis=0)
     ext = float(np.ptp(v, axis=0).max()) or 1.0
     q = np.round((v - lo) / (ext * 1e-6)).astype(np.int64)  # weld within 1e-6 of the extent
@@ -85,16 +93,26 @@ def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray]:
     vid = vid.reshape(-1)
     F = vid[f]
     nv = int(vid.max()) + 1
-    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    e.sort(axis=1)
+    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])  # directed, as wound
     e = e[e[:, 0] != e[:, 1]]
-    g = coo_matrix((np.ones(len(e), np.int8), (e[:, 0], e[:, 1])), shape=(nv, nv)).tocsr()
+    es = np.sort(e, axis=1)
+    g = coo_matrix((np.ones(len(es), np.int8), (es[:, 0], es[:, 1])), shape=(nv, nv)).tocsr()
     ncomp, vcomp = connected_components(g, directed=True, connection="weak")
-    key = e[:, 0] * nv + e[:, 1]
+    key = es[:, 0] * nv + es[:, 1]
     uk, cnt = np.unique(key, return_counts=True)
     closed = np.ones(ncomp, dtype=bool)
     closed[vcomp[(uk[cnt != 2] // nv)]] = False
-    return vcomp[F[:, 0]], closed
+    # consistently wound: each edge is used once in each direction
+    uniq_d = np.ones(ncomp, dtype=bool)
+    dk, dc = np.unique(e[:, 0] * nv + e[:, 1], return_counts=True)
+    uniq_d[vcomp[dk[dc != 1] // nv]] = False
+    fc = vcomp[F[:, 0]]
+    c = v - (lo + 0.5 * np.ptp(v, axis=0))
+    vol = np.einsum("ij,ij->i", c[f[:, 0]], np.cross(c[f[:, 1]], c[f[:, 2]]))
+    vol = np.bincount(fc, vol, minlength=ncomp)
+    closed &= np.abs(vol) > 1e-15 * ext ** 3  # a flat closed sheet (a two-sided triangle)
+    wind = np.where(closed & uniq_d, np.sign(vol), 0).astype(np.int8)
+    return fc, closed, wind
 
 
 # --------------------------------------------------------------------------- build steps
@@ -140,7 +158,7 @@ def _cast_layers(caster: _Caster, x0, z0, nx, nz, cell, ytop, col0=0, col1=None)
 
 
 def _walkable_hits(caster, x0, z0, nx, nz, cell, ytop, c0, c1, face_comp, comp_closed,
-                   cos_slope, height, timings):
+                   comp_wind, cos_slope, height, timings):
     """Heightfield of columns c0..c1-1 reduced to its walkable hits:
     (col, y, ceiling y, triangle, number of hits)."""
     t = time.perf_counter()
@@ -156,17 +174,28 @@ def _walkable_hits(caster, x0, z0, nx, nz, cell, ytop, c0, c1, face_comp, comp_c
     hny = np.abs(caster.face_normals[hprim, 1])  # two-sided: every hit is seen from above
     # inside-solid test: a hit is not a floor when the space just above it lies inside a
     # closed component (its own exit, or a surface buried in / coincident with a solid)
-    inside = _inside_solid(hcol, hprim, first, face_comp, comp_closed)
+    inside = _inside_solid(hcol, hprim, first, face_comp, comp_closed, comp_wind,
+                           caster.face_normals[:, 1])
     walk = (hny >= cos_slope) & (hceil - hy >= height) & ~inside
     out = (hcol[walk], hy[walk], hceil[walk], hprim[walk], nh)
     timings["samples"] = timings.get("samples", 0.0) + time.perf_counter() - t
     return out
 
 
-def _inside_solid(hcol, hprim, first, face_comp, comp_closed) -> np.ndarray:
+def _inside_solid(hcol, hprim, first, face_comp, comp_closed, comp_wind,
+                  face_ny) -> np.ndarray:
     """(H,) bool per hit (sorted by column, top to bottom): the space just above the hit lies
-    inside a closed mesh component. Down a column, the n-th hit on a closed component enters
-    it (n even) or leaves it (n odd); winding is never used."""
+    inside a closed mesh component.
+
+    face_ny : (F,) y of each face's normal as wound. A downward ray enters a consistently wound
+    solid where its outward normal points up and leaves it where it points down, so hits on
+    such solids are labelled by their winding; hits on closed solids with mixed winding
+    alternate by count (the n-th hit enters when n is even). Two coincident faces (a slab
+    resting on a lintel, a box standing on a floor) yield one hit, so a wound solid can lose an
+    exit (or an entry): the lost exit is put at the next hit of the column below the entry,
+    the lost entry at the hit just above the exit. (Counting alone would leave everything
+    below such a contact inside the solid: the floor of a doorway under a lintel that carries
+    an upper floor's slab.)"""
     nh = len(hcol)
     hc = face_comp[hprim]
     closed = comp_closed[hc]
@@ -180,8 +209,28 @@ def _inside_solid(hcol, hprim, first, face_comp, comp_closed) -> np.ndarray:
     g[1:] = key[1:] != key[:-1]
     ar = np.arange(len(si))
     rank = ar - np.maximum.accumulate(np.where(g, ar, 0))
+    up = np.sign(face_ny[hprim[si]] * comp_wind[hc[si]]).astype(np.int32)
+    lab = np.where(up != 0, up, np.where(rank % 2 == 0, 1, -1)).astype(np.int32)
     toggle = np.zeros(nh, dtype=np.int32)
-    toggle[si] = np.where(rank % 2 == 0, 1, -1)
+    toggle[si] = lab
+    wound = up != 0
+    if wound.any():
+        prev = np.zeros(len(si), dtype=np.int32)
+        prev[1:] = lab[:-1]
+        prev[g] = 0
+        last = np.ones(len(si), dtype=bool)
+        last[:-1] = g[1:]
+        nxt = np.zeros(len(si), dtype=np.int32)
+        nxt[:-1] = lab[1:]
+        nxt[last] = 0
+        same_next = np.zeros(nh, dtype=bool)  # the next hit down is in the same column
+        same_next[:-1] = ~first[1:]
+        lost_exit = si[wound & (lab == 1) & (nxt != -1)]
+        lost_exit = lost_exit[same_next[lost_exit]]
+        np.add.at(toggle, lost_exit + 1, -1)
+        lost_entry = si[wound & (lab == -1) & (prev != 1)]
+        lost_entry = lost_entry[~first[lost_entry]]
+        np.add.at(toggle, lost_entry - 1, 1)
     excl = np.cumsum(toggle) - toggle
     fidx = np.maximum.accumulate(np.where(first, np.arange(nh), 0))
     return (excl - excl[fidx]) > 0
@@ -265,7 +314,7 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
                        f"{cell * math.sqrt(ncols / MAX_COLUMNS):.3g} m) or smaller bounds "
                        "(baker bake --nav-build lazy builds only where the creature goes)")
     caster = _Caster(env)
-    face_comp, comp_closed = _solid_components(mesh)
+    face_comp, comp_closed, comp_wind = _solid_components(mesh)
     timings["setup"] = time.perf_counter() - t0
 
     # 1.-2. column heightfield and walkable samples, in bands of columns (bounded memory) ---
@@ -274,7 +323,7 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
     for c0 in range(0, ncols, TILE_COLUMNS):
         parts.append(_walkable_hits(caster, x0, z0, nx, nz, cell, ytop, c0,
                                     min(ncols, c0 + TILE_COLUMNS), face_comp, comp_closed,
-                                    cos_slope, height, timings))
+                                    comp_wind, cos_slope, height, timings))
     nh = sum(p[4] for p in parts)
     t = time.perf_counter()
     scol = np.concatenate([p[0] for p in parts])
