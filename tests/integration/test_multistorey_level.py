@@ -1,0 +1,136 @@
+"""The generated multi-storey level environments/multistorey.glb (issue 10): its geometry, and
+the navigation surface of the 2 m rig (the default rig at --scale 8: agent radius 0.16 m,
+height 0.4 m, riser 0.2 m, cell 0.12 m) over it: rooms joined through their doorways, both
+floors joined by the staircase (0.18 m risers) and by the ramp, the passage under the bridge,
+the hollow log walkable inside and on top, wander targets spread over both floors by area.
+
+Probe points are world coordinates read off environments/make_multistorey.py.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from baker.config import DEFAULT_RIG, load_rig_config, scale_rig
+from baker.environment import load_environment
+from baker.navmesh import build
+
+REPO = Path(__file__).resolve().parents[2]
+GLB = REPO / "environments" / "multistorey.glb"
+GENERATOR = REPO / "environments" / "make_multistorey.py"
+RIG = scale_rig(load_rig_config(DEFAULT_RIG), 8.0)
+UPPER_Y = 3.6   # [m] top of the upper floor
+ROOF_Y = 6.9    # [m] top of room D's roof: not reachable
+
+#: name -> world point on the walkable surface, all in the main component
+PROBES = {
+    "room A": (5.0, 0.0, 6.0), "room B": (15.0, 0.0, 6.0),
+    "doorway A-B (arch)": (10.0, 0.0, 6.0), "doorway A-hall (lintel)": (7.0, 0.0, 12.0),
+    "doorway B-hall (arch)": (17.5, 0.0, 12.0), "doorway B-yard (lintel)": (20.0, 0.0, 9.0),
+    "hall": (8.0, 0.0, 20.0), "yard": (26.0, 0.0, 8.0),
+    "passage under the bridge": (13.25, 0.0, 15.0),
+    "inside the log": (25.5, 0.0, 19.5), "on the log": (25.5, 0.854, 19.5),
+    "staircase": (2.25, 1.8, 15.75), "ramp": (24.7, 1.8, 2.5),
+    "terrace C": (5.0, UPPER_Y, 6.0), "room D": (15.0, UPPER_Y, 6.0),
+    "doorway C-D (arch)": (10.0, UPPER_Y, 4.0), "bridge": (13.25, UPPER_Y, 15.0),
+    "tower": (13.25, UPPER_Y, 20.5),
+}
+STAIR_FOOT = (2.25, 0.0, 20.0)
+STAIR_TOP = (2.25, UPPER_Y, 10.0)
+
+
+@pytest.fixture(scope="session")
+def generator():
+    spec = importlib.util.spec_from_file_location("make_multistorey", GENERATOR)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod  # dataclasses look their module up
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.fixture(scope="session")
+def level():
+    return load_environment(GLB)
+
+
+@pytest.fixture(scope="session")
+def level_nav(level):
+    """The 2 m rig's navigation surface over the level (built once per session)."""
+    return build(level, RIG.navigation)
+
+
+def test_generator_rewrites_the_committed_file_byte_for_byte(generator):
+    data = generator.build_glb(generator.make_multistorey())
+    assert data == GLB.read_bytes()
+    assert len(data) < 1_000_000
+
+
+def test_parts_are_closed_outward_solids_sharing_no_vertex(generator):
+    parts = generator.make_multistorey()
+    owner = {}
+    for i, p in enumerate(parts):
+        m = trimesh.Trimesh(p.vertices, p.faces, process=True)
+        assert m.is_watertight and m.is_winding_consistent and m.volume > 0, p.name
+        for v in {tuple(np.round(x, 6)) for x in p.vertices}:
+            assert owner.setdefault(v, i) == i, (p.name, parts[owner[v]].name, v)
+
+
+def test_staircase_has_human_risers_and_treads(generator):
+    p = next(p for p in generator.make_multistorey() if p.name == "stairs")
+    v, f = p.vertices, p.faces
+    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    tops = np.unique(np.round(v[f[n[:, 1] > 0][:, 0], 1], 6))
+    assert np.allclose(np.diff(np.r_[0.0, tops]), 0.18, atol=1e-4)
+    assert tops[-1] == pytest.approx(UPPER_Y - 0.18, abs=1e-4)  # the last riser meets the floor
+    z = np.unique(np.round(v[:, 2], 6))
+    assert np.allclose(np.diff(z), 0.35, atol=1e-4)
+
+
+def test_rooms_doorways_and_both_floors_are_one_component(level, level_nav):
+    s = level_nav
+    for name, p in PROBES.items():
+        q = level.to_local(p)
+        assert s.is_walkable(q[None], tol=0.05)[0], name
+        assert s.component_of(q) == 0, name
+    # everything below the roof is the main component: the roof is the only unreachable bit
+    y = s.positions[:, 1] + level.origin[1]
+    assert np.all(s.component[y < ROOF_Y - 0.5] == 0)
+    assert s.component_area[0] / s.component_area.sum() > 0.85
+
+
+def test_staircase_joins_the_floors(level, level_nav):
+    """The 0.18 m risers are climbed: the path from the foot of the stairs to the terrace goes
+    up the flight (the way round by the ramp is over 40 m)."""
+    r = level_nav.find_path(level.to_local(STAIR_FOOT), level.to_local(STAIR_TOP))
+    assert r.complete and r.length < 13.0
+    assert np.all((r.points[:, 0] > 0.9) & (r.points[:, 0] < 3.6))
+
+
+def test_risers_above_the_limit_are_not_climbed(level):
+    """With a riser limit below the stairs' 0.18 m, the way up is the ramp."""
+    s = build(level, replace(RIG.navigation, step_height=0.9 * 0.18))
+    r = s.find_path(level.to_local(STAIR_FOOT), level.to_local(STAIR_TOP))
+    assert r.complete and r.length > 40.0
+
+
+def test_wander_targets_reach_the_upper_floor_by_its_share_of_area(level, level_nav):
+    """Wander targets (the wander radius, 40 m, holds the whole level) fall on the upper floor
+    as often as its share of the reachable surface area."""
+    s = level_nav
+    main = s.component == 0
+    area = s.cell_size ** 2 / s.normals[:, 1].astype(np.float64)
+    upper = s.positions[:, 1] + level.origin[1] > UPPER_Y - 0.5
+    share = area[main & upper].sum() / area[main].sum()
+    assert 0.2 < share < 0.35
+    rng = np.random.default_rng(10)
+    start = level.to_local(PROBES["hall"])
+    q = np.array([s.random_point_near(start, RIG.wander.radius, rng) for _ in range(2000)])
+    frac = np.mean(q[:, 1] + level.origin[1] > UPPER_Y - 0.5)
+    assert abs(frac - share) < 0.04  # 4 standard deviations
