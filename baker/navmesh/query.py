@@ -294,9 +294,12 @@ def _jitter(s: NavSurface, k: int, p: np.ndarray, radius: float, rng) -> np.ndar
 def random_point_near(s: NavSurface, p, radius: float,
                       rng: np.random.Generator) -> np.ndarray | None:
     """A random walkable point within `radius` (3D) of p, in the component of the surface
-    nearest p (so reachable from there), uniform by surface area: a sample is drawn with
-    weight 1 / normal_y (its cell's surface area), then jittered inside its cell on its
-    tangent plane (rejected and redrawn when that leaves the sphere).
+    nearest p (so reachable from there), uniform by surface area over every layer (an upper
+    floor, a bridge and the road under it each get their share; with a radius larger than
+    the level, the whole reachable component): a sample is drawn with weight 1 / normal_y
+    (its cell's true surface area, so a slope counts for more than its footprint), then
+    jittered inside its cell on its tangent plane (rejected and redrawn when that leaves the
+    sphere).
     Large radii draw a coarse node first (weight = its area), then a member sample, with
     rejection outside the sphere: still exactly uniform.
     Returns (3,) float64, or None when no such point exists."""
