@@ -1,4 +1,6 @@
-"""The simulation's output: world-space frames of the creature, sampled at the export fps."""
+"""The simulation's output: frames of the creature, sampled at the export fps, in the
+environment's local frame (world = Environment.origin + position; "world" below means that
+frame, the one the simulation runs in)."""
 
 from __future__ import annotations
 

@@ -82,3 +82,33 @@ def test_blender_imports_each_behaviour_clip_as_an_action(tmp_path):
         if name in names:
             f0, f1 = round(e["start"] * 30), round(e["end"] * 30)
             assert d["actions"][name] == [0.0, float(f1 - f0)]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("suffix", [".glb", ".usd"])
+def test_blender_places_the_creature_at_the_placement(tmp_path, suffix, small_env, rig, trajectory):
+    """An environment origin and a placement away from the world origin (the Centipede node's /
+    SkelRoot's translation): Blender puts every bone where the simulation has it. (40 m out, so
+    Blender's own float32 object matrices stay well under 1e-5 m; at 10 km they are ~1 mm, a
+    constant offset of the whole armature, not a jitter.)"""
+    exe = _blender_python()
+    from baker.clip import build_clip
+    from baker.environment.model import Environment
+
+    origin = np.array([40.0, 2.0, -30.0])
+    env = Environment(meshes=small_env.meshes, sun=small_env.sun, origin=origin)
+    clip = build_clip(trajectory, rig, origin=origin)
+    assert np.all(clip.placement != 0)
+    path = tmp_path / f"placed{suffix}"
+    if suffix == ".glb":
+        atomic_write_bytes(path, build_glb(env, rig, clip, extras={}))
+    else:
+        write_usd(path, env, rig, clip, fps=clip.fps, extras={})
+    last = clip.n_frames - 1
+    d = _probe(exe, path, clip.fps, [0, last])
+    world, _ = clip.world(rig.skeleton.parents)
+    np.testing.assert_allclose(world[:, rig.spine], trajectory.spine_positions + origin, atol=1e-5)
+    for f in (0, last):
+        got = np.array([d["positions"][str(f)][n] for n in rig.skeleton.names])
+        p = world[f]
+        assert np.abs(got - np.stack([p[:, 0], -p[:, 2], p[:, 1]], -1)).max() < 1e-5
