@@ -243,19 +243,9 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
                 raise ExportError(f"clip {c.name!r} does not share the main clip's placement")
             _skel_animation(stage, clips_path.AppendChild(c.name), joints, c)
 
-    # -- props (prey)
+    # -- props (prey), under a static Xform at the placement
     if props:
-        prey_xf = UsdGeom.Xform.Define(stage, "/World/Prey")
-        _offset(prey_xf, clip.placement)
-        prey_path = prey_xf.GetPath()
-        for name, verts, faces, rgba in props:
-            xf = UsdGeom.Xform.Define(stage, prey_path.AppendChild(name))
-            if name in tracks:
-                _animate_xform(xf, tracks[name])
-            rgba = tuple(float(c) for c in rgba) + (1.0,) * (4 - len(rgba))
-            mat = _material(stage, looks, safe_name(f"prey_{name}", mat_names), rgba, 1.0, 0.0, 0.7)
-            _mesh(stage, xf.GetPath().AppendChild("mesh"), verts, faces, None, rgba, mat,
-                  double_sided=False)
+        _props(stage, looks, mat_names, props, tracks, clip.placement)
 
     mesh = rig.mesh
     identity = Gf.Matrix4d(1.0)
@@ -276,22 +266,45 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
             Vt.FloatArray.FromNumpy(mesh.weights[used].astype(np.float32).reshape(-1)))
         binding.CreateGeomBindTransformAttr(identity)
 
-    # -- debug overlays
+    # -- debug overlays, in the environment's frame
     if debug_meshes:
-        dbg_xf = UsdGeom.Xform.Define(stage, "/World/Debug")
-        _offset(dbg_xf, env.origin)
-        dbg = dbg_xf.GetPath()
-        dtaken: set[str] = set()
-        for name, verts, faces, rgba in debug_meshes:
-            if len(verts) == 0 or len(faces) == 0:
-                log.warning("skipping empty debug layer %r", name)
-                continue
-            nm = safe_name(name, dtaken, "debug")
-            rgba = tuple(float(c) for c in rgba) + (1.0,) * (4 - len(rgba))
-            mat = _material(stage, looks, safe_name(f"debug_{nm}", mat_names), rgba, rgba[3],
-                            0.0, 1.0)
-            _mesh(stage, dbg.AppendChild(nm), verts, faces, None, rgba, mat, double_sided=True)
+        _debug_layers(stage, looks, mat_names, debug_meshes, env.origin)
     return stage
+
+
+def _props(stage, looks, mat_names: set[str], props: Sequence, tracks: dict, placement) -> None:
+    """/World/Prey (translated by placement (3,) float64 metres, world) with one animated Xform
+    and mesh per prop (name, vertices, faces, rgba), driven by tracks[name]."""
+    _, _, _, UsdGeom, _, _, _, _ = _pxr()
+    prey_xf = UsdGeom.Xform.Define(stage, "/World/Prey")
+    _offset(prey_xf, placement)
+    for name, verts, faces, rgba in props:
+        xf = UsdGeom.Xform.Define(stage, prey_xf.GetPath().AppendChild(name))
+        if name in tracks:
+            _animate_xform(xf, tracks[name])
+        rgba = tuple(float(c) for c in rgba) + (1.0,) * (4 - len(rgba))
+        mat = _material(stage, looks, safe_name(f"prey_{name}", mat_names), rgba, 1.0, 0.0, 0.7)
+        _mesh(stage, xf.GetPath().AppendChild("mesh"), verts, faces, None, rgba, mat,
+              double_sided=False)
+
+
+def _debug_layers(stage, looks, mat_names: set[str], debug_meshes: Sequence, origin) -> None:
+    """/World/Debug (translated by origin (3,) float64 metres, world: the meshes are in the
+    environment's local frame) with one mesh per non-empty (name, vertices, faces, rgba)."""
+    _, _, _, UsdGeom, _, _, _, _ = _pxr()
+    dbg_xf = UsdGeom.Xform.Define(stage, "/World/Debug")
+    _offset(dbg_xf, origin)
+    dtaken: set[str] = set()
+    for name, verts, faces, rgba in debug_meshes:
+        if len(verts) == 0 or len(faces) == 0:
+            log.warning("skipping empty debug layer %r", name)
+            continue
+        nm = safe_name(name, dtaken, "debug")
+        rgba = tuple(float(c) for c in rgba) + (1.0,) * (4 - len(rgba))
+        mat = _material(stage, looks, safe_name(f"debug_{nm}", mat_names), rgba, rgba[3],
+                        0.0, 1.0)
+        _mesh(stage, dbg_xf.GetPath().AppendChild(nm), verts, faces, None, rgba, mat,
+              double_sided=True)
 
 
 def write_usd(path: Path, env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dict,
