@@ -180,7 +180,8 @@ def _hinge(d: np.ndarray, side: float) -> np.ndarray:
 class LimbRest:
     """Rest (bind) pose of every limb joint in the skeleton (= segment frame at rest).
 
-    Each limb contributes three joints, in order: its two bones' joints, then its end joint.
+    The two bone joints of every limb come first (limb by limb, as before end joints existed, so
+    their skeleton indices do not move), then every limb's end joint, in the same limb order.
 
     names     : (K,) limb joint names, parents first within each limb
     parents   : (K,) parent *names* (spine or limb joint)
@@ -232,13 +233,20 @@ def limb_rest(cfg: RigConfig, spine_names: tuple[str, ...]) -> LimbRest:
         limbs.append((ch.names + (ch.end,), spine_names[ch.parent], np.stack([p1, p2]), q,
                       np.asarray(ch.lengths, float), ch.radius))
     names, parents, pos, rot, lens, radii = [], [], [], [], [], []
-    for (n1, n2, n3), parent, start, q, length, r in limbs:
-        names += [n1, n2, n3]
-        parents += [parent, n1, n2]
-        pos += [start[0], start[1], start[1] + quat_rotate(q[1], np.array([0.0, length[1], 0.0]))]
-        rot += [q[0], q[1], q[1]]
-        lens += [length[0], length[1], 0.0]
-        radii += [r, 0.7 * r, 0.0]
+    for (n1, n2, _), parent, start, q, length, r in limbs:
+        names += [n1, n2]
+        parents += [parent, n1]
+        pos += [start[0], start[1]]
+        rot += [q[0], q[1]]
+        lens += [length[0], length[1]]
+        radii += [r, 0.7 * r]
+    for (_, n2, n3), _, start, q, length, _ in limbs:   # end joints after every bone joint
+        names.append(n3)
+        parents.append(n2)
+        pos.append(start[1] + quat_rotate(q[1], np.array([0.0, length[1], 0.0])))
+        rot.append(q[1])
+        lens.append(0.0)
+        radii.append(0.0)
     return LimbRest(names=tuple(names), parents=tuple(parents), positions=np.array(pos),
                     rotations=np.array(rot), lengths=np.array(lens), radii=np.array(radii),
-                    end=np.tile([False, False, True], len(limbs)))
+                    end=np.repeat([False, True], [2 * len(limbs), len(limbs)]))

@@ -95,7 +95,7 @@ def test_legged_usd_passes_usd_validation(default_bake):
 
 def test_clip_drives_every_limb_joint(default_bake):
     traj, clip = default_bake.trajectory, default_bake.clip
-    assert clip.n_joints == 21 + len(traj.joint_names) + 4        # + static forcipules
+    assert clip.n_joints == 21 + len(traj.joint_names) + 4 + 46   # + static forcipules, end joints
     # legs move: every walking leg's upper joint turns relative to its segment during the bake
     r = clip.rotations[:, 21:21 + 80:2].astype(np.float64)
     assert np.all(np.ptp(r, axis=0).max(axis=-1) > 0.05)
