@@ -1,7 +1,7 @@
 """The real level: ../shared/fixtures/nav_test.obj (Recast's demo level: stairs, ramps, bridges,
 overhangs; about 90 x 77 m, 22 m tall), walked by the default rig scaled to a 2 m "giant
-centipede" (scale_rig(rig, 2.0 / 0.25): agent radius 0.16 m, height 0.4 m, riser 0.112 m,
-cell 0.12 m, slope <= 60 deg with the rig of 2026-11-22) in 120 s wander bakes.
+centipede" (scale_rig(rig, 2.0 / 0.25): agent radius 0.16 m, height 0.4 m, riser 0.2 m,
+cell 0.12 m, slope <= 60 deg with the rig of issue 10) in 120 s wander bakes.
 
 What the map looks like at this agent size (`baker navmesh nav_test.obj --scale 8 --png m.png`):
 - the largest component (the default start) is the flat ground of the left block at -2.37 m; it
