@@ -63,7 +63,8 @@ def arch_wall(x0, x1, z0, z1, zd0, zd1, spring, top, n=12) -> trimesh.Trimesh:
     v = np.concatenate([np.stack([np.full(m, x), poly[:, 1], poly[:, 0]], 1) for x in (x0, x1)])
     i = np.arange(m)
     j = (i + 1) % m
-    f = np.concatenate([t, t[:, ::-1] + m, np.stack([i, j + m, j], 1), np.stack([i, i + m, j + m], 1)])
+    f = np.concatenate([t, t[:, ::-1] + m, np.stack([i, j + m, j], 1),
+                        np.stack([i, i + m, j + m], 1)])
     mesh = trimesh.Trimesh(v, f, process=False)
     if mesh.volume < 0:
         mesh.invert()
