@@ -1,14 +1,27 @@
-"""Shared fixtures, built in code: a rig, a small environment and a synthetic trajectory."""
+"""Shared fixtures, built in code: a rig, a small environment and a synthetic trajectory; one
+navigation cache per session; the hypothesis profiles.
+
+Hypothesis profiles (property tests in tests/unit): `ci`, the default, is derandomized (the same
+examples on every run, so CI never passes or fails by chance) with no deadline; `dev`
+(`HYPOTHESIS_PROFILE=dev python -m pytest tests/unit`) draws new random examples on every run, to
+look for failures. A failing example found that way is kept in its test as an `@example`.
+"""
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import settings
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "tools"))
+
+settings.register_profile("ci", derandomize=True, deadline=None, database=None, print_blob=True)
+settings.register_profile("dev", deadline=None, print_blob=True)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 from baker.config import DEFAULT_RIG, load_rig_config  # noqa: E402
 from baker.environment.model import EnvMesh, Environment, Sun  # noqa: E402
@@ -38,6 +51,14 @@ def flat_ground(size: float = 2.0, n: int = 4) -> EnvMesh:
     normals = np.tile(np.array([[0, 1, 0]], np.float32), (len(v), 1))
     return EnvMesh(name="ground", vertices=v, faces=f, normals=normals,
                    color=(0.066, 0.05, 0.04, 1.0), roughness=1.0, metallic=0.0)
+
+
+@pytest.fixture(scope="session")
+def nav_cache_dir(tmp_path_factory) -> Path:
+    """One navigation cache for the whole session: bakes of the same environment and agent
+    share its surface instead of each building it (the default scene's is ~192 MB and a few
+    seconds to build). Tests about the cache itself (cold vs warm, lazy windows) use their own."""
+    return tmp_path_factory.mktemp("navcache")
 
 
 @pytest.fixture(scope="session")

@@ -17,6 +17,12 @@ import numpy as np
 #: Turn angles tried, in order, when a step would leave the walkable surface (radians added to
 #: the wanted turn, toward the agent's side first): up to a right angle, in 7.5 degree steps.
 _DEFLECT = np.radians(7.5) * np.arange(1, 13)
+#: Points along half a turning circle when a U-turn chooses its side (about an eighth of the
+#: turning radius apart: finer than the gap the agent radius leaves round a wall), and their
+#: angles.
+_ARC_STEPS = 26
+_ARC_COS = np.cos(np.linspace(0.0, math.pi, _ARC_STEPS + 1)).tolist()
+_ARC_SIN = np.sin(np.linspace(0.0, math.pi, _ARC_STEPS + 1)).tolist()
 
 
 class HeadSteer:
@@ -113,9 +119,10 @@ class HeadSteer:
 
     def _u_turn(self, ang: float, allowed) -> float:
         """A target more than a right angle off the heading is a U-turn: it keeps to the side it
-        started on (no dithering when the target is almost straight behind), and with a surface
-        test it starts to the side where more of its turning circle is walkable. Returns the
-        turn angle to use (the long way round when that side is not the shorter one)."""
+        started on (no dithering when the target is almost straight behind; `new_path` forgets
+        the side), and with a surface test it starts to the side where the head can walk farther
+        round its turning circle (the agent's side, the shorter turn, on a tie). Returns the turn
+        angle to use (the long way round when that side is not the shorter one)."""
         if abs(ang) <= 0.5 * math.pi:
             self._u_side = 0.0
             return ang
@@ -129,16 +136,33 @@ class HeadSteer:
             ang += self._u_side * 2.0 * math.pi
         return ang
 
+    def new_path(self) -> None:
+        """The agent has a new path: a U-turn in progress chooses its side afresh."""
+        self._u_side = 0.0
+
     def _circle_room(self, side: float, allowed) -> int:
-        """How many of 4 points along the turning circle on `side` are walkable."""
+        """How many of _ARC_STEPS points round the first half of the turning circle on `side`
+        the head reaches walking the circle from its base: from the last point reached, the
+        straight line to the next point must stay on the walkable surface (tested every arc
+        step), so where the circle only grazes an edge the head cuts inside it, but ground
+        beyond a gap in the surface is never reached. Points tested on their own would see
+        through a zero-thickness wall that has walkable ground on both sides; walked, the arc
+        meets the gap the agent radius leaves round the wall."""
         hx, hz = self.heading[0], self.heading[2]
         lx, lz = side * hz, -side * hx
-        cx, cz = self.base[0] + self.turn_radius * lx, self.base[2] + self.turn_radius * lz
+        r = self.turn_radius
+        cx, cz = self.base[0] + r * lx, self.base[2] + r * lz
+        px, pz = self.base[0], self.base[2]
+        d = math.pi * r / _ARC_STEPS
         n = 0
-        for th in (0.25 * math.pi, 0.5 * math.pi, 0.75 * math.pi, math.pi):
-            c, s = math.cos(th), math.sin(th)
-            n += bool(allowed(cx + self.turn_radius * (-lx * c + hx * s),
-                              cz + self.turn_radius * (-lz * c + hz * s)))
+        for k in range(1, _ARC_STEPS + 1):
+            c, s = _ARC_COS[k], _ARC_SIN[k]
+            qx, qz = cx + r * (-lx * c + hx * s), cz + r * (-lz * c + hz * s)
+            m = max(1, math.ceil(math.hypot(qx - px, qz - pz) / d - 1e-9))
+            if all(allowed(px + (qx - px) * i / m, pz + (qz - pz) * i / m)
+                   for i in range(1, m + 1)):
+                n += 1
+                px, pz = qx, qz
         return n
 
     def _contain(self, a: float, ang: float, step: float, dt: float, allowed) -> tuple[float, float]:

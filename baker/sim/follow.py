@@ -144,6 +144,7 @@ class Follower:
             self.agent.skip(self.turn_radius)
 
     def _plan(self, a: np.ndarray) -> None:
+        self.head.new_path()   # a U-turn chooses its side afresh on a new or re-planned path
         # dense path points carry the walked layer's heights (chords cut through bumps)
         self.agent.set_path(self.nav.resample_path(self.nav.find_path(a, self.target).points))
 

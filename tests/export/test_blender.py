@@ -63,7 +63,7 @@ def test_blender_imports_the_animation(tmp_path, suffix, small_env, rig, clip, t
 
 
 @pytest.mark.slow
-def test_blender_imports_each_behaviour_clip_as_an_action(tmp_path):
+def test_blender_imports_each_behaviour_clip_as_an_action(tmp_path, nav_cache_dir):
     """`--clips`: every per-behaviour glTF animation arrives in Blender as its own action."""
     exe = _blender_python()
     from baker.config import DEFAULT_RIG, BakeConfig, load_rig_config
@@ -71,7 +71,7 @@ def test_blender_imports_each_behaviour_clip_as_an_action(tmp_path):
     from glb_read import Glb
 
     r = bake(BakeConfig(seconds=20, seed=0, rig=load_rig_config(DEFAULT_RIG), prey=2, clips=True,
-                        out=tmp_path / "clips", formats=("glb",), nav_cache_dir=tmp_path / "cache"))
+                        out=tmp_path / "clips", formats=("glb",), nav_cache_dir=nav_cache_dir))
     names = [a["name"] for a in Glb(r.outputs["glb"].read_bytes()).doc["animations"]]
     assert len(names) >= 3 and names[0] == "bake"
     d = _probe(exe, r.outputs["glb"], 30, [0])

@@ -103,7 +103,7 @@ def usd_prim_world(stage, path: str, n_frames: int) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def bakes(tmp_path_factory):
+def bakes(tmp_path_factory, nav_cache_dir):
     from baker.pipeline import bake
 
     tmp = tmp_path_factory.mktemp("far")
@@ -112,7 +112,7 @@ def bakes(tmp_path_factory):
     out = {}
     for name, env, o in (("near", DEFAULT_ENVIRONMENT, np.zeros(3)), ("far", far_env, OFFSET)):
         out[name] = bake(BakeConfig(environment=env, seconds=SECONDS, seed=1, rig=rig,
-                                    out=tmp / name, nav_cache_dir=tmp / "navcache",
+                                    out=tmp / name, nav_cache_dir=nav_cache_dir,
                                     start=tuple(START + o), prey_positions=(tuple(PREY + o),)))
     return out
 

@@ -19,16 +19,16 @@ from validator import gltf_validate, issues_summary, usd_validate
 pytestmark = pytest.mark.slow
 
 
-def run(tmp: Path, name: str, seconds: float, seed: int = 0, **kw):
+def run(tmp: Path, cache: Path, name: str, seconds: float, seed: int = 0, **kw):
     cfg = BakeConfig(seconds=seconds, seed=seed, rig=load_rig_config(DEFAULT_RIG),
-                     out=tmp / name, nav_cache_dir=tmp / "navcache", **kw)
+                     out=tmp / name, nav_cache_dir=cache, **kw)
     return bake(cfg)
 
 
 @pytest.fixture(scope="module")
-def baked(tmp_path_factory):
+def baked(tmp_path_factory, nav_cache_dir):
     tmp = tmp_path_factory.mktemp("bake60")
-    return run(tmp, "centipede", 60.0)
+    return run(tmp, nav_cache_dir, "centipede", 60.0)
 
 
 def test_outputs_exist(baked):
@@ -131,19 +131,19 @@ def test_report_contents(baked):
     assert np.array_equal(flags, baked.trajectory.foot_contacts[:, 2 * 6 + 1])
 
 
-def test_same_seed_same_bytes_different_seed_different_path(tmp_path):
-    a = run(tmp_path, "a", 10.0, seed=3)
-    b = run(tmp_path, "b", 10.0, seed=3)
-    c = run(tmp_path, "c", 10.0, seed=4)
+def test_same_seed_same_bytes_different_seed_different_path(tmp_path, nav_cache_dir):
+    a = run(tmp_path, nav_cache_dir, "a", 10.0, seed=3)
+    b = run(tmp_path, nav_cache_dir, "b", 10.0, seed=3)
+    c = run(tmp_path, nav_cache_dir, "c", 10.0, seed=4)
     for fmt in ("glb", "usd"):
         assert a.outputs[fmt].read_bytes() == b.outputs[fmt].read_bytes()
     pa, pc = a.trajectory.spine_positions[:, 0], c.trajectory.spine_positions[:, 0]
     assert np.abs(pa - pc).max() > 0.1
 
 
-def test_cli_is_quiet_when_piped_and_prints_one_summary_line(tmp_path):
+def test_cli_is_quiet_when_piped_and_prints_one_summary_line(tmp_path, nav_cache_dir):
     r = subprocess.run([sys.executable, "-m", "baker.cli", "bake", "--seconds", "2", "--out",
-                        str(tmp_path / "c"), "--cache-dir", str(tmp_path / "cache")],
+                        str(tmp_path / "c"), "--cache-dir", str(nav_cache_dir)],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert r.stderr == ""

@@ -46,6 +46,14 @@ def run(level: Path, out: Path, cache, seconds=20.0, seed=0):
                            formats=("glb",), nav_cache_dir=cache))
 
 
+@pytest.fixture(scope="module")
+def cold(level, tmp_path_factory):
+    """A bake with a cold navigation cache of its own (not the session's: the tests below are
+    about what the lazy windows do to a cache), and that cache."""
+    tmp = tmp_path_factory.mktemp("lazy_bakes")
+    return run(level, tmp / "cold", tmp / "cache"), tmp / "cache"
+
+
 def test_whole_level_is_too_big_to_build_at_once(level):
     from baker.config import DEFAULT_RIG, load_rig_config
 
@@ -57,8 +65,8 @@ def test_whole_level_is_too_big_to_build_at_once(level):
         build(env, agent)
 
 
-def test_lazy_bake_walks_the_big_level(level, tmp_path):
-    r = run(level, tmp_path / "a", tmp_path / "cache")
+def test_lazy_bake_walks_the_big_level(cold):
+    r, _ = cold
     windows = r.report["navmesh"]["lazy_windows"]
     assert 1 <= len(windows) <= 3
     x0, z0, x1, z1 = windows[-1]
@@ -74,9 +82,8 @@ def test_lazy_bake_walks_the_big_level(level, tmp_path):
     assert (p[:, 2] > z0).all() and (p[:, 2] < z1).all()
 
 
-def test_lazy_bake_is_the_same_cold_and_warm(level, tmp_path):
-    cache = tmp_path / "cache"
-    a = run(level, tmp_path / "cold", cache)
+def test_lazy_bake_is_the_same_cold_and_warm(level, cold, tmp_path):
+    a, cache = cold
     b = run(level, tmp_path / "warm", cache)
     assert a.report["navmesh_cache_hit"] is False and b.report["navmesh_cache_hit"] is True
     assert a.outputs["glb"].read_bytes() == b.outputs["glb"].read_bytes()

@@ -19,23 +19,23 @@ NAV_SCALE = 8.0          # 0.25 m -> 2 m: a giant centipede in a human-scale gam
 pytestmark = pytest.mark.slow
 
 
-def _bake(tmp, environment, rig, seconds=60.0, formats=("glb", "usd")):
+def _bake(tmp, cache, environment, rig, seconds=60.0, formats=("glb", "usd")):
     cfg = BakeConfig(environment=environment, seconds=seconds, rig=rig, out=tmp / "legs",
-                     formats=formats, nav_cache_dir=tmp / "nav")
+                     formats=formats, nav_cache_dir=cache)
     return bake(cfg)
 
 
 @pytest.fixture(scope="module")
-def default_bake(tmp_path_factory):
-    return _bake(tmp_path_factory.mktemp("legs_default"), DEFAULT_ENVIRONMENT,
+def default_bake(tmp_path_factory, nav_cache_dir):
+    return _bake(tmp_path_factory.mktemp("legs_default"), nav_cache_dir, DEFAULT_ENVIRONMENT,
                  load_rig_config(DEFAULT_RIG))
 
 
 @pytest.fixture(scope="module")
-def nav_test_bake(tmp_path_factory):
+def nav_test_bake(tmp_path_factory, nav_cache_dir):
     if not FIXTURE.exists():
         pytest.skip("../shared/fixtures/nav_test.obj is not available")
-    return _bake(tmp_path_factory.mktemp("legs_nav"), FIXTURE,
+    return _bake(tmp_path_factory.mktemp("legs_nav"), nav_cache_dir, FIXTURE,
                  scale_rig(load_rig_config(DEFAULT_RIG), NAV_SCALE), formats=("glb",))
 
 
@@ -101,21 +101,21 @@ def test_clip_drives_every_limb_joint(default_bake):
     assert np.all(np.ptp(r, axis=0).max(axis=-1) > 0.05)
 
 
-def test_spine_only_switch(tmp_path):
+def test_spine_only_switch(tmp_path, nav_cache_dir):
     rig = load_rig_config(DEFAULT_RIG)
-    res = _bake(tmp_path, DEFAULT_ENVIRONMENT, replace(rig, legs=replace(rig.legs, enabled=False)),
-                seconds=2.0, formats=("glb",))
+    res = _bake(tmp_path, nav_cache_dir, DEFAULT_ENVIRONMENT,
+                replace(rig, legs=replace(rig.legs, enabled=False)), seconds=2.0, formats=("glb",))
     assert res.clip.n_joints == rig.body.segments
     assert "legs" not in res.report["metrics"]
     assert res.trajectory.joint_names == ()
 
 
-def test_rhythm_holds_over_ten_minutes(tmp_path):
+def test_rhythm_holds_over_ten_minutes(tmp_path, nav_cache_dir):
     """Issue 5: over a 10-minute bake the phase lag between neighbouring legs stays within 5
     degrees of its setting (per-minute window means), and feet still do not skate."""
     rig = load_rig_config(DEFAULT_RIG)
     cfg = BakeConfig(seconds=600.0, rig=rig, out=tmp_path / "long", formats=("glb",),
-                     nav_cache_dir=tmp_path / "navcache")
+                     nav_cache_dir=nav_cache_dir)
     legs = bake(cfg).report["metrics"]["legs"]
     print("phase lag windows", legs["phase_lag_window_means_deg"])
     assert legs["phase_lag_samples"] > 10000

@@ -37,14 +37,14 @@ MIN_DWELL_S = 1.0
 needs_fixture = pytest.mark.skipif(not FIXTURE.is_file(), reason=f"{FIXTURE} not available")
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory):
+def runs(tmp_path_factory, nav_cache_dir):
     tmp = tmp_path_factory.mktemp("nav_test")
     rig = scale_rig(load_rig_config(DEFAULT_RIG), SCALE)
     out = {}
     for seed in SEEDS:
         cfg = BakeConfig(environment=FIXTURE, seconds=120.0, seed=seed, rig=rig, start=START,
                          behaviour="wander", out=tmp / f"s{seed}", formats=("glb",),
-                         nav_cache_dir=tmp / "navcache")
+                         nav_cache_dir=nav_cache_dir)
         out[seed] = bake(cfg)
     return out
 

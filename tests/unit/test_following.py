@@ -1,7 +1,9 @@
 """Following a path on the walkable surface (sim/follow.py, locomotion/head.py, body.py), on
 scenes built in code, with the default rig (0.25 m: agent radius 0.02 m, turning radius
-3 spacings = 0.036 m, cell 0.015 m):
+3 spacings = 0.036 m, cell 0.015 m), stepped at the bake's rate (SIM_RATE_HZ):
 - the head stays on the walkable surface where its turning circle does not fit;
+- a U-turn starts to the side the head can walk round (not into a zero-thickness wall), and a
+  new or re-planned path chooses the side afresh;
 - a head held back from the agent re-plans from where it is;
 - the head's height continues its own layer under a bridge deck;
 - the body's trail clears the edge of a step wherever it falls between trail samples.
@@ -13,10 +15,10 @@ import functools
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from baker.config import DEFAULT_RIG, load_rig_config, scale_rig
+from baker.config import DEFAULT_RIG, SIM_RATE_HZ, load_rig_config, scale_rig
 from baker.locomotion.body import build_trail, place_chain
 from baker.metrics import inside_geometry
 from baker.navmesh import build
@@ -25,7 +27,7 @@ from baker.sim.follow import Follower
 from test_navmesh_scenes import box, env_of, floor, quad
 
 RIG = load_rig_config(DEFAULT_RIG)
-DT = 1.0 / 120.0
+DT = 1.0 / SIM_RATE_HZ   # the bake's step
 
 
 def run(f: Follower, seconds: float) -> np.ndarray:
@@ -256,6 +258,37 @@ def test_u_turn_starts_to_the_side_with_room():
     assert nav.is_walkable(base).all()
 
 
+def test_u_turn_beside_a_zero_thickness_wall_turns_away_from_it(walled):
+    """Beside the wall (x = 0.5), heading into it, the goal behind: the turning circle on the
+    wall's side has walkable floor beyond the wall, but the head cannot walk round it, so it
+    turns on its own side. (Scored by points on the circle, which saw through the wall, the
+    wall's side won; the head slid along the wall, re-planned twice and went round its end.)"""
+    env, nav = walled
+    heading = np.array([np.sin(1.0), 0.0, np.cos(1.0)])
+    f = Follower(nav, env.rays, nav.nearest([0.475, 0.0, 0.35]), heading, RIG)
+    goal = np.array([0.2, 0.0, 0.1])
+    f.go(goal)
+    base = run(f, 15.0)
+    assert base[:, 0].max() < 0.5
+    assert f.replans == 0
+    assert np.linalg.norm(base[-1] - goal) < RIG.locomotion.stopping_distance + 0.05
+    assert nav.is_walkable(base).all()
+
+
+def test_a_new_or_replanned_path_forgets_the_u_turn_side(walled):
+    env, nav = walled
+    f = Follower(nav, env.rays, nav.nearest([0.2, 0.0, 0.3]), np.array([0.0, 0.0, 1.0]), RIG)
+    f.go(np.array([0.2, 0.0, 0.05]))                 # behind: a U-turn
+    run(f, 0.5)
+    assert f.head._u_side != 0.0
+    f.go(f.head.base - 0.2 * f.head.heading)        # behind again
+    assert f.head._u_side == 0.0
+    run(f, 0.5)
+    assert f.head._u_side != 0.0
+    f.replan()
+    assert f.head._u_side == 0.0
+
+
 # --------------------------------------------------------------------------- property
 @functools.lru_cache(maxsize=None)
 def obstacle_course():
@@ -272,10 +305,16 @@ def obstacle_course():
 @settings(max_examples=25, deadline=None)
 @given(sx=st.floats(0.05, 2.95), sz=st.floats(0.05, 2.95), gx=st.floats(0.05, 2.95),
        gz=st.floats(0.05, 2.95), heading=st.floats(0.0, 2 * np.pi))
+# starting beside the wall, facing it, the goal behind: the U-turn's side was scored by points
+# on the turning circle that saw through the wall, the tie kept the wall side, and re-plans
+# never reset it (the head slid 1.9 m along the wall, round its end and back)
+@example(sx=0.984375, sz=0.984375, gx=0.25, gz=0.15, heading=0.75)   # failed at 120 Hz
+@example(sx=0.985, sz=2.0625, gx=2.25, gz=0.375, heading=5.078125)   # failed at 240 Hz
 def test_the_head_never_leaves_the_walkable_surface(sx, sz, gx, gz, heading):
     """Whatever the start, heading and goal: every step of the head's base is on the walkable
     surface, and it ends near the goal (or the closest reachable point to it). (This found the
-    look-ahead test passing a point beyond a corner while the step itself left the surface.)"""
+    look-ahead test passing a point beyond a corner while the step itself left the surface, and
+    a U-turn starting into a zero-thickness wall.)"""
     env, nav = obstacle_course()
     start = nav.nearest([sx, 0.0, sz])
     f = Follower(nav, env.rays, start, np.array([np.sin(heading), 0.0, np.cos(heading)]), RIG)
