@@ -35,6 +35,11 @@ VALIDATOR = ROOT / "tests" / "tools" / "gltf_validate.mjs"
 #: 10 km from the origin, on both horizontal axes
 FAR_OFFSET = (10000.0, 0.0, 10000.0)
 
+#: numbers printed for diagnosis (not limits of their own)
+DIAGNOSTICS = tuple(f"rotation_{kind}_{group}_deg" for group in
+                    ("spine", "legs", "antennae", "ultimate") for kind in ("local", "world")) + (
+    "antenna_bone_hits", "foot_near_ground_fraction", "head_unsupported_frames")
+
 SCENES = {
     "default": dict(env="environments/rainforest_floor.glb", scale=None, seconds=60.0),
     "nav_test": dict(env=str(SHARED / "nav_test.obj"), scale=8.0, seconds=120.0),
@@ -198,6 +203,13 @@ def print_worst(rows: list[dict], top: int) -> None:
             where = f" {w.get('joint')}@{w.get('frame')}" if w.get("joint") else ""
             parts.append(f"{r['scene']}/{r['seed']}={r['metrics'][name]:.4g}{where}")
         print(f"  {name} ({op} {bound:g}): " + "; ".join(parts))
+    print("\nDiagnostics (largest values):")
+    for name in DIAGNOSTICS:
+        rs = sorted((r for r in rows if r.get("metrics", {}).get(name) is not None),
+                    key=lambda r: -r["metrics"][name])
+        if rs:
+            print(f"  {name}: " + "; ".join(f"{r['scene']}/{r['seed']}={r['metrics'][name]:.4g}"
+                                            for r in rs[:top]))
     for r in rows:
         if "error" in r:
             print(f"  bake failed: {r['scene']}/{r['seed']}: {r['error']}")

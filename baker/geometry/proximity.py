@@ -67,10 +67,23 @@ def distance_to_mesh(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray
 
     points : (n, 3) float; vertices : (v, 3) float; faces : (m, 3) int
     """
+    return closest_on_mesh(points, vertices, faces, cap)[0]
+
+
+def closest_on_mesh(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray,
+                    cap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Nearest surface point of each point within `cap` metres.
+
+    returns (distance (n,) float64, inf where nothing is within cap;
+             closest (n, 3) float64, NaN where nothing is within cap;
+             face (n,) int64 index of the nearest triangle, -1 where nothing is within cap)
+    """
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     out = np.full(len(p), np.inf)
+    near_pt = np.full((len(p), 3), np.nan)
+    face = np.full(len(p), -1, dtype=np.int64)
     if len(p) == 0 or len(faces) == 0:
-        return out
+        return out, near_pt, face
     tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces, dtype=np.int64)]   # (m, 3, 3)
     centre = tri.mean(axis=1)
     radius = np.linalg.norm(tri - centre[:, None], axis=2).max(axis=1)
@@ -78,16 +91,25 @@ def distance_to_mesh(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray
     near = np.all((centre + radius[:, None] >= lo) & (centre - radius[:, None] <= hi), axis=1)
     idx = np.nonzero(near)[0]
     if len(idx) == 0:
-        return out
+        return out, near_pt, face
     lists = cKDTree(p).query_ball_point(centre[idx], radius[idx] + cap)
     counts = np.fromiter((len(x) for x in lists), dtype=np.int64, count=len(lists))
     if counts.sum() == 0:
-        return out
+        return out, near_pt, face
     pt = np.fromiter((i for x in lists for i in x), dtype=np.int64, count=int(counts.sum()))
     tr = np.repeat(idx, counts)
     for s in range(0, len(pt), PAIR_CHUNK):
         pp, tt = pt[s:s + PAIR_CHUNK], tr[s:s + PAIR_CHUNK]
         q = closest_on_triangles(p[pp], tri[tt, 0], tri[tt, 1], tri[tt, 2])
-        d = np.linalg.norm(q - p[pp], axis=1)
-        np.minimum.at(out, pp, np.where(d <= cap, d, np.inf))
-    return out
+        d = np.where(np.linalg.norm(q - p[pp], axis=1) <= cap, np.linalg.norm(q - p[pp], axis=1),
+                     np.inf)
+        # the best pair per point: sort by (point, distance) and keep each point's first
+        order = np.lexsort((d, pp))
+        first = np.ones(len(order), bool)
+        first[1:] = pp[order][1:] != pp[order][:-1]
+        sel = order[first]
+        better = d[sel] < out[pp[sel]]
+        out[pp[sel][better]] = d[sel][better]
+        near_pt[pp[sel][better]] = q[sel][better]
+        face[pp[sel][better]] = tt[sel][better]
+    return out, near_pt, face

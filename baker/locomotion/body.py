@@ -28,6 +28,12 @@ from baker.locomotion.cobra import limit_lift
 BELOW = 0.5
 #: slope (rise over run) at which the bound a step puts on the trail falls away (35 degrees)
 STEP_FALL = 0.7
+#: smoothing scale (in segment spacings) of the reference height raised (cobra) joints ride on
+RAISED_SMOOTH = 3.0
+#: a raised joint rises at most this fraction of a spacing above the joint behind it (the
+#: neck's pitch over its reference stays below asin of it, so the chord placement stays
+#: well-conditioned)
+RAISED_RISE = 0.75
 #: [deg/s] fastest turn of the head's facing (where its trail folds back)
 HEAD_TURN_RATE = 540.0
 
@@ -94,6 +100,8 @@ class Trail:
     ground  : (T,) float64, raw surface height under each point
     cum     : (T,) float64, 3D arc length along `points`
     cum_h   : (T,) float64, horizontal arc length of each point
+    high    : (T,) float64, a much smoother height profile on or above `points` (the reference
+              a raised joint rides on: a lifted neck keeps its shape over bumps and rims)
     """
 
     points: np.ndarray
@@ -101,6 +109,7 @@ class Trail:
     ground: np.ndarray
     cum: np.ndarray
     cum_h: np.ndarray
+    high: np.ndarray | None = None
 
     def arc_at(self, horizontal_arc: np.ndarray) -> np.ndarray:
         """3D arc length at given horizontal arc lengths (exact, piecewise linear)."""
@@ -126,19 +135,33 @@ def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: flo
     ground_pts, normals, _ = project_to_surface(rays, pts, probe)
     ground = ground_pts[:, 1]
     sigma = 2.0 * spacing / res
-    band = 0.95 * clearance
-    # start from the highest ground within half a spacing (so the body rises before a step
-    # up and clears its edge), then smooth and keep inside the band, repeatedly: alternating
-    # projections soften the kinks that the band leaves at creases and steps
-    y = maximum_filter1d(ground, size=max(int(round(0.5 * spacing / res)), 1) * 2 + 1, mode="nearest")
+    # the smoothed ground, raised by smooth bumps wherever it would take a joint closer than
+    # the step bound allows (creases, rims, step edges): a profile with bounded curvature, so
+    # a joint passing over a step turns gradually instead of in one frame
     lo = step_lower_bound(ground, res, spacing, clearance)
-    hi = np.maximum(ground + band, lo)
-    for _ in range(16):
-        y = np.clip(gaussian_filter1d(y, sigma, mode="nearest"), lo, hi)
+    smooth = gaussian_filter1d(ground, sigma, mode="nearest")
+    y = smooth + smooth_envelope(np.maximum(lo - smooth, 0.0), sigma)
     pts = ground_pts.copy()
     pts[:, 1] = y
     normals = normalize(gaussian_filter1d(normals, 0.5 * sigma, axis=0, mode="nearest"))
-    return Trail(points=pts, normals=normals, ground=ground, cum=polyline.arc_lengths(pts), cum_h=s)
+    high = smooth_envelope(y, RAISED_SMOOTH * spacing / res)
+    return Trail(points=pts, normals=normals, ground=ground, cum=polyline.arc_lengths(pts), cum_h=s,
+                 high=high)
+
+
+def smooth_envelope(y: np.ndarray, sigma: float, rounds: int = 6) -> np.ndarray:
+    """(T,) a smooth profile on or above y: Gaussian-smoothed upper envelopes (max filter over
+    two sigmas), raised by smooth bumps where y still pokes through, `rounds` times; whatever
+    remains (a tiny residual) is clipped."""
+    k = max(int(round(2.0 * sigma)), 1) * 2 + 1
+    high = gaussian_filter1d(maximum_filter1d(y, size=k, mode="nearest"), sigma, mode="nearest")
+    for _ in range(rounds):
+        gap = np.maximum(y - high, 0.0)
+        if gap.max() <= 0.0:
+            break
+        high += gaussian_filter1d(maximum_filter1d(gap, size=k, mode="nearest"), sigma,
+                                  mode="nearest")
+    return np.maximum(high, y)
 
 
 def step_lower_bound(ground: np.ndarray, res: float, spacing: float,
@@ -215,11 +238,14 @@ def limit_turn(dirs: np.ndarray, axes: np.ndarray, max_angle: float) -> np.ndarr
     return out
 
 
-def place_chain(trail: Trail, head_arc: np.ndarray, offset: np.ndarray, spacing: float):
+def place_chain(trail: Trail, head_arc: np.ndarray, offset: np.ndarray, spacing: float,
+                raised: np.ndarray | None = None):
     """Follow-the-leader placement: the head at its arc length on the trail, every other joint
     on the trail exactly `spacing` (3D) behind the joint ahead, each raised by its offset.
 
     offset : (F, S) metres above the trail (clearance + any cobra lift)
+    raised : (F, S) 0..1 or None: how much each joint rides on the trail's smooth `high`
+             profile instead of its surface-following height (a raised joint's reference)
     returns (positions (F, S, 3), arc lengths on the trail (F, S))
     On a smooth trail this is the joint's fixed arc length behind the head to within a
     fraction of a percent; where the trail bends over a crease or a small step, keeping the
@@ -228,30 +254,47 @@ def place_chain(trail: Trail, head_arc: np.ndarray, offset: np.ndarray, spacing:
     F, S = offset.shape
     pos = np.empty((F, S, 3))
     arc = np.empty((F, S))
+    w = np.zeros((F, S)) if raised is None or trail.high is None else raised
+    rise = (trail.high - trail.points[:, 1]) if trail.high is not None else np.zeros(len(trail.cum))
+
+    def at(s, i):
+        """Trail points at arcs s (F,) or (F, k), raised by joint i's offset and reference."""
+        q = polyline.sample(trail.points, trail.cum, s)
+        wi = w[:, i] if s.ndim == 1 else w[:, i:i + 1]
+        oi = offset[:, i] if s.ndim == 1 else offset[:, i:i + 1]
+        q[..., 1] += oi + wi * np.interp(s, trail.cum, rise)
+        return q
+
     arc[:, 0] = head_arc
-    pos[:, 0] = polyline.sample(trail.points, trail.cum, head_arc) + offset[:, :1] * UP
+    pos[:, 0] = at(head_arc, 0)
     steps = np.linspace(0.0, 4.0 * spacing, 33)
     rows = np.arange(F)
     for i in range(1, S):
         prev = pos[:, i - 1]
-        off = offset[:, i:i + 1] * UP
         # bracket: the first of a few arc steps back whose point is a spacing away (the trail
         # can fold back on itself over a crease or in a tight turn)
         cand = arc[:, i - 1:i] - steps[None, :]
-        q = polyline.sample(trail.points, trail.cum, cand) + off[:, None, :]
-        beyond = np.linalg.norm(q - prev[:, None, :], axis=2) > spacing
+        beyond = np.linalg.norm(at(cand, i) - prev[:, None, :], axis=2) > spacing
         k = np.where(beyond.any(axis=1), np.argmax(beyond, axis=1), len(steps) - 1)
         hi = cand[rows, np.maximum(k, 1)]
         lo = cand[rows, np.maximum(k - 1, 0)]
         for _ in range(16):   # bisection on the arc: distance to the joint ahead == spacing
             mid = 0.5 * (lo + hi)
-            q = polyline.sample(trail.points, trail.cum, mid) + off
-            far = np.linalg.norm(q - prev, axis=1) > spacing
+            far = np.linalg.norm(at(mid, i) - prev, axis=1) > spacing
             hi = np.where(far, mid, hi)
             lo = np.where(far, lo, mid)
         arc[:, i] = 0.5 * (lo + hi)
-        pos[:, i] = polyline.sample(trail.points, trail.cum, arc[:, i]) + off
+        pos[:, i] = at(arc[:, i], i)
     return pos, arc
+
+
+def limit_rise(lift: np.ndarray, rise: float) -> np.ndarray:
+    """(F, S) lifts with each joint at most `rise` metres above the joint behind it (from the
+    tail forward: a steeper curve is lowered at the front)."""
+    out = np.array(lift, dtype=np.float64, copy=True)
+    for i in range(out.shape[1] - 2, -1, -1):
+        np.minimum(out[:, i], out[:, i + 1] + rise, out=out[:, i])
+    return out
 
 
 def body_frames(trail: Trail, head_arc: np.ndarray, spacing: float, segments: int,
@@ -267,9 +310,12 @@ def body_frames(trail: Trail, head_arc: np.ndarray, spacing: float, segments: in
         s0 = head_arc[:, None] - spacing * np.arange(segments)[None, :]
         flat = polyline.sample(trail.points, trail.cum, s0) + clearance * UP
         lift = limit_lift(flat, lift, spacing, rays, ceiling_margin, int(round(ramp_time * fps)))
+        lift = limit_rise(lift, RAISED_RISE * spacing)
+        raised = np.clip(4.0 * lift / max(float(lift.max()), 1e-12), 0.0, 1.0)
     else:
         lift = np.zeros((F, segments))
-    pos, s = place_chain(trail, head_arc, clearance + lift, spacing)
+        raised = None
+    pos, s = place_chain(trail, head_arc, clearance + lift, spacing, raised=raised)
     normals = normalize(polyline.sample(trail.normals, trail.cum, s))
     ground = np.interp(s, trail.cum, trail.ground)
     forward = np.empty_like(pos)

@@ -47,6 +47,7 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 from baker.config import RigConfig
 from baker.geometry.conventions import FORWARD, LEFT, UP
 from baker.geometry.ik import bone_frames, two_bone_ik
+from baker.geometry.proximity import closest_on_mesh
 from baker.geometry.transforms import normalize, quat_rotate
 from baker.locomotion.body import BodyFrames
 from baker.locomotion.gait import gait_clock
@@ -98,6 +99,8 @@ EVEN_JOINT = 24.0
 SWING_CEILING = 0.8
 #: swing wall checks: at most this many half-lift raises
 WALL_STEPS = 4
+#: inside a swing a foot stays at least this fraction of the rig's lift off every surface
+SWING_CLEAR = 0.5
 #: planted feet of neighbouring legs keep at least this many segment spacings apart
 NEIGHBOUR_GAP = 0.3
 
@@ -383,6 +386,11 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     step_len = np.linalg.norm(p1 - p0, axis=-1)
     lift = lg.lift * np.minimum(1.0, step_len / lg.stride_min)
     arch = np.sin(np.pi * u) ** 2                   # lifts and lands softly
+    # every frame inside a swing keeps the foot at least SWING_CLEAR x the rig's lift off the
+    # ground: a foot that skims the surface while it moves reads as dragging
+    clear = SWING_CLEAR * lg.lift
+    inside = sw & (u > 0.0) & (u < 1.0)
+    vert = np.where(inside, np.maximum(lift * arch, clear), lift * arch)
     # the foot sweeps around its hip in the segment's frame: from the old hold as the segment
     # saw it at liftoff to the new hold as it sees it at touchdown (angle and radius about the
     # hip interpolated), so the leg's motion relative to the body is smooth and both ends are
@@ -409,7 +417,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     # the arc never bulges further out than its ends (a wall beside the body stays clear)
     out_max = np.maximum(s_ * r0[..., 0], s_ * r1[..., 0])
     rel[..., 0] = s_ * np.minimum(s_ * rel[..., 0], out_max)
-    rel[..., 1] += lift * arch
+    rel[..., 1] += vert
     swing_pts = hip + quat_rotate(q, rel)
     target = np.where(sw[..., None], swing_pts, target)
     # swinging feet stay outside the body, whatever the body's turn
@@ -422,7 +430,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         sp = target[sw]
         probe = body.clearance + 2.0 * lg.lift
         hh = rays.cast_down(sp, probe, max_distance=2.0 * probe)
-        need = hh.points[:, 1] + 0.35 * (lift * arch)[sw]
+        need = hh.points[:, 1] + np.maximum(0.35 * vert, np.where(inside, clear, 0.0))[sw]
         y = np.where(hh.hit, np.maximum(sp[:, 1], need), sp[:, 1])
         sp[:, 1] = y
         # a swinging foot stays on its hip's side of a wall: pulled back toward the hip where
@@ -486,6 +494,13 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         sp[:, 1] = np.where(hh.hit, np.maximum(sp[:, 1], hh.points[:, 1]), sp[:, 1])
         target[moved] = sp
 
+    # every swinging foot clear of the nearest surface, walls included (also the frames the
+    # re-timing above moved off the old hold, liftoff frames included)
+    eps = 1e-6 * lg.lift
+    moving = sw & (np.linalg.norm(target - p0, axis=-1) > eps) & (
+        np.linalg.norm(target - p1, axis=-1) > eps)
+    target = _clear_swings(rays, target, hip, inside | moving, clear)
+
     # a swinging foot that would pass too close to its neighbour's foot goes over it
     gap = NEIGHBOUR_GAP * body.spacing
     for _ in range(6):
@@ -515,6 +530,25 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     return dict(names=names, positions=positions, rotations=rotations, feet=sol.end,
                 targets=target, contacts=contact, touchdown=td_flag, lag=lag,
                 touchdowns=Ts, liftoffs=LOs, holds=holds)
+
+
+def _clear_swings(rays, target: np.ndarray, hip: np.ndarray, inside: np.ndarray,
+                  clear: float, rounds: int = 3) -> np.ndarray:
+    """Feet of frames strictly inside a swing (`inside`, (F, L) bool) moved off the nearest
+    surface, along its normal on the hip's side, until they are at least `clear` metres from
+    every surface (`hip` (F, L, 3): always on the open side)."""
+    target = target.copy()
+    for _ in range(rounds):
+        f, l = np.nonzero(inside)
+        d, c, tri = closest_on_mesh(target[f, l], rays.vertices, rays.faces, clear)
+        close = d < clear * (1.0 - 1e-6)
+        if not close.any():
+            break
+        f, l, c, tri = f[close], l[close], c[close], tri[close]
+        n = rays.face_normals[tri]
+        n = np.where(np.sum(n * (hip[f, l] - c), -1, keepdims=True) < 0.0, -n, n)
+        target[f, l] = c + n * clear
+    return target
 
 
 def _even_swings(target, hip, q, q_inv, cidx, LOs, Ts, sw, limit):
@@ -548,24 +582,32 @@ def _even_swings(target, hip, q, q_inv, cidx, LOs, Ts, sw, limit):
     return out
 
 
+def _frame_steps(a: np.ndarray, b: np.ndarray, hinge: np.ndarray) -> np.ndarray:
+    """(F-1, L) degrees between consecutive frames of bones a -> b with hinge (local +X)."""
+    y = normalize(b - a)
+    x = normalize(hinge - np.sum(hinge * y, -1, keepdims=True) * y)
+    z = np.cross(x, y)
+    tr = sum(np.sum(v[1:] * v[:-1], -1) for v in (x, y, z))
+    return np.degrees(np.arccos(np.clip(0.5 * (tr - 1.0), -1.0, 1.0)))
+
+
 def _joint_steps(hip, target, q_inv, fwd, left, lay, knee_out):
     """(F-1, L) degrees: the largest per-frame rotation of a leg's upper bone (relative to its
-    segment) or tip bone (relative to the upper bone) that the IK gives for these targets."""
+    segment, and in the world) or tip bone (relative to the upper bone, and in the world) that
+    the IK gives for these targets."""
     pole = leg_pole(lay, hip, target, fwd, left, knee_out)
     sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
     m = quat_rotate(q_inv, sol.mid - hip)
     e = quat_rotate(q_inv, sol.end - hip)
     hg = quat_rotate(q_inv, sol.hinge)
-    # upper bone frame (x hinge, y along the bone, z = x cross y): rotation angle between frames
-    # from the trace of R1^T R2
+    up_step = _frame_steps(np.zeros_like(m), m, hg)
+    # the tip turns about the same hinge: its step relative to the upper bone is the change of
+    # the knee angle
     y = normalize(m)
-    x = normalize(hg - np.sum(hg * y, -1, keepdims=True) * y)
-    z = np.cross(x, y)
-    tr = sum(np.sum(a[1:] * a[:-1], -1) for a in (x, y, z))
-    up_step = np.degrees(np.arccos(np.clip(0.5 * (tr - 1.0), -1.0, 1.0)))
-    # the tip turns about the same hinge: its step is the change of the knee angle
     knee = np.arccos(np.clip(np.sum(y * normalize(e - m), -1), -1.0, 1.0))
-    return np.maximum(up_step, np.degrees(np.abs(np.diff(knee, axis=0))))
+    world = np.maximum(_frame_steps(hip, sol.mid, sol.hinge),
+                       _frame_steps(sol.mid, sol.end, sol.hinge))
+    return np.maximum(np.maximum(up_step, np.degrees(np.abs(np.diff(knee, axis=0)))), world)
 
 
 def _even_joint_swings(target, hip, q, q_inv, fwd, left, lay, knee_out, cidx, LOs, Ts, sw,
@@ -859,7 +901,11 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
             above = ok_all & (raise_steps[None, :] > lift[:, None] + 1e-9)
             nxt = np.where(above.any(1), raise_steps[np.argmax(above, 1)], raise_steps[-1])
             raw = np.where(bad, np.maximum(raw, nxt), raw)
-        hinge = normalize(np.cross(up, d1))
+        # the hinge is the yaw plane's normal, so it never flips however far the chain is
+        # raised (a cross product with the segment's up degenerates at a vertical chain)
+        yaw = yaw1 + dyaw
+        hinge = quat_rotate(q, np.stack([(-1.0 if back else 1.0) * np.cos(yaw), np.zeros(F),
+                                         -s * np.sin(yaw)], -1))
         names += list(ch.names)
         pos += [o, knee]
         rot += [bone_frames(o, knee, hinge), bone_frames(knee, knee + d2, hinge)]
