@@ -205,7 +205,8 @@ def read_glb(path: str | Path, animation: str | int = 0) -> BakedScene:
     keys = np.concatenate([g.accessor(s["input"]) for s in anim["samplers"]])
     fps = int(extras.get("fps") or round((len(np.unique(keys)) - 1) / max(keys.max(), 1e-9)))
     n_frames = int(round(float(keys.max()) * fps)) + 1
-    times = np.arange(n_frames) / fps
+    # frame f is keyed at float32(f / fps), as glTF stores times: sample exactly there
+    times = (np.arange(n_frames) / fps).astype(np.float32).astype(np.float64)
 
     def local_tracks(i: int):
         n = nodes[i]

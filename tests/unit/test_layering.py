@@ -27,6 +27,7 @@ ALLOWED = {
     "metrics": {"sim"},
     "clip": {"rig", "sim"},
     "export": {"clip", "rig", "sim", "environment", "config", "navmesh", "atomic"},
+    "inspect": {"environment", "metrics"},     # reads a bake's files back to judge them
 }
 TOP = {"pipeline", "cli", "__init__", "__main__"}
 
