@@ -49,6 +49,33 @@ def quat_conj(q: np.ndarray) -> np.ndarray:
     return q * np.array([-1.0, -1.0, -1.0, 1.0])
 
 
+def quat_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle [rad] of the rotation between unit xyzw quaternions a and b (..., 4)."""
+    d = np.abs(np.sum(a * b, axis=-1))
+    return 2.0 * np.arccos(np.clip(d, 0.0, 1.0))
+
+
+def quat_slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Spherical interpolation from unit quaternions a to b (..., 4) at t (...), the short way
+    round; nearly equal rotations fall back to a normalized lerp."""
+    d = np.sum(a * b, axis=-1)
+    b = np.where((d < 0.0)[..., None], -b, b)
+    d = np.abs(d)
+    t = np.asarray(t, dtype=np.float64)[..., None]
+    theta = np.arccos(np.clip(d, 0.0, 1.0))[..., None]
+    s = np.sin(theta)
+    small = s < 1e-6
+    wa = np.where(small, 1.0 - t, np.sin((1.0 - t) * theta) / np.where(small, 1.0, s))
+    wb = np.where(small, t, np.sin(t * theta) / np.where(small, 1.0, s))
+    return normalize(wa * a + wb * b)
+
+
+def quat_about(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Unit xyzw quaternions of rotations by `angle` [rad] (...) about unit `axis` (..., 3)."""
+    h = 0.5 * np.asarray(angle, dtype=np.float64)[..., None]
+    return np.concatenate([np.asarray(axis, dtype=np.float64) * np.sin(h), np.cos(h)], axis=-1)
+
+
 def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Rotate vectors v (..., 3) by unit quaternions q (..., 4), xyzw."""
     qv = q[..., :3]

@@ -46,11 +46,12 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from baker.config import RigConfig
 from baker.geometry.conventions import FORWARD, LEFT, UP
-from baker.geometry.ik import bone_frames, two_bone_ik
+from baker.geometry.ik import bone_frames, soft_clamp, two_bone_ik
 from baker.geometry.proximity import closest_on_mesh
 from baker.geometry.transforms import normalize, quat_rotate
 from baker.locomotion.body import BodyFrames
 from baker.locomotion.gait import gait_clock
+from baker.locomotion.swing import joint_space_swings
 from baker.rig.limbs import chains, leg_layout, leg_pole
 
 #: the reachable fraction of the full leg length used for planning footholds
@@ -99,6 +100,11 @@ EVEN_JOINT = 24.0
 SWING_CEILING = 0.8
 #: swing wall checks: at most this many half-lift raises
 WALL_STEPS = 4
+#: largest turn of a leg joint in one frame (in its own space and in the world) [deg]; swings
+#: that exceed it are redone in joint space
+SWING_TURN = 27.0
+#: a swinging foot stays at least this fraction of the leg's full length from its hip
+MIN_REACH = 0.36
 #: inside a swing a foot stays at least this fraction of the rig's lift off every surface
 SWING_CLEAR = 0.5
 #: planted feet of neighbouring legs keep at least this many segment spacings apart
@@ -446,6 +452,8 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         target[sw] = sp
         # a swinging foot never goes into a wall: where its path from the previous frame is
         # blocked (or it ends inside something), it goes over, raised in lift-sized steps
+        start = target[sw].copy()
+        wall_side = np.zeros(len(start), bool)     # by something too tall to step over
         for _ in range(WALL_STEPS):
             prev = np.concatenate([target[:1], target[:-1]])[sw]
             cur = target[sw]
@@ -453,6 +461,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
             dist = np.linalg.norm(v, axis=1)
             moving = dist > 1e-9
             blocked = np.zeros(len(cur), bool)
+            moving &= ~wall_side
             eps = 0.1 * lg.lift * UP      # rays start just above feet resting on the surface
             if np.any(moving):
                 blocked[moving] = rays.first_hit(prev[moving] + eps, v[moving],
@@ -460,19 +469,17 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
             top = 3.0 * lg.lift
             hb = rays.first_hit(cur + top * UP, np.tile(-UP, (len(cur), 1)),
                                 max_distance=top - 0.1 * lg.lift)
-            below = hb.hit
+            below = hb.hit & ~wall_side
             if not (blocked.any() or below.any()):
                 break
             cur[blocked] += 0.5 * lg.lift * UP
             lift_to = cur[below, 1] + top - hb.distance[below] + 0.1 * lg.lift
             cur[below, 1] = np.maximum(cur[below, 1], lift_to)
-            # never above knee height over the hip: something that tall is not stepped over,
-            # the foot is drawn back toward the hip instead
-            hp = hip[sw]
-            too_high = cur[:, 1] > hp[:, 1] + SWING_CEILING * lay.l1
-            if too_high.any():
-                cur[too_high, 1] = hp[too_high, 1] + SWING_CEILING * lay.l1
-                cur[too_high] = hp[too_high] + 0.7 * (cur[too_high] - hp[too_high])
+            # never above knee height over the hip: something that tall is not stepped over;
+            # the foot keeps its path and is pushed off the face later (_clear_swings)
+            too_high = cur[:, 1] > hip[sw][:, 1] + SWING_CEILING * lay.l1
+            wall_side |= too_high
+            cur[wall_side] = start[wall_side]
             target[sw] = cur
 
     # swings that turn the leg unevenly (over an obstacle, down a ledge) are re-timed so the
@@ -499,7 +506,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     eps = 1e-6 * lg.lift
     moving = sw & (np.linalg.norm(target - p0, axis=-1) > eps) & (
         np.linalg.norm(target - p1, axis=-1) > eps)
-    target = _clear_swings(rays, target, hip, inside | moving, clear)
+    target = _clear_swings(rays, target, hip, inside | moving, clear, 0.25 * (lay.l1 + lay.l2))
 
     # a swinging foot that would pass too close to its neighbour's foot goes over it
     gap = NEIGHBOUR_GAP * body.spacing
@@ -516,6 +523,13 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     # corner) is drawn in toward its hip, eased in and out
     target = _pull_in_swings(rays, hip, target, sw, fwd, left, lay, lg.knee_out,
                              0.005 * cfg.body.length)
+    # a swinging foot never comes close to its hip: there the leg's plane would swing round
+    # with every millimetre the foot moves (a softly clamped minimum reach)
+    rel = target - hip
+    d = np.linalg.norm(rel, axis=-1)
+    full = lay.l1 + lay.l2
+    d_new = np.where(sw, soft_clamp(d, MIN_REACH * full, full), d)
+    target = hip + rel * (d_new / np.maximum(d, 1e-12))[..., None]
 
     # -- IK, all frames x legs
     pole = leg_pole(lay, hip, target, fwd, left, lg.knee_out)
@@ -524,30 +538,38 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
                               0.005 * cfg.body.length)
     q_u = bone_frames(hip, mid, hinge)
     q_t = bone_frames(mid, sol.end, hinge)
+    # swings that still break a limit (a joint turning too fast, a bone through something, a
+    # moving foot on or in a surface) are redone in joint space (swing.py)
+    q_u, q_t, mid, feet = joint_space_swings(
+        rays, hip, q, q_u, q_t, ~contact, lay.side, lay.l1, lay.l2, clear=clear,
+        reach=0.25 * (lay.l1 + lay.l2), tol=0.005 * cfg.body.length, limit=np.radians(SWING_TURN))
     names = tuple(n for pair in zip(lay.upper_names, lay.tip_names) for n in pair)
     positions = np.stack([hip, mid], axis=2).reshape(F, 2 * L, 3)
     rotations = np.stack([q_u, q_t], axis=2).reshape(F, 2 * L, 4)
-    return dict(names=names, positions=positions, rotations=rotations, feet=sol.end,
+    return dict(names=names, positions=positions, rotations=rotations, feet=feet,
                 targets=target, contacts=contact, touchdown=td_flag, lag=lag,
                 touchdowns=Ts, liftoffs=LOs, holds=holds)
 
 
 def _clear_swings(rays, target: np.ndarray, hip: np.ndarray, inside: np.ndarray,
-                  clear: float, rounds: int = 3) -> np.ndarray:
+                  clear: float, reach: float, rounds: int = 3) -> np.ndarray:
     """Feet of frames strictly inside a swing (`inside`, (F, L) bool) moved off the nearest
     surface, along its normal on the hip's side, until they are at least `clear` metres from
-    every surface (`hip` (F, L, 3): always on the open side)."""
+    every surface; a foot behind a face (on the side away from its hip: inside a wall or a
+    rock) within `reach` of it comes out the same way (`hip` (F, L, 3): on the open side)."""
     target = target.copy()
     for _ in range(rounds):
         f, l = np.nonzero(inside)
-        d, c, tri = closest_on_mesh(target[f, l], rays.vertices, rays.faces, clear)
-        close = d < clear * (1.0 - 1e-6)
-        if not close.any():
-            break
-        f, l, c, tri = f[close], l[close], c[close], tri[close]
+        d, c, tri = closest_on_mesh(target[f, l], rays.vertices, rays.faces, max(reach, clear))
+        found = np.isfinite(d)
+        f, l, d, c, tri = f[found], l[found], d[found], c[found], tri[found]
         n = rays.face_normals[tri]
         n = np.where(np.sum(n * (hip[f, l] - c), -1, keepdims=True) < 0.0, -n, n)
-        target[f, l] = c + n * clear
+        behind = np.sum((target[f, l] - c) * n, -1) < 0.0
+        fix = behind | (d < clear * (1.0 - 1e-6))
+        if not fix.any():
+            break
+        target[f[fix], l[fix]] = c[fix] + n[fix] * clear
     return target
 
 

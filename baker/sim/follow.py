@@ -26,6 +26,9 @@ from baker.locomotion.head import HeadSteer
 
 #: steps between checks of what the head can see of the agent's path
 AIM_EVERY = 4
+#: largest sideways slither of the head [BL] (SEED's amplitude at top speed, about the body's
+#: half-width)
+SLITHER_OFFSET = 0.032
 #: [s] how long the agent waits for the head before the path is planned again from the head
 REPLAN_AFTER = 1.5
 
@@ -50,7 +53,7 @@ class Follower:
         self.head = HeadSteer(start, heading, max_speed=loco.max_speed,
                               turn_radius=self.turn_radius, lead=self.turn_radius,
                               turn_rate=loco.head_turn_rate, amplitude=loco.slither_amplitude,
-                              max_offset=0.4 * navc.radius)
+                              max_offset=SLITHER_OFFSET * body.length)
         self.height = float(start[1])
         self._steps = 0
         self._back = 0.0
