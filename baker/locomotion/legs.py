@@ -51,7 +51,7 @@ from baker.geometry.proximity import closest_on_mesh
 from baker.geometry.transforms import normalize, quat_rotate
 from baker.locomotion.body import BodyFrames
 from baker.locomotion.gait import gait_clock
-from baker.locomotion.swing import joint_space_swings
+from baker.locomotion.swing import Limits, joint_space_swings
 from baker.rig.limbs import chains, leg_layout, leg_pole
 
 #: the reachable fraction of the full leg length used for planning footholds
@@ -103,6 +103,10 @@ WALL_STEPS = 4
 #: largest turn of a leg joint in one frame (in its own space and in the world) [deg]; swings
 #: that exceed it are redone in joint space
 SWING_TURN = 27.0
+#: a foot touching a surface in two frames in a row moves at most this many body lengths
+SLIDE = 0.004
+#: a swinging foot keeps at least this many segment spacings from its neighbours' feet
+SWING_GAP = 0.24
 #: a swinging foot stays at least this fraction of the leg's full length from its hip
 MIN_REACH = 0.36
 #: inside a swing a foot stays at least this fraction of the rig's lift off every surface
@@ -540,9 +544,10 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     q_t = bone_frames(mid, sol.end, hinge)
     # swings that still break a limit (a joint turning too fast, a bone through something, a
     # moving foot on or in a surface) are redone in joint space (swing.py)
-    q_u, q_t, mid, feet = joint_space_swings(
-        rays, hip, q, q_u, q_t, ~contact, lay.side, lay.l1, lay.l2, clear=clear,
-        reach=0.25 * (lay.l1 + lay.l2), tol=0.005 * cfg.body.length, limit=np.radians(SWING_TURN))
+    lim = Limits(contact=0.8 * clear, slide=SLIDE * body.length, reach=0.25 * (lay.l1 + lay.l2),
+                 tol=0.005 * body.length, turn=np.radians(SWING_TURN), gap=SWING_GAP * body.spacing)
+    q_u, q_t, mid, feet = joint_space_swings(rays, hip, q, q_u, q_t, ~contact, lay.side, lay.l1,
+                                             lay.l2, lim)
     names = tuple(n for pair in zip(lay.upper_names, lay.tip_names) for n in pair)
     positions = np.stack([hip, mid], axis=2).reshape(F, 2 * L, 3)
     rotations = np.stack([q_u, q_t], axis=2).reshape(F, 2 * L, 4)

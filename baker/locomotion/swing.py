@@ -3,18 +3,22 @@
 legs.py plans each swing as a foot path (an arc around the hip, lifted, then pushed off walls,
 raised over obstacles, re-timed) and solves it with two-bone IK. Near walls, on stairs and in
 tight turns those corrections can fight each other: the leg then turns too far in one frame,
-a bone passes through something, or the foot ends up in or on a surface while it moves.
+a bone passes through something, the foot goes into a surface, skims along one, or crowds a
+neighbour's foot.
 
 Such a swing is replaced by one in the leg's own joint space: the upper bone's rotation
 (relative to its segment) and the tip bone's (relative to the upper bone) slerp from the last
-planted pose to the touchdown pose, at an even pace, while the whole leg is raised about the
-body's long axis (through the hip) by a bump raise * sin(pi u). Of the RAISES, the smallest that
-keeps every frame of the swing within all limits wins; when none does, the one with the fewest
-offending frames. Both ends of the swing are the planted poses, so the stance is untouched.
-All swings, candidates and frames are checked in flat batches (one ray batch per candidate).
+planted pose to the touchdown pose at an even pace, while the whole leg is raised about the
+body's long axis (through the hip) by a bump raise * profile(u). Of the candidate raises and
+profiles, the first that keeps every frame of the swing within all limits wins; when none does,
+the one with the fewest offending frames, and the planned swing stays when it has no more
+than that. Both ends are the planted poses, so stances are untouched. All swings, candidates
+and frames are checked in flat batches (one ray batch per candidate).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -23,9 +27,31 @@ from baker.geometry.transforms import (quat_about, quat_angle, quat_conj, quat_m
                                        quat_slerp)
 
 #: raises of the whole leg about the body's long axis tried, smallest first [rad]
-RAISES = np.radians([0.0, 8.0, 16.0, 25.0, 35.0, 50.0, 65.0])
+RAISES = np.radians([4.0, 8.0, 12.0, 16.0, 24.0, 32.0, 45.0, 60.0])
+#: raise profiles over the swing's progress u: a plain bump, and one that rises sooner
+PROFILES = (lambda u: np.sin(np.pi * u), lambda u: np.sqrt(np.sin(np.pi * u)))
 _Y = np.array([0.0, 1.0, 0.0])
 _Z = np.array([0.0, 0.0, 1.0])
+
+
+@dataclass(frozen=True)
+class Limits:
+    """What a swing frame must respect.
+
+    contact : a foot within this of a surface touches it; two touching frames in a row must
+              not move the foot more than `slide` [m]
+    reach   : how far to look for the surface a foot might be behind [m]
+    tol     : the tip bone's last bit that may touch a surface [m]
+    turn    : largest turn of any joint per frame, in its own space and in the world [rad]
+    gap     : a swinging foot keeps this far from its neighbours' feet [m]
+    """
+
+    contact: float
+    slide: float
+    reach: float
+    tol: float
+    turn: float
+    gap: float
 
 
 def _runs(swing: np.ndarray):
@@ -44,7 +70,7 @@ def _runs(swing: np.ndarray):
 
 
 def _pose(q_seg, hip, U, T, l1, l2):
-    """World upper/tip rotations and the knee and foot of local poses U, T (flat (n, 4))."""
+    """World upper/tip rotations and the knee and foot of local poses U, T."""
     q_u = quat_mul(q_seg, U)
     q_t = quat_mul(q_u, T)
     mid = hip + quat_rotate(q_u, l1 * _Y)
@@ -52,57 +78,51 @@ def _pose(q_seg, hip, U, T, l1, l2):
     return q_u, q_t, mid, end
 
 
-def _frame_faults(rays, hip, mid, end, moving, l1, l2, clear, reach, tol):
-    """(n,) bool: a bone passes through the environment, or a moving foot is within `clear`
-    of a surface or behind one (inside a solid: on the far side of the nearest face from the
-    hip)."""
-    a = rays.first_hit(hip, mid - hip, max_distance=l1 - 1e-9).hit
-    b = rays.first_hit(mid, end - mid, max_distance=max(l2 - tol, 0.0)).hit
-    bad = a | b
-    k = np.nonzero(moving)[0]
-    if len(k):
-        d, c, tri = closest_on_mesh(end[k], rays.vertices, rays.faces, max(reach, clear))
-        found = np.isfinite(d)
-        n = np.zeros((len(k), 3))
-        n[found] = rays.face_normals[tri[found]]
-        toward = np.sum(n * (hip[k] - np.where(found[:, None], c, 0.0)), -1) < 0.0
-        n[toward] *= -1.0
-        behind = found & (np.sum((end[k] - np.where(found[:, None], c, 0.0)) * n, -1) < 0.0)
-        bad[k] |= behind | (d < clear * (1.0 - 1e-3))
+def _faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same, near_feet):
+    """(n,) bool per entry of flat swing frames (consecutive entries of one swing are
+    consecutive frames; `same[k]`: entries k and k+1 belong to one swing):
+    a bone through the environment; an inner frame's foot behind a surface (on the far side of
+    the nearest face from the hip: inside a solid) or within `gap` of a neighbour's foot
+    (near_feet (n, 2, 3), NaN for none); a joint turning more than `turn` to the next entry; a
+    foot touching a surface in this and the next entry while it slides more than `slide`."""
+    q_u, q_t, mid, end = _pose(q_seg, hip, U, T, l1, l2)
+    bad = rays.first_hit(hip, mid - hip, max_distance=l1 - 1e-9).hit
+    bad |= rays.first_hit(mid, end - mid, max_distance=max(l2 - lim.tol, 0.0)).hit
+    with np.errstate(invalid="ignore"):
+        gap = np.nanmin(np.linalg.norm(near_feet - end[:, None], axis=2), axis=1, initial=np.inf)
+    bad |= inner & (gap < lim.gap)
+    d, c, tri = closest_on_mesh(end, rays.vertices, rays.faces, max(lim.reach, lim.contact))
+    found = np.isfinite(d)
+    n = np.where(found[:, None], rays.face_normals[np.maximum(tri, 0)], 0.0)
+    c = np.where(found[:, None], c, 0.0)
+    n = np.where((np.sum(n * (hip - c), -1) < 0.0)[:, None], -n, n)
+    bad |= inner & found & (np.sum((end - c) * n, -1) < -1e-9)
+    if len(U) > 1:
+        steps = np.maximum.reduce([quat_angle(x[:-1], x[1:]) for x in (U, T, q_u, q_t)])
+        touch = d < lim.contact
+        slide = np.linalg.norm(np.diff(end, axis=0), axis=1)
+        bad[:-1] |= same & ((steps > lim.turn) | (touch[:-1] & touch[1:] & (slide > lim.slide)))
     return bad
 
 
-def _step_faults(q_seg, q_u, q_t, U, T, same, limit):
-    """(n,) bool: entry k turns a joint by more than `limit` [rad] between it and entry k+1
-    (only where `same`: both entries belong to one swing), in the joint's own space or in the
-    world."""
-    out = np.zeros(len(U), bool)
-    if len(U) < 2:
-        return out
-    steps = np.maximum.reduce([quat_angle(x[:-1], x[1:]) for x in (U, T, q_u, q_t)])
-    out[:-1] = same & (steps > limit)
-    return out
-
-
-def joint_space_swings(rays, hip, q_seg, q_u, q_t, swing, side, l1, l2, *, clear, reach, tol,
-                       limit):
+def joint_space_swings(rays, hip, q_seg, q_u, q_t, swing, side, l1, l2, lim: Limits):
     """Swings that break a limit, replaced by joint-space swings (see the module docstring).
 
     hip   : (F, L, 3) hips; q_seg : (F, L, 4) each leg's segment rotation (world)
     q_u, q_t : (F, L, 4) world rotations of the upper and tip bones (bones along local +Y)
     swing : (F, L) bool, frames in which the foot is not planted
     side  : (L,) +1 left, -1 right; l1, l2 : bone lengths
-    clear : a moving foot stays this far from every surface; reach : how far to look for the
-            surface a foot might be behind; tol : the foot's last bit that may touch
-    limit : largest turn of any joint per frame [rad], local and world
+    Legs are ordered L_01, R_01, L_02, ...: leg l's neighbours on its side are l - 2 and l + 2.
     returns (q_u, q_t, mid, end), each (F, L, ...)
     """
     q_u, q_t = q_u.copy(), q_t.copy()
+    U_all = quat_mul(quat_conj(q_seg), q_u)
+    T_all = quat_mul(quat_conj(q_u), q_t)
+    feet = _pose(q_seg, hip, U_all, T_all, l1, l2)[3]
     leg, a, b = _runs(swing)
+    if len(leg) == 0:
+        return (q_u, q_t) + _pose(q_seg, hip, U_all, T_all, l1, l2)[2:]
     n_swing = len(leg)
-    if n_swing == 0:
-        return (q_u, q_t) + _pose(q_seg, hip, quat_mul(quat_conj(q_seg), q_u),
-                                  quat_mul(quat_conj(q_u), q_t), l1, l2)[2:]
     length = b - a + 1
     sid = np.repeat(np.arange(n_swing), length)
     start = np.repeat(np.cumsum(length) - length, length)
@@ -111,46 +131,39 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, swing, side, l1, l2, *, clear
     u = (f - a[sid]) / (b - a)[sid]
     same = sid[1:] == sid[:-1]
     inner = (u > 0.0) & (u < 1.0)
-    qs, hp = q_seg[f, lg], hip[f, lg]
-    U0 = quat_mul(quat_conj(qs), q_u[f, lg])
-    T0 = quat_mul(quat_conj(q_u[f, lg]), q_t[f, lg])
-    _, _, mid0, end0 = _pose(qs, hp, U0, T0, l1, l2)
-    moving0 = inner & (np.linalg.norm(end0 - end0[start], axis=1) > 1e-6 * l2) & (
-        np.linalg.norm(end0 - end0[start + length[sid] - 1], axis=1) > 1e-6 * l2)
-    bad = _frame_faults(rays, hp, mid0, end0, moving0, l1, l2, clear, reach, tol)
-    bad |= _step_faults(qs, q_u[f, lg], q_t[f, lg], U0, T0, same, limit)
-    redo = np.bincount(sid, weights=bad, minlength=n_swing) > 0
-    if not redo.any():
-        return (q_u, q_t) + _pose(q_seg, hip, quat_mul(quat_conj(q_seg), q_u),
-                                  quat_mul(quat_conj(q_u), q_t), l1, l2)[2:]
-    # candidates for the swings to redo, all at once
-    k = np.nonzero(redo[sid])[0]
-    sk = sid[k]
-    Ua, Ub = U0[start[k]], U0[start[k] + length[sk] - 1]
-    Ta, Tb = T0[start[k]], T0[start[k] + length[sk] - 1]
-    Us, Ts = quat_slerp(Ua, Ub, u[k]), quat_slerp(Ta, Tb, u[k])
-    # the planned swing stays unless a candidate has fewer offending frames
-    best_score = np.where(redo, np.bincount(sid, weights=bad, minlength=n_swing), 0.0)
-    chosen_U, chosen_T = U0[k].copy(), T0[k].copy()
-    axis = np.broadcast_to(_Z, (len(k), 3))
-    for r in RAISES:
-        lift = quat_about(axis, side[lg[k]] * r * np.sin(np.pi * u[k]))
-        U = quat_mul(lift, Us)
-        q1, q2, m1, e1 = _pose(qs[k], hp[k], U, Ts, l1, l2)
-        faults = _frame_faults(rays, hp[k], m1, e1, inner[k], l1, l2, clear, reach, tol)
-        faults |= _step_faults(qs[k], q1, q2, U, Ts, sk[1:] == sk[:-1], limit)
-        score = np.bincount(sk, weights=faults, minlength=n_swing)
-        take = redo & (score < best_score)
-        best_score[take] = score[take]
-        sel = take[sk]
-        chosen_U[sel], chosen_T[sel] = U[sel], Ts[sel]
-        if not (redo & (best_score > 0)).any():
-            break
-    inside = inner[k]
-    fk, lk = f[k][inside], lg[k][inside]
-    q_u[fk, lk] = quat_mul(q_seg[fk, lk], chosen_U[inside])
-    q_t[fk, lk] = quat_mul(q_u[fk, lk], chosen_T[inside])
-    U_all = quat_mul(quat_conj(q_seg), q_u)
-    T_all = quat_mul(quat_conj(q_u), q_t)
-    _, _, mid, end = _pose(q_seg, hip, U_all, T_all, l1, l2)
+    pad = np.full_like(feet[:, :2], np.nan)
+    padded = np.concatenate([pad, feet, pad], axis=1)
+    near = np.stack([padded[f, lg], padded[f, lg + 4]], axis=1)        # legs l - 2, l + 2
+    qs, hp, U0, T0 = q_seg[f, lg], hip[f, lg], U_all[f, lg], T_all[f, lg]
+    bad = _faults(rays, lim, hp, qs, U0, T0, l1, l2, inner, same, near)
+    best = np.bincount(sid, weights=bad, minlength=n_swing)
+    redo = best > 0
+    if redo.any():
+        k = np.nonzero(redo[sid])[0]
+        sk = sid[k]
+        first, last = start[k], start[k] + length[sk] - 1
+        Us, Ts = quat_slerp(U0[first], U0[last], u[k]), quat_slerp(T0[first], T0[last], u[k])
+        chosen = U0[k].copy()
+        axis = np.broadcast_to(_Z, (len(k), 3))
+        for profile in PROFILES:
+            for r in RAISES:
+                U = quat_mul(quat_about(axis, side[lg[k]] * r * profile(u[k])), Us)
+                faults = _faults(rays, lim, hp[k], qs[k], U, Ts, l1, l2, inner[k],
+                                 sk[1:] == sk[:-1], near[k])
+                score = np.bincount(sk, weights=faults, minlength=n_swing)
+                take = redo & (score < best)
+                best[take] = score[take]
+                sel = take[sk]
+                chosen[sel] = U[sel]
+                T0[k[sel]] = Ts[sel]
+                if not (redo & (best > 0)).any():
+                    break
+            if not (redo & (best > 0)).any():
+                break
+        U0[k] = chosen
+        inside = inner[k]
+        fk, lk = f[k][inside], lg[k][inside]
+        U_all[fk, lk] = chosen[inside]
+        T_all[fk, lk] = T0[k][inside]
+    q_u, q_t, mid, end = _pose(q_seg, hip, U_all, T_all, l1, l2)
     return q_u, q_t, mid, end
