@@ -105,7 +105,8 @@ def _faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same, near_feet)
     return bad
 
 
-def joint_space_swings(rays, hip, q_seg, q_u, q_t, swing, side, l1, l2, lim: Limits):
+def joint_space_swings(rays, hip, q_seg, q_u, q_t, swing, side, l1, l2, lim: Limits,
+                       rounds: int = 2):
     """Swings that break a limit, replaced by joint-space swings (see the module docstring).
 
     hip   : (F, L, 3) hips; q_seg : (F, L, 4) each leg's segment rotation (world)
@@ -113,15 +114,25 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, swing, side, l1, l2, lim: Lim
     swing : (F, L) bool, frames in which the foot is not planted
     side  : (L,) +1 left, -1 right; l1, l2 : bone lengths
     Legs are ordered L_01, R_01, L_02, ...: leg l's neighbours on its side are l - 2 and l + 2.
+    Neighbours never change in the same pass (legs of odd and even segments take turns,
+    `rounds` times), so each one is judged against the other's latest feet.
     returns (q_u, q_t, mid, end), each (F, L, ...)
     """
-    q_u, q_t = q_u.copy(), q_t.copy()
-    U_all = quat_mul(quat_conj(q_seg), q_u)
-    T_all = quat_mul(quat_conj(q_u), q_t)
-    feet = _pose(q_seg, hip, U_all, T_all, l1, l2)[3]
+    U = quat_mul(quat_conj(q_seg), q_u)
+    T = quat_mul(quat_conj(q_u), q_t)
     leg, a, b = _runs(swing)
-    if len(leg) == 0:
-        return (q_u, q_t) + _pose(q_seg, hip, U_all, T_all, l1, l2)[2:]
+    for _ in range(rounds):
+        for parity in (0, 1):
+            mine = (leg // 2) % 2 == parity
+            if mine.any():
+                _redo(rays, lim, hip, q_seg, U, T, side, l1, l2, leg[mine], a[mine], b[mine])
+    return _pose(q_seg, hip, U, T, l1, l2)
+
+
+def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, leg, a, b) -> None:
+    """Swings (leg, a, b) that break a limit get the best joint-space candidate, in place in
+    the local poses U_all, T_all (F, L, 4)."""
+    feet = _pose(q_seg, hip, U_all, T_all, l1, l2)[3]
     n_swing = len(leg)
     length = b - a + 1
     sid = np.repeat(np.arange(n_swing), length)
@@ -129,41 +140,35 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, swing, side, l1, l2, lim: Lim
     f = np.repeat(a, length) + (np.arange(len(sid)) - start)
     lg = leg[sid]
     u = (f - a[sid]) / (b - a)[sid]
-    same = sid[1:] == sid[:-1]
     inner = (u > 0.0) & (u < 1.0)
     pad = np.full_like(feet[:, :2], np.nan)
     padded = np.concatenate([pad, feet, pad], axis=1)
     near = np.stack([padded[f, lg], padded[f, lg + 4]], axis=1)        # legs l - 2, l + 2
     qs, hp, U0, T0 = q_seg[f, lg], hip[f, lg], U_all[f, lg], T_all[f, lg]
-    bad = _faults(rays, lim, hp, qs, U0, T0, l1, l2, inner, same, near)
+    bad = _faults(rays, lim, hp, qs, U0, T0, l1, l2, inner, sid[1:] == sid[:-1], near)
     best = np.bincount(sid, weights=bad, minlength=n_swing)
     redo = best > 0
-    if redo.any():
-        k = np.nonzero(redo[sid])[0]
-        sk = sid[k]
-        first, last = start[k], start[k] + length[sk] - 1
-        Us, Ts = quat_slerp(U0[first], U0[last], u[k]), quat_slerp(T0[first], T0[last], u[k])
-        chosen = U0[k].copy()
-        axis = np.broadcast_to(_Z, (len(k), 3))
-        for profile in PROFILES:
-            for r in RAISES:
-                U = quat_mul(quat_about(axis, side[lg[k]] * r * profile(u[k])), Us)
-                faults = _faults(rays, lim, hp[k], qs[k], U, Ts, l1, l2, inner[k],
-                                 sk[1:] == sk[:-1], near[k])
-                score = np.bincount(sk, weights=faults, minlength=n_swing)
-                take = redo & (score < best)
-                best[take] = score[take]
-                sel = take[sk]
-                chosen[sel] = U[sel]
-                T0[k[sel]] = Ts[sel]
-                if not (redo & (best > 0)).any():
-                    break
+    if not redo.any():
+        return
+    k = np.nonzero(redo[sid])[0]
+    sk = sid[k]
+    first, last = start[k], start[k] + length[sk] - 1
+    Us, Ts = quat_slerp(U0[first], U0[last], u[k]), quat_slerp(T0[first], T0[last], u[k])
+    chosen_U, chosen_T = U0[k].copy(), T0[k].copy()
+    axis = np.broadcast_to(_Z, (len(k), 3))
+    for profile in PROFILES:
+        for r in RAISES:
             if not (redo & (best > 0)).any():
                 break
-        U0[k] = chosen
-        inside = inner[k]
-        fk, lk = f[k][inside], lg[k][inside]
-        U_all[fk, lk] = chosen[inside]
-        T_all[fk, lk] = T0[k][inside]
-    q_u, q_t, mid, end = _pose(q_seg, hip, U_all, T_all, l1, l2)
-    return q_u, q_t, mid, end
+            U = quat_mul(quat_about(axis, side[lg[k]] * r * profile(u[k])), Us)
+            faults = _faults(rays, lim, hp[k], qs[k], U, Ts, l1, l2, inner[k],
+                             sk[1:] == sk[:-1], near[k])
+            score = np.bincount(sk, weights=faults, minlength=n_swing)
+            take = redo & (score < best)
+            best[take] = score[take]
+            sel = take[sk]
+            chosen_U[sel], chosen_T[sel] = U[sel], Ts[sel]
+    inside = inner[k]
+    fk, lk = f[k][inside], lg[k][inside]
+    U_all[fk, lk] = chosen_U[inside]
+    T_all[fk, lk] = chosen_T[inside]
