@@ -53,6 +53,8 @@ class LocomotionConfig:
     stopping_distance: float = 0.15  # [>=0] [m] slow down within this distance of the target
     head_turn_rate: float = 4.0     # [>=0] [rad/s] slither angular frequency at max speed
     slither_amplitude: float = math.radians(25.0)  # [0..pi/2] [rad] heading swing at max speed
+    rough_speed: float = 0.5        # [(0..1]] speed factor while the body is on or near risers
+                                    # (steps and stairs: the legs need the time)
 
 
 @dataclass(frozen=True)
@@ -332,6 +334,7 @@ def validate_rig(rig: RigConfig, where: str = "rig") -> RigConfig:
     checks = [
         (rig.locomotion.max_speed > 0, "locomotion.max_speed must be > 0"),
         (rig.locomotion.acceleration > 0, "locomotion.acceleration must be > 0"),
+        (0 < rig.locomotion.rough_speed <= 1, "locomotion.rough_speed must be in (0, 1]"),
         (rig.wander.interval > 0, "wander.interval must be > 0"),
         (rig.wander.radius > 0, "wander.radius must be > 0"),
         (rig.navigation.radius > 0, "navigation.agent_radius must be > 0"),

@@ -66,37 +66,9 @@ def spine_metrics(traj: Trajectory, rays, *, spacing: float, clearance: float,
     }
 
 
-#: the six axis directions cast by inside_geometry
-_AXES6 = np.array([[0, 1, 0], [0, -1, 0], [1, 0, 0], [-1, 0, 0], [0, 0, 1], [0, 0, -1]], float)
-
-
 def inside_geometry(points: np.ndarray, rays) -> np.ndarray:
-    """(n,) bool: each point is inside a solid of the environment.
-
-    points : (n, 3) float, metres, world. Six axis rays per point, cast in one batch; each first
-    hit votes "back" when the ray leaves through the face's back (its raw face normal, as wound,
-    points along the ray) and "front" otherwise. A point is inside when back votes outnumber
-    front votes. On a closed, consistently outward-wound mesh every first hit from inside is a
-    back face, so this is exact there; the majority vote tolerates a few flipped faces and open
-    meshes (a one-sided ground plane: a point below it sees its back from below and nothing
-    else, so it counts as inside; a one-sided deck overhead with a floor below is one vote each,
-    so not inside).
-    Limitation: it trusts the winding. A mesh wound inward throughout, or an object whose faces
-    are mostly flipped, reads inside-out; faces are two-sided everywhere else in baker (the
-    navigation build tells solids apart by hit parity instead), so only this metric depends on it.
-    """
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    n = len(p)
-    if n == 0:
-        return np.zeros(0, dtype=bool)
-    d = np.tile(_AXES6, (n, 1))
-    h = rays.first_hit(np.repeat(p, 6, axis=0), d)
-    fn = getattr(rays, "face_normals", None)  # raw, as wound
-    fn = np.asarray(rays.mesh.face_normals if fn is None else fn, dtype=np.float64)
-    vote = np.zeros(len(d))
-    vote[h.hit] = np.sign(np.einsum("ij,ij->i", fn[h.faces[h.hit]], d[h.hit]))
-    vote = vote.reshape(n, 6)
-    return np.count_nonzero(vote > 0, axis=1) > np.count_nonzero(vote < 0, axis=1)
+    """(n,) bool: each point is inside a solid of the environment (RayCaster.inside)."""
+    return rays.inside(points)
 
 
 def surface_metrics(traj: Trajectory, nav, *, clearance: float) -> dict:

@@ -17,6 +17,8 @@ from baker.geometry.transforms import normalize
 
 log = logging.getLogger(__name__)
 
+#: the six axis directions cast by RayCaster.inside
+_AXES6 = np.array([[0, 1, 0], [0, -1, 0], [1, 0, 0], [-1, 0, 0], [0, 0, 1], [0, 0, -1]], float)
 #: rays per Embree call (bounds the float32 staging buffers)
 CHUNK_RAYS = 1 << 20
 
@@ -152,6 +154,31 @@ class RayCaster:
         d = np.zeros_like(o)
         d[:, 1] = -1.0
         return self.first_hit(o, d, max_distance)
+
+    def inside(self, points: np.ndarray) -> np.ndarray:
+        """(n,) bool: each point is inside a solid.
+
+        points : (n, 3) float, metres, world. Six axis rays per point, cast in one batch; each
+        first hit votes "back" when the ray leaves through the face's back (its normal, as
+        wound, points along the ray) and "front" otherwise. A point is inside when back votes
+        outnumber front votes. On a closed, consistently outward-wound mesh every first hit from
+        inside is a back face, so this is exact there; the majority vote tolerates a few flipped
+        faces and open meshes (a one-sided ground plane: a point below it sees its back from
+        below and nothing else, so it counts as inside; a one-sided deck overhead with a floor
+        below is one vote each, so not inside). Limitation: it trusts the winding. A mesh wound
+        inward throughout, or an object whose faces are mostly flipped, reads inside-out.
+        """
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        n = len(p)
+        if n == 0:
+            return np.zeros(0, dtype=bool)
+        d = np.tile(_AXES6, (n, 1))
+        t, prim = self.cast(np.repeat(p, 6, axis=0), d)
+        hit = prim >= 0
+        vote = np.zeros(len(d))
+        vote[hit] = np.sign(np.einsum("ij,ij->i", self.face_normals[prim[hit]], d[hit]))
+        vote = vote.reshape(n, 6)
+        return np.count_nonzero(vote > 0, axis=1) > np.count_nonzero(vote < 0, axis=1)
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray,
                  max_distance: float | np.ndarray = np.inf) -> np.ndarray:

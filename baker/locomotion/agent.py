@@ -66,6 +66,18 @@ class PathAgent:
         t = (s - cum[i]) / seg if seg > 0 else 0.0
         return pts[i] + t * (pts[i + 1] - pts[i])
 
+    def largest_rise(self, back: float, ahead: float) -> float:
+        """Largest height jump [m] between neighbouring path points from `back` metres behind the
+        agent to `ahead` metres in front of it (the path carries its layer's heights)."""
+        cum = self._cum
+        if len(cum) < 2:
+            return 0.0
+        i0 = max(int(np.searchsorted(cum, self._s - back, side="right")) - 1, 0)
+        i1 = min(int(np.searchsorted(cum, self._s + ahead, side="right")) + 1, len(cum))
+        if i1 - i0 < 2:
+            return 0.0
+        return float(np.abs(np.diff(self._points[i0:i1, 1])).max())
+
     @property
     def goal(self) -> np.ndarray:
         return self._points[-1]

@@ -55,13 +55,17 @@ from baker.locomotion.swing import Limits, joint_space_swings
 from baker.rig.limbs import chains, leg_layout, leg_pole
 
 #: the reachable fraction of the full leg length used for planning footholds
-PLAN_REACH = 0.9
+PLAN_REACH = 0.74
 #: a planted foot lifts before its hip gets further than this fraction of the leg's length
 LIFT_REACH = 0.8
 #: fan of foothold rays: tilt from the segment's down axis toward the body [rad]
 FAN = np.radians([0.0, 25.0, 45.0, 65.0])
 #: foothold fans also start from origins pulled this fraction of the way toward the hip
 FAN_PULL = (0.0, 0.35, 0.6)
+#: points along the hip -> foot line (fractions) whose clearance sets a swing's lift
+LINE_SAMPLES = (0.4, 0.6, 0.8, 1.0)
+#: footholds are preferred where the surface is level this fraction of the leg's reach around
+EDGE_CLEAR = 0.1
 #: a foothold lies at most this many times its outward distance below its hip
 MAX_DROP = 1.2
 #: a foothold's surface faces at most this far from the segment's up [rad]
@@ -164,12 +168,17 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     if n == 0:
         return points.copy()
     lat = np.sum((points - hips) * inward, -1, keepdims=True)          # <= 0: distance outward
+    along = normalize(np.cross(up, inward))
+    edge = EDGE_CLEAR * reach
     cands_o, cands_d = [], []
     for pull in FAN_PULL:
         o = points + probe * up - pull * lat * inward
         for a in FAN:
             cands_o.append(o)
             cands_d.append(normalize(-np.cos(a) * up + np.sin(a) * inward))
+    for shift in (2.0, -2.0, 4.0, -4.0):    # a little ahead or behind, off a step's edge
+        cands_o.append(points + probe * up + shift * edge * along)
+        cands_d.append(-up)
     k = len(cands_o)
     o = np.concatenate(cands_o)
     d = np.concatenate(cands_d)
@@ -189,6 +198,19 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
         lift = 0.02 * reach * up[nn]               # aim just above the hold: it lies on a surface
         blocked = rays.first_hit(hips[nn], v + lift, max_distance=dist).hit
         ok[kk[blocked], nn[blocked]] = False
+    # holds away from a step's edge are preferred: the surface `edge` around them is level
+    # (a foot at a stair's nosing or at the foot of a riser leaves its tip bone no room)
+    kk, nn = np.nonzero(ok)
+    if len(kk):
+        ring = np.stack([along[nn], -along[nn], inward[nn], -inward[nn]], 1) * edge    # (m, 4, 3)
+        top = pts[kk, nn][:, None] + ring + 2.0 * edge * up[nn][:, None]
+        hr = rays.first_hit(top.reshape(-1, 3), np.repeat(-up[nn], 4, axis=0),
+                            max_distance=4.0 * edge)
+        level = (hr.hit & (np.abs(hr.distance - 2.0 * edge) < 0.5 * edge)).reshape(-1, 4).all(1)
+        flat = np.zeros_like(ok)
+        flat[kk[level], nn[level]] = True
+        prefer = flat.any(axis=0)
+        ok &= np.where(prefer[None, :], flat, True)
     first = np.argmax(ok, axis=0)
     any_ok = ok.any(axis=0)
     out = points.copy()
@@ -267,7 +289,8 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     a_back = np.sqrt(np.maximum(span ** 2 - lat0 ** 2, 0.0))         # (L,)
     a_back = np.minimum(a_back, 1.5 * 0.5 * lg.duty * lg.stride_max)   # (L,)
     # a planted foot also lifts when the body turns so that it would come under the body
-    foot_x_min = np.abs(lay.hip[:, 0]) + 0.3 * lever                   # (L,) segment frame
+    # a foot stays at least this far outward of its hip (else it is under the body)
+    out_min = np.full(L, 0.3 * lever)                                  # (L,) metres
     lag = lay.lag
     legs = np.arange(L)
     q_inv = q * np.array([-1.0, -1.0, -1.0, 1.0])
@@ -288,7 +311,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
                                   hold[open_, None, :] - hip[fw_ext, ll[:, None]])
             fw, rel = fw_ext[:, 1:], rel_ext[:, 1:]
             n_ext = np.sqrt(np.einsum("lwi,lwi->lw", rel_ext, rel_ext))
-            bad = ((rel[..., 0] * lay.side[ll, None] < foot_x_min[ll, None])
+            bad = ((rel[..., 0] * lay.side[ll, None] < out_min[ll, None])
                    | (n_ext[:, 1:] > span) | (rel[..., 2] < -a_back[ll, None]))
             # a fast turn would swing the planted leg round its hip too fast: lift first
             cos_t = np.einsum("lwi,lwi->lw", rel, rel_ext[:, :-1]) / np.maximum(
@@ -349,7 +372,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
                               inward.reshape(-1, 3), hip[fr, legs[None, :]].reshape(-1, 3),
                               PLAN_REACH * (lay.l1 + lay.l2),
                               probe=body.clearance + 2.0 * lg.lift,
-                              min_out=np.tile(foot_x_min - np.abs(lay.hip[:, 0]), C1)
+                              min_out=np.tile(out_min, C1)
                               ).reshape(C1, L, 3)
 
     # -- per-frame foot targets
@@ -433,7 +456,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     # swinging feet stay outside the body, whatever the body's turn
     rel = quat_rotate(q_inv, target - hip)
     out = rel[..., 0] * lay.side[None, :]
-    rel[..., 0] = np.where(sw, np.maximum(out, foot_x_min[None, :]), out) * lay.side[None, :]
+    rel[..., 0] = np.where(sw, np.maximum(out, out_min[None, :]), out) * lay.side[None, :]
     target = hip + quat_rotate(q, rel)
     # keep swinging feet above the surface below them (one batch of rays)
     if np.any(sw):
@@ -505,12 +528,17 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         sp[:, 1] = np.where(hh.hit, np.maximum(sp[:, 1], hh.points[:, 1]), sp[:, 1])
         target[moved] = sp
 
+    # the swing is raised where what lies under the leg (a stair's nosing, a stone) needs it,
+    # as one smooth arch per swing rather than frame-by-frame bumps
+    extra = _obstacle_lift(rays, hip, target, up, u, inside, cidx, np.zeros((F, L)), clear,
+                           SWING_CEILING * lay.l1 + lay.l2)
+    target = target + extra[..., None] * up
     # every swinging foot clear of the nearest surface, walls included (also the frames the
     # re-timing above moved off the old hold, liftoff frames included)
     eps = 1e-6 * lg.lift
     moving = sw & (np.linalg.norm(target - p0, axis=-1) > eps) & (
         np.linalg.norm(target - p1, axis=-1) > eps)
-    target = _clear_swings(rays, target, hip, inside | moving, clear, 0.25 * (lay.l1 + lay.l2))
+    target = _clear_swings(rays, target, inside | moving, clear, 0.25 * (lay.l1 + lay.l2))
 
     # a swinging foot that would pass too close to its neighbour's foot goes over it
     gap = NEIGHBOUR_GAP * body.spacing
@@ -544,7 +572,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     q_t = bone_frames(mid, sol.end, hinge)
     # swings that still break a limit (a joint turning too fast, a bone through something, a
     # moving foot on or in a surface) are redone in joint space (swing.py)
-    lim = Limits(contact=0.8 * clear, slide=SLIDE * body.length, reach=0.25 * (lay.l1 + lay.l2),
+    lim = Limits(contact=0.8 * clear, slide=SLIDE * body.length,
                  tol=0.005 * body.length, turn=np.radians(SWING_TURN), gap=SWING_GAP * body.spacing)
     q_u, q_t, mid, feet = joint_space_swings(rays, hip, q, q_u, q_t, ~contact, lay.side, lay.l1,
                                              lay.l2, lim)
@@ -556,25 +584,59 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
                 touchdowns=Ts, liftoffs=LOs, holds=holds)
 
 
-def _clear_swings(rays, target: np.ndarray, hip: np.ndarray, inside: np.ndarray,
-                  clear: float, reach: float, rounds: int = 3) -> np.ndarray:
+def _obstacle_lift(rays, hip: np.ndarray, base: np.ndarray, up: np.ndarray, u: np.ndarray,
+                   inside: np.ndarray, cidx: np.ndarray, vert: np.ndarray, clear: float,
+                   cap: float) -> np.ndarray:
+    """(F, L) swing lifts raised so the leg clears what lies under its path.
+
+    hip, base : (F, L, 3) hips and the swing path; up : (F, L, 3) segment up
+    axes; u : swing progress; inside : frames strictly inside a swing; cidx : (F, L) each
+    frame's step cycle. The surface above points along the hip -> foot line (rays down the up
+    axis from `cap` above) sets a need: the foot's raise that lifts the line over it (the
+    bones lie above that line: the knee bends up), the foot itself by `clear`. Each swing's
+    arch sin(pi u) is scaled to meet the largest need of its frames (at most `cap`), so the
+    foot rises early before a step's nosing and lands softly after it.
+    """
+    f, l = np.nonzero(inside)
+    if len(f) == 0:
+        return vert
+    F, L = u.shape
+    top = cap + clear
+    need = np.zeros(len(f))
+    for t in LINE_SAMPLES:
+        p = hip[f, l] + t * (base[f, l] - hip[f, l])
+        h = rays.first_hit(p + up[f, l] * top, -up[f, l], max_distance=top + clear)
+        need = np.maximum(need, np.where(h.hit, (top - h.distance + t * clear) / t, 0.0))
+    arch = np.maximum(np.sin(np.pi * u[f, l]), 0.15)
+    key = cidx[f, l] * L + l
+    peak = np.zeros(int(key.max()) + 1)
+    np.maximum.at(peak, key, need / arch)
+    out = vert.copy()
+    out[f, l] = np.maximum(vert[f, l], np.minimum(peak[key], cap) * np.sin(np.pi * u[f, l]))
+    return out
+
+
+def _clear_swings(rays, target: np.ndarray, inside: np.ndarray, clear: float, reach: float,
+                  rounds: int = 3) -> np.ndarray:
     """Feet of frames strictly inside a swing (`inside`, (F, L) bool) moved off the nearest
-    surface, along its normal on the hip's side, until they are at least `clear` metres from
-    every surface; a foot behind a face (on the side away from its hip: inside a wall or a
-    rock) within `reach` of it comes out the same way (`hip` (F, L, 3): on the open side)."""
+    surface along its normal until they are at least `clear` metres from every surface; a foot
+    inside a solid (RayCaster.inside) with a face within `reach` comes out through that face."""
     target = target.copy()
     for _ in range(rounds):
         f, l = np.nonzero(inside)
-        d, c, tri = closest_on_mesh(target[f, l], rays.vertices, rays.faces, max(reach, clear))
+        p = target[f, l]
+        d, c, tri = closest_on_mesh(p, rays.vertices, rays.faces, max(reach, clear))
         found = np.isfinite(d)
-        f, l, d, c, tri = f[found], l[found], d[found], c[found], tri[found]
-        n = rays.face_normals[tri]
-        n = np.where(np.sum(n * (hip[f, l] - c), -1, keepdims=True) < 0.0, -n, n)
-        behind = np.sum((target[f, l] - c) * n, -1) < 0.0
-        fix = behind | (d < clear * (1.0 - 1e-6))
+        f, l, p, d, c, tri = f[found], l[found], p[found], d[found], c[found], tri[found]
+        buried = rays.inside(p)
+        fix = buried | (d < clear * (1.0 - 1e-6))
         if not fix.any():
             break
-        target[f[fix], l[fix]] = c[fix] + n[fix] * clear
+        f, l, p, c, tri, buried = f[fix], l[fix], p[fix], c[fix], tri[fix], buried[fix]
+        n = rays.face_normals[tri]
+        n *= np.where(np.sum((p - c) * n, -1) < 0.0, -1.0, 1.0)[:, None]    # toward the foot
+        n[buried] *= -1.0                                                   # ... or out of it
+        target[f, l] = c + n * clear
     return target
 
 

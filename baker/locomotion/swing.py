@@ -40,7 +40,6 @@ class Limits:
 
     contact : a foot within this of a surface touches it; two touching frames in a row must
               not move the foot more than `slide` [m]
-    reach   : how far to look for the surface a foot might be behind [m]
     tol     : the tip bone's last bit that may touch a surface [m]
     turn    : largest turn of any joint per frame, in its own space and in the world [rad]
     gap     : a swinging foot keeps this far from its neighbours' feet [m]
@@ -48,7 +47,6 @@ class Limits:
 
     contact: float
     slide: float
-    reach: float
     tol: float
     turn: float
     gap: float
@@ -81,8 +79,8 @@ def _pose(q_seg, hip, U, T, l1, l2):
 def _faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same, near_feet):
     """(n,) bool per entry of flat swing frames (consecutive entries of one swing are
     consecutive frames; `same[k]`: entries k and k+1 belong to one swing):
-    a bone through the environment; an inner frame's foot behind a surface (on the far side of
-    the nearest face from the hip: inside a solid) or within `gap` of a neighbour's foot
+    a bone through the environment; an inner frame's foot inside a solid or within `gap` of a
+    neighbour's foot
     (near_feet (n, 2, 3), NaN for none); a joint turning more than `turn` to the next entry; a
     foot touching a surface in this and the next entry while it slides more than `slide`."""
     q_u, q_t, mid, end = _pose(q_seg, hip, U, T, l1, l2)
@@ -91,12 +89,9 @@ def _faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same, near_feet)
     with np.errstate(invalid="ignore"):
         gap = np.nanmin(np.linalg.norm(near_feet - end[:, None], axis=2), axis=1, initial=np.inf)
     bad |= inner & (gap < lim.gap)
-    d, c, tri = closest_on_mesh(end, rays.vertices, rays.faces, max(lim.reach, lim.contact))
-    found = np.isfinite(d)
-    n = np.where(found[:, None], rays.face_normals[np.maximum(tri, 0)], 0.0)
-    c = np.where(found[:, None], c, 0.0)
-    n = np.where((np.sum(n * (hip - c), -1) < 0.0)[:, None], -n, n)
-    bad |= inner & found & (np.sum((end - c) * n, -1) < -1e-9)
+    d = closest_on_mesh(end, rays.vertices, rays.faces, lim.contact)[0]
+    k = np.nonzero(inner)[0]
+    bad[k] |= rays.inside(end[k])
     if len(U) > 1:
         steps = np.maximum.reduce([quat_angle(x[:-1], x[1:]) for x in (U, T, q_u, q_t)])
         touch = d < lim.contact

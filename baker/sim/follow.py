@@ -29,6 +29,9 @@ AIM_EVERY = 4
 #: largest sideways slither of the head [BL] (SEED's amplitude at top speed, about the body's
 #: half-width)
 SLITHER_OFFSET = 0.032
+#: a height jump of the head (or along the path ahead) over this fraction of the riser limit is
+#: a riser (a step or a stair)
+ROUGH_RISER = 0.5
 #: [s] how long the agent waits for the head before the path is planned again from the head
 REPLAN_AFTER = 1.5
 
@@ -55,6 +58,13 @@ class Follower:
                               turn_rate=loco.head_turn_rate, amplitude=loco.slither_amplitude,
                               max_offset=SLITHER_OFFSET * body.length)
         self.height = float(start[1])
+        self.body_length = body.length
+        self.rough_speed = loco.rough_speed
+        self.riser = ROUGH_RISER * navc.step_height   # a height jump this big is a riser
+        self.gait_scale = 1.0       # the brain's speed factor
+        self.terrain_scale = 1.0    # rough_speed on risers, else 1
+        self._walked = 0.0          # horizontal metres the head has walked
+        self._riser_at = -np.inf    # ... when it last went up or down a riser
         self._steps = 0
         self._back = 0.0
         self._backs = self.turn_radius * np.arange(0.0, 4.01, 0.25)
@@ -80,10 +90,15 @@ class Follower:
 
     def drive(self, speed_scale: float, stopping_distance: float, turn_scale: float) -> None:
         """The brain's gait: speed factor, stopping distance and slither turn-rate factor."""
-        self.agent.speed_scale = speed_scale
+        self.gait_scale = speed_scale
         self.agent.stopping_distance = stopping_distance
         self.head.turn_rate_scale = turn_scale
-        self.head.max_speed = self.max_speed * speed_scale
+        self._apply_speed()
+
+    def _apply_speed(self) -> None:
+        scale = self.gait_scale * self.terrain_scale
+        self.agent.speed_scale = scale
+        self.head.max_speed = self.max_speed * scale
 
     def step(self, dt: float) -> None:
         agent, head = self.agent, self.head
@@ -96,9 +111,26 @@ class Follower:
         self._steps += 1
         if self._steps % AIM_EVERY == 0:
             self._back = self._aim_back()
+            self._terrain(gap)
         aim = agent.point_behind(self._back) if self._back > 0.0 else None
+        base = head.base.copy()
         head.step(dt, agent.position, agent.speed, allowed=self._on_layer, aim=aim)
-        self.height = self._layer_height(head.position)
+        height = self._layer_height(head.position)
+        self._walked += math.hypot(head.base[0] - base[0], head.base[2] - base[2])
+        if abs(height - self.height) > self.riser:
+            self._riser_at = self._walked
+        self.height = height
+
+    def _terrain(self, gap: float) -> None:
+        """Slow to rough_speed while a riser is under the body (the head went over one within a
+        body length) or on the path ahead of the head (within half a body length); steps and
+        stairs then get the swings they need."""
+        rough = (self._walked - self._riser_at < self.body_length
+                 or self.agent.largest_rise(gap, 0.5 * self.body_length) > self.riser)
+        scale = self.rough_speed if rough else 1.0
+        if scale != self.terrain_scale:
+            self.terrain_scale = scale
+            self._apply_speed()
 
     def _on_layer(self, x: float, z: float) -> bool:
         """True when the column of (x, z) has a walkable sample on the head's layer."""
