@@ -28,6 +28,8 @@ from baker.locomotion.cobra import limit_lift
 BELOW = 0.5
 #: slope (rise over run) at which the bound a step puts on the trail falls away (35 degrees)
 STEP_FALL = 0.7
+#: hips stay at least this many clearances above the surface under them
+HIP_CLEAR = 0.6
 #: smoothing scale (in segment spacings) of the reference height raised (cobra) joints ride on
 RAISED_SMOOTH = 3.0
 #: a raised joint rises at most this fraction of a spacing above the joint behind it (the
@@ -117,13 +119,18 @@ class Trail:
 
 
 def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: float,
-                clearance: float, resolution: float | None = None) -> Trail:
+                clearance: float, resolution: float | None = None, hips: tuple = (0.0, 0.0)
+                ) -> Trail:
     """Project the head's path onto the surface and smooth its height profile.
 
     path       : (n, 3) float, head positions oldest first (heights approximate, within `probe`)
     spacing    : metres between spine joints; the smoothing scale
-    clearance  : metres; the smoothed height stays within 0.9 clearance of the surface
+    clearance  : metres; joints ride a clearance above the trail, at least half a clearance
+                 above the surface
     resolution : horizontal sample spacing (default spacing / 8)
+    hips       : (lateral offset, drop below the joint) of the hips [m]: the surface under them,
+                 on either side of the path, keeps the trail high enough that they stay
+                 HIP_CLEAR clearances above it (a body across a stair's nosing)
     """
     res = resolution or spacing / 8.0
     flat = path.copy()
@@ -138,7 +145,8 @@ def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: flo
     # the smoothed ground, raised by smooth bumps wherever it would take a joint closer than
     # the step bound allows (creases, rims, step edges): a profile with bounded curvature, so
     # a joint passing over a step turns gradually instead of in one frame
-    lo = step_lower_bound(ground, res, spacing, clearance)
+    lo = np.maximum(step_lower_bound(ground, res, spacing, clearance),
+                    _hip_bound(rays, pts, ground_pts, probe, clearance, *hips))
     smooth = gaussian_filter1d(ground, sigma, mode="nearest")
     y = smooth + smooth_envelope(np.maximum(lo - smooth, 0.0), sigma)
     pts = ground_pts.copy()
@@ -147,6 +155,25 @@ def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: flo
     high = smooth_envelope(y, RAISED_SMOOTH * spacing / res)
     return Trail(points=pts, normals=normals, ground=ground, cum=polyline.arc_lengths(pts), cum_h=s,
                  high=high)
+
+
+def _hip_bound(rays, pts: np.ndarray, ground_pts: np.ndarray, probe: float, clearance: float,
+               offset: float, drop: float) -> np.ndarray:
+    """(T,) lowest trail height that keeps hips `offset` metres either side of the path (and
+    `drop` below their joint) HIP_CLEAR clearances above the surface under them (-inf where
+    there is nothing under them or no offset)."""
+    out = np.full(len(pts), -np.inf)
+    if offset <= 0.0 or len(pts) < 2:
+        return out
+    t = np.gradient(pts, axis=0)
+    t[:, 1] = 0.0
+    side = normalize(np.cross(UP, t))
+    for sgn in (1.0, -1.0):
+        q = ground_pts + sgn * offset * side
+        g, _, hit = project_to_surface(rays, q, probe)
+        need = g[:, 1] + drop + HIP_CLEAR * clearance - clearance
+        out = np.where(hit & (g[:, 1] < ground_pts[:, 1] + probe), np.maximum(out, need), out)
+    return out
 
 
 def smooth_envelope(y: np.ndarray, sigma: float, rounds: int = 6) -> np.ndarray:

@@ -65,7 +65,7 @@ FAN_PULL = (0.0, 0.35, 0.6)
 #: points along the hip -> foot line (fractions) whose clearance sets a swing's lift
 LINE_SAMPLES = (0.4, 0.6, 0.8, 1.0)
 #: footholds are preferred where the surface is level this fraction of the leg's reach around
-EDGE_CLEAR = 0.1
+EDGE_CLEAR = 0.2
 #: a foothold lies at most this many times its outward distance below its hip
 MAX_DROP = 1.2
 #: a foothold's surface faces at most this far from the segment's up [rad]
@@ -176,7 +176,7 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
         for a in FAN:
             cands_o.append(o)
             cands_d.append(normalize(-np.cos(a) * up + np.sin(a) * inward))
-    for shift in (2.0, -2.0, 4.0, -4.0):    # a little ahead or behind, off a step's edge
+    for shift in (1.0, -1.0, 2.0, -2.0):    # a little ahead or behind, off a step's edge
         cands_o.append(points + probe * up + shift * edge * along)
         cands_d.append(-up)
     k = len(cands_o)
@@ -202,11 +202,7 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     # (a foot at a stair's nosing or at the foot of a riser leaves its tip bone no room)
     kk, nn = np.nonzero(ok)
     if len(kk):
-        ring = np.stack([along[nn], -along[nn], inward[nn], -inward[nn]], 1) * edge    # (m, 4, 3)
-        top = pts[kk, nn][:, None] + ring + 2.0 * edge * up[nn][:, None]
-        hr = rays.first_hit(top.reshape(-1, 3), np.repeat(-up[nn], 4, axis=0),
-                            max_distance=4.0 * edge)
-        level = (hr.hit & (np.abs(hr.distance - 2.0 * edge) < 0.5 * edge)).reshape(-1, 4).all(1)
+        level = is_level(rays, pts[kk, nn], up[nn], inward[nn], edge)
         flat = np.zeros_like(ok)
         flat[kk[level], nn[level]] = True
         prefer = flat.any(axis=0)
@@ -216,6 +212,16 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     out = points.copy()
     out[any_ok] = pts[first[any_ok], np.nonzero(any_ok)[0]]
     return out
+
+
+def is_level(rays, pts: np.ndarray, up: np.ndarray, inward: np.ndarray, edge: float) -> np.ndarray:
+    """(n,) bool: the surface `edge` metres ahead, behind, in and out of each point (n, 3) lies
+    within half an `edge` of it along `up` (no step's edge or riser next to a foothold)."""
+    along = normalize(np.cross(up, inward))
+    ring = np.stack([along, -along, inward, -inward], 1) * edge                 # (n, 4, 3)
+    top = pts[:, None] + ring + 2.0 * edge * up[:, None]
+    hr = rays.first_hit(top.reshape(-1, 3), np.repeat(-up, 4, axis=0), max_distance=4.0 * edge)
+    return (hr.hit & (np.abs(hr.distance - 2.0 * edge) < 0.5 * edge)).reshape(-1, 4).all(1)
 
 
 def _swing_shape(u: np.ndarray) -> np.ndarray:
@@ -390,7 +396,8 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         cidx[:, leg] = c = np.clip(c, 0, C1 - 2)
         contact[:, leg] = f_idx < LOs[c, leg]
     holds = _spread_neighbours(holds, Ts, cidx, contact, NEIGHBOUR_GAP * body.spacing, rays,
-                               up, probe=body.clearance + 2.0 * lg.lift)
+                               up, probe=body.clearance + 2.0 * lg.lift,
+                               edge_reach=PLAN_REACH * (lay.l1 + lay.l2))
     # the surface (and the neighbours) put some feet elsewhere than planned: lift those early
     # where they would now fall out of reach, under the body or behind a wall (touchdowns stay;
     # the next swing just starts sooner)
@@ -857,8 +864,8 @@ def _swivel(p, origin, axis, angle):
 
 
 def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, contact: np.ndarray,
-                       gap: float, rays, up: np.ndarray, probe: float, iterations: int = 12
-                       ) -> np.ndarray:
+                       gap: float, rays, up: np.ndarray, probe: float, edge_reach: float,
+                       iterations: int = 12) -> np.ndarray:
     """Legs that know where their neighbours are: when two planted feet of neighbouring legs on
     one side come closer than `gap`, the one that landed later steps away from the other (its
     foothold moves along the line between them and is dropped back onto the surface).
@@ -896,7 +903,11 @@ def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, cont
         frame = np.minimum(Ts[moved], F - 1)
         u = up[frame, np.nonzero(moved)[1]]
         h = rays.first_hit(new + probe * u, -u, max_distance=2.0 * probe)
-        ok = h.hit & (np.abs(np.sum((h.points - holds[moved]) * u, -1)) < 0.5 * probe)
+        ok = (h.hit & (np.abs(np.sum((h.points - holds[moved]) * u, -1)) < 0.5 * probe)
+              & (np.sum(np.nan_to_num(h.normals) * u, -1) > np.cos(FOOT_SLOPE)))
+        if ok.any():
+            side = normalize(np.cross(u[ok], np.cross(h.points[ok] - new[ok] + u[ok], u[ok])))
+            ok[ok] = is_level(rays, h.points[ok], u[ok], side, EDGE_CLEAR * edge_reach)
         new[ok] = h.points[ok]
         sel = np.nonzero(moved)
         keep = ok | ~moved[sel]        # a move that would leave the surface is dropped

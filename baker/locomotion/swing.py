@@ -28,6 +28,10 @@ from baker.geometry.transforms import (quat_about, quat_angle, quat_conj, quat_m
 
 #: raises of the whole leg about the body's long axis tried, smallest first [rad]
 RAISES = np.radians([4.0, 8.0, 12.0, 16.0, 24.0, 32.0, 45.0, 60.0])
+#: knee swivels about the hip -> foot line tried when raising alone does not clear [rad]
+SWIVELS = np.radians([25.0, -25.0, 50.0, -50.0])
+#: the cost of a joint turning too fast in a frame, against 1 for any other fault
+TURN_WEIGHT = 100.0
 #: raise profiles over the swing's progress u: a plain bump, and one that rises sooner
 PROFILES = (lambda u: np.sin(np.pi * u), lambda u: np.sqrt(np.sin(np.pi * u)))
 _Y = np.array([0.0, 1.0, 0.0])
@@ -76,13 +80,22 @@ def _pose(q_seg, hip, U, T, l1, l2):
     return q_u, q_t, mid, end
 
 
+def _swivel(U, T, angle, l1, l2):
+    """Upper-bone local rotations U (n, 4) turned by `angle` (n,) about the hip -> foot line
+    (segment frame): the knee swings round, the foot stays."""
+    foot = quat_rotate(U, l1 * _Y) + quat_rotate(quat_mul(U, T), l2 * _Y)
+    axis = foot / np.maximum(np.linalg.norm(foot, axis=-1, keepdims=True), 1e-12)
+    return quat_mul(quat_about(axis, angle), U)
+
+
 def _faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same, near_feet):
-    """(n,) bool per entry of flat swing frames (consecutive entries of one swing are
+    """(n,) float cost per entry of flat swing frames (consecutive entries of one swing are
     consecutive frames; `same[k]`: entries k and k+1 belong to one swing):
     a bone through the environment; an inner frame's foot inside a solid or within `gap` of a
     neighbour's foot
     (near_feet (n, 2, 3), NaN for none); a joint turning more than `turn` to the next entry; a
-    foot touching a surface in this and the next entry while it slides more than `slide`."""
+    foot touching a surface in this and the next entry while it slides more than `slide`. Each
+    fault costs 1, a turn TURN_WEIGHT: a joint never turns too fast for a cleaner swing."""
     q_u, q_t, mid, end = _pose(q_seg, hip, U, T, l1, l2)
     bad = rays.first_hit(hip, mid - hip, max_distance=l1 - 1e-9).hit
     bad |= rays.first_hit(mid, end - mid, max_distance=max(l2 - lim.tol, 0.0)).hit
@@ -92,12 +105,14 @@ def _faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same, near_feet)
     d = closest_on_mesh(end, rays.vertices, rays.faces, lim.contact)[0]
     k = np.nonzero(inner)[0]
     bad[k] |= rays.inside(end[k])
+    cost = bad.astype(float)
     if len(U) > 1:
         steps = np.maximum.reduce([quat_angle(x[:-1], x[1:]) for x in (U, T, q_u, q_t)])
         touch = d < lim.contact
         slide = np.linalg.norm(np.diff(end, axis=0), axis=1)
-        bad[:-1] |= same & ((steps > lim.turn) | (touch[:-1] & touch[1:] & (slide > lim.slide)))
-    return bad
+        cost[:-1] += same & touch[:-1] & touch[1:] & (slide > lim.slide)
+        cost[:-1] += TURN_WEIGHT * (same & (steps > lim.turn))
+    return cost
 
 
 def joint_space_swings(rays, hip, q_seg, q_u, q_t, swing, side, l1, l2, lim: Limits,
@@ -151,18 +166,22 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, leg, a, b) -> None:
     Us, Ts = quat_slerp(U0[first], U0[last], u[k]), quat_slerp(T0[first], T0[last], u[k])
     chosen_U, chosen_T = U0[k].copy(), T0[k].copy()
     axis = np.broadcast_to(_Z, (len(k), 3))
-    for profile in PROFILES:
-        for r in RAISES:
-            if not (redo & (best > 0)).any():
-                break
-            U = quat_mul(quat_about(axis, side[lg[k]] * r * profile(u[k])), Us)
-            faults = _faults(rays, lim, hp[k], qs[k], U, Ts, l1, l2, inner[k],
-                             sk[1:] == sk[:-1], near[k])
-            score = np.bincount(sk, weights=faults, minlength=n_swing)
-            take = redo & (score < best)
-            best[take] = score[take]
-            sel = take[sk]
-            chosen_U[sel], chosen_T[sel] = U[sel], Ts[sel]
+    same = sk[1:] == sk[:-1]
+    candidates = [(p, r, 0.0) for p in PROFILES for r in RAISES]
+    candidates += [(PROFILES[0], r, sv) for sv in SWIVELS for r in RAISES[::2]]
+    for profile, r, swivel in candidates:
+        todo = redo & (best > 0)
+        if not todo.any():
+            break
+        U = quat_mul(quat_about(axis, side[lg[k]] * r * profile(u[k])), Us)
+        if swivel:
+            U = _swivel(U, Ts, swivel * profile(u[k]), l1, l2)
+        cost = _faults(rays, lim, hp[k], qs[k], U, Ts, l1, l2, inner[k], same, near[k])
+        score = np.bincount(sk, weights=cost, minlength=n_swing)
+        take = todo & (score < best)
+        best[take] = score[take]
+        sel = take[sk]
+        chosen_U[sel], chosen_T[sel] = U[sel], Ts[sel]
     inside = inner[k]
     fk, lk = f[k][inside], lg[k][inside]
     U_all[fk, lk] = chosen_U[inside]

@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from baker.config import RigConfig
+from baker.geometry import polyline
 from baker.locomotion.agent import PathAgent
 from baker.locomotion.body import project_to_surface
 from baker.locomotion.head import HeadSteer
@@ -69,6 +70,7 @@ class Follower:
         self._back = 0.0
         self._backs = self.turn_radius * np.arange(0.0, 4.01, 0.25)
         self.target: np.ndarray | None = None
+        self.pending: np.ndarray | None = None   # a target waiting for the body to leave risers
         self.waited = 0.0
         self.replans = 0
 
@@ -79,13 +81,25 @@ class Follower:
         return p
 
     def go(self, target: np.ndarray) -> None:
-        """A new path from the agent to `target` (a partial one when it is out of reach)."""
-        self.target = np.asarray(target, dtype=np.float64)
-        self._plan(self.agent.position)
+        """A new path from the agent to `target` (a partial one when it is out of reach).
+        On risers (a staircase) a path that would turn the head round waits until the body is
+        off them or the current path is walked: the body does not turn back across steps."""
+        target = np.asarray(target, dtype=np.float64)
+        self.pending = None
+        path = self.nav.resample_path(self.nav.find_path(self.agent.position, target).points)
+        if self.terrain_scale < 1.0 and self.target is not None and not self.agent.arrived:
+            ahead = path[min(np.searchsorted(polyline.arc_lengths(path), 0.5 * self.body_length),
+                             len(path) - 1)]
+            to = ahead - self.head.base
+            if to[0] * self.head.heading[0] + to[2] * self.head.heading[2] < 0.0:
+                self.pending = target
+                return
+        self.target = target
+        self.agent.set_path(path)
 
     def halt(self) -> None:
         """Stop where the agent is; the head closes up behind it."""
-        self.target = None
+        self.target = self.pending = None
         self.agent.set_path(self.agent.position[None])
 
     def drive(self, speed_scale: float, stopping_distance: float, turn_scale: float) -> None:
@@ -131,6 +145,8 @@ class Follower:
         if scale != self.terrain_scale:
             self.terrain_scale = scale
             self._apply_speed()
+        if self.pending is not None and (not rough or self.agent.arrived):
+            self.go(self.pending)
 
     def _on_layer(self, x: float, z: float) -> bool:
         """True when the column of (x, z) has a walkable sample on the head's layer."""
