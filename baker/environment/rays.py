@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import trimesh
@@ -154,6 +155,18 @@ class RayCaster:
         d = np.zeros_like(o)
         d[:, 1] = -1.0
         return self.first_hit(o, d, max_distance)
+
+    @cached_property
+    def triangles(self):
+        """geometry.proximity.TriangleSet of the mesh (closest-point queries)."""
+        from baker.geometry.proximity import TriangleSet
+
+        return TriangleSet(self.vertices, self.faces)
+
+    def closest(self, points: np.ndarray, cap: float):
+        """(distance, closest point, face) of each point's nearest surface within `cap` metres
+        (TriangleSet.closest)."""
+        return self.triangles.closest(points, cap)
 
     def inside(self, points: np.ndarray) -> np.ndarray:
         """(n,) bool: each point is inside a solid.

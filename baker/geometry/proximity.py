@@ -60,6 +60,79 @@ def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndar
     return out
 
 
+class TriangleSet:
+    """Triangles with their bounding spheres, for repeated closest-point queries.
+
+    vertices : (v, 3) float; faces : (m, 3) int. Triangles are grouped by the size of their
+    bounding spheres (quartiles of size, then the largest few), each group in a KD-tree over
+    its centres; a query pairs points with every group's triangles whose sphere comes within
+    the cap, in C (cKDTree.sparse_distance_matrix), then tests each pair exactly.
+    """
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
+        self.tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces, dtype=np.int64)]
+        m = len(self.tri)
+        self.centre = self.tri.mean(axis=1) if m else np.zeros((0, 3))
+        self.radius = (np.linalg.norm(self.tri - self.centre[:, None], axis=2).max(axis=1)
+                       if m else np.zeros(0))
+        self.groups = []                    # (triangle indices, largest radius, tree)
+        if m:
+            edges = np.unique(np.percentile(self.radius, [25, 50, 75, 95, 100]))
+            lo = -np.inf
+            for hi in edges:
+                idx = np.nonzero((self.radius > lo) & (self.radius <= hi))[0]
+                if len(idx):
+                    self.groups.append((idx, float(hi), cKDTree(self.centre[idx])))
+                lo = hi
+
+    def _pairs(self, p: np.ndarray, cap: float) -> tuple[np.ndarray, np.ndarray]:
+        """(point index, triangle index) pairs whose bounding sphere is within cap of the point."""
+        tree = cKDTree(p)
+        pts, tris = [], []
+        for idx, r_max, t_tree in self.groups:
+            sdm = tree.sparse_distance_matrix(t_tree, r_max + cap, output_type="ndarray")
+            if len(sdm) == 0:
+                continue
+            t = idx[sdm["j"]]
+            keep = sdm["v"] <= self.radius[t] + cap
+            pts.append(sdm["i"][keep].astype(np.int64))
+            tris.append(t[keep])
+        if not pts:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        return np.concatenate(pts), np.concatenate(tris)
+
+    def closest(self, points: np.ndarray, cap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Nearest surface point of each point within `cap` metres.
+
+        returns (distance (n,) float64, inf where nothing is within cap;
+                 closest (n, 3) float64, NaN where nothing is within cap;
+                 face (n,) int64 index of the nearest triangle, -1 where nothing is within cap)
+        """
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        out = np.full(len(p), np.inf)
+        near_pt = np.full((len(p), 3), np.nan)
+        face = np.full(len(p), -1, dtype=np.int64)
+        if len(p) == 0 or len(self.tri) == 0:
+            return out, near_pt, face
+        pt, tr = self._pairs(p, cap)
+        tri = self.tri
+        for s in range(0, len(pt), PAIR_CHUNK):
+            pp, tt = pt[s:s + PAIR_CHUNK], tr[s:s + PAIR_CHUNK]
+            q = closest_on_triangles(p[pp], tri[tt, 0], tri[tt, 1], tri[tt, 2])
+            d = np.linalg.norm(q - p[pp], axis=1)
+            d = np.where(d <= cap, d, np.inf)
+            # the best pair per point: sort by (point, distance) and keep each point's first
+            order = np.lexsort((d, pp))
+            first = np.ones(len(order), bool)
+            first[1:] = pp[order][1:] != pp[order][:-1]
+            sel = order[first]
+            better = d[sel] < out[pp[sel]]
+            out[pp[sel][better]] = d[sel][better]
+            near_pt[pp[sel][better]] = q[sel][better]
+            face[pp[sel][better]] = tt[sel][better]
+        return out, near_pt, face
+
+
 def distance_to_mesh(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray,
                      cap: float) -> np.ndarray:
     """(n,) float64 distance from each point to the nearest triangle, exact where it is at
@@ -67,49 +140,10 @@ def distance_to_mesh(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray
 
     points : (n, 3) float; vertices : (v, 3) float; faces : (m, 3) int
     """
-    return closest_on_mesh(points, vertices, faces, cap)[0]
+    return TriangleSet(vertices, faces).closest(points, cap)[0]
 
 
 def closest_on_mesh(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray,
                     cap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Nearest surface point of each point within `cap` metres.
-
-    returns (distance (n,) float64, inf where nothing is within cap;
-             closest (n, 3) float64, NaN where nothing is within cap;
-             face (n,) int64 index of the nearest triangle, -1 where nothing is within cap)
-    """
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    out = np.full(len(p), np.inf)
-    near_pt = np.full((len(p), 3), np.nan)
-    face = np.full(len(p), -1, dtype=np.int64)
-    if len(p) == 0 or len(faces) == 0:
-        return out, near_pt, face
-    tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces, dtype=np.int64)]   # (m, 3, 3)
-    centre = tri.mean(axis=1)
-    radius = np.linalg.norm(tri - centre[:, None], axis=2).max(axis=1)
-    lo, hi = p.min(axis=0) - cap, p.max(axis=0) + cap
-    near = np.all((centre + radius[:, None] >= lo) & (centre - radius[:, None] <= hi), axis=1)
-    idx = np.nonzero(near)[0]
-    if len(idx) == 0:
-        return out, near_pt, face
-    lists = cKDTree(p).query_ball_point(centre[idx], radius[idx] + cap)
-    counts = np.fromiter((len(x) for x in lists), dtype=np.int64, count=len(lists))
-    if counts.sum() == 0:
-        return out, near_pt, face
-    pt = np.fromiter((i for x in lists for i in x), dtype=np.int64, count=int(counts.sum()))
-    tr = np.repeat(idx, counts)
-    for s in range(0, len(pt), PAIR_CHUNK):
-        pp, tt = pt[s:s + PAIR_CHUNK], tr[s:s + PAIR_CHUNK]
-        q = closest_on_triangles(p[pp], tri[tt, 0], tri[tt, 1], tri[tt, 2])
-        d = np.where(np.linalg.norm(q - p[pp], axis=1) <= cap, np.linalg.norm(q - p[pp], axis=1),
-                     np.inf)
-        # the best pair per point: sort by (point, distance) and keep each point's first
-        order = np.lexsort((d, pp))
-        first = np.ones(len(order), bool)
-        first[1:] = pp[order][1:] != pp[order][:-1]
-        sel = order[first]
-        better = d[sel] < out[pp[sel]]
-        out[pp[sel][better]] = d[sel][better]
-        near_pt[pp[sel][better]] = q[sel][better]
-        face[pp[sel][better]] = tt[sel][better]
-    return out, near_pt, face
+    """TriangleSet(vertices, faces).closest(points, cap), for one-off queries."""
+    return TriangleSet(vertices, faces).closest(points, cap)

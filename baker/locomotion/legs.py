@@ -47,7 +47,6 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 from baker.config import RigConfig
 from baker.geometry.conventions import FORWARD, LEFT, UP
 from baker.geometry.ik import bone_frames, soft_clamp, two_bone_ik
-from baker.geometry.proximity import closest_on_mesh
 from baker.geometry.transforms import normalize, quat_rotate
 from baker.locomotion.body import BodyFrames
 from baker.locomotion.gait import gait_clock
@@ -632,7 +631,7 @@ def _clear_swings(rays, target: np.ndarray, inside: np.ndarray, clear: float, re
     for _ in range(rounds):
         f, l = np.nonzero(inside)
         p = target[f, l]
-        d, c, tri = closest_on_mesh(p, rays.vertices, rays.faces, max(reach, clear))
+        d, c, tri = rays.closest(p, max(reach, clear))
         found = np.isfinite(d)
         f, l, p, d, c, tri = f[found], l[found], p[found], d[found], c[found], tri[found]
         buried = rays.inside(p)

@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from baker.geometry.proximity import closest_on_mesh
 from baker.geometry.transforms import (quat_about, quat_angle, quat_conj, quat_mul, quat_rotate,
                                        quat_slerp)
 
@@ -102,7 +101,7 @@ def _faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same, near_feet)
     with np.errstate(invalid="ignore"):
         gap = np.nanmin(np.linalg.norm(near_feet - end[:, None], axis=2), axis=1, initial=np.inf)
     bad |= inner & (gap < lim.gap)
-    d = closest_on_mesh(end, rays.vertices, rays.faces, lim.contact)[0]
+    d = rays.closest(end, lim.contact)[0]
     k = np.nonzero(inner)[0]
     bad[k] |= rays.inside(end[k])
     cost = bad.astype(float)
