@@ -150,7 +150,7 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, leg, a, b) -> None:
     lg = leg[sid]
     u = (f - a[sid]) / (b - a)[sid]
     inner = (u > 0.0) & (u < 1.0)
-    pad = np.full_like(feet[:, :2], np.nan)
+    pad = np.full((len(feet), 2, 3), np.nan)
     padded = np.concatenate([pad, feet, pad], axis=1)
     near = np.stack([padded[f, lg], padded[f, lg + 4]], axis=1)        # legs l - 2, l + 2
     qs, hp, U0, T0 = q_seg[f, lg], hip[f, lg], U_all[f, lg], T_all[f, lg]

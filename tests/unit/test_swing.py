@@ -1,0 +1,77 @@
+"""Joint-space swings (locomotion/swing.py): a swing whose planned path breaks a limit is redone
+in the leg's own joint space; stances are never touched and clean swings stay as planned."""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+
+from baker.environment.rays import RayCaster
+from baker.geometry.ik import bone_frames, two_bone_ik
+from baker.geometry.transforms import quat_angle, quat_conj, quat_mul
+from baker.locomotion.swing import Limits, joint_space_swings
+
+L1, L2 = 0.11, 0.12
+HIP = np.array([0.03, 0.05, 0.0])
+
+
+def ground() -> RayCaster:
+    v = np.array([[-5, 0, -5], [5, 0, -5], [5, 0, 5], [-5, 0, 5]], float)
+    return RayCaster(trimesh.Trimesh(v, [[0, 2, 1], [0, 3, 2]], process=False))
+
+
+def leg(targets: np.ndarray):
+    """World bone rotations of one left leg (hip fixed, segment unrotated) reaching `targets`
+    (F, 3), knee up and out."""
+    F = len(targets)
+    hip = np.broadcast_to(HIP, (F, 3))
+    sol = two_bone_ik(hip, targets, np.broadcast_to([0.3, 1.0, 0.0], (F, 3)), L1, L2)
+    return (bone_frames(hip, sol.mid, sol.hinge), bone_frames(sol.mid, sol.end, sol.hinge))
+
+
+def run(targets, swing, lim):
+    F = len(targets)
+    q_u, q_t = leg(targets)
+    q_seg = np.tile([0.0, 0.0, 0.0, 1.0], (F, 1, 1))
+    out = joint_space_swings(ground(), np.broadcast_to(HIP, (F, 1, 3)), q_seg, q_u[:, None],
+                             q_t[:, None], swing[:, None], np.array([1.0]), L1, L2, lim)
+    return out, (q_u, q_t)
+
+
+LIM = Limits(contact=0.004, slide=0.001, tol=0.001, turn=np.radians(27.0), gap=0.003)
+
+
+def path(spike: bool):
+    """15 frames: planted at A (0-4), swinging (5-9), planted at B (10-14); the swing lifts
+    clear, or (spike) jumps to the far side of the hip for one frame."""
+    a, b = np.array([0.17, 0.0, -0.04]), np.array([0.17, 0.0, 0.05])
+    t = np.empty((15, 3))
+    t[:5], t[10:] = a, b
+    u = (np.arange(5, 10) - 4) / 6.0
+    t[5:10] = a + (b - a) * u[:, None] + [0.0, 0.03, 0.0] * np.sin(np.pi * u)[:, None]
+    if spike:
+        t[7] = [0.02, 0.2, 0.0]
+    swing = np.zeros(15, bool)
+    swing[5:10] = True
+    return t, swing
+
+
+def test_a_clean_swing_stays_as_planned():
+    t, swing = path(spike=False)
+    (q_u, q_t, mid, end), (u0, t0) = run(t, swing, LIM)
+    np.testing.assert_allclose(q_u[:, 0], u0, atol=1e-12)
+    np.testing.assert_allclose(end[:, 0], t, atol=1e-9)
+
+
+def test_a_snapping_swing_is_redone_within_the_turn_limit_and_stances_stay():
+    t, swing = path(spike=True)
+    (_, _, _, end0), (u0, t0) = run(t, swing, Limits(1e-9, 1.0, 0.0, np.pi, 0.0))
+    steps0 = np.degrees(quat_angle(u0[1:], u0[:-1])).max()
+    assert steps0 > 60.0                                       # the plan snaps
+    (q_u, q_t, mid, end), _ = run(t, swing, LIM)
+    local_t = quat_mul(quat_conj(q_u[:, 0]), q_t[:, 0])
+    for q in (q_u[:, 0], local_t):
+        assert np.degrees(quat_angle(q[1:], q[:-1])).max() <= 27.0 + 1e-6
+    np.testing.assert_allclose(end[~swing, 0], t[~swing], atol=1e-9)     # stances untouched
+    assert np.all(end[swing, 0, 1] > LIM.contact)              # the swing lifts off the floor
+    assert np.all(mid[:, 0, 1] > 0.0)                          # no knee through it
