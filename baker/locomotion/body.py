@@ -178,9 +178,9 @@ def _hip_bound(rays, pts: np.ndarray, ground_pts: np.ndarray, probe: float, clea
 
 def smooth_envelope(y: np.ndarray, sigma: float, rounds: int = 6) -> np.ndarray:
     """(T,) a smooth profile on or above y: Gaussian-smoothed upper envelopes (max filter over
-    two sigmas), raised by smooth bumps where y still pokes through, `rounds` times; whatever
+    half a sigma), raised by smooth bumps where y still pokes through, `rounds` times; whatever
     remains (a tiny residual) is clipped."""
-    k = max(int(round(2.0 * sigma)), 1) * 2 + 1
+    k = max(int(round(0.5 * sigma)), 1) * 2 + 1
     high = gaussian_filter1d(maximum_filter1d(y, size=k, mode="nearest"), sigma, mode="nearest")
     for _ in range(rounds):
         gap = np.maximum(y - high, 0.0)

@@ -580,8 +580,8 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     # moving foot on or in a surface) are redone in joint space (swing.py)
     lim = Limits(contact=0.8 * clear, slide=SLIDE * body.length,
                  tol=0.005 * body.length, turn=np.radians(SWING_TURN), gap=SWING_GAP * body.spacing)
-    q_u, q_t, mid, feet = joint_space_swings(rays, hip, q, q_u, q_t, ~contact, lay.side, lay.l1,
-                                             lay.l2, lim)
+    q_u, q_t, mid, feet = joint_space_swings(rays, hip, q, q_u, q_t, mid, sol.end, ~contact,
+                                             lay.side, lay.l1, lay.l2, lim)
     names = tuple(n for pair in zip(lay.upper_names, lay.tip_names) for n in pair)
     positions = np.stack([hip, mid], axis=2).reshape(F, 2 * L, 3)
     rotations = np.stack([q_u, q_t], axis=2).reshape(F, 2 * L, 4)
@@ -1009,6 +1009,14 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
         pos += [o, knee]
         rot += [bone_frames(o, knee, hinge), bone_frames(knee, knee + d2, hinge)]
     return names, np.stack(pos, 1), np.stack(rot, 1)
+
+
+def hip_extent(cfg: RigConfig) -> tuple[float, float]:
+    """(largest lateral offset, largest drop below the spine) of the hips [m] (no legs: 0, 0)."""
+    if not cfg.legs.enabled:
+        return 0.0, 0.0
+    lay = leg_layout(cfg)
+    return float(np.abs(lay.hip[:, 0]).max()), float(-lay.hip[:, 1].min())
 
 
 def leg_frames(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: RigConfig,

@@ -114,12 +114,13 @@ def _faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same, near_feet)
     return cost
 
 
-def joint_space_swings(rays, hip, q_seg, q_u, q_t, swing, side, l1, l2, lim: Limits,
+def joint_space_swings(rays, hip, q_seg, q_u, q_t, mid, end, swing, side, l1, l2, lim: Limits,
                        rounds: int = 2):
     """Swings that break a limit, replaced by joint-space swings (see the module docstring).
 
     hip   : (F, L, 3) hips; q_seg : (F, L, 4) each leg's segment rotation (world)
     q_u, q_t : (F, L, 4) world rotations of the upper and tip bones (bones along local +Y)
+    mid, end : (F, L, 3) the planner's knees and feet
     swing : (F, L) bool, frames in which the foot is not planted
     side  : (L,) +1 left, -1 right; l1, l2 : bone lengths
     Legs are ordered L_01, R_01, L_02, ...: leg l's neighbours on its side are l - 2 and l + 2.
@@ -129,13 +130,18 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, swing, side, l1, l2, lim: Lim
     """
     U = quat_mul(quat_conj(q_seg), q_u)
     T = quat_mul(quat_conj(q_u), q_t)
+    U0 = U.copy()
     leg, a, b = _runs(swing)
     for _ in range(rounds):
         for parity in (0, 1):
             mine = (leg // 2) % 2 == parity
             if mine.any():
                 _redo(rays, lim, hip, q_seg, U, T, side, l1, l2, leg[mine], a[mine], b[mine])
-    return _pose(q_seg, hip, U, T, l1, l2)
+    # frames left as planned keep the planner's exact numbers (no round trip through rotations)
+    q_u2, q_t2, mid2, end2 = _pose(q_seg, hip, U, T, l1, l2)
+    redone = np.any(U != U0, axis=-1)[..., None]
+    return (np.where(redone, q_u2, q_u), np.where(redone, q_t2, q_t),
+            np.where(redone, mid2, mid), np.where(redone, end2, end))
 
 
 def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, leg, a, b) -> None:

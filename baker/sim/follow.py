@@ -86,7 +86,7 @@ class Follower:
         off them or the current path is walked: the body does not turn back across steps."""
         target = np.asarray(target, dtype=np.float64)
         self.pending = None
-        path = self.nav.resample_path(self.nav.find_path(self.agent.position, target).points)
+        path = self._path(self.agent.position, target)
         if self.terrain_scale < 1.0 and self.target is not None and not self.agent.arrived:
             ahead = path[min(np.searchsorted(polyline.arc_lengths(path), 0.5 * self.body_length),
                              len(path) - 1)]
@@ -95,6 +95,7 @@ class Follower:
                 self.pending = target
                 return
         self.target = target
+        self.head.new_path()   # a U-turn chooses its side afresh on a new or re-planned path
         self.agent.set_path(path)
 
     def halt(self) -> None:
@@ -196,8 +197,12 @@ class Follower:
 
     def _plan(self, a: np.ndarray) -> None:
         self.head.new_path()   # a U-turn chooses its side afresh on a new or re-planned path
-        # dense path points carry the walked layer's heights (chords cut through bumps)
-        self.agent.set_path(self.nav.resample_path(self.nav.find_path(a, self.target).points))
+        self.agent.set_path(self._path(a, self.target))
+
+    def _path(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Dense path points from a to b carrying the walked layer's heights (chords cut
+        through bumps)."""
+        return self.nav.resample_path(self.nav.find_path(a, b).points)
 
     def _layer_height(self, p: np.ndarray) -> float:
         """Height of the surface under the head at p = (x, _, z), continuing its layer: the

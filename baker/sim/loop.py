@@ -27,8 +27,7 @@ from baker.geometry.conventions import UP
 from baker.geometry.transforms import frames_to_quat, quat_mul, quat_rotate
 from baker.locomotion.body import body_frames, build_trail, project_to_surface
 from baker.locomotion.cobra import lift_profile
-from baker.locomotion.legs import leg_frames
-from baker.rig.limbs import leg_layout
+from baker.locomotion.legs import hip_extent, leg_frames
 from baker.sim.follow import Follower
 from baker.sim.trajectory import Trajectory
 
@@ -129,9 +128,8 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     h = nav.surface_height(line, tol=0.5 * navc.height)
     line[np.isfinite(h), 1] = h[np.isfinite(h)]
     path = np.vstack([line, heads])
-    lay = leg_layout(rig)
     trail = build_trail(path, env.rays, probe=probe, spacing=body.spacing, clearance=body.clearance,
-                        hips=(float(np.abs(lay.hip[:, 0]).max()), float(-lay.hip[:, 1].min())))
+                        hips=hip_extent(rig))
     flat = path.copy()
     flat[:, 1] = 0.0
     cum_h = polyline.arc_lengths(flat)

@@ -21,20 +21,22 @@ def ground() -> RayCaster:
 
 
 def leg(targets: np.ndarray):
-    """World bone rotations of one left leg (hip fixed, segment unrotated) reaching `targets`
-    (F, 3), knee up and out."""
+    """World bone rotations, knees and feet of one left leg (hip fixed, segment unrotated)
+    reaching `targets` (F, 3), knee up and out."""
     F = len(targets)
     hip = np.broadcast_to(HIP, (F, 3))
     sol = two_bone_ik(hip, targets, np.broadcast_to([0.3, 1.0, 0.0], (F, 3)), L1, L2)
-    return (bone_frames(hip, sol.mid, sol.hinge), bone_frames(sol.mid, sol.end, sol.hinge))
+    return (bone_frames(hip, sol.mid, sol.hinge), bone_frames(sol.mid, sol.end, sol.hinge),
+            sol.mid, sol.end)
 
 
 def run(targets, swing, lim):
     F = len(targets)
-    q_u, q_t = leg(targets)
+    q_u, q_t, mid, end = leg(targets)
     q_seg = np.tile([0.0, 0.0, 0.0, 1.0], (F, 1, 1))
     out = joint_space_swings(ground(), np.broadcast_to(HIP, (F, 1, 3)), q_seg, q_u[:, None],
-                             q_t[:, None], swing[:, None], np.array([1.0]), L1, L2, lim)
+                             q_t[:, None], mid[:, None], end[:, None], swing[:, None],
+                             np.array([1.0]), L1, L2, lim)
     return out, (q_u, q_t)
 
 
