@@ -79,7 +79,7 @@ def test_walking_legs_plant_feet_and_keep_the_rhythm(rig_config, flat_env):
     assert np.abs(feet[..., 1][c]).max() < 1e-8     # a foothold is a float32 ray hit
     # swinging feet stay above the ground and land exactly where they were aimed
     assert feet[..., 1].min() > -1e-8
-    assert np.linalg.norm(w["feet"] - w["targets"], axis=-1).max() < 1e-9
+    assert np.linalg.norm(w["feet"] - w["targets"], axis=-1)[c].max() < 1e-9
     # duty factor near the setting, rhythm as set
     assert 0.45 < c[30:].mean() < 0.65
     td = c[1:] & ~c[:-1]
