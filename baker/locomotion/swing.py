@@ -87,20 +87,16 @@ def _swivel(U, T, angle, l1, l2):
     return quat_mul(quat_about(axis, angle), U)
 
 
-def _faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same, near_feet):
-    """(n,) float cost per entry of flat swing frames (consecutive entries of one swing are
-    consecutive frames; `same[k]`: entries k and k+1 belong to one swing):
-    a bone through the environment; an inner frame's foot inside a solid or within `gap` of a
-    neighbour's foot
-    (near_feet (n, 2, 3), NaN for none); a joint turning more than `turn` to the next entry; a
-    foot touching a surface in this and the next entry while it slides more than `slide`. Each
-    fault costs 1, a turn TURN_WEIGHT: a joint never turns too fast for a cleaner swing."""
+def _own_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same):
+    """(cost (n,), feet (n, 3)) per entry of flat swing frames (consecutive entries of one
+    swing are consecutive frames; `same[k]`: entries k and k+1 belong to one swing): a bone
+    through the environment; an inner frame's foot inside a solid; a joint turning more than
+    `turn` to the next entry; a foot touching a surface in this and the next entry while it
+    slides more than `slide`. Each fault costs 1, a turn TURN_WEIGHT: a joint never turns too
+    fast for a cleaner swing."""
     q_u, q_t, mid, end = _pose(q_seg, hip, U, T, l1, l2)
     bad = rays.first_hit(hip, mid - hip, max_distance=l1 - 1e-9).hit
     bad |= rays.first_hit(mid, end - mid, max_distance=max(l2 - lim.tol, 0.0)).hit
-    with np.errstate(invalid="ignore"):
-        gap = np.nanmin(np.linalg.norm(near_feet - end[:, None], axis=2), axis=1, initial=np.inf)
-    bad |= inner & (gap < lim.gap)
     d = rays.closest(end, lim.contact)[0]
     k = np.nonzero(inner)[0]
     bad[k] |= rays.inside(end[k])
@@ -111,7 +107,39 @@ def _faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same, near_feet)
         slide = np.linalg.norm(np.diff(end, axis=0), axis=1)
         cost[:-1] += same & touch[:-1] & touch[1:] & (slide > lim.slide)
         cost[:-1] += TURN_WEIGHT * (same & (steps > lim.turn))
-    return cost
+    return cost, end
+
+
+def _crowding(end, inner, near_feet, gap):
+    """(n,) 1.0 where an inner frame's foot (n, 3) is within `gap` of a neighbour's foot
+    (near_feet (n, 2, 3), NaN for none)."""
+    with np.errstate(invalid="ignore"):
+        d = np.nanmin(np.linalg.norm(near_feet - end[:, None], axis=2), axis=1, initial=np.inf)
+    return (inner & (d < gap)).astype(float)
+
+
+class _Swings:
+    """Every swing of every leg as flat entries, one per frame from the last planted frame to
+    the first planted one: swing id `sid`, frame `f`, leg `lg`, progress `u`."""
+
+    def __init__(self, swing: np.ndarray):
+        leg, a, b = _runs(swing)
+        self.n = len(leg)
+        length = b - a + 1
+        self.sid = np.repeat(np.arange(self.n), length)
+        self.start = np.repeat(np.cumsum(length) - length, length)
+        self.last = self.start + np.repeat(length, length) - 1
+        self.f = np.repeat(a, length) + (np.arange(len(self.sid)) - self.start)
+        self.lg = leg[self.sid]
+        self.u = (self.f - a[self.sid]) / (b - a)[self.sid]
+        self.inner = (self.u > 0.0) & (self.u < 1.0)
+        self.leg = leg
+
+    def near(self, feet: np.ndarray, k: np.ndarray) -> np.ndarray:
+        """(len(k), 2, 3) the feet of legs l - 2 and l + 2 at entries k (NaN for none)."""
+        pad = np.full((len(feet), 2, 3), np.nan)
+        padded = np.concatenate([pad, feet, pad], axis=1)
+        return np.stack([padded[self.f[k], self.lg[k]], padded[self.f[k], self.lg[k] + 4]], 1)
 
 
 def joint_space_swings(rays, hip, q_seg, q_u, q_t, mid, end, swing, side, l1, l2, lim: Limits,
@@ -124,70 +152,76 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, mid, end, swing, side, l1, l2
     swing : (F, L) bool, frames in which the foot is not planted
     side  : (L,) +1 left, -1 right; l1, l2 : bone lengths
     Legs are ordered L_01, R_01, L_02, ...: leg l's neighbours on its side are l - 2 and l + 2.
-    Neighbours never change in the same pass (legs of odd and even segments take turns,
-    `rounds` times), so each one is judged against the other's latest feet.
+    Each swing's own faults are found once; crowding is judged against the neighbours' latest
+    feet, and neighbours never change in the same pass (legs of odd and even segments take
+    turns, `rounds` times).
     returns (q_u, q_t, mid, end), each (F, L, ...)
     """
-    U = quat_mul(quat_conj(q_seg), q_u)
-    T = quat_mul(quat_conj(q_u), q_t)
-    U0 = U.copy()
-    leg, a, b = _runs(swing)
+    U_all = quat_mul(quat_conj(q_seg), q_u)
+    T_all = quat_mul(quat_conj(q_u), q_t)
+    sw = _Swings(swing)
+    if sw.n == 0:
+        return q_u, q_t, mid, end
+    f, lg = sw.f, sw.lg
+    own, feet_k = _own_faults(rays, lim, hip[f, lg], q_seg[f, lg], U_all[f, lg], T_all[f, lg],
+                              l1, l2, sw.inner, sw.sid[1:] == sw.sid[:-1])
+    feet = end.copy()
+    redone = np.zeros(swing.shape, bool)
     for _ in range(rounds):
         for parity in (0, 1):
-            mine = (leg // 2) % 2 == parity
-            if mine.any():
-                _redo(rays, lim, hip, q_seg, U, T, side, l1, l2, leg[mine], a[mine], b[mine])
+            mine = ((sw.leg // 2) % 2 == parity)[sw.sid]
+            k = np.nonzero(mine)[0]
+            cost = own[k] + _crowding(feet[f[k], lg[k]], sw.inner[k], sw.near(feet, k), lim.gap)
+            best = np.bincount(sw.sid[k], weights=cost, minlength=sw.n)
+            todo = best > 0
+            if todo.any():
+                _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw, feet, own, best,
+                      todo, redone)
+    q_u2, q_t2, mid2, end2 = _pose(q_seg, hip, U_all, T_all, l1, l2)
     # frames left as planned keep the planner's exact numbers (no round trip through rotations)
-    q_u2, q_t2, mid2, end2 = _pose(q_seg, hip, U, T, l1, l2)
-    redone = np.any(U != U0, axis=-1)[..., None]
-    return (np.where(redone, q_u2, q_u), np.where(redone, q_t2, q_t),
-            np.where(redone, mid2, mid), np.where(redone, end2, end))
+    r = redone[..., None]
+    return (np.where(r, q_u2, q_u), np.where(r, q_t2, q_t), np.where(r, mid2, mid),
+            np.where(r, end2, end))
 
 
-def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, leg, a, b) -> None:
-    """Swings (leg, a, b) that break a limit get the best joint-space candidate, in place in
-    the local poses U_all, T_all (F, L, 4)."""
-    feet = _pose(q_seg, hip, U_all, T_all, l1, l2)[3]
-    n_swing = len(leg)
-    length = b - a + 1
-    sid = np.repeat(np.arange(n_swing), length)
-    start = np.repeat(np.cumsum(length) - length, length)
-    f = np.repeat(a, length) + (np.arange(len(sid)) - start)
-    lg = leg[sid]
-    u = (f - a[sid]) / (b - a)[sid]
-    inner = (u > 0.0) & (u < 1.0)
-    pad = np.full((len(feet), 2, 3), np.nan)
-    padded = np.concatenate([pad, feet, pad], axis=1)
-    near = np.stack([padded[f, lg], padded[f, lg + 4]], axis=1)        # legs l - 2, l + 2
-    qs, hp, U0, T0 = q_seg[f, lg], hip[f, lg], U_all[f, lg], T_all[f, lg]
-    bad = _faults(rays, lim, hp, qs, U0, T0, l1, l2, inner, sid[1:] == sid[:-1], near)
-    best = np.bincount(sid, weights=bad, minlength=n_swing)
-    redo = best > 0
-    if not redo.any():
-        return
-    k = np.nonzero(redo[sid])[0]
-    sk = sid[k]
-    first, last = start[k], start[k] + length[sk] - 1
-    Us, Ts = quat_slerp(U0[first], U0[last], u[k]), quat_slerp(T0[first], T0[last], u[k])
-    chosen_U, chosen_T = U0[k].copy(), T0[k].copy()
+def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, own, best,
+          todo, redone) -> None:
+    """The swings flagged in `todo` (best: their current cost) get the best joint-space
+    candidate: U_all, T_all (local poses), feet (F, L, 3), own (per-entry own costs) and
+    redone (F, L) are updated in place."""
+    k = np.nonzero(todo[sw.sid])[0]
+    sk, f, lg, u, inner = sw.sid[k], sw.f[k], sw.lg[k], sw.u[k], sw.inner[k]
+    qs, hp = q_seg[f, lg], hip[f, lg]
+    U0, T0 = U_all[f, lg], T_all[f, lg]
+    first, last = sw.start[k], sw.last[k]
+    Us = quat_slerp(U_all[sw.f[first], sw.lg[first]], U_all[sw.f[last], sw.lg[last]], u)
+    Ts = quat_slerp(T_all[sw.f[first], sw.lg[first]], T_all[sw.f[last], sw.lg[last]], u)
+    chosen_U, chosen_T, chosen_own = U0.copy(), T0.copy(), own[k].copy()
+    near = sw.near(feet, k)
     axis = np.broadcast_to(_Z, (len(k), 3))
-    same = sk[1:] == sk[:-1]
     candidates = [(p, r, 0.0) for p in PROFILES for r in RAISES]
     candidates += [(PROFILES[0], r, sv) for sv in SWIVELS for r in RAISES[::2]]
     for profile, r, swivel in candidates:
-        todo = redo & (best > 0)
-        if not todo.any():
+        open_ = todo & (best > 0)
+        if not open_.any():
             break
-        U = quat_mul(quat_about(axis, side[lg[k]] * r * profile(u[k])), Us)
+        j = np.nonzero(open_[sk])[0]          # entries of the swings still to improve
+        sj = sk[j]
+        U = quat_mul(quat_about(axis[j], side[lg[j]] * r * profile(u[j])), Us[j])
         if swivel:
-            U = _swivel(U, Ts, swivel * profile(u[k]), l1, l2)
-        cost = _faults(rays, lim, hp[k], qs[k], U, Ts, l1, l2, inner[k], same, near[k])
-        score = np.bincount(sk, weights=cost, minlength=n_swing)
-        take = todo & (score < best)
+            U = _swivel(U, Ts[j], swivel * profile(u[j]), l1, l2)
+        c_own, end = _own_faults(rays, lim, hp[j], qs[j], U, Ts[j], l1, l2, inner[j],
+                                 sj[1:] == sj[:-1])
+        score = np.bincount(sj, weights=c_own + _crowding(end, inner[j], near[j], lim.gap),
+                            minlength=sw.n)
+        take = open_ & (score < best)
         best[take] = score[take]
-        sel = take[sk]
-        chosen_U[sel], chosen_T[sel] = U[sel], Ts[sel]
-    inside = inner[k]
-    fk, lk = f[k][inside], lg[k][inside]
-    U_all[fk, lk] = chosen_U[inside]
-    T_all[fk, lk] = chosen_T[inside]
+        sel = take[sj]
+        chosen_U[j[sel]], chosen_T[j[sel]], chosen_own[j[sel]] = U[sel], Ts[j][sel], c_own[sel]
+    changed = np.any(chosen_U != U0, axis=-1) & inner
+    U_all[f[changed], lg[changed]] = chosen_U[changed]
+    T_all[f[changed], lg[changed]] = chosen_T[changed]
+    own[k] = chosen_own
+    redone[f[changed], lg[changed]] = True
+    feet[f[changed], lg[changed]] = _pose(qs[changed], hp[changed], chosen_U[changed],
+                                          chosen_T[changed], l1, l2)[3]
