@@ -322,6 +322,9 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
             cos_t = np.einsum("lwi,lwi->lw", rel, rel_ext[:, :-1]) / np.maximum(
                 n_ext[:, 1:] * n_ext[:, :-1], 1e-300)
             bad |= cos_t < np.cos(STANCE_TURN)
+            # ... or turn one of its bones too fast in a frame (near a straight or folded knee)
+            bad |= _stance_turns(hip[fw_ext, ll[:, None]], hold[open_], fwd[fw_ext, ll[:, None]],
+                                 left[fw_ext, ll[:, None]], lay, ll, lg.knee_out) > SWING_TURN
             if sight:
                 hp = hip[fw, ll[:, None]].reshape(-1, 3)
                 v = np.broadcast_to(hold[open_, None, :], fw.shape + (3,)).reshape(-1, 3) - hp
@@ -675,6 +678,22 @@ def _even_swings(target, hip, q, q_inv, cidx, LOs, Ts, sw, limit):
         new = seg[j] + (seg[j + 1] - seg[j]) * t[:, None]
         out[a + 1:b, ll] = hip[a + 1:b, ll] + quat_rotate(q[a + 1:b, ll], new[1:-1])
     return out
+
+
+def _stance_turns(hip, hold, fwd, left, lay, legs, knee_out) -> np.ndarray:
+    """(n, W-1) degrees the bones of legs `legs` (n,) with their feet planted at `hold` (n, 3)
+    turn between consecutive frames of a window (hip, fwd, left: (n, W, 3)), in the world."""
+    n, W, _ = hip.shape
+    target = np.broadcast_to(hold[:, None, :], hip.shape)
+    u = normalize(target - hip)
+    s = lay.side[legs][:, None, None]
+    pole = s * np.cross(fwd, u) + knee_out * s * left
+    sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
+    steps = np.maximum(_frame_steps(np.swapaxes(hip, 0, 1), np.swapaxes(sol.mid, 0, 1),
+                                    np.swapaxes(sol.hinge, 0, 1)),
+                       _frame_steps(np.swapaxes(sol.mid, 0, 1), np.swapaxes(sol.end, 0, 1),
+                                    np.swapaxes(sol.hinge, 0, 1)))
+    return steps.T
 
 
 def _frame_steps(a: np.ndarray, b: np.ndarray, hinge: np.ndarray) -> np.ndarray:

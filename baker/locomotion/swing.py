@@ -9,8 +9,9 @@ neighbour's foot.
 Such a swing is replaced by one in the leg's own joint space: the upper bone's rotation
 (relative to its segment) and the tip bone's (relative to the upper bone) slerp from the last
 planted pose to the touchdown pose at an even pace, while the whole leg is raised about the
-body's long axis (through the hip) by a bump raise * profile(u). Of the candidate raises and
-profiles, the first that keeps every frame of the swing within all limits wins; when none does,
+body's long axis (through the hip) by a bump raise * profile(u); when that is not enough the
+knee also swivels round the hip -> foot line, or bends to tuck the foot in. Of the candidates,
+the first that keeps every frame of the swing within all limits wins; when none does,
 the one with the fewest offending frames, and the planned swing stays when it has no more
 than that. Both ends are the planted poses, so stances are untouched. All swings, candidates
 and frames are checked in flat batches (one ray batch per candidate).
@@ -29,10 +30,13 @@ from baker.geometry.transforms import (quat_about, quat_angle, quat_conj, quat_m
 RAISES = np.radians([4.0, 8.0, 12.0, 16.0, 24.0, 32.0, 45.0, 60.0])
 #: knee swivels about the hip -> foot line tried when raising alone does not clear [rad]
 SWIVELS = np.radians([25.0, -25.0, 50.0, -50.0])
+#: knee bends that tuck the foot in, tried after raises and swivels [rad]
+FLEXES = np.radians([20.0, 40.0])
 #: the cost of a joint turning too fast in a frame, against 1 for any other fault
 TURN_WEIGHT = 100.0
 #: raise profiles over the swing's progress u: a plain bump, and one that rises sooner
 PROFILES = (lambda u: np.sin(np.pi * u), lambda u: np.sqrt(np.sin(np.pi * u)))
+_X = np.array([1.0, 0.0, 0.0])
 _Y = np.array([0.0, 1.0, 0.0])
 _Z = np.array([0.0, 0.0, 1.0])
 
@@ -85,6 +89,42 @@ def _swivel(U, T, angle, l1, l2):
     foot = quat_rotate(U, l1 * _Y) + quat_rotate(quat_mul(U, T), l2 * _Y)
     axis = foot / np.maximum(np.linalg.norm(foot, axis=-1, keepdims=True), 1e-12)
     return quat_mul(quat_about(axis, angle), U)
+
+
+def _flex(U, T, angle, l1, l2):
+    """Tip-bone local rotations T (n, 4) bent by `angle` (n,) about the knee's hinge (the upper
+    bone's local +X), the way that draws the foot toward the hip (tucks the leg in)."""
+    out = []
+    for sgn in (1.0, -1.0):
+        Tk = quat_mul(quat_about(np.broadcast_to(_X, U.shape[:-1] + (3,)), sgn * angle), T)
+        foot = quat_rotate(U, l1 * _Y) + quat_rotate(quat_mul(U, Tk), l2 * _Y)
+        out.append((Tk, np.linalg.norm(foot, axis=-1)))
+    return np.where((out[0][1] <= out[1][1])[:, None], out[0][0], out[1][0])
+
+
+def _retimed(U, T, sid, u):
+    """The swings' own poses (U, T local rotations, flat entries of swings `sid` at progress
+    `u`) walked at an even pace in joint space: entry k gets the pose at u_k of the swing's
+    cumulative joint turn (the largest of the two bones' turns between entries), so a swing
+    that turns a joint too fast in one frame spreads the turn over its frames, on its own
+    path (both ends unchanged)."""
+    n = len(sid)
+    step = np.zeros(n)
+    same = sid[1:] == sid[:-1]
+    step[1:] = np.where(same, np.maximum(quat_angle(U[1:], U[:-1]),
+                                         quat_angle(T[1:], T[:-1])) + 1e-9, 0.0)
+    cum = np.cumsum(step)
+    first = np.r_[0, np.nonzero(~same)[0] + 1]
+    start = np.repeat(cum[first], np.diff(np.r_[first, n]))
+    cum -= start
+    total = np.repeat(cum[np.r_[first[1:] - 1, n - 1]], np.diff(np.r_[first, n]))
+    key = sid + cum / np.maximum(total, 1e-12) * (1.0 - 1e-9)
+    want = sid + np.clip(u, 0.0, 1.0) * (1.0 - 1e-9)
+    j = np.clip(np.searchsorted(key, want, side="right") - 1, 0, n - 2)
+    j = np.where(sid[np.minimum(j + 1, n - 1)] == sid, j, j - 1)
+    span = np.maximum(key[j + 1] - key[j], 1e-15)
+    t = np.clip((want - key[j]) / span, 0.0, 1.0)
+    return quat_slerp(U[j], U[j + 1], t), quat_slerp(T[j], T[j + 1], t)
 
 
 def _own_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same):
@@ -199,26 +239,34 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
     chosen_U, chosen_T, chosen_own = U0.copy(), T0.copy(), own[k].copy()
     near = sw.near(feet, k)
     axis = np.broadcast_to(_Z, (len(k), 3))
-    candidates = [(p, r, 0.0) for p in PROFILES for r in RAISES]
-    candidates += [(PROFILES[0], r, sv) for sv in SWIVELS for r in RAISES[::2]]
-    for profile, r, swivel in candidates:
+    U_even, T_even = _retimed(U0, T0, sk, u)
+    candidates = [("even", 0.0, 0.0, 0.0)] + [(p, r, 0.0, 0.0) for p in PROFILES for r in RAISES]
+    candidates += [(PROFILES[0], r, sv, 0.0) for sv in SWIVELS for r in RAISES[::2]]
+    candidates += [(p, r, 0.0, fx) for fx in FLEXES for p in PROFILES for r in RAISES[:4]]
+    for profile, r, swivel, flex in candidates:
         open_ = todo & (best > 0)
         if not open_.any():
             break
         j = np.nonzero(open_[sk])[0]          # entries of the swings still to improve
         sj = sk[j]
-        U = quat_mul(quat_about(axis[j], side[lg[j]] * r * profile(u[j])), Us[j])
+        if profile == "even":                 # the planned path, at an even joint pace
+            U, T = U_even[j], T_even[j]
+        else:
+            U = quat_mul(quat_about(axis[j], side[lg[j]] * r * profile(u[j])), Us[j])
+            T = Ts[j]
         if swivel:
-            U = _swivel(U, Ts[j], swivel * profile(u[j]), l1, l2)
-        c_own, end = _own_faults(rays, lim, hp[j], qs[j], U, Ts[j], l1, l2, inner[j],
+            U = _swivel(U, T, swivel * profile(u[j]), l1, l2)
+        if flex:
+            T = _flex(U, T, flex * profile(u[j]), l1, l2)
+        c_own, end = _own_faults(rays, lim, hp[j], qs[j], U, T, l1, l2, inner[j],
                                  sj[1:] == sj[:-1])
         score = np.bincount(sj, weights=c_own + _crowding(end, inner[j], near[j], lim.gap),
                             minlength=sw.n)
         take = open_ & (score < best)
         best[take] = score[take]
         sel = take[sj]
-        chosen_U[j[sel]], chosen_T[j[sel]], chosen_own[j[sel]] = U[sel], Ts[j][sel], c_own[sel]
-    changed = np.any(chosen_U != U0, axis=-1) & inner
+        chosen_U[j[sel]], chosen_T[j[sel]], chosen_own[j[sel]] = U[sel], T[sel], c_own[sel]
+    changed = (np.any(chosen_U != U0, axis=-1) | np.any(chosen_T != T0, axis=-1)) & inner
     U_all[f[changed], lg[changed]] = chosen_U[changed]
     T_all[f[changed], lg[changed]] = chosen_T[changed]
     own[k] = chosen_own
