@@ -119,8 +119,10 @@ def sim_world_positions(result) -> dict[str, np.ndarray]:
     return out
 
 
-def bake_and_judge(scene: str, seed: int, seconds: float, work: str, keep: bool = False) -> dict:
-    """One sweep job: bake, read both files back, judge, validate. Returns a row."""
+def bake_and_judge(scene: str, seed: int, seconds: float, work: str, keep: bool = False,
+                   cache: str | None = None) -> dict:
+    """One sweep job: bake, read both files back, judge, validate. Returns a row.
+    cache: navigation cache folder (default: WORK/navcache)."""
     from baker.context import Context
     from baker.inspect import failures, judge, read_glb, read_usd
     from baker.pipeline import bake
@@ -132,7 +134,8 @@ def bake_and_judge(scene: str, seed: int, seconds: float, work: str, keep: bool 
     t0 = time.perf_counter()
     row = {"scene": scene, "seed": seed, "seconds": seconds}
     try:
-        res = bake(make_config(env, scene, seed, seconds, out, work / "navcache"), ctx=Context())
+        res = bake(make_config(env, scene, seed, seconds, out,
+                               Path(cache) if cache else work / "navcache"), ctx=Context())
     except Exception as ex:  # noqa: BLE001 - a crashing bake is a result of the sweep
         row.update(error=f"{type(ex).__name__}: {ex}", failures=["bake"])
         return row

@@ -1,0 +1,38 @@
+"""Issue 10's limits on a small fixed subset of the quality sweep (benchmarks/quality_sweep.py,
+which bakes many more seeds and prints the pass rates): each bake is judged from its files
+alone (baker.inspect reads the GLB and the USD back), with the Khronos glTF validator and
+pxr.UsdValidation."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+from validator import _ensure_validator
+
+ROOT = Path(__file__).resolve().parents[2]
+_spec = importlib.util.spec_from_file_location("quality_sweep",
+                                               ROOT / "benchmarks" / "quality_sweep.py")
+sweep = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(sweep)
+
+pytestmark = pytest.mark.slow
+
+#: (scene, seed, seconds): the default scene, the same scene 10 km from the origin, and the
+#: Recast demo level with the 2 m rig
+CASES = [("default", 9000, 20.0), ("default", 9001, 20.0), ("far", 9002, 20.0),
+         ("nav_test", 9001, 30.0)]
+
+
+@pytest.mark.parametrize("scene,seed,seconds", CASES, ids=lambda v: str(v))
+def test_every_limit_holds_judged_from_the_files(scene, seed, seconds, tmp_path, nav_cache_dir):
+    if sweep.scene_environment(scene, tmp_path) is None:
+        pytest.skip(f"the {scene} scene's environment is not available here")
+    _ensure_validator()
+    row = sweep.bake_and_judge(scene, seed, seconds, str(tmp_path), cache=str(nav_cache_dir))
+    m = row["metrics"]
+    assert m["validator_errors"] == 0
+    assert m["glb_usd_max_m"] <= 1e-4 and m["sim_max_m"] <= 1e-5
+    assert row["failures"] == [], {k: m[k] for k in row["failures"]}
