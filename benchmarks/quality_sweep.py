@@ -86,6 +86,18 @@ def make_config(env: Path, scene: str, seed: int, seconds: float, out: Path, cac
                       formats=("glb", "usd"), nav_cache_dir=cache)
 
 
+def ensure_validator() -> bool:
+    """Install the pinned Khronos glTF validator into tests/tools (npm ci) when node and npm
+    are on PATH and it is not there yet; True when it can run."""
+    node, npm = shutil.which("node"), shutil.which("npm")
+    installed = (VALIDATOR.parent / "node_modules" / "gltf-validator").is_dir()
+    if node and npm and not installed:
+        subprocess.run([npm, "ci", "--no-audit", "--no-fund", "--loglevel=error"],
+                       cwd=VALIDATOR.parent, capture_output=True, text=True, timeout=600)
+        installed = (VALIDATOR.parent / "node_modules" / "gltf-validator").is_dir()
+    return bool(node) and installed
+
+
 def gltf_validator_errors(path: Path) -> int | None:
     """Errors the Khronos glTF validator reports (None when node or the validator is missing)."""
     node = shutil.which("node")
@@ -239,6 +251,8 @@ def main(argv=None) -> int:
         print(f"scene {s}: environment not found, skipped")
     args.scenes = [s for s in args.scenes if s not in missing]
     t0 = time.perf_counter()
+    if not ensure_validator():
+        print("the Khronos glTF validator is not available (node and npm): GLBs are not validated")
     for s in args.scenes:
         warm_navigation(s, work)
     jobs = jobs_for(args)
