@@ -10,13 +10,13 @@ Xform translations, the prey group, the debug layer, the end joints."""
 from __future__ import annotations
 
 import json
-import struct
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 from glb_read import Glb
+from sweep import moved_glb
 from validator import gltf_validate, issues_summary, usd_validate
 
 from baker.config import DEFAULT_ENVIRONMENT, DEFAULT_RIG, BakeConfig, load_rig_config
@@ -31,23 +31,6 @@ SECONDS = 8.0
 # far bake gets bit-identical inputs
 START = np.array([0.5, 0.125, 0.5])
 PREY = np.array([1.0, 0.125, 1.0])
-
-
-def moved_glb(src: Path, dst: Path, offset) -> Path:
-    """`src` with all its scene's nodes under one more node translated by `offset`."""
-    data = Path(src).read_bytes()
-    (jlen,) = struct.unpack_from("<I", data, 12)
-    doc = json.loads(data[20:20 + jlen])
-    rest = data[20 + jlen:]
-    scene = doc["scenes"][doc.get("scene", 0)]
-    doc["nodes"].append({"name": "far_away", "translation": [float(x) for x in offset],
-                         "children": scene["nodes"]})
-    scene["nodes"] = [len(doc["nodes"]) - 1]
-    js = json.dumps(doc).encode()
-    js += b" " * (-len(js) % 4)
-    head = b"glTF" + struct.pack("<II", 2, 12 + 8 + len(js) + len(rest))
-    dst.write_bytes(head + struct.pack("<I", len(js)) + b"JSON" + js + rest)
-    return dst
 
 
 def sim_world(traj, rig, origin):

@@ -5,18 +5,10 @@ pxr.UsdValidation."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import pytest
 
+import sweep
 from validator import _ensure_validator
-
-ROOT = Path(__file__).resolve().parents[2]
-_spec = importlib.util.spec_from_file_location("quality_sweep",
-                                               ROOT / "benchmarks" / "quality_sweep.py")
-sweep = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(sweep)
 
 pytestmark = pytest.mark.slow
 
