@@ -208,8 +208,14 @@ class Follower:
         """Height of the surface under the head at p = (x, _, z), continuing its layer: the
         walkable layer in its column closest to the previous height (a step moves the head
         millimetres, so this never jumps to a floor above or below); off the eroded surface
-        (the slither), the floor found by rays near that height; else the previous height."""
+        (the slither), the layer's height under the head's base (kept on the surface), then the
+        floor found by rays near that height; else the previous height. (Rays at the side of a
+        staircase can find the tread below; the base's column is on the flight.)"""
         y = self.nav.layer_height(float(p[0]), self.height, float(p[2]), self.tol)
+        if not math.isnan(y):
+            return y
+        b = self.head.base
+        y = self.nav.layer_height(float(b[0]), self.height, float(b[2]), self.tol)
         if not math.isnan(y):
             return y
         g, _, hit = project_to_surface(self.rays, np.array([[p[0], self.height, p[2]]]), self.probe)
