@@ -32,6 +32,12 @@ RAISES = np.radians([4.0, 8.0, 12.0, 16.0, 24.0, 32.0, 45.0, 60.0])
 SWIVELS = np.radians([25.0, -25.0, 50.0, -50.0])
 #: knee bends that tuck the foot in, tried after raises and swivels [rad]
 FLEXES = np.radians([20.0, 40.0])
+#: width (in swing progress) of the local lift round a frame where a swing crowds a neighbour
+BUMP_WIDTH = 0.25
+#: swings of the whole leg forward (> 0) or back round the hip, tried last [rad]
+YAWS = np.radians([12.0, -12.0, 24.0, -24.0])
+#: fractions of a swing spent waiting at its start (> 0) or landed early (< 0)
+DELAYS = (0.3, -0.3)
 #: the cost of a joint turning too fast in a frame, against 1 for any other fault
 TURN_WEIGHT = 100.0
 #: raise profiles over the swing's progress u: a plain bump, and one that rises sooner
@@ -207,6 +213,7 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, mid, end, swing, side, l1, l2
                               l1, l2, sw.inner, sw.sid[1:] == sw.sid[:-1])
     feet = end.copy()
     redone = np.zeros(swing.shape, bool)
+    plan = (U_all.copy(), T_all.copy())     # the planner's poses, a candidate in every pass
     for _ in range(rounds):
         for parity in (0, 1):
             mine = ((sw.leg // 2) % 2 == parity)[sw.sid]
@@ -216,7 +223,7 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, mid, end, swing, side, l1, l2
             todo = best > 0
             if todo.any():
                 _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw, feet, own, best,
-                      todo, redone)
+                      todo, redone, plan)
     q_u2, q_t2, mid2, end2 = _pose(q_seg, hip, U_all, T_all, l1, l2)
     # frames left as planned keep the planner's exact numbers (no round trip through rotations)
     r = redone[..., None]
@@ -225,7 +232,7 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, mid, end, swing, side, l1, l2
 
 
 def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, own, best,
-          todo, redone) -> None:
+          todo, redone, plan) -> None:
     """The swings flagged in `todo` (best: their current cost) get the best joint-space
     candidate: U_all, T_all (local poses), feet (F, L, 3), own (per-entry own costs) and
     redone (F, L) are updated in place."""
@@ -234,30 +241,65 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
     qs, hp = q_seg[f, lg], hip[f, lg]
     U0, T0 = U_all[f, lg], T_all[f, lg]
     first, last = sw.start[k], sw.last[k]
-    Us = quat_slerp(U_all[sw.f[first], sw.lg[first]], U_all[sw.f[last], sw.lg[last]], u)
-    Ts = quat_slerp(T_all[sw.f[first], sw.lg[first]], T_all[sw.f[last], sw.lg[last]], u)
     chosen_U, chosen_T, chosen_own = U0.copy(), T0.copy(), own[k].copy()
     near = sw.near(feet, k)
     axis = np.broadcast_to(_Z, (len(k), 3))
-    U_even, T_even = _retimed(U0, T0, sk, u)
-    candidates = [("even", 0.0, 0.0, 0.0)] + [(p, r, 0.0, 0.0) for p in PROFILES for r in RAISES]
-    candidates += [(PROFILES[0], r, sv, 0.0) for sv in SWIVELS for r in RAISES[::2]]
-    candidates += [(p, r, 0.0, fx) for fx in FLEXES for p in PROFILES for r in RAISES[:4]]
-    for profile, r, swivel, flex in candidates:
+    U_first, U_last = U_all[sw.f[first], sw.lg[first]], U_all[sw.f[last], sw.lg[last]]
+    T_first, T_last = T_all[sw.f[first], sw.lg[first]], T_all[sw.f[last], sw.lg[last]]
+    # (kind, raise profile, raise, swivel, flex, delay, yaw): "plan" is the planner's swing,
+    # "even" the same path at an even joint pace, "arc" the slerp from the last planted pose to
+    # the touchdown pose; a
+    # delay > 0 waits that fraction of the swing at the start, < 0 lands that much early; a
+    # yaw swings the leg forward (> 0) or back round the hip (a neighbour swinging at the same
+    # time gets out of the way)
+    U_plan, T_plan = plan[0][f, lg], plan[1][f, lg]
+    # where each swing first crowds a neighbour now: a local lift there is a candidate too
+    crowd = _crowding(feet[f, lg], inner, near, lim.gap) > 0
+    u_c = np.full(sw.n, np.nan)
+    ck = np.nonzero(crowd)[0][::-1]
+    u_c[sk[ck]] = u[ck]
+    u_c = u_c[sk]
+    candidates = [("plan", None, 0.0, 0.0, 0.0, 0.0, 0.0), ("even", None, 0.0, 0.0, 0.0, 0.0, 0.0)]
+    candidates += [("arc", p, r, 0.0, 0.0, 0.0, 0.0) for p in PROFILES for r in RAISES]
+    candidates += [("arc", PROFILES[0], r, sv, 0.0, 0.0, 0.0) for sv in SWIVELS
+                   for r in RAISES[::2]]
+    candidates += [("arc", p, r, 0.0, fx, 0.0, 0.0) for fx in FLEXES for p in PROFILES
+                   for r in RAISES[:4]]
+    candidates += [(kind, PROFILES[1], r, 0.0, 0.0, dl, 0.0) for dl in DELAYS
+                   for kind, r in (("even", 0.0), ("arc", RAISES[1]), ("arc", RAISES[3]))]
+    candidates += [("arc", PROFILES[0], r, 0.0, 0.0, 0.0, yw) for yw in YAWS
+                   for r in RAISES[1:4]]
+    candidates += [("bump", None, r, 0.0, 0.0, 0.0, 0.0) for r in RAISES[1:6]]
+    for kind, profile, r, swivel, flex, delay, yaw in candidates:
         open_ = todo & (best > 0)
         if not open_.any():
             break
         j = np.nonzero(open_[sk])[0]          # entries of the swings still to improve
         sj = sk[j]
-        if profile == "even":                 # the planned path, at an even joint pace
-            U, T = U_even[j], T_even[j]
+        uj = u[j]
+        if delay > 0:
+            uj = np.clip((uj - delay) / (1.0 - delay), 0.0, 1.0)
+        elif delay < 0:
+            uj = np.clip(uj / (1.0 + delay), 0.0, 1.0)
+        if kind == "plan":
+            U, T = U_plan[j], T_plan[j]
+        elif kind == "even":
+            U, T = _retimed(U_plan[j], T_plan[j], sj, uj)
+        elif kind == "bump":              # the current swing, lifted round its crowded frame
+            bump = np.nan_to_num(np.exp(-((uj - u_c[j]) / BUMP_WIDTH) ** 2) * np.sin(np.pi * uj))
+            U = quat_mul(quat_about(axis[j], side[lg[j]] * r * bump), U0[j])
+            T = T0[j]
         else:
-            U = quat_mul(quat_about(axis[j], side[lg[j]] * r * profile(u[j])), Us[j])
-            T = Ts[j]
+            U = quat_mul(quat_about(axis[j], side[lg[j]] * r * profile(uj)),
+                         quat_slerp(U_first[j], U_last[j], uj))
+            T = quat_slerp(T_first[j], T_last[j], uj)
         if swivel:
-            U = _swivel(U, T, swivel * profile(u[j]), l1, l2)
+            U = _swivel(U, T, swivel * profile(uj), l1, l2)
+        if yaw:
+            U = quat_mul(quat_about(np.broadcast_to(_Y, (len(j), 3)), side[lg[j]] * yaw
+                                    * np.sin(np.pi * uj)), U)
         if flex:
-            T = _flex(U, T, flex * profile(u[j]), l1, l2)
+            T = _flex(U, T, flex * profile(uj), l1, l2)
         c_own, end = _own_faults(rays, lim, hp[j], qs[j], U, T, l1, l2, inner[j],
                                  sj[1:] == sj[:-1])
         score = np.bincount(sj, weights=c_own + _crowding(end, inner[j], near[j], lim.gap),
