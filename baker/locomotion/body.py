@@ -28,6 +28,8 @@ from baker.locomotion.cobra import limit_lift
 BELOW = 0.5
 #: slope (rise over run) at which the bound a step puts on the trail falls away (35 degrees)
 STEP_FALL = 0.7
+#: the trail rounds the head path's kinks over this many segment spacings (Gaussian sigma)
+ROUND = 1.5
 #: hips stay at least this many clearances above the surface under them
 HIP_CLEAR = 0.6
 #: smoothing scale (in segment spacings) of the reference height raised (cobra) joints ride on
@@ -139,6 +141,10 @@ def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: flo
     n = max(int(np.ceil(cum_h0[-1] / res)), 1) + 1
     s = np.linspace(0.0, cum_h0[-1], n)
     pts = polyline.sample(path, cum_h0, s)
+    # the body follows the head's path with its kinks rounded (a slide along an edge or a turn
+    # on the spot bends the path sharper than the turning radius; every joint would turn there)
+    pts[:, [0, 2]] = gaussian_filter1d(pts[:, [0, 2]], ROUND * spacing / res, axis=0,
+                                       mode="nearest")
     ground_pts, normals, _ = project_to_surface(rays, pts, probe)
     ground = ground_pts[:, 1]
     sigma = 2.0 * spacing / res

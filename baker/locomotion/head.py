@@ -53,6 +53,9 @@ class HeadSteer:
         self.speed = 0.0
         self.position = self.base.copy()
         self._u_side = 0.0   # the side a U-turn in progress turns to (+1 left, -1 right)
+        # the direction the slither offset is measured across: the heading, followed only as
+        # the base travels (a turn on the spot does not swing the head round the base)
+        self.sway_dir = self.heading.copy()
 
     def step(self, dt: float, agent_pos: np.ndarray, agent_speed: float,
              allowed: Callable[[float, float], bool] | None = None,
@@ -114,7 +117,12 @@ class HeadSteer:
                    self.max_offset) if omega > 1e-9 else self.lateral_amp
         dmax = 0.1 * u * dt
         self.lateral_amp += max(-dmax, min(dmax, want - self.lateral_amp))
-        left = np.array([self.heading[2], 0.0, -self.heading[0]])
+        w = min(1.0, u * dt / (0.5 * self.turn_radius))
+        d = self.sway_dir + w * (self.heading - self.sway_dir)
+        n = math.hypot(d[0], d[2])
+        if n > 1e-9:
+            self.sway_dir = d / n
+        left = np.array([self.sway_dir[2], 0.0, -self.sway_dir[0]])
         self.position = self.base + left * (self.lateral_amp * math.sin(self.phase))
 
     def _u_turn(self, ang: float, allowed) -> float:

@@ -398,8 +398,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         cidx[:, leg] = c = np.clip(c, 0, C1 - 2)
         contact[:, leg] = f_idx < LOs[c, leg]
     holds = _spread_neighbours(holds, Ts, cidx, contact, NEIGHBOUR_GAP * body.spacing, rays,
-                               up, probe=body.clearance + 2.0 * lg.lift,
-                               edge_reach=PLAN_REACH * (lay.l1 + lay.l2))
+                               up, probe=body.clearance + 2.0 * lg.lift)
     # the surface (and the neighbours) put some feet elsewhere than planned: lift those early
     # where they would now fall out of reach, under the body or behind a wall (touchdowns stay;
     # the next swing just starts sooner)
@@ -882,7 +881,7 @@ def _swivel(p, origin, axis, angle):
 
 
 def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, contact: np.ndarray,
-                       gap: float, rays, up: np.ndarray, probe: float, edge_reach: float,
+                       gap: float, rays, up: np.ndarray, probe: float,
                        iterations: int = 12) -> np.ndarray:
     """Legs that know where their neighbours are: when two planted feet of neighbouring legs on
     one side come closer than `gap`, the one that landed later steps away from the other (its
@@ -923,9 +922,6 @@ def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, cont
         h = rays.first_hit(new + probe * u, -u, max_distance=2.0 * probe)
         ok = (h.hit & (np.abs(np.sum((h.points - holds[moved]) * u, -1)) < 0.5 * probe)
               & (np.sum(np.nan_to_num(h.normals) * u, -1) > np.cos(FOOT_SLOPE)))
-        if ok.any():
-            side = normalize(np.cross(u[ok], np.cross(h.points[ok] - new[ok] + u[ok], u[ok])))
-            ok[ok] = is_level(rays, h.points[ok], u[ok], side, EDGE_CLEAR * edge_reach)
         new[ok] = h.points[ok]
         sel = np.nonzero(moved)
         keep = ok | ~moved[sel]        # a move that would leave the surface is dropped

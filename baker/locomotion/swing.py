@@ -40,8 +40,10 @@ YAWS = np.radians([12.0, -12.0, 24.0, -24.0])
 DELAYS = (0.3, -0.3)
 #: the cost of a joint turning too fast in a frame, against 1 for any other fault
 TURN_WEIGHT = 100.0
-#: raise profiles over the swing's progress u: a plain bump, and one that rises sooner
-PROFILES = (lambda u: np.sin(np.pi * u), lambda u: np.sqrt(np.sin(np.pi * u)))
+#: raise profiles over the swing's progress u: a plain bump, and two that rise sooner (off the
+#: ground and away from a neighbour's foot in the first frame)
+PROFILES = (lambda u: np.sin(np.pi * u), lambda u: np.sqrt(np.sin(np.pi * u)),
+            lambda u: np.sin(np.pi * u) ** 0.25)
 _X = np.array([1.0, 0.0, 0.0])
 _Y = np.array([0.0, 1.0, 0.0])
 _Z = np.array([0.0, 0.0, 1.0])
@@ -269,7 +271,7 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
                    for kind, r in (("even", 0.0), ("arc", RAISES[1]), ("arc", RAISES[3]))]
     candidates += [("arc", PROFILES[0], r, 0.0, 0.0, 0.0, yw) for yw in YAWS
                    for r in RAISES[1:4]]
-    candidates += [("bump", None, r, 0.0, 0.0, 0.0, 0.0) for r in RAISES[1:6]]
+    candidates += [("bump", None, r, 0.0, 0.0, 0.0, 0.0) for r in RAISES[1:]]
     for kind, profile, r, swivel, flex, delay, yaw in candidates:
         open_ = todo & (best > 0)
         if not open_.any():
