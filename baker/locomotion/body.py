@@ -60,9 +60,9 @@ def project_to_surface(rays: RayCaster, points: np.ndarray, probe: float):
 
     points : (n, 3) float, within `probe` metres of the surface (above or below it)
     Two downward rays per point, one from `probe` above it and one from a tenth of that. A hit
-    counts as floor when there is at least `probe` of free space above it (so the underside of
-    an overhang, or a surface buried inside another solid where meshes interpenetrate, is
-    not); among floors, the one closer in height to the point wins (beside an overhang, the
+    counts as floor when there is at least `probe` of free space above it and the space just
+    above it is not inside a solid (so the underside of an overhang, or a surface buried inside
+    another solid where meshes interpenetrate or touch, is not); among floors, the one closer in height to the point wins (beside an overhang, the
     inside of a hollow log near its wall, that is the floor under it, not the overhang).
     returns (surface points (n, 3), up-facing unit normals (n, 3), hit (n,) bool); points that
     miss keep their position and get UP as the normal.
@@ -75,8 +75,11 @@ def project_to_surface(rays: RayCaster, points: np.ndarray, probe: float):
     def floor(h):
         ok = h.hit.copy()
         if ok.any():
-            t, _ = rays.cast(h.points[ok] + 1e-4 * UP, up[ok], probe)
-            ok[ok] = ~np.isfinite(t)
+            above = h.points[ok] + 1e-4 * UP
+            t, _ = rays.cast(above, up[ok], probe)
+            # free space above, and not a face buried in another solid (coincident faces can
+            # hide the solid's own face from the upward ray)
+            ok[ok] = ~np.isfinite(t) & ~rays.inside(above)
         return ok
 
     f_ok, n_ok = floor(far), floor(near)
