@@ -189,6 +189,11 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     ok = (h.hit.reshape(k, n) & facing & (out_dist >= np.broadcast_to(min_out, (n,))[None])
           & (drop <= MAX_DROP * out_dist)
           & (np.linalg.norm(pts - hips[None], axis=-1) < reach))
+    # a hold is a top surface in the open: not a face inside another solid (a ray that starts
+    # inside a step finds the step's own bottom, or a buried face)
+    kk, nn = np.nonzero(ok)
+    if len(kk):
+        ok[kk, nn] = ~rays.inside(pts[kk, nn] + 0.01 * reach * up[nn])
     # the hip must see its foothold (no wall or log side between them)
     kk, nn = np.nonzero(ok)
     if len(kk):
