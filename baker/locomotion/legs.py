@@ -44,14 +44,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
-from baker.config import RigConfig
+from baker.config import LegsConfig, RigConfig
 from baker.geometry.conventions import FORWARD, LEFT, UP
 from baker.geometry.ik import bone_frames, soft_clamp, two_bone_ik
 from baker.geometry.transforms import normalize, quat_rotate
 from baker.locomotion.body import BodyFrames
 from baker.locomotion.gait import gait_clock
 from baker.locomotion.swing import Limits, joint_space_swings
-from baker.rig.limbs import chains, leg_layout, leg_pole
+from baker.rig.limbs import LegLayout, chains, leg_layout, leg_pole
 
 #: the reachable fraction of the full leg length used for planning footholds
 PLAN_REACH = 0.74
@@ -250,15 +250,107 @@ def spine_curvature(positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
     return gaussian_filter1d(k, 1.0, axis=1, mode="nearest")
 
 
-def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: RigConfig):
-    """Footholds, swings and IK for every walking leg and frame. Returns a dict of arrays."""
+@dataclass
+class _Frames:
+    """The walking legs' frames and reach limits, shared by the planning stages below.
+
+    q, q_inv         : (F, L, 4) segment rotation of each leg, and its inverse
+    left, up, fwd    : (F, L, 3) the segment's axes
+    origin, hip      : (F, L, 3) the segment's origin and the leg's hip
+    span             : the farthest a planted foot may be from its hip (metres)
+    a_back           : (L,) how far behind its anchor a planted foot may fall before it lifts
+    out_min          : (L,) how far outward of its hip a foot stays (else it is under the body)
+    lever            : the shortest hip-to-anchor lever (metres), for the swing rate
+    """
+
+    lay: LegLayout
+    lg: LegsConfig
+    q: np.ndarray
+    q_inv: np.ndarray
+    left: np.ndarray
+    up: np.ndarray
+    fwd: np.ndarray
+    origin: np.ndarray
+    hip: np.ndarray
+    span: float
+    a_back: np.ndarray
+    out_min: np.ndarray
+    lever: float
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.q.shape[:2]
+
+    def first_bad(self, rays, hold, start, stop, sight=False):
+        """(L,) first frame in [start, stop) where a foot planted at `hold` (L, 3) would be out
+        of reach, too far behind, or under the body (with `sight`, also: hidden from its hip
+        behind a wall); F where there is none. Checked LIFT_WINDOW frames at a time."""
+        F, L = self.shape
+        lay, hip, span = self.lay, self.hip, self.span
+        legs = np.arange(L)
+        win_ext = np.arange(LIFT_WINDOW + 1)[None, :]
+        out = np.full(L, F, dtype=np.int64)
+        t0 = start
+        start = start.copy()
+        open_ = start < stop
+        while open_.any():
+            ll = legs[open_]
+            fw_ext = np.clip(start[open_, None] - 1 + win_ext, 0, F - 1)
+            rel_ext = quat_rotate(self.q_inv[fw_ext, ll[:, None]],
+                                  hold[open_, None, :] - hip[fw_ext, ll[:, None]])
+            fw, rel = fw_ext[:, 1:], rel_ext[:, 1:]
+            n_ext = np.sqrt(np.einsum("lwi,lwi->lw", rel_ext, rel_ext))
+            bad = ((rel[..., 0] * lay.side[ll, None] < self.out_min[ll, None])
+                   | (n_ext[:, 1:] > span) | (rel[..., 2] < -self.a_back[ll, None]))
+            # a fast turn would swing the planted leg round its hip too fast: lift first
+            cos_t = np.einsum("lwi,lwi->lw", rel, rel_ext[:, :-1]) / np.maximum(
+                n_ext[:, 1:] * n_ext[:, :-1], 1e-300)
+            bad |= cos_t < np.cos(STANCE_TURN)
+            # ... or turn one of its bones too fast in a frame (near a straight or folded knee)
+            bad |= _stance_turns(hip[fw_ext, ll[:, None]], hold[open_],
+                                 self.fwd[fw_ext, ll[:, None]], self.left[fw_ext, ll[:, None]],
+                                 lay, ll, self.lg.knee_out) > SWING_TURN
+            if sight:
+                hp = hip[fw, ll[:, None]].reshape(-1, 3)
+                v = np.broadcast_to(hold[open_, None, :], fw.shape + (3,)).reshape(-1, 3) - hp
+                dist = np.linalg.norm(v, axis=1)
+                aim = v + 0.02 * span * self.up[fw, ll[:, None]].reshape(-1, 3)
+                bad |= rays.first_hit(hp, aim, max_distance=dist).hit.reshape(fw.shape)
+            found = bad.any(1)
+            # lift one frame before it happens: a fast body can stretch a leg a lot in a frame
+            first = fw[found, np.argmax(bad[found], 1)]
+            out[ll[found]] = np.maximum(first - 1, np.minimum(t0[ll[found]], first))
+            start[open_] += LIFT_WINDOW
+            open_ &= (out == F) & (start < stop)
+        return out
+
+
+def _leg_frames(bf: BodyFrames, cfg: RigConfig) -> _Frames:
+    """Each walking leg's segment frame and hip per frame, and the reach limits of a stance."""
     lay = leg_layout(cfg)
-    lg, body = cfg.legs, cfg.body
-    F, L = len(times), lay.n_legs
+    lg = cfg.legs
     q = bf.rotations[:, lay.segment]                                  # (F, L, 4)
     left, up, fwd = _axes(q)
     origin = bf.positions[:, lay.segment]
     hip = origin + quat_rotate(q, np.broadcast_to(lay.hip, q.shape[:-1] + (3,)))
+    lever = float(np.min(lg.reach - np.abs(lay.hip[:, 0])))
+    # how far behind its anchor a planted foot may fall before it must lift
+    lat0 = np.linalg.norm(lay.anchor[:, [0, 1]] - lay.hip[:, [0, 1]], axis=1)
+    span = LIFT_REACH * (lay.l1 + lay.l2)
+    a_back = np.sqrt(np.maximum(span ** 2 - lat0 ** 2, 0.0))         # (L,)
+    a_back = np.minimum(a_back, 1.5 * 0.5 * lg.duty * lg.stride_max)   # (L,)
+    # a planted foot also lifts when the body turns so that it would come under the body
+    # a foot stays at least this far outward of its hip (else it is under the body)
+    out_min = np.full(lay.n_legs, 0.3 * lever)                         # (L,) metres
+    return _Frames(lay, lg, q, q * np.array([-1.0, -1.0, -1.0, 1.0]), left, up, fwd, origin,
+                   hip, span, a_back, out_min, lever)
+
+
+def _anchors(rays, lf: _Frames, bf: BodyFrames) -> np.ndarray:
+    """(F, L, 3) each leg's neutral foot spot, pulled in on the inside of tight bends and next
+    to walls."""
+    lay, lg, left, fwd, hip = lf.lay, lf.lg, lf.left, lf.fwd, lf.hip
+    F, L = lf.shape
     # anchors: on the inside of a tight bend the feet pull in toward the body, so neighbouring
     # feet do not crowd (or cross) near the bend's centre
     kappa = spine_curvature(bf.positions, bf.rotations)[:, lay.segment]       # (F, L) 1/m, +left
@@ -271,7 +363,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     for yaw in np.radians([0.0, 40.0, -40.0]):       # straight out, ahead and behind
         out_dir = np.cos(yaw) * left * lay.side[None, :, None] + np.sin(yaw) * fwd
         for h in (0.0, 0.5 * lay.l1):
-            o = hip + h * up
+            o = hip + h * lf.up
             hw = rays.first_hit(o.reshape(-1, 3), out_dir.reshape(-1, 3),
                                 max_distance=lg.reach * 1.2)
             free = np.minimum(free, np.where(hw.hit, hw.distance * np.cos(yaw), np.inf).reshape(F, L))
@@ -280,71 +372,35 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     free = gaussian_filter1d(free, 2.0, axis=0, mode="nearest")
     lat_max = np.minimum(lat_max, np.abs(lay.hip[None, :, 0]) + WALL_FOLD * free)
     lat = np.clip(lat_max, lat_min[None, :], lg.reach) * lay.side[None, :]
-    anc = np.broadcast_to(lay.anchor, q.shape[:-1] + (3,)).copy()
+    anc = np.broadcast_to(lay.anchor, lf.q.shape[:-1] + (3,)).copy()
     anc[..., 0] = lat
-    anchor = origin + quat_rotate(q, anc)
+    return lf.origin + quat_rotate(lf.q, anc)
 
-    clock = gait_clock(arc, times, cfg.locomotion.max_speed, lg.stride_min, lg.stride_max)
+
+@dataclass
+class _Steps:
+    """The step plan. Ts (C+1, L) touchdown frames (row 0: frame 0), LOs (C, L) liftoff frames,
+    xs (C+1, L) landing offsets along fwd, phase_td (C+1, L) the touchdown came from the phase
+    (not an early, settling landing)."""
+
+    Ts: np.ndarray
+    LOs: np.ndarray
+    xs: np.ndarray
+    phase_td: np.ndarray
+
+
+def _step_events(rays, lf: _Frames, clock, anchor: np.ndarray, times: np.ndarray) -> _Steps:
+    """Touchdown and liftoff frames of every step, one cycle at a time for all legs."""
+    lay, lg = lf.lay, lf.lg
+    F, L = lf.shape
     phi, D, travel = clock.phase, clock.stride, clock.travel
     # duty factor: the setting, lowered at high speed so that no swing is faster than
     # max_swing_rate (a swinging foot sweeps about duty/(1-duty) * v / lever rad/s)
-    lever = float(np.min(lg.reach - np.abs(lay.hip[:, 0])))
-    ratio = lg.max_swing_rate * lever / (SWING_PEAK * np.maximum(clock.speed, 1e-9))
+    ratio = lg.max_swing_rate * lf.lever / (SWING_PEAK * np.maximum(clock.speed, 1e-9))
     duty = np.clip(ratio / (1.0 + ratio), MIN_DUTY, lg.duty)           # (F,)
     lift_gate = np.maximum.accumulate(phi - duty)   # liftoff of cycle i: first f with this >= i - lag
     A = 0.5 * duty * D                                                # half stance sweep (F,)
-    # how far behind its anchor a planted foot may fall before it must lift
-    lat0 = np.linalg.norm(lay.anchor[:, [0, 1]] - lay.hip[:, [0, 1]], axis=1)
-    span = LIFT_REACH * (lay.l1 + lay.l2)
-    a_back = np.sqrt(np.maximum(span ** 2 - lat0 ** 2, 0.0))         # (L,)
-    a_back = np.minimum(a_back, 1.5 * 0.5 * lg.duty * lg.stride_max)   # (L,)
-    # a planted foot also lifts when the body turns so that it would come under the body
-    # a foot stays at least this far outward of its hip (else it is under the body)
-    out_min = np.full(L, 0.3 * lever)                                  # (L,) metres
-    lag = lay.lag
-    legs = np.arange(L)
-    q_inv = q * np.array([-1.0, -1.0, -1.0, 1.0])
-    win_ext = np.arange(LIFT_WINDOW + 1)[None, :]
-
-    def first_bad(hold, start, stop, sight=False):
-        """(L,) first frame in [start, stop) where a foot planted at `hold` (L, 3) would be out
-        of reach, too far behind, or under the body (with `sight`, also: hidden from its hip
-        behind a wall); F where there is none. Checked LIFT_WINDOW frames at a time."""
-        out = np.full(L, F, dtype=np.int64)
-        t0 = start
-        start = start.copy()
-        open_ = start < stop
-        while open_.any():
-            ll = legs[open_]
-            fw_ext = np.clip(start[open_, None] - 1 + win_ext, 0, F - 1)
-            rel_ext = quat_rotate(q_inv[fw_ext, ll[:, None]],
-                                  hold[open_, None, :] - hip[fw_ext, ll[:, None]])
-            fw, rel = fw_ext[:, 1:], rel_ext[:, 1:]
-            n_ext = np.sqrt(np.einsum("lwi,lwi->lw", rel_ext, rel_ext))
-            bad = ((rel[..., 0] * lay.side[ll, None] < out_min[ll, None])
-                   | (n_ext[:, 1:] > span) | (rel[..., 2] < -a_back[ll, None]))
-            # a fast turn would swing the planted leg round its hip too fast: lift first
-            cos_t = np.einsum("lwi,lwi->lw", rel, rel_ext[:, :-1]) / np.maximum(
-                n_ext[:, 1:] * n_ext[:, :-1], 1e-300)
-            bad |= cos_t < np.cos(STANCE_TURN)
-            # ... or turn one of its bones too fast in a frame (near a straight or folded knee)
-            bad |= _stance_turns(hip[fw_ext, ll[:, None]], hold[open_], fwd[fw_ext, ll[:, None]],
-                                 left[fw_ext, ll[:, None]], lay, ll, lg.knee_out) > SWING_TURN
-            if sight:
-                hp = hip[fw, ll[:, None]].reshape(-1, 3)
-                v = np.broadcast_to(hold[open_, None, :], fw.shape + (3,)).reshape(-1, 3) - hp
-                dist = np.linalg.norm(v, axis=1)
-                aim = v + 0.02 * span * up[fw, ll[:, None]].reshape(-1, 3)
-                bad |= rays.first_hit(hp, aim, max_distance=dist).hit.reshape(fw.shape)
-            found = bad.any(1)
-            # lift one frame before it happens: a fast body can stretch a leg a lot in a frame
-            first = fw[found, np.argmax(bad[found], 1)]
-            out[ll[found]] = np.maximum(first - 1, np.minimum(t0[ll[found]], first))
-            start[open_] += LIFT_WINDOW
-            open_ &= (out == F) & (start < stop)
-        return out
-
-    # -- step events, one cycle at a time for all legs
+    a_back, lag, legs = lf.a_back, lay.lag, np.arange(L)
     T = np.zeros(L, dtype=np.int64)
     e0 = lag.copy()                                                   # phase at frame 0
     x = np.clip(A[0] - e0 * D[0], -a_back, A[0])
@@ -356,8 +412,8 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         lo_reach = np.searchsorted(travel, travel[Tc] + x + a_back, side="left")
         # body-frame check of the planted foot, LIFT_WINDOW frames at a time, up to the phase's
         # liftoff: lift early when it would fall out of reach or come under the body
-        hold = anchor[Tc, legs] + fwd[Tc, legs] * x[:, None]
-        lo_body = first_bad(hold, Tc, np.minimum(lo_phase + 1, F))
+        hold = anchor[Tc, legs] + lf.fwd[Tc, legs] * x[:, None]
+        lo_body = lf.first_bad(rays, hold, Tc, np.minimum(lo_phase + 1, F))
         LO = np.clip(np.minimum(np.minimum(lo_phase, lo_body), lo_reach), T, F)
         LOc = np.minimum(LO, F - 1)
         td_phase = np.searchsorted(phi, i + 1 - lag, side="left")
@@ -372,81 +428,93 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         recs_phase_td.append(td_phase <= td_time)
         T = Tn
         i += 1
-    Ts = np.stack(recs_T)                      # (C+1, L) touchdown frames (row 0: frame 0)
-    LOs = np.stack(recs_LO)                    # (C, L) liftoff frames
-    xs = np.stack(recs_x)                      # (C+1, L) landing offsets along fwd
+    return _Steps(np.stack(recs_T), np.stack(recs_LO), np.stack(recs_x), np.stack(recs_phase_td))
+
+
+def _footholds(rays, lf: _Frames, cfg: RigConfig, anchor: np.ndarray, st: _Steps) -> np.ndarray:
+    """(C+1, L, 3) the hold of every touchdown: one batch of rays."""
+    lay, lg = lf.lay, lf.lg
+    F, L = lf.shape
+    legs = np.arange(L)
+    C1 = len(st.Ts)
+    fr = np.minimum(st.Ts, F - 1)
+    pts = anchor[fr, legs[None, :]] + lf.fwd[fr, legs[None, :]] * st.xs[..., None]
+    inward = -lf.left[fr, legs[None, :]] * lay.side[None, :, None]
+    return project_footholds(rays, pts.reshape(-1, 3), lf.up[fr, legs[None, :]].reshape(-1, 3),
+                             inward.reshape(-1, 3), lf.hip[fr, legs[None, :]].reshape(-1, 3),
+                             PLAN_REACH * (lay.l1 + lay.l2),
+                             probe=cfg.body.clearance + 2.0 * lg.lift,
+                             min_out=np.tile(lf.out_min, C1)
+                             ).reshape(C1, L, 3)
+
+
+def _stances(rays, lf: _Frames, cfg: RigConfig, st: _Steps, holds: np.ndarray):
+    """Spread neighbours' holds, then lift early the feet the surface put somewhere unusable.
+    Returns (holds, cidx (F, L) hold index of each frame, contact (F, L)); st.LOs is updated."""
+    F, L = lf.shape
+    Ts, LOs = st.Ts, st.LOs
     C1 = len(Ts)
-
-    # -- footholds: one batch of rays for every touchdown
-    fr = np.minimum(Ts, F - 1)
-    pts = anchor[fr, legs[None, :]] + fwd[fr, legs[None, :]] * xs[..., None]
-    inward = -left[fr, legs[None, :]] * lay.side[None, :, None]
-    holds = project_footholds(rays, pts.reshape(-1, 3), up[fr, legs[None, :]].reshape(-1, 3),
-                              inward.reshape(-1, 3), hip[fr, legs[None, :]].reshape(-1, 3),
-                              PLAN_REACH * (lay.l1 + lay.l2),
-                              probe=body.clearance + 2.0 * lg.lift,
-                              min_out=np.tile(out_min, C1)
-                              ).reshape(C1, L, 3)
-
-    # -- per-frame foot targets
     f_idx = np.arange(F)
-    target = np.empty((F, L, 3))
     contact = np.zeros((F, L), bool)
-    td_flag = np.zeros((F, L), bool)
-    swing_u = np.zeros((F, L))
-    p0 = np.empty((F, L, 3))
-    p1 = np.empty((F, L, 3))
-    phase_td = np.stack(recs_phase_td)        # (C+1, L) touchdown came from the phase
     cidx = np.empty((F, L), dtype=np.int64)   # hold (cycle) index of each frame
     for leg in range(L):
         c = np.searchsorted(Ts[:, leg], f_idx, side="right") - 1      # cycle of each frame
         cidx[:, leg] = c = np.clip(c, 0, C1 - 2)
         contact[:, leg] = f_idx < LOs[c, leg]
-    holds = _spread_neighbours(holds, Ts, cidx, contact, NEIGHBOUR_GAP * body.spacing, rays,
-                               up, probe=body.clearance + 2.0 * lg.lift)
+    holds = _spread_neighbours(holds, Ts, cidx, contact, NEIGHBOUR_GAP * cfg.body.spacing, rays,
+                               lf.up, probe=cfg.body.clearance + 2.0 * lf.lg.lift)
     # the surface (and the neighbours) put some feet elsewhere than planned: lift those early
     # where they would now fall out of reach, under the body or behind a wall (touchdowns stay;
     # the next swing just starts sooner)
     for c in range(C1 - 1):
-        bad = first_bad(holds[c], np.minimum(Ts[c], F - 1), np.minimum(LOs[c] + 1, F), sight=True)
+        bad = lf.first_bad(rays, holds[c], np.minimum(Ts[c], F - 1),
+                           np.minimum(LOs[c] + 1, F), sight=True)
         LOs[c] = np.clip(np.minimum(LOs[c], bad), Ts[c], F)
     for leg in range(L):
         contact[:, leg] = f_idx < LOs[cidx[:, leg], leg]
+    return holds, cidx, contact
+
+
+def _swing_progress(lf: _Frames, st: _Steps, holds, cidx, contact, clock, times):
+    """Per frame and leg: the hold it left (p0), the hold it goes to (p1), its swing progress
+    u in [0, 1] (0 while planted) and whether the frame is a phase touchdown."""
+    F, L = lf.shape
+    lag, settle = lf.lay.lag, lf.lg.settle_time
+    phi = clock.phase
+    td_flag = np.zeros((F, L), bool)
+    swing_u = np.zeros((F, L))
+    p0 = np.empty((F, L, 3))
+    p1 = np.empty((F, L, 3))
     for leg in range(L):
         c = cidx[:, leg]
-        lo = LOs[c, leg]
-        st = contact[:, leg]
-        a, b = holds[c, leg], holds[c + 1, leg]
-        target[:, leg] = a
-        p0[:, leg], p1[:, leg] = a, b
+        lo = st.LOs[c, leg]
+        p0[:, leg], p1[:, leg] = holds[c, leg], holds[c + 1, leg]
         lo_c = np.minimum(lo, F - 1)
         ph = phi + lag[leg]
         u_phase = (ph - ph[lo_c]) / np.maximum(c + 1 - ph[lo_c], 1e-9)
-        u_time = (times - times[lo_c]) / lg.settle_time
-        swing_u[:, leg] = np.where(st, 0.0, np.clip(np.maximum(u_phase, u_time), 0.0, 1.0))
-        starts = Ts[1:, leg][phase_td[1:, leg]]
+        u_time = (times - times[lo_c]) / settle
+        swing_u[:, leg] = np.where(contact[:, leg], 0.0,
+                                   np.clip(np.maximum(u_phase, u_time), 0.0, 1.0))
+        starts = st.Ts[1:, leg][st.phase_td[1:, leg]]
         td_flag[starts[starts < F], leg] = True
-    sw = ~contact
-    u = swing_u
+    return p0, p1, swing_u, td_flag
+
+
+def _swing_arcs(lf: _Frames, st: _Steps, cidx, p0, p1, u, vert) -> np.ndarray:
+    """(F, L, 3) swinging feet sweeping around their hips in the segment's frame: from the old
+    hold as the segment saw it at liftoff to the new hold as it sees it at touchdown (angle and
+    radius about the hip interpolated), so the leg's motion relative to the body is smooth and
+    both ends are exact in the world."""
+    F, L = lf.shape
+    legs = np.arange(L)
+    q, q_inv, hip = lf.q, lf.q_inv, lf.hip
     h = _swing_shape(u)[..., None]
-    step_len = np.linalg.norm(p1 - p0, axis=-1)
-    lift = lg.lift * np.minimum(1.0, step_len / lg.stride_min)
-    arch = np.sin(np.pi * u) ** 2                   # lifts and lands softly
-    # every frame inside a swing keeps the foot at least SWING_CLEAR x the rig's lift off the
-    # ground: a foot that skims the surface while it moves reads as dragging
-    clear = SWING_CLEAR * lg.lift
-    inside = sw & (u > 0.0) & (u < 1.0)
-    vert = np.where(inside, np.maximum(lift * arch, clear), lift * arch)
-    # the foot sweeps around its hip in the segment's frame: from the old hold as the segment
-    # saw it at liftoff to the new hold as it sees it at touchdown (angle and radius about the
-    # hip interpolated), so the leg's motion relative to the body is smooth and both ends are
-    # exact in the world
-    f_lo = np.minimum(LOs[cidx, legs[None, :]], F - 1)
-    f_td = np.minimum(Ts[cidx + 1, legs[None, :]], F - 1)
+    f_lo = np.minimum(st.LOs[cidx, legs[None, :]], F - 1)
+    f_td = np.minimum(st.Ts[cidx + 1, legs[None, :]], F - 1)
     lg_ = np.broadcast_to(legs[None, :], (F, L))
     r0 = quat_rotate(q_inv[f_lo, lg_], p0 - hip[f_lo, lg_])
     r1 = quat_rotate(q_inv[f_td, lg_], p1 - hip[f_td, lg_])
-    s_ = lay.side[None, :]
+    s_ = lf.lay.side[None, :]
     th0 = np.clip(np.arctan2(r0[..., 2], s_ * r0[..., 0]), -SWEEP_LIMIT, SWEEP_LIMIT)
     th1 = np.clip(np.arctan2(r1[..., 2], s_ * r1[..., 0]), -SWEEP_LIMIT, SWEEP_LIMIT)
     rho0 = np.hypot(r0[..., 0], r0[..., 2])
@@ -464,97 +532,99 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     out_max = np.maximum(s_ * r0[..., 0], s_ * r1[..., 0])
     rel[..., 0] = s_ * np.minimum(s_ * rel[..., 0], out_max)
     rel[..., 1] += vert
-    swing_pts = hip + quat_rotate(q, rel)
-    target = np.where(sw[..., None], swing_pts, target)
-    # swinging feet stay outside the body, whatever the body's turn
-    rel = quat_rotate(q_inv, target - hip)
-    out = rel[..., 0] * lay.side[None, :]
-    rel[..., 0] = np.where(sw, np.maximum(out, out_min[None, :]), out) * lay.side[None, :]
-    target = hip + quat_rotate(q, rel)
-    # keep swinging feet above the surface below them (one batch of rays)
-    if np.any(sw):
-        sp = target[sw]
-        probe = body.clearance + 2.0 * lg.lift
-        hh = rays.cast_down(sp, probe, max_distance=2.0 * probe)
-        need = hh.points[:, 1] + np.maximum(0.35 * vert, np.where(inside, clear, 0.0))[sw]
-        y = np.where(hh.hit, np.maximum(sp[:, 1], need), sp[:, 1])
-        sp[:, 1] = y
-        # a swinging foot stays on its hip's side of a wall: pulled back toward the hip where
-        # the hip->foot line meets a steep face (eased in and out; re-timed below)
-        hp = hip[sw]
-        v = sp - hp
+    return hip + quat_rotate(q, rel)
+
+
+def _outside_body(lf: _Frames, target: np.ndarray, sw: np.ndarray) -> np.ndarray:
+    """Swinging feet stay outside the body, whatever the body's turn."""
+    rel = quat_rotate(lf.q_inv, target - lf.hip)
+    out = rel[..., 0] * lf.lay.side[None, :]
+    rel[..., 0] = np.where(sw, np.maximum(out, lf.out_min[None, :]), out) * lf.lay.side[None, :]
+    return lf.hip + quat_rotate(lf.q, rel)
+
+
+def _above_surface(rays, lf: _Frames, cfg: RigConfig, target, sw, vert, inside, clear):
+    """Swinging feet above the surface below them and on their hip's side of a wall (one batch
+    of rays each)."""
+    lg, hip, up = lf.lg, lf.hip, lf.up
+    sp = target[sw]
+    probe = cfg.body.clearance + 2.0 * lg.lift
+    hh = rays.cast_down(sp, probe, max_distance=2.0 * probe)
+    need = hh.points[:, 1] + np.maximum(0.35 * vert, np.where(inside, clear, 0.0))[sw]
+    y = np.where(hh.hit, np.maximum(sp[:, 1], need), sp[:, 1])
+    sp[:, 1] = y
+    # a swinging foot stays on its hip's side of a wall: pulled back toward the hip where
+    # the hip->foot line meets a steep face (eased in and out; re-timed below)
+    hp = hip[sw]
+    v = sp - hp
+    dist = np.linalg.norm(v, axis=1)
+    wall = rays.first_hit(hp, v + 0.02 * lf.span * up[sw], max_distance=dist)
+    steep = wall.hit & (np.abs(np.sum(wall.normals * up[sw], -1)) < 0.5)
+    if steep.any():
+        keep = np.maximum(wall.distance[steep] - 0.25 * lg.lift, 0.6 * dist[steep])
+        sp[steep] = hp[steep] + v[steep] / dist[steep, None] * keep[:, None]
+    target[sw] = sp
+    return target
+
+
+def _step_over(rays, lf: _Frames, target, sw):
+    """A swinging foot never goes into a wall: where its path from the previous frame is blocked
+    (or it ends inside something), it goes over, raised in lift-sized steps."""
+    lg, lay = lf.lg, lf.lay
+    start = target[sw].copy()
+    wall_side = np.zeros(len(start), bool)     # by something too tall to step over
+    for _ in range(WALL_STEPS):
+        prev = np.concatenate([target[:1], target[:-1]])[sw]
+        cur = target[sw]
+        v = cur - prev
         dist = np.linalg.norm(v, axis=1)
-        wall = rays.first_hit(hp, v + 0.02 * span * up[sw], max_distance=dist)
-        steep = wall.hit & (np.abs(np.sum(wall.normals * up[sw], -1)) < 0.5)
-        if steep.any():
-            keep = np.maximum(wall.distance[steep] - 0.25 * lg.lift, 0.6 * dist[steep])
-            sp[steep] = hp[steep] + v[steep] / dist[steep, None] * keep[:, None]
-        target[sw] = sp
-        # a swinging foot never goes into a wall: where its path from the previous frame is
-        # blocked (or it ends inside something), it goes over, raised in lift-sized steps
-        start = target[sw].copy()
-        wall_side = np.zeros(len(start), bool)     # by something too tall to step over
-        for _ in range(WALL_STEPS):
-            prev = np.concatenate([target[:1], target[:-1]])[sw]
-            cur = target[sw]
-            v = cur - prev
-            dist = np.linalg.norm(v, axis=1)
-            moving = dist > 1e-9
-            blocked = np.zeros(len(cur), bool)
-            moving &= ~wall_side
-            eps = 0.1 * lg.lift * UP      # rays start just above feet resting on the surface
-            if np.any(moving):
-                blocked[moving] = rays.first_hit(prev[moving] + eps, v[moving],
-                                                 max_distance=dist[moving]).hit
-            top = 3.0 * lg.lift
-            hb = rays.first_hit(cur + top * UP, np.tile(-UP, (len(cur), 1)),
-                                max_distance=top - 0.1 * lg.lift)
-            below = hb.hit & ~wall_side
-            if not (blocked.any() or below.any()):
-                break
-            cur[blocked] += 0.5 * lg.lift * UP
-            lift_to = cur[below, 1] + top - hb.distance[below] + 0.1 * lg.lift
-            cur[below, 1] = np.maximum(cur[below, 1], lift_to)
-            # never above knee height over the hip: something that tall is not stepped over;
-            # the foot keeps its path and is pushed off the face later (_clear_swings)
-            too_high = cur[:, 1] > hip[sw][:, 1] + SWING_CEILING * lay.l1
-            wall_side |= too_high
-            cur[wall_side] = start[wall_side]
-            target[sw] = cur
+        moving = dist > 1e-9
+        blocked = np.zeros(len(cur), bool)
+        moving &= ~wall_side
+        eps = 0.1 * lg.lift * UP      # rays start just above feet resting on the surface
+        if np.any(moving):
+            blocked[moving] = rays.first_hit(prev[moving] + eps, v[moving],
+                                             max_distance=dist[moving]).hit
+        top = 3.0 * lg.lift
+        hb = rays.first_hit(cur + top * UP, np.tile(-UP, (len(cur), 1)),
+                            max_distance=top - 0.1 * lg.lift)
+        below = hb.hit & ~wall_side
+        if not (blocked.any() or below.any()):
+            break
+        cur[blocked] += 0.5 * lg.lift * UP
+        lift_to = cur[below, 1] + top - hb.distance[below] + 0.1 * lg.lift
+        cur[below, 1] = np.maximum(cur[below, 1], lift_to)
+        # never above knee height over the hip: something that tall is not stepped over;
+        # the foot keeps its path and is pushed off the face later (_clear_swings)
+        too_high = cur[:, 1] > lf.hip[sw][:, 1] + SWING_CEILING * lay.l1
+        wall_side |= too_high
+        cur[wall_side] = start[wall_side]
+        target[sw] = cur
+    return target
 
-    # swings that turn the leg unevenly (over an obstacle, down a ledge) are re-timed so the
-    # leg turns by equal angles each frame
-    target = _even_swings(target, hip, q, q_inv, cidx, LOs, Ts, sw, EVEN_SWING)
 
-    # swings (and liftoffs) that still turn a leg joint by more than EVEN_JOINT in a frame are
-    # re-timed to an even pace in joint space (the rotations the IK will give each bone)
-    moved = np.zeros((F, L), bool)
+def _retimed(rays, lf: _Frames, cfg: RigConfig, target, cidx, st: _Steps, sw):
+    """Swings that turn the leg unevenly (over an obstacle, down a ledge) re-timed so the leg
+    turns by equal angles each frame, then to an even pace in joint space where a leg joint
+    still turns more than EVEN_JOINT in a frame; re-timed feet stay above the surface."""
+    lay, lg = lf.lay, lf.lg
+    target = _even_swings(target, lf.hip, lf.q, lf.q_inv, cidx, st.LOs, st.Ts, sw, EVEN_SWING)
+    moved = np.zeros(sw.shape, bool)
     for _ in range(2):
-        target, m = _even_joint_swings(target, hip, q, q_inv, fwd, left, lay, lg.knee_out,
-                                       cidx, LOs, Ts, sw, EVEN_JOINT)
+        target, m = _even_joint_swings(target, lf.hip, lf.q, lf.q_inv, lf.fwd, lf.left, lay,
+                                       lg.knee_out, cidx, st.LOs, st.Ts, sw, EVEN_JOINT)
         moved |= m
-    # ... and a re-timed swinging foot still stays above the surface below it
     if np.any(moved):
         sp = target[moved]
-        probe = body.clearance + 2.0 * lg.lift
+        probe = cfg.body.clearance + 2.0 * lg.lift
         hh = rays.cast_down(sp, probe, max_distance=2.0 * probe)
         sp[:, 1] = np.where(hh.hit, np.maximum(sp[:, 1], hh.points[:, 1]), sp[:, 1])
         target[moved] = sp
+    return target
 
-    # the swing is raised where what lies under the leg (a stair's nosing, a stone) needs it,
-    # as one smooth arch per swing rather than frame-by-frame bumps
-    extra = _obstacle_lift(rays, hip, target, up, u, inside, cidx, np.zeros((F, L)), clear,
-                           SWING_CEILING * lay.l1 + lay.l2)
-    target = target + extra[..., None] * up
-    # every swinging foot clear of the nearest surface, walls included (also the frames the
-    # re-timing above moved off the old hold, liftoff frames included)
-    eps = 1e-6 * lg.lift
-    moving = sw & (np.linalg.norm(target - p0, axis=-1) > eps) & (
-        np.linalg.norm(target - p1, axis=-1) > eps)
-    target = _clear_swings(rays, target, inside | moving, clear, 0.25 * (lay.l1 + lay.l2))
 
-    # a swinging foot that would pass too close to its neighbour's foot goes over it
-    gap = NEIGHBOUR_GAP * body.spacing
+def _over_neighbours(target, sw, up, gap):
+    """A swinging foot that would pass too close to its neighbour's foot goes over it."""
     for _ in range(6):
         d = np.linalg.norm(target[:, 2:] - target[:, :-2], axis=-1)
         conf = (d < gap) & (sw[:, 2:] | sw[:, :-2])
@@ -563,38 +633,85 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         f, k = np.nonzero(conf)
         leg = np.where(sw[f, k + 2], k + 2, k)           # the rear one when both swing
         np.add.at(target, (f, leg), up[f, leg] * (1.2 * (gap - d[f, k]))[:, None])
+    return target
 
+
+def _swing_targets(rays, lf: _Frames, cfg: RigConfig, st: _Steps, cidx, contact, p0, p1, u):
+    """(F, L, 3) where each foot is asked to be: on its hold while planted, on a lifted,
+    obstacle-aware arc while it swings."""
+    lg, lay = lf.lg, lf.lay
+    sw = ~contact
+    step_len = np.linalg.norm(p1 - p0, axis=-1)
+    lift = lg.lift * np.minimum(1.0, step_len / lg.stride_min)
+    arch = np.sin(np.pi * u) ** 2                   # lifts and lands softly
+    # every frame inside a swing keeps the foot at least SWING_CLEAR x the rig's lift off the
+    # ground: a foot that skims the surface while it moves reads as dragging
+    clear = SWING_CLEAR * lg.lift
+    inside = sw & (u > 0.0) & (u < 1.0)
+    vert = np.where(inside, np.maximum(lift * arch, clear), lift * arch)
+    target = np.where(sw[..., None], _swing_arcs(lf, st, cidx, p0, p1, u, vert), p0)
+    target = _outside_body(lf, target, sw)
+    if np.any(sw):
+        target = _above_surface(rays, lf, cfg, target, sw, vert, inside, clear)
+        target = _step_over(rays, lf, target, sw)
+    target = _retimed(rays, lf, cfg, target, cidx, st, sw)
+    # the swing is raised where what lies under the leg (a stair's nosing, a stone) needs it,
+    # as one smooth arch per swing rather than frame-by-frame bumps
+    extra = _obstacle_lift(rays, lf.hip, target, lf.up, u, inside, cidx, np.zeros(sw.shape),
+                           clear, SWING_CEILING * lay.l1 + lay.l2)
+    target = target + extra[..., None] * lf.up
+    # every swinging foot clear of the nearest surface, walls included (also the frames the
+    # re-timing above moved off the old hold, liftoff frames included)
+    eps = 1e-6 * lg.lift
+    moving = sw & (np.linalg.norm(target - p0, axis=-1) > eps) & (
+        np.linalg.norm(target - p1, axis=-1) > eps)
+    target = _clear_swings(rays, target, inside | moving, clear, 0.25 * (lay.l1 + lay.l2))
+    target = _over_neighbours(target, sw, lf.up, NEIGHBOUR_GAP * cfg.body.spacing)
     # a swinging foot whose leg would still reach through the environment (past a wall's
     # corner) is drawn in toward its hip, eased in and out
-    target = _pull_in_swings(rays, hip, target, sw, fwd, left, lay, lg.knee_out,
+    target = _pull_in_swings(rays, lf.hip, target, sw, lf.fwd, lf.left, lay, lg.knee_out,
                              0.005 * cfg.body.length)
     # a swinging foot never comes close to its hip: there the leg's plane would swing round
     # with every millimetre the foot moves (a softly clamped minimum reach)
-    rel = target - hip
+    rel = target - lf.hip
     d = np.linalg.norm(rel, axis=-1)
     full = lay.l1 + lay.l2
     d_new = np.where(sw, soft_clamp(d, MIN_REACH * full, full), d)
-    target = hip + rel * (d_new / np.maximum(d, 1e-12))[..., None]
+    return lf.hip + rel * (d_new / np.maximum(d, 1e-12))[..., None]
+
+
+def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: RigConfig):
+    """Footholds, swings and IK for every walking leg and frame. Returns a dict of arrays."""
+    lf = _leg_frames(bf, cfg)
+    lay, lg, body, hip = lf.lay, lf.lg, cfg.body, lf.hip
+    F, L = lf.shape
+    anchor = _anchors(rays, lf, bf)
+    clock = gait_clock(arc, times, cfg.locomotion.max_speed, lg.stride_min, lg.stride_max)
+    st = _step_events(rays, lf, clock, anchor, times)
+    holds = _footholds(rays, lf, cfg, anchor, st)
+    holds, cidx, contact = _stances(rays, lf, cfg, st, holds)
+    p0, p1, u, td_flag = _swing_progress(lf, st, holds, cidx, contact, clock, times)
+    target = _swing_targets(rays, lf, cfg, st, cidx, contact, p0, p1, u)
 
     # -- IK, all frames x legs
-    pole = leg_pole(lay, hip, target, fwd, left, lg.knee_out)
+    pole = leg_pole(lay, hip, target, lf.fwd, lf.left, lg.knee_out)
     sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
     mid, hinge = _clear_knees(rays, hip, sol.mid, sol.end, sol.hinge, lay.l1, lay.l2,
-                              0.005 * cfg.body.length)
+                              0.005 * body.length)
     q_u = bone_frames(hip, mid, hinge)
     q_t = bone_frames(mid, sol.end, hinge)
     # swings that still break a limit (a joint turning too fast, a bone through something, a
     # moving foot on or in a surface) are redone in joint space (swing.py)
-    lim = Limits(contact=0.8 * clear, slide=SLIDE * body.length,
+    lim = Limits(contact=0.8 * (SWING_CLEAR * lg.lift), slide=SLIDE * body.length,
                  tol=0.005 * body.length, turn=np.radians(SWING_TURN), gap=SWING_GAP * body.spacing)
-    q_u, q_t, mid, feet = joint_space_swings(rays, hip, q, q_u, q_t, mid, sol.end, ~contact,
+    q_u, q_t, mid, feet = joint_space_swings(rays, hip, lf.q, q_u, q_t, mid, sol.end, ~contact,
                                              lay.side, lay.l1, lay.l2, lim)
     names = tuple(n for pair in zip(lay.upper_names, lay.tip_names) for n in pair)
     positions = np.stack([hip, mid], axis=2).reshape(F, 2 * L, 3)
     rotations = np.stack([q_u, q_t], axis=2).reshape(F, 2 * L, 4)
     return dict(names=names, positions=positions, rotations=rotations, feet=feet,
-                targets=target, contacts=contact, touchdown=td_flag, lag=lag,
-                touchdowns=Ts, liftoffs=LOs, holds=holds)
+                targets=target, contacts=contact, touchdown=td_flag, lag=lay.lag,
+                touchdowns=st.Ts, liftoffs=st.LOs, holds=holds)
 
 
 def _obstacle_lift(rays, hip: np.ndarray, base: np.ndarray, up: np.ndarray, u: np.ndarray,
