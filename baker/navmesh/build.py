@@ -27,6 +27,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.sparse import coo_matrix, csr_matrix
@@ -314,10 +315,105 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
                        f"{cell * math.sqrt(ncols / MAX_COLUMNS):.3g} m) or smaller bounds "
                        "(baker bake --nav-build lazy builds only where the creature goes)")
     caster = _Caster(env)
-    face_comp, comp_closed, comp_wind = _solid_components(mesh)
+    solids = _solid_components(mesh)
     timings["setup"] = time.perf_counter() - t0
 
-    # 1.-2. column heightfield and walkable samples, in bands of columns (bounded memory) ---
+    grid = _Grid(x0, z0, nx, nz, cell)
+    s = _samples(caster, grid, ytop, solids, slope, height, timings)
+    t = time.perf_counter()
+    h_off = max(min(step, 0.5 * height), 1e-4)
+    links = _links(caster, grid, s, step, height, slope, h_off)
+    timings["links"] = time.perf_counter() - t
+    t = time.perf_counter()
+    dist = _clearance(caster, grid, s, links, radius, h_off)
+    timings["erode"] = time.perf_counter() - t
+    t = time.perf_counter()
+    if min_island_area is None:
+        min_island_area = max(64 * cell * cell, (4 * radius) ** 2)
+    sel, links, comp, comp_area = _islands(links, dist >= radius - 1e-9, cell, min_island_area)
+    scol = s.col[sel]
+    counts = np.bincount(scol, minlength=ncols)
+    col_start = np.zeros(ncols + 1, dtype=np.int64)
+    np.cumsum(counts, out=col_start[1:])
+    positions = np.stack([s.px[sel], s.y[sel], s.pz[sel]], axis=1)
+    cells = np.stack([s.ix[sel], s.iz[sel]], axis=1).astype(np.int32)
+    timings["components"] = time.perf_counter() - t
+
+    # 6. coarse graph ---------------------------------------------------------------------
+    t = time.perf_counter()
+    coarse_of, coarse_rep, cindptr, cindices = _coarse(positions, cells, links, coarse_factor,
+                                                       nz)
+    timings["coarse"] = time.perf_counter() - t
+    timings["total"] = time.perf_counter() - t0
+    log.info("navmesh: %d x %d columns, %d hits, %d walkable samples, %d components, "
+             "%.3f m^2; %s", nx, nz, s.n_hits, len(positions), len(comp_area), comp_area.sum(),
+             ", ".join(f"{k} {v:.3f}s" for k, v in timings.items()))
+    return NavSurface(
+        positions=positions.astype(np.float32),
+        normals=s.normals[sel].astype(np.float32),
+        cells=cells,
+        col_start=col_start,
+        links=links.astype(np.int32),
+        component=comp,
+        clearance=dist[sel].astype(np.float32),
+        component_area=comp_area,
+        coarse_of=coarse_of,
+        coarse_rep=coarse_rep,
+        coarse_indptr=cindptr,
+        coarse_indices=cindices,
+        origin=(x0, z0),
+        shape=(nx, nz),
+        cell_size=cell,
+        coarse_factor=int(coarse_factor),
+        agent_radius=radius,
+        agent_height=height,
+        step_height=step,
+        max_slope=slope,
+    )
+
+
+@dataclass(frozen=True)
+class _Grid:
+    """The column grid: origin (x0, z0) of its corner, nx x nz columns of `cell` metres."""
+
+    x0: float
+    z0: float
+    nx: int
+    nz: int
+    cell: float
+
+
+@dataclass
+class _Samples:
+    """Walkable samples, sorted by column (top to bottom within one).
+
+    col, ix, iz   : (n,) column index and its grid coordinates
+    px, pz        : (n,) the column centre
+    y, ceil       : (n,) surface height and the height of what is above it
+    normals       : (n, 3) upward surface normals
+    col_start     : (ncols + 1,) first sample of each column; counts: (ncols,) samples in it
+    n_hits        : ray hits the samples were chosen from
+    """
+
+    col: np.ndarray
+    ix: np.ndarray
+    iz: np.ndarray
+    px: np.ndarray
+    pz: np.ndarray
+    y: np.ndarray
+    ceil: np.ndarray
+    normals: np.ndarray
+    col_start: np.ndarray
+    counts: np.ndarray
+    n_hits: int
+
+
+def _samples(caster: _Caster, grid: _Grid, ytop, solids, slope, height, timings) -> _Samples:
+    """1.-2. the column heightfield and its walkable samples, in bands of columns (bounded
+    memory). solids: _solid_components of the mesh."""
+    x0, z0, nx, nz, cell = grid.x0, grid.z0, grid.nx, grid.nz, grid.cell
+    ncols = nx * nz
+    face_comp, comp_closed, comp_wind = solids
     parts = []
     cos_slope = math.cos(slope) - 1e-9
     for c0 in range(0, ncols, TILE_COLUMNS):
@@ -341,43 +437,48 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
     counts = np.bincount(scol, minlength=ncols)
     col_start = np.zeros(ncols + 1, dtype=np.int64)
     np.cumsum(counts, out=col_start[1:])
-    n = len(sy)
-    timings["samples"] += time.perf_counter() - t
-
-    # 3. links ----------------------------------------------------------------------------
-    t = time.perf_counter()
-    h_off = max(min(step, 0.5 * height), 1e-4)
-    links = np.full((n, 8), -1, dtype=np.int32)
     px = x0 + (six + 0.5) * cell
     pz = z0 + (siz + 0.5) * cell
+    timings["samples"] += time.perf_counter() - t
+    return _Samples(scol, six, siz, px, pz, sy, sceil, snrm, col_start, counts, nh)
+
+
+def _links(caster: _Caster, grid: _Grid, s: _Samples, step, height, slope, h_off) -> np.ndarray:
+    """3. (n, 8) int32 neighbour links of every sample (-1: none): a riser up to `step`, room
+    for `height` above both, and no steep face between them."""
+    nx, nz, cell = grid.nx, grid.nz, grid.cell
+    scol, sy, sceil, counts = s.col, s.y, s.ceil, s.counts
+    n = len(sy)
+    links = np.full((n, 8), -1, dtype=np.int32)
     # rise of each sample's plane over one cell along +X, +Z and the two diagonals
-    gx = -cell * snrm[:, 0] / snrm[:, 1]
-    gz = -cell * snrm[:, 2] / snrm[:, 1]
+    gx = -cell * s.normals[:, 0] / s.normals[:, 1]
+    gz = -cell * s.normals[:, 2] / s.normals[:, 1]
     grad = {0: gx, 1: gz, 4: gx + gz, 7: gx - gz}
-    blockers = _blocker_columns(caster, x0, z0, nx, nz, cell, min(slope, math.atan2(h_off, cell)))
+    blockers = _blocker_columns(caster, grid.x0, grid.z0, nx, nz, cell,
+                                min(slope, math.atan2(h_off, cell)))
     for d in (0, 1):
-        nb = _link_axis(d, scol, six, siz, sy, sceil, nx, nz, col_start, counts, step,
+        nb = _link_axis(d, scol, s.ix, s.iz, sy, sceil, nx, nz, s.col_start, counts, step,
                         height, grad[d])
-        s = np.nonzero(nb >= 0)[0]
-        tt = nb[s]
-        test = blockers[scol[s]] | blockers[scol[tt]]
+        src = np.nonzero(nb >= 0)[0]
+        tt = nb[src]
+        test = blockers[scol[src]] | blockers[scol[tt]]
         if test.any():  # only links near steep triangles can be blocked by them
-            q, qt = s[test], tt[test]
-            o = np.stack([px[q], np.maximum(sy[q], sy[qt]) + h_off, pz[q]], axis=1)
+            q, qt = src[test], tt[test]
+            o = np.stack([s.px[q], np.maximum(sy[q], sy[qt]) + h_off, s.pz[q]], axis=1)
             dirv = np.zeros_like(o)
             dirv[:, 0], dirv[:, 2] = DIRS[d]
             th, _ = caster.cast(o, dirv, cell)
-            ok = np.ones(len(s), dtype=bool)
+            ok = np.ones(len(src), dtype=bool)
             ok[np.nonzero(test)[0][np.isfinite(th)]] = False
-            s, tt = s[ok], tt[ok]
-        links[s, d] = tt
-        links[tt, OPPOSITE[d]] = s
+            src, tt = src[ok], tt[ok]
+        links[src, d] = tt
+        links[tt, OPPOSITE[d]] = src
     # keep symmetric links only: two layers of one column may have claimed the same sample
     msrc = np.nonzero(counts[scol] > 1)[0]
     for d in (0, 1):
-        s = msrc[links[msrc, d] >= 0]
-        bad = links[links[s, d], OPPOSITE[d]] != s
-        links[s[bad], d] = -1
+        src = msrc[links[msrc, d] >= 0]
+        bad = links[links[src, d], OPPOSITE[d]] != src
+        links[src[bad], d] = -1
     for d, (a1, a2) in ((4, (0, 1)), (7, (0, 3))):
         s1 = np.nonzero(links[:, a1] >= 0)[0]
         u1 = np.full(n, -1, dtype=np.int32)
@@ -385,24 +486,28 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
         s2 = np.nonzero(links[:, a2] >= 0)[0]
         u2 = np.full(n, -1, dtype=np.int32)
         u2[s2] = links[links[s2, a2], a1]
-        s = np.nonzero((u1 >= 0) & (u1 == u2))[0]
-        u = u1[s]
-        gap = np.minimum(sceil[s], sceil[u]) - np.maximum(sy[s], sy[u])
-        ok = (_riser(sy[s], sy[u], grad[d][s], grad[d][u]) <= step) & (gap >= height)
-        s, u = s[ok], u[ok]
-        links[s, d] = u
-        links[u, OPPOSITE[d]] = s
-    timings["links"] = time.perf_counter() - t
+        src = np.nonzero((u1 >= 0) & (u1 == u2))[0]
+        u = u1[src]
+        gap = np.minimum(sceil[src], sceil[u]) - np.maximum(sy[src], sy[u])
+        ok = (_riser(sy[src], sy[u], grad[d][src], grad[d][u]) <= step) & (gap >= height)
+        src, u = src[ok], u[ok]
+        links[src, d] = u
+        links[u, OPPOSITE[d]] = src
+    return links
 
-    # 4. erosion --------------------------------------------------------------------------
-    t = time.perf_counter()
+
+def _clearance(caster: _Caster, grid: _Grid, s: _Samples, links, radius, h_off) -> np.ndarray:
+    """4. (n,) each sample's distance to the walkable surface's edge (a wall or a drop), exact
+    beside the edge and grown over the links up to `radius` (+inf farther in)."""
+    cell = grid.cell
+    sy = s.y
     missing = links[:, :4] < 0
     border = np.nonzero(missing.any(axis=1))[0]
     d0 = np.full(len(border), np.inf)
     bs, bd = np.nonzero(missing[border])
     if len(bs):  # exact distance to walls beside boundary samples
         sb = border[bs]
-        o = np.stack([px[sb], sy[sb] + h_off, pz[sb]], axis=1)
+        o = np.stack([s.px[sb], sy[sb] + h_off, s.pz[sb]], axis=1)
         dirv = np.zeros_like(o)
         dirv[:, 0] = DIRS[bd, 0]
         dirv[:, 2] = DIRS[bd, 1]
@@ -416,7 +521,7 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
                   / np.maximum(hlen, 1e-12))
         dd[hit] = th[hit] * np.where(hlen > 1e-6, cosang, 1.0)
         np.minimum.at(d0, bs, dd)
-    dist = np.full(n, np.inf)
+    dist = np.full(len(sy), np.inf)
     dist[border] = d0
     w = np.where(np.arange(8) < 4, cell, cell * math.sqrt(2.0))
     iters = int(math.ceil(radius / cell)) + 1
@@ -436,75 +541,33 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
                 changed.append(nb[better])
         active = np.unique(np.concatenate(changed)) if changed else np.zeros(0, np.int64)
         active = active[dist[active] < radius + cell * 1.5]
-    keep = dist >= radius - 1e-9
-    timings["erode"] = time.perf_counter() - t
+    return dist
 
-    # 5. islands and components -----------------------------------------------------------
-    t = time.perf_counter()
 
-    def _compact(keep, links):
-        remap = np.full(len(keep) + 1, -1, dtype=np.int32)
-        remap[:-1][keep] = np.arange(int(keep.sum()), dtype=np.int32)
-        return remap[links[keep]]
-
+def _islands(links, keep, cell, min_island_area):
+    """5. the kept samples' connected components, dropping those under `min_island_area`.
+    Returns (sel: kept sample indices, links renumbered to them, component of each (largest
+    first), component areas)."""
     ax = links[:, :4]
     axm = (ax >= 0) & keep[:, None]
     axm[axm] = keep[ax[axm]]
     ncomp, comp = connected_components(_csr(ax, axm), directed=True, connection="strong")
-    if min_island_area is None:
-        min_island_area = max(64 * cell * cell, (4 * radius) ** 2)
     size = np.bincount(comp[keep], minlength=ncomp)
     big = size * cell * cell >= min_island_area
     keep2 = keep & big[comp]
     if not keep2.any():
         raise NavError("environment has no walkable surface (every walkable area is narrower "
                        f"than the agent or smaller than {min_island_area:g} m^2)")
-    links = _compact(keep2, links)
+    remap = np.full(len(keep2) + 1, -1, dtype=np.int32)
+    remap[:-1][keep2] = np.arange(int(keep2.sum()), dtype=np.int32)
+    links = remap[links[keep2]]
     sel = np.nonzero(keep2)[0]
     order = np.argsort(-size[big], kind="stable")
     relabel = np.full(ncomp, -1, dtype=np.int64)
     relabel[np.nonzero(big)[0][order]] = np.arange(int(big.sum()))
     comp = relabel[comp[sel]].astype(np.int32)
     comp_area = np.sort(size[big])[::-1] * cell * cell
-    scol = scol[sel]
-    counts = np.bincount(scol, minlength=ncols)
-    col_start = np.zeros(ncols + 1, dtype=np.int64)
-    np.cumsum(counts, out=col_start[1:])
-    positions = np.stack([px[sel], sy[sel], pz[sel]], axis=1)
-    cells = np.stack([six[sel], siz[sel]], axis=1).astype(np.int32)
-    timings["components"] = time.perf_counter() - t
-
-    # 6. coarse graph ---------------------------------------------------------------------
-    t = time.perf_counter()
-    coarse_of, coarse_rep, cindptr, cindices = _coarse(positions, cells, links, coarse_factor,
-                                                       nz)
-    timings["coarse"] = time.perf_counter() - t
-    timings["total"] = time.perf_counter() - t0
-    log.info("navmesh: %d x %d columns, %d hits, %d walkable samples, %d components, "
-             "%.3f m^2; %s", nx, nz, nh, len(positions), len(comp_area), comp_area.sum(),
-             ", ".join(f"{k} {v:.3f}s" for k, v in timings.items()))
-    return NavSurface(
-        positions=positions.astype(np.float32),
-        normals=snrm[sel].astype(np.float32),
-        cells=cells,
-        col_start=col_start,
-        links=links.astype(np.int32),
-        component=comp,
-        clearance=dist[sel].astype(np.float32),
-        component_area=comp_area,
-        coarse_of=coarse_of,
-        coarse_rep=coarse_rep,
-        coarse_indptr=cindptr,
-        coarse_indices=cindices,
-        origin=(x0, z0),
-        shape=(nx, nz),
-        cell_size=cell,
-        coarse_factor=int(coarse_factor),
-        agent_radius=radius,
-        agent_height=height,
-        step_height=step,
-        max_slope=slope,
-    )
+    return sel, links, comp, comp_area
 
 
 def _blocker_columns(caster: _Caster, x0, z0, nx, nz, cell, angle) -> np.ndarray:
@@ -536,13 +599,6 @@ def _csr(links: np.ndarray, mask: np.ndarray) -> csr_matrix:
     indptr = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(mask.sum(axis=1), out=indptr[1:])
     return csr_matrix((np.ones(int(indptr[-1]), np.int8), links[mask], indptr), shape=(n, n))
-
-
-def _components(links: np.ndarray) -> tuple[int, np.ndarray]:
-    # links are symmetric and diagonals imply 4-link paths: strong components of the
-    # 4-link digraph are the connected components (and much faster than directed=False)
-    ax = links[:, :4]
-    return connected_components(_csr(ax, ax >= 0), directed=True, connection="strong")
 
 
 def _coarse(positions, cells, links, k, nz):
