@@ -24,6 +24,8 @@ HEAD_CAP = 0.55          # [segments] length of the rounded head in front of the
 TAIL_CAP = 0.35          # [segments] length of the closed tail behind the last segment
 CAP_RINGS = 6
 LEG_SIDES = 6
+STUB_STATIONS = (0.0, 0.55)  # ring stations along a leg stub, fraction of its length
+STUB_RADII = (1.0, 0.55)     # ring radius at each station, fraction of the stub's base radius
 
 
 @dataclass(frozen=True)
@@ -160,106 +162,16 @@ def build_body_mesh(width_profile: np.ndarray, spacing: float, height_ratio: flo
     if not (spacing > 0 and height_ratio > 0 and np.all(wp > 0)):
         raise RigError("body mesh needs positive spacing, widths and height ratio")
 
-    # ring positions along the body in segment units c (c = s at joint s; z = -c*spacing)
-    body_c = np.arange(-0.5 * RINGS_PER_SEGMENT, (s_count - 0.5) * RINGS_PER_SEGMENT + 1) / RINGS_PER_SEGMENT
-    # rounded caps: quarter-ellipse profiles
-    th = np.linspace(0.0, 0.5 * np.pi, CAP_RINGS + 1)[1:-1]          # excludes tip and joint ring
-    head_c = -0.5 - HEAD_CAP * np.cos(th)
-    head_scale = np.sin(th)
-    tail_c = (s_count - 0.5) + TAIL_CAP * np.cos(th[::-1])
-    tail_scale = np.sin(th[::-1])
-    c = np.concatenate([head_c, body_c, tail_c])
-    cap_scale = np.concatenate([head_scale, np.ones_like(body_c), tail_scale])
+    c, cap_scale = _ring_stations(s_count)
+    half_w, half_h = _ring_half_sizes(c, cap_scale, wp, height_ratio)
+    body_v, body_f = _body_tube(c, half_w, half_h, spacing, s_count)
+    body_j, body_w = _body_skin(c, spine, s_count)
 
-    # half-width along the body, with a pinch at each segment boundary (c = k + 0.5)
-    half_w = np.interp(np.clip(c, 0, s_count - 1), np.arange(s_count), wp)
-    d = np.abs(c - (np.floor(c - 0.5) + 0.5))
-    d = np.minimum(d, 1.0 - d)                                    # distance to nearest boundary
-    pinch = 1.0 - PINCH_DEPTH * np.clip(1.0 - d / PINCH_WIDTH, 0.0, 1.0) ** 2
-    half_w = half_w * pinch * cap_scale
-    half_h = half_w * height_ratio
-
-    phi = np.arange(RING_SIDES) * (2.0 * np.pi / RING_SIDES)
-    ring_x = half_w[:, None] * np.cos(phi)[None, :]
-    ring_y = half_h[:, None] * np.sin(phi)[None, :]
-    ring_z = np.broadcast_to((-c * spacing)[:, None], ring_x.shape)
-    ring_v = np.stack([ring_x, ring_y, ring_z], -1).reshape(-1, 3)
-    n_rings = len(c)
-    tip_front = np.array([[0.0, 0.0, (0.5 + HEAD_CAP) * spacing]])
-    tip_back = np.array([[0.0, 0.0, -(s_count - 0.5 + TAIL_CAP) * spacing]])
-    body_v = np.concatenate([ring_v, tip_front, tip_back])
-    i_front = n_rings * RING_SIDES
-    i_back = i_front + 1
-    k = np.arange(RING_SIDES)
-    kn = (k + 1) % RING_SIDES
-    front_fan = np.stack([np.full(RING_SIDES, i_front), k, kn], -1)
-    last = (n_rings - 1) * RING_SIDES
-    back_fan = np.stack([np.full(RING_SIDES, i_back), last + kn, last + k], -1)
-    body_f = np.concatenate([_tube_faces(n_rings, RING_SIDES), front_fan, back_fan])
-
-    # skin weights: blend smoothly from joint floor(c) to the next joint behind it
-    c_v = np.concatenate([np.repeat(c, RING_SIDES), [-0.5 - HEAD_CAP, s_count - 0.5 + TAIL_CAP]])
-    cc = np.clip(c_v, 0.0, s_count - 1.0)
-    s0 = np.minimum(np.floor(cc).astype(np.int64), s_count - 2)
-    t = _smoothstep(cc - s0)
-    body_j = np.stack([spine[s0], spine[s0 + 1]], -1)
-    body_w = np.stack([1.0 - t, t], -1)
-
-    # leg stubs: one small tapered tube per side per trunk segment, pointing out and down
     vertices, faces = body_v, body_f
     face_mat = np.zeros(len(body_f), dtype=np.uint8)
     joints4, weights4 = body_j, body_w
     if leg_stub_length > 0:
-        seg = np.arange(1, s_count)
-        n_legs = 2 * len(seg)
-        side = np.tile([1.0, -1.0], len(seg))                       # +X is the creature's left
-        seg2 = np.repeat(seg, 2)
-        w = wp[seg2]
-        h = w * height_ratio
-        base = np.stack([side * 0.75 * w, -0.35 * h, -seg2 * spacing], -1)     # (L, 3)
-        length = leg_stub_length + 0.75 * w                       # reach out of the body
-        if clearance is None:
-            sin_down = np.full(n_legs, 0.45)
-        else:   # tip just above the ground: drop = clearance - base height - a small margin
-            drop = clearance * 0.9 + base[:, 1]
-            sin_down = np.clip(drop / length, 0.1, 0.8)
-        cos_down = np.sqrt(1.0 - sin_down ** 2)
-        axis = np.stack([side * cos_down * 0.97, -sin_down, -cos_down * 0.243], -1)
-        axis /= np.linalg.norm(axis, axis=1, keepdims=True)
-        # frame around the axis: u along +Z-ish (perpendicular), v = axis x u
-        ref = np.array([0.0, 0.0, 1.0])
-        u = ref - (axis @ ref)[:, None] * axis
-        u /= np.linalg.norm(u, axis=1, keepdims=True)
-        vv = np.cross(axis, u)
-        r0 = np.minimum(0.28 * w, 0.25 * length)
-        ts = np.array([0.0, 0.55])                                # ring stations along the leg
-        radii = np.array([1.0, 0.55])
-        ang = np.arange(LEG_SIDES) * (2.0 * np.pi / LEG_SIDES)
-        # rings: (L, R, K, 3)
-        centre = base[:, None, :] + (ts[None, :, None] * length[:, None, None]) * axis[:, None, :]
-        rad = (radii[None, :] * r0[:, None])[:, :, None, None]
-        circ = (np.cos(ang)[None, None, :, None] * u[:, None, None, :]
-                + np.sin(ang)[None, None, :, None] * vv[:, None, None, :])
-        rings = centre[:, :, None, :] + rad * circ
-        tips = base + length[:, None] * axis
-        per_leg = len(ts) * LEG_SIDES + 2                          # rings + base centre + tip
-        leg_vertices = np.concatenate(
-            [rings.reshape(n_legs, -1, 3), base[:, None, :], tips[:, None, :]], axis=1)
-        # faces for one leg, local indices; rings go base -> tip along `axis`
-        kk = np.arange(LEG_SIDES)
-        kn2 = (kk + 1) % LEG_SIDES
-        tube = _tube_faces(len(ts), LEG_SIDES)
-        i_base = len(ts) * LEG_SIDES
-        i_tip = i_base + 1
-        lastr = (len(ts) - 1) * LEG_SIDES
-        base_fan = np.stack([np.full(LEG_SIDES, i_base), kk, kn2], -1)
-        tip_fan = np.stack([np.full(LEG_SIDES, i_tip), lastr + kn2, lastr + kk], -1)
-        one = np.concatenate([tube, base_fan, tip_fan])
-        # the winding is made outward per leg by a signed-volume test (_orient_outward)
-        offs = (np.arange(n_legs) * per_leg)[:, None, None]
-        lv = leg_vertices.reshape(-1, 3)
-        lf = _orient_outward(lv, (one[None] + offs).reshape(-1, 3), per_leg)
-        lj = np.repeat(spine[seg2], per_leg)            # each stub is rigid on its segment
+        lv, lf, lj = _leg_stubs(wp, spacing, height_ratio, leg_stub_length, spine, clearance)
         vertices = np.concatenate([body_v, lv])
         faces = np.concatenate([body_f, lf + len(body_v)])
         face_mat = np.concatenate([face_mat, np.ones(len(lf), dtype=np.uint8)])
@@ -275,6 +187,146 @@ def build_body_mesh(width_profile: np.ndarray, spacing: float, height_ratio: flo
                  ("legs", tuple(float(x) for x in legs_rgb)))
     return SkinnedMesh(vertices=vertices, normals=normals, faces=faces, joints=j4, weights=w4,
                        face_material=face_mat, materials=materials)
+
+
+def _ring_stations(s_count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Ring positions c along the body in segment units (c = s at joint s; z = -c*spacing),
+    head cap to tail cap, and each ring's cap scale (quarter-ellipse in the caps, 1 elsewhere).
+    """
+    body_c = np.arange(-0.5 * RINGS_PER_SEGMENT, (s_count - 0.5) * RINGS_PER_SEGMENT + 1) / RINGS_PER_SEGMENT
+    # rounded caps: quarter-ellipse profiles
+    th = np.linspace(0.0, 0.5 * np.pi, CAP_RINGS + 1)[1:-1]          # excludes tip and joint ring
+    head_c = -0.5 - HEAD_CAP * np.cos(th)
+    head_scale = np.sin(th)
+    tail_c = (s_count - 0.5) + TAIL_CAP * np.cos(th[::-1])
+    tail_scale = np.sin(th[::-1])
+    c = np.concatenate([head_c, body_c, tail_c])
+    cap_scale = np.concatenate([head_scale, np.ones_like(body_c), tail_scale])
+    return c, cap_scale
+
+
+def _ring_half_sizes(c: np.ndarray, cap_scale: np.ndarray, wp: np.ndarray,
+                     height_ratio: float) -> tuple[np.ndarray, np.ndarray]:
+    """Half-width and half-height [m] of each ring: the width profile, pinched at each segment
+    boundary (c = k + 0.5) and scaled down in the caps."""
+    s_count = len(wp)
+    half_w = np.interp(np.clip(c, 0, s_count - 1), np.arange(s_count), wp)
+    d = np.abs(c - (np.floor(c - 0.5) + 0.5))
+    d = np.minimum(d, 1.0 - d)                                    # distance to nearest boundary
+    pinch = 1.0 - PINCH_DEPTH * np.clip(1.0 - d / PINCH_WIDTH, 0.0, 1.0) ** 2
+    half_w = half_w * pinch * cap_scale
+    half_h = half_w * height_ratio
+    return half_w, half_h
+
+
+def _body_tube(c: np.ndarray, half_w: np.ndarray, half_h: np.ndarray, spacing: float,
+               s_count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Elliptical rings at stations c closed by a tip vertex at each end: vertices (V, 3)
+    (rings, then the front tip, then the back tip) and faces (M, 3), not yet oriented."""
+    phi = np.arange(RING_SIDES) * (2.0 * np.pi / RING_SIDES)
+    ring_x = half_w[:, None] * np.cos(phi)[None, :]
+    ring_y = half_h[:, None] * np.sin(phi)[None, :]
+    ring_z = np.broadcast_to((-c * spacing)[:, None], ring_x.shape)
+    ring_v = np.stack([ring_x, ring_y, ring_z], -1).reshape(-1, 3)
+    tip_front = np.array([[0.0, 0.0, (0.5 + HEAD_CAP) * spacing]])
+    tip_back = np.array([[0.0, 0.0, -(s_count - 0.5 + TAIL_CAP) * spacing]])
+    body_v = np.concatenate([ring_v, tip_front, tip_back])
+    body_f = _capped_tube_faces(len(c), RING_SIDES)
+    return body_v, body_f
+
+
+def _capped_tube_faces(n_rings: int, sides: int) -> np.ndarray:
+    """Faces (M, 3) of a tube of `n_rings` rings (see _tube_faces) closed by two fans: one to
+    vertex n_rings*sides in front of the first ring, one to the next vertex behind the last."""
+    i_front = n_rings * sides
+    i_back = i_front + 1
+    k = np.arange(sides)
+    kn = (k + 1) % sides
+    front_fan = np.stack([np.full(sides, i_front), k, kn], -1)
+    last = (n_rings - 1) * sides
+    back_fan = np.stack([np.full(sides, i_back), last + kn, last + k], -1)
+    return np.concatenate([_tube_faces(n_rings, sides), front_fan, back_fan])
+
+
+def _body_skin(c: np.ndarray, spine: np.ndarray, s_count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Two-influence skin of the body vertices (rings, then both tips): joints (V, 2) and
+    weights (V, 2), blending smoothly from joint floor(c) to the next joint behind it."""
+    c_v = np.concatenate([np.repeat(c, RING_SIDES), [-0.5 - HEAD_CAP, s_count - 0.5 + TAIL_CAP]])
+    cc = np.clip(c_v, 0.0, s_count - 1.0)
+    s0 = np.minimum(np.floor(cc).astype(np.int64), s_count - 2)
+    t = _smoothstep(cc - s0)
+    body_j = np.stack([spine[s0], spine[s0 + 1]], -1)
+    body_w = np.stack([1.0 - t, t], -1)
+    return body_j, body_w
+
+
+def _leg_stubs(wp: np.ndarray, spacing: float, height_ratio: float, leg_stub_length: float,
+               spine: np.ndarray, clearance: float | None) -> tuple[np.ndarray, np.ndarray,
+                                                                    np.ndarray]:
+    """One small closed, tapered tube per side per trunk segment, pointing out and down, each
+    rigid on its segment: vertices (V, 3), outward faces (M, 3) indexing them, joint (V,)."""
+    seg2, base, length, axis = _stub_placement(wp, spacing, height_ratio, leg_stub_length,
+                                               clearance)
+    n_legs = len(seg2)
+    r0 = np.minimum(0.28 * wp[seg2], 0.25 * length)
+    leg_vertices = _stub_vertices(base, length, axis, r0)
+    per_leg = leg_vertices.shape[1]                                 # rings + base centre + tip
+    # faces for one leg, local indices; rings go base -> tip along `axis`
+    one = _capped_tube_faces(len(STUB_STATIONS), LEG_SIDES)
+    # the winding is made outward per leg by a signed-volume test (_orient_outward)
+    offs = (np.arange(n_legs) * per_leg)[:, None, None]
+    lv = leg_vertices.reshape(-1, 3)
+    lf = _orient_outward(lv, (one[None] + offs).reshape(-1, 3), per_leg)
+    lj = np.repeat(spine[seg2], per_leg)            # each stub is rigid on its segment
+    return lv, lf, lj
+
+
+def _stub_placement(wp: np.ndarray, spacing: float, height_ratio: float,
+                    leg_stub_length: float, clearance: float | None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Where the stubs sit and point, left then right on each trunk segment 1..S-1:
+    segment (L,), base (L, 3) inside the body, length (L,) [m], unit axis (L, 3) out and down
+    (tip just above the ground at `clearance`, or a fixed slope when it is None)."""
+    seg = np.arange(1, len(wp))
+    n_legs = 2 * len(seg)
+    side = np.tile([1.0, -1.0], len(seg))                       # +X is the creature's left
+    seg2 = np.repeat(seg, 2)
+    w = wp[seg2]
+    h = w * height_ratio
+    base = np.stack([side * 0.75 * w, -0.35 * h, -seg2 * spacing], -1)     # (L, 3)
+    length = leg_stub_length + 0.75 * w                       # reach out of the body
+    if clearance is None:
+        sin_down = np.full(n_legs, 0.45)
+    else:   # tip just above the ground: drop = clearance - base height - a small margin
+        drop = clearance * 0.9 + base[:, 1]
+        sin_down = np.clip(drop / length, 0.1, 0.8)
+    cos_down = np.sqrt(1.0 - sin_down ** 2)
+    axis = np.stack([side * cos_down * 0.97, -sin_down, -cos_down * 0.243], -1)
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    return seg2, base, length, axis
+
+
+def _stub_vertices(base: np.ndarray, length: np.ndarray, axis: np.ndarray,
+                   r0: np.ndarray) -> np.ndarray:
+    """Vertices (L, R*LEG_SIDES + 2, 3) of each stub: its rings at STUB_STATIONS (radius
+    r0 * STUB_RADII), then the base centre, then the tip."""
+    # frame around the axis: u along +Z-ish (perpendicular), v = axis x u
+    ref = np.array([0.0, 0.0, 1.0])
+    u = ref - (axis @ ref)[:, None] * axis
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    vv = np.cross(axis, u)
+    ts = np.array(STUB_STATIONS)
+    radii = np.array(STUB_RADII)
+    ang = np.arange(LEG_SIDES) * (2.0 * np.pi / LEG_SIDES)
+    # rings: (L, R, K, 3)
+    centre = base[:, None, :] + (ts[None, :, None] * length[:, None, None]) * axis[:, None, :]
+    rad = (radii[None, :] * r0[:, None])[:, :, None, None]
+    circ = (np.cos(ang)[None, None, :, None] * u[:, None, None, :]
+            + np.sin(ang)[None, None, :, None] * vv[:, None, None, :])
+    rings = centre[:, :, None, :] + rad * circ
+    tips = base + length[:, None] * axis
+    return np.concatenate([rings.reshape(len(base), -1, 3), base[:, None, :], tips[:, None, :]],
+                          axis=1)
 
 
 def _signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
