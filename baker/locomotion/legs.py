@@ -110,6 +110,12 @@ SWING_TURN = 27.0
 SLIDE = 0.004
 #: a swinging foot keeps at least this many segment spacings from its neighbours' feet
 SWING_GAP = 0.24
+#: what breaks a limit in a joint-space swing (swing.Limits): a joint turning more than
+#: HARD_TURN deg in a frame, a foot nearer than HARD_GAP spacings to a neighbour's, or deeper
+#: than DEEP body lengths in a solid (the bake's limits are 30 deg, 0.2 spacing, 0.5% BL)
+HARD_TURN = 29.0
+HARD_GAP = 0.21
+DEEP = 0.004
 #: a swinging foot stays at least this fraction of the leg's full length from its hip
 MIN_REACH = 0.36
 #: inside a swing a foot stays at least this fraction of the rig's lift off every surface
@@ -703,7 +709,9 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     # swings that still break a limit (a joint turning too fast, a bone through something, a
     # moving foot on or in a surface) are redone in joint space (swing.py)
     lim = Limits(contact=0.8 * (SWING_CLEAR * lg.lift), slide=SLIDE * body.length,
-                 tol=0.005 * body.length, turn=np.radians(SWING_TURN), gap=SWING_GAP * body.spacing)
+                 tol=0.005 * body.length, turn=np.radians(SWING_TURN), gap=SWING_GAP * body.spacing,
+                 hard_turn=np.radians(HARD_TURN), hard_gap=HARD_GAP * body.spacing,
+                 deep=DEEP * body.length)
     q_u, q_t, mid, feet = joint_space_swings(rays, hip, lf.q, q_u, q_t, mid, sol.end, ~contact,
                                              lay.side, lay.l1, lay.l2, lim)
     names = tuple(n for pair in zip(lay.upper_names, lay.tip_names) for n in pair)

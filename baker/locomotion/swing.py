@@ -13,7 +13,10 @@ body's long axis (through the hip) by a bump raise * profile(u); when that is no
 knee also swivels round the hip -> foot line, or bends to tuck the foot in. Of the candidates,
 the first that keeps every frame of the swing within all limits wins; when none does,
 the one with the fewest offending frames, and the planned swing stays when it has no more
-than that. Both ends are the planted poses, so stances are untouched. All swings, candidates
+than that. A fault that breaks the bake's own limits (a bone through something, a foot deeper
+than `deep` in a solid, a joint turning more than `hard_turn`, a neighbour's foot nearer than
+`hard_gap`) outweighs any number of near misses (a shallow foot, a turn over `turn`, a foot
+nearer than `gap`, a sliding touch). Both ends are the planted poses, so stances are untouched. All swings, candidates
 and frames are checked in flat batches (one ray batch per candidate).
 """
 
@@ -38,8 +41,8 @@ BUMP_WIDTH = 0.25
 YAWS = np.radians([12.0, -12.0, 24.0, -24.0])
 #: fractions of a swing spent waiting at its start (> 0) or landed early (< 0)
 DELAYS = (0.3, -0.3)
-#: the cost of a joint turning too fast in a frame, against 1 for any other fault
-TURN_WEIGHT = 100.0
+#: the cost of a fault that breaks a limit, against 1 for a near miss
+HARD = 100.0
 #: raise profiles over the swing's progress u: a plain bump, and two that rise sooner (off the
 #: ground and away from a neighbour's foot in the first frame)
 PROFILES = (lambda u: np.sin(np.pi * u), lambda u: np.sqrt(np.sin(np.pi * u)),
@@ -58,6 +61,10 @@ class Limits:
     tol     : the tip bone's last bit that may touch a surface [m]
     turn    : largest turn of any joint per frame, in its own space and in the world [rad]
     gap     : a swinging foot keeps this far from its neighbours' feet [m]
+    hard_turn, hard_gap : the turn and gap that break a limit (None: turn, gap); between
+              these and turn, gap a frame is a near miss
+    deep    : a foot deeper than this inside a solid breaks a limit; shallower it is a near
+              miss [m]
     """
 
     contact: float
@@ -65,6 +72,9 @@ class Limits:
     tol: float
     turn: float
     gap: float
+    hard_turn: float | None = None
+    hard_gap: float | None = None
+    deep: float = 0.0
 
 
 def _runs(swing: np.ndarray):
@@ -140,30 +150,36 @@ def _own_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same):
     swing are consecutive frames; `same[k]`: entries k and k+1 belong to one swing): a bone
     through the environment; an inner frame's foot inside a solid; a joint turning more than
     `turn` to the next entry; a foot touching a surface in this and the next entry while it
-    slides more than `slide`. Each fault costs 1, a turn TURN_WEIGHT: a joint never turns too
-    fast for a cleaner swing."""
+    slides more than `slide`. A near miss costs 1, a broken limit HARD (see Limits)."""
     q_u, q_t, mid, end = _pose(q_seg, hip, U, T, l1, l2)
     bad = rays.first_hit(hip, mid - hip, max_distance=l1 - 1e-9).hit
     bad |= rays.first_hit(mid, end - mid, max_distance=max(l2 - lim.tol, 0.0)).hit
+    cost = HARD * bad
     d = rays.closest(end, lim.contact)[0]
     k = np.nonzero(inner)[0]
-    bad[k] |= rays.inside(end[k])
-    cost = bad.astype(float)
+    k = k[rays.inside(end[k])]
+    cost[k] += 1.0
+    if lim.deep > 0.0 and len(k):
+        k = k[~np.isfinite(rays.closest(end[k], lim.deep)[0])]
+    cost[k] += HARD - 1.0
     if len(U) > 1:
         steps = np.maximum.reduce([quat_angle(x[:-1], x[1:]) for x in (U, T, q_u, q_t)])
         touch = d < lim.contact
         slide = np.linalg.norm(np.diff(end, axis=0), axis=1)
         cost[:-1] += same & touch[:-1] & touch[1:] & (slide > lim.slide)
-        cost[:-1] += TURN_WEIGHT * (same & (steps > lim.turn))
+        hard = lim.turn if lim.hard_turn is None else lim.hard_turn
+        cost[:-1] += same & (steps > lim.turn)
+        cost[:-1] += (HARD - 1.0) * (same & (steps > hard))
     return cost, end
 
 
-def _crowding(end, inner, near_feet, gap):
-    """(n,) 1.0 where an inner frame's foot (n, 3) is within `gap` of a neighbour's foot
-    (near_feet (n, 2, 3), NaN for none)."""
+def _crowding(end, inner, near_feet, lim: Limits):
+    """(n,) the cost of an inner frame's foot (n, 3) near a neighbour's foot (near_feet
+    (n, 2, 3), NaN for none): 1 within lim.gap, HARD within lim.hard_gap."""
     with np.errstate(invalid="ignore"):
         d = np.nanmin(np.linalg.norm(near_feet - end[:, None], axis=2), axis=1, initial=np.inf)
-    return (inner & (d < gap)).astype(float)
+    hard = lim.gap if lim.hard_gap is None else lim.hard_gap
+    return inner * ((d < lim.gap) + (HARD - 1.0) * (d < hard))
 
 
 class _Swings:
@@ -220,7 +236,7 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, mid, end, swing, side, l1, l2
         for parity in (0, 1):
             mine = ((sw.leg // 2) % 2 == parity)[sw.sid]
             k = np.nonzero(mine)[0]
-            cost = own[k] + _crowding(feet[f[k], lg[k]], sw.inner[k], sw.near(feet, k), lim.gap)
+            cost = own[k] + _crowding(feet[f[k], lg[k]], sw.inner[k], sw.near(feet, k), lim)
             best = np.bincount(sw.sid[k], weights=cost, minlength=sw.n)
             todo = best > 0
             if todo.any():
@@ -256,7 +272,7 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
     # time gets out of the way)
     U_plan, T_plan = plan[0][f, lg], plan[1][f, lg]
     # where each swing first crowds a neighbour now: a local lift there is a candidate too
-    crowd = _crowding(feet[f, lg], inner, near, lim.gap) > 0
+    crowd = _crowding(feet[f, lg], inner, near, lim) > 0
     u_c = np.full(sw.n, np.nan)
     ck = np.nonzero(crowd)[0][::-1]
     u_c[sk[ck]] = u[ck]
@@ -304,7 +320,7 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
             T = _flex(U, T, flex * profile(uj), l1, l2)
         c_own, end = _own_faults(rays, lim, hp[j], qs[j], U, T, l1, l2, inner[j],
                                  sj[1:] == sj[:-1])
-        score = np.bincount(sj, weights=c_own + _crowding(end, inner[j], near[j], lim.gap),
+        score = np.bincount(sj, weights=c_own + _crowding(end, inner[j], near[j], lim),
                             minlength=sw.n)
         take = open_ & (score < best)
         best[take] = score[take]
