@@ -33,6 +33,7 @@ from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 from baker.errors import NavError
+from baker.navmesh import budget
 from baker.navmesh.surface import DIRS, OPPOSITE, NavSurface
 
 log = logging.getLogger(__name__)
@@ -313,6 +314,7 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
                        f"(limit {MAX_COLUMNS:,}); use a larger cell size (at least "
                        f"{cell * math.sqrt(ncols / MAX_COLUMNS):.3g} m) or smaller bounds "
                        "(baker bake --nav-build lazy builds only where the creature goes)")
+    budget.check(nx, nz, cell, len(mesh.faces))
     caster = _Caster(env)
     face_comp, comp_closed, comp_wind = _solid_components(mesh)
     timings["setup"] = time.perf_counter() - t0

@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from baker.errors import NavError
+from baker.errors import BudgetError, NavError
 from baker.navmesh.cache import load_or_build
 from baker.navmesh.surface import NavSurface
 
@@ -65,6 +65,8 @@ class LazyNav:
             try:
                 self._build(c - half, c + half)
                 break
+            except BudgetError:
+                raise
             except NavError:
                 if self._whole(c - half, c + half):
                     raise
