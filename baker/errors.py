@@ -26,6 +26,9 @@ class BakerError(Exception):
     def what(self) -> str:
         return str(self.args[0]) if self.args else ""
 
+    def __str__(self) -> str:
+        return f"{self.what} ({self.where})" if self.where else self.what
+
 
 class ConfigError(BakerError):
     """Bad option values, bad rig TOML."""
