@@ -17,6 +17,7 @@ the writers and the report move positions back to world.
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -86,8 +87,9 @@ def navigation_surface(cfg: BakeConfig, env):
     from baker.navmesh import budget
 
     span = np.minimum(4.0 * half, (hi - lo)[[0, 2]])
-    cols = np.maximum(1, np.ceil(span / agent.cell_size)).astype(np.int64)
-    budget.check(int(cols[0]), int(cols[1]), agent.cell_size, len(env.mesh.faces))
+    cols = [max(1, math.ceil(min(float(s) / agent.cell_size, 1e12))) for s in span]
+    budget.check(cols[0], cols[1], agent.cell_size, len(env.mesh.faces), where=env.source,
+                 area=float(span[0]) * float(span[1]))
     nav = LazyNav(env, agent, cfg.nav_cache_dir, centre, half)
     return nav, nav.cache_hits == 1
 

@@ -266,8 +266,10 @@ def _expected(info: FieldInfo) -> str:
             n_hi = m.max_length
     rng = ""
     if lo is not None or hi is not None:
-        a = ("[" if lo_incl else "(") + (f"{lo:g}" if lo is not None else "-inf")
-        b = (f"{hi:g}" if hi is not None else "inf") + ("]" if hi_incl else ")")
+        def num(x):
+            return str(x) if isinstance(x, int) else f"{x:g}"
+        a = ("[" if lo_incl else "(") + (num(lo) if lo is not None else "-inf")
+        b = (num(hi) if hi is not None else "inf") + ("]" if hi_incl else ")")
         rng = f" in {a}, {b}"
     if n_lo is not None or n_hi is not None:
         rng += f" of {n_lo}..{n_hi} items"

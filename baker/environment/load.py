@@ -300,25 +300,25 @@ _UNSUPPORTED_EXT = {"KHR_draco_mesh_compression", "EXT_meshopt_compression"}
 
 def _parse_glb(data: bytes, path: Path):
     if len(data) < 12 or data[:4] != b"glTF":
-        raise EnvironmentLoadError(f"corrupt GLB {path}: not a binary glTF (bad header)")
+        raise EnvironmentLoadError(f"corrupt GLB: not a binary glTF (bad header)")
     version, length = struct.unpack_from("<II", data, 4)
     if version != 2:
-        raise EnvironmentLoadError(f"unsupported glTF version {version} in {path} (need 2)")
+        raise EnvironmentLoadError(f"unsupported glTF version {version} (need 2)")
     if length > len(data):
-        raise EnvironmentLoadError(f"corrupt GLB {path}: truncated ({len(data)} of {length} bytes)")
+        raise EnvironmentLoadError(f"corrupt GLB: truncated ({len(data)} of {length} bytes)")
     off, doc, bin_chunk = 12, None, None
     while off + 8 <= length:
         clen, ctype = struct.unpack_from("<II", data, off)
         chunk = data[off + 8: off + 8 + clen]
         if len(chunk) != clen:
-            raise EnvironmentLoadError(f"corrupt GLB {path}: truncated chunk")
+            raise EnvironmentLoadError(f"corrupt GLB: truncated chunk")
         if ctype == 0x4E4F534A and doc is None:
             doc = json.loads(chunk.decode("utf-8"))
         elif ctype == 0x004E4942 and bin_chunk is None:
             bin_chunk = chunk
         off += 8 + clen
     if doc is None:
-        raise EnvironmentLoadError(f"corrupt GLB {path}: no JSON chunk")
+        raise EnvironmentLoadError(f"corrupt GLB: no JSON chunk")
     return doc, bin_chunk
 
 
@@ -686,7 +686,7 @@ class _GltfReader:
         while stack:
             i, parent = stack.pop()
             if i in seen:
-                raise EnvironmentLoadError(f"corrupt glTF {self.path}: node {i} has two parents")
+                raise EnvironmentLoadError(f"corrupt glTF: node {i} has two parents (or is its own ancestor)")
             seen.add(i)
             world = parent @ self.local_matrix(nodes[i])
             yield i, world
@@ -825,7 +825,13 @@ def _text_as_utf8(path: Path, data: bytes) -> bytes:
             (n,) = struct.unpack_from("<I", data, 80)
             if len(data) == 84 + 50 * n:
                 return data  # binary STL
-        return _to_utf8(data) if data.lstrip()[:5].lower() == b"solid" else data
+        if data.lstrip()[:5].lower() == b"solid":
+            return _to_utf8(data)
+        if len(data) >= 84:
+            raise EnvironmentLoadError(
+                f"corrupt binary STL: its header says {n:,} triangles ({84 + 50 * n:,} bytes) "
+                f"but the file has {len(data):,} bytes")
+        raise EnvironmentLoadError("corrupt STL: neither ASCII ('solid ...') nor binary")
     if ext == ".ply":
         end = data.find(b"end_header")
         if end < 0:
@@ -952,15 +958,80 @@ def _fan_triangulate(counts: np.ndarray, indices: np.ndarray, holes: np.ndarray,
     return tris
 
 
+#: most layers (sublayers, references, payloads) a USD environment may compose
+_MAX_USD_LAYERS = 1000
+
+
+def _check_usd_layers(path: Path) -> None:
+    """Before the stage is composed: every layer the file brings in (sublayers, references,
+    payloads, recursively) must be a file inside the environment's folder that opens."""
+    from pxr import Sdf
+
+    folder = path.parent.resolve()
+    todo, seen = [path.resolve()], set()
+    while todo:
+        p = todo.pop()
+        if p in seen:
+            continue
+        seen.add(p)
+        if len(seen) > _MAX_USD_LAYERS:
+            raise EnvironmentLoadError(f"USD composes more than {_MAX_USD_LAYERS} layers",
+                                       where=str(path))
+        layer = Sdf.Layer.FindOrOpen(str(p))
+        if layer is None:
+            raise EnvironmentLoadError(f"cannot open USD layer {p.name}", where=str(path))
+        for dep in layer.GetCompositionAssetDependencies():
+            dep = str(dep)
+            if not dep:
+                continue
+            if "://" in dep or dep.startswith(("@", "anon:")):
+                raise EnvironmentLoadError(f"USD layer {p.name} refers to '{dep[:80]}', which "
+                                           "is not a file in the environment's folder",
+                                           where=str(path))
+            target = (p.parent / dep).resolve()
+            if not target.is_relative_to(folder):
+                raise EnvironmentLoadError(f"USD layer {p.name} refers to '{dep[:80]}', "
+                                           "outside the environment's folder", where=str(path))
+            if not target.is_file():
+                raise EnvironmentLoadError(f"USD layer {p.name} refers to '{dep[:80]}', which "
+                                           "does not exist", where=str(path))
+            todo.append(target)
+
+
 def _read_usd(path: Path):
+    from pxr import Tf
+
+    # USD reports problems as diagnostics on stderr: trap them, refuse the file on any
+    # composition error or error, and print nothing of USD's own
+    with Tf.DiagnosticTrap() as trap:
+        try:
+            return _read_usd_trapped(path, trap)
+        finally:
+            trap.Dismiss()
+
+
+def _usd_diagnostic_text(d) -> str:
+    text = getattr(d, "commentary", None) or str(d)
+    return " ".join(str(text).split())
+
+
+def _read_usd_trapped(path: Path, trap):
     from pxr import Usd, UsdGeom, UsdLux
 
+    _check_usd_layers(path)
     stage = Usd.Stage.Open(str(path))
     if stage is None:
-        raise EnvironmentLoadError(f"cannot open USD stage {path}")
+        raise EnvironmentLoadError("cannot open USD stage", where=str(path))
+    errors = list(stage.GetCompositionErrors())
+    if errors:
+        raise EnvironmentLoadError(f"USD composition error: {_usd_diagnostic_text(errors[0])}",
+                                   where=str(path))
+    if trap.HasErrors():
+        raise EnvironmentLoadError(
+            f"USD error: {_usd_diagnostic_text(trap.GetErrors()[0])}", where=str(path))
     mpu = float(UsdGeom.GetStageMetersPerUnit(stage))
     if not (math.isfinite(mpu) and mpu > 0):
-        raise EnvironmentLoadError(f"invalid metersPerUnit {mpu} in {path}")
+        raise EnvironmentLoadError(f"invalid metersPerUnit {mpu}; expected a finite number > 0")
     z_up = UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
     # stage space -> baker space (+Y up, metres)
     fix = np.eye(4)
@@ -1007,5 +1078,8 @@ def _read_usd(path: Path):
         v = _transform_points(world, np.asarray(pts, dtype=np.float64).reshape(-1, 3))
         color, rough, metal = _usd_color(prim, mesh, time)
         raw.append((prim.GetName(), v, _fix_winding(faces, world), None, color, rough, metal))
+    if trap.HasErrors():
+        raise EnvironmentLoadError(
+            f"USD error: {_usd_diagnostic_text(trap.GetErrors()[0])}", where=str(path))
     sun = max(suns, key=lambda s: s.intensity) if suns else None
     return raw, sun

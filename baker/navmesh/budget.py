@@ -68,9 +68,13 @@ def memory_limit(megabytes: float | None):
         _limit.reset(token)
 
 
-def check(nx: int, nz: int, cell: float, triangles: int) -> Estimate:
+def check(nx: int, nz: int, cell: float, triangles: int, where: str | None = None,
+          area: float | None = None) -> Estimate:
     """Raise BudgetError when a build of nx x nz columns at `cell` metres is estimated over
-    the limit; the message names a cell size that fits. Returns the estimate."""
+    the limit; the message names a cell size that fits (from `area`, m^2, the build's
+    horizontal area; default nx * nz * cell^2). Returns the estimate."""
+    nx, nz = int(nx), int(nz)
+    area = float(nx) * float(nz) * cell * cell if area is None else float(area)
     est = estimate(nx * nz, triangles)
     cap = limit()
     if est.bytes <= cap:
@@ -78,16 +82,16 @@ def check(nx: int, nz: int, cell: float, triangles: int) -> Estimate:
     room = cap - BASE_BYTES - BYTES_PER_TRIANGLE * triangles
     if room <= BYTES_PER_COLUMN:
         raise BudgetError(
-            f"navigation build needs about {est.bytes / 1e9:.1f} GB, over the "
-            f"{cap / 1e9:.2f} GB limit, and the level alone ({triangles:,} triangles) leaves no "
-            "room for any grid; raise --max-memory", where="--max-memory")
+            f"navigation build needs about {est.bytes / 1e9:.3g} GB, over the "
+            f"{cap / 1e9:.3g} GB limit, and the level alone ({triangles:,} triangles) leaves no "
+            "room for any grid; raise --max-memory", where=where or "--max-memory")
     fit_cols = room / BYTES_PER_COLUMN
     # the cell whose grid fits (columns scale with 1 / cell^2), rounded up to 2 digits
-    need = cell * math.sqrt(nx * nz / fit_cols) * 1.02
+    need = math.sqrt(area / fit_cols) * 1.02
     e = math.floor(math.log10(need)) - 1
     fit = math.ceil(need / 10 ** e) * 10 ** e
     raise BudgetError(
         f"navigation build of {nx:,} x {nz:,} columns at cell size {cell:g} m needs about "
-        f"{est.bytes / 1e9:.1f} GB and {est.seconds:.0f} s, over the {cap / 1e9:.2f} GB memory "
+        f"{est.bytes / 1e9:.3g} GB and {est.seconds:.3g} s, over the {cap / 1e9:.3g} GB memory "
         f"limit; use --cell-size {fit:.2g} or larger, or raise --max-memory",
-        where="--cell-size")
+        where=where or "--cell-size")

@@ -286,6 +286,12 @@ def _link_axis(d, scol, six, siz, y, ceil, nx, nz, col_start, counts, step, heig
     return best
 
 
+def _round_up(x: float) -> str:
+    """x rounded up to 3 significant digits (a suggested cell size that is not below x)."""
+    e = math.floor(math.log10(x)) - 2
+    return f"{math.ceil(x / 10 ** e) * 10 ** e:.3g}"
+
+
 def build(env, agent, *, bounds=None, coarse_factor: int = 4,
           min_island_area: float | None = None) -> NavSurface:
     """Build the navigation surface of `env` for `agent` (a NavAgentConfig).
@@ -306,15 +312,17 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
         raise NavError(f"invalid navigation agent parameters: {agent}")
     mesh = env.mesh
     if len(mesh.faces) == 0:
-        raise NavError("environment has no walkable surface (it has no triangles)")
+        raise NavError("environment has no walkable surface (it has no triangles)",
+                       where=env.source)
     x0, z0, nx, nz, ytop = _grid(env, bounds, cell)
     ncols = nx * nz
+    budget.check(nx, nz, cell, len(mesh.faces), where=env.source)
     if ncols > MAX_COLUMNS:
         raise NavError(f"navigation grid too large: {nx} x {nz} columns at cell size {cell:g} m "
                        f"(limit {MAX_COLUMNS:,}); use a larger cell size (at least "
-                       f"{cell * math.sqrt(ncols / MAX_COLUMNS):.3g} m) or smaller bounds "
-                       "(baker bake --nav-build lazy builds only where the creature goes)")
-    budget.check(nx, nz, cell, len(mesh.faces))
+                       f"{_round_up(cell * math.sqrt(ncols / MAX_COLUMNS))} m) or smaller bounds "
+                       "(baker bake --nav-build lazy builds only where the creature goes)",
+                       where=env.source)
     caster = _Caster(env)
     face_comp, comp_closed, comp_wind = _solid_components(mesh)
     timings["setup"] = time.perf_counter() - t0
@@ -335,7 +343,8 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
     del parts
     if len(scol) == 0:
         raise NavError("environment has no walkable surface (no upward-facing surface within "
-                       f"{math.degrees(slope):.1f} deg with {height:g} m of clearance)")
+                       f"{math.degrees(slope):.1f} deg with {height:g} m of clearance)",
+                       where=env.source)
     snrm = caster.face_normals[sprim]
     snrm *= np.where(snrm[:, 1] < 0, -1.0, 1.0)[:, None]
     del sprim
@@ -460,7 +469,8 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
     keep2 = keep & big[comp]
     if not keep2.any():
         raise NavError("environment has no walkable surface (every walkable area is narrower "
-                       f"than the agent or smaller than {min_island_area:g} m^2)")
+                       f"than the agent or smaller than {min_island_area:g} m^2)",
+                       where=env.source)
     links = _compact(keep2, links)
     sel = np.nonzero(keep2)[0]
     order = np.argsort(-size[big], kind="stable")

@@ -49,11 +49,11 @@ def run(environment, agent, cache_dir=None, *, png=None, path_from=None, path_to
     from baker.navmesh import cache as nav_cache
 
     if (path_from is None) != (path_to is None):
-        raise ConfigError("--from and --to must be given together")
+        raise ConfigError("--from and --to must be given together", where="command line")
     if png is not None:
         png = Path(png)
         if png.suffix.lower() != ".png":
-            raise ConfigError(f"--png must name a .png file (got {png.name})")
+            raise ConfigError(f"--png must name a .png file (got {png.name})", where="--png")
         try:
             import matplotlib  # noqa: F401
         except ImportError:
