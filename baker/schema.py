@@ -62,7 +62,7 @@ class ColorsTable(_Table):
 
 class LocomotionTable(_Table):
     max_speed: Num | None = key("BL/s", "cruising speed of the navigation agent", gt=0, le=100)
-    acceleration: Num | None = key("BL/s^2", "", gt=0, le=1000)
+    acceleration: Num | None = key("BL/s^2", "agent acceleration", gt=0, le=1000)
     stopping_distance: Num | None = key("BL", "slow down within this distance of the target",
                                           ge=0, le=100)
     head_turn_rate: Num | None = key("rad/s", "slither angular frequency at max speed",
@@ -150,7 +150,7 @@ class CobraTable(_Table):
 class PreyTable(_Table):
     length: Num | None = key("BL", "capsule length", gt=0, le=100)
     radius: Num | None = key("BL", "capsule radius", gt=0, le=100)
-    wander_speed: Num | None = key("BL/s", "", gt=0, le=1000)
+    wander_speed: Num | None = key("BL/s", "speed while wandering", gt=0, le=1000)
     flee_speed: Num | None = key("BL/s", "burst speed while fleeing", gt=0, le=1000)
     tired_speed: Num | None = key("BL/s", "after the burst is spent", gt=0, le=1000)
     stamina: Num | None = key("s", "of burst", gt=0, le=3600)
@@ -158,7 +158,7 @@ class PreyTable(_Table):
                                  ge=0, le=1000)
     flee_trigger: Num | None = key("BL", "a centipede closer than this makes it flee",
                                      gt=0, le=1e4)
-    acceleration: Num | None = key("BL/s^2", "", gt=0, le=1e4)
+    acceleration: Num | None = key("BL/s^2", "capsule acceleration", gt=0, le=1e4)
     color: RGB | None = key("linear RGB", "capsule colour, each channel in [0, 1]")
 
 
@@ -195,8 +195,9 @@ class Options(_Table):
     cell_size: Num | None = key("m", "navigation grid cell size", gt=0, le=1e3)
     max_memory: Num | None = key("MB", "largest navigation build allowed", gt=0, le=1e9)
     sun: tuple[Num, Num, Num] | None = key(
-        "", "direction toward the sun, y > 0, each |component| <= 1e6")
-    coordinate: tuple[Num, Num, Num] | None = key("m", "a point (x, y, z), |value| <= 1e9")
+        "", "direction toward the sun, y > 0, each component within +-1e6")
+    coordinate: tuple[Num, Num, Num] | None = key(
+        "m", "a point x,y,z (`navmesh --from`, `--to`), each within +-1e9 m")
 
 
 _COLOR_KEYS = {"body", "legs", "color"}
@@ -427,13 +428,16 @@ def validate_options(where: str = "command line", **values) -> Options:
     return opts
 
 
-def check_point(text_value: tuple | None, option: str) -> None:
-    """A point option (--from, --to): finite and within 1e9 m."""
-    if text_value is None:
+def check_point(value: tuple | None, option: str) -> None:
+    """A point option (--from, --to, a start): three finite numbers within 1e9 m
+    (Options.coordinate)."""
+    if value is None:
         return
-    if not all(math.isfinite(x) for x in text_value) or any(abs(x) > 1e9 for x in text_value):
-        raise ConfigError(f"{option} = {','.join(f'{x:g}' for x in text_value)}: expected "
-                          "three finite numbers with |value| <= 1e9 [m]", where="command line")
+    try:
+        validate_options(coordinate=tuple(value))
+    except ConfigError:
+        raise ConfigError(f"{option} = {','.join(f'{x:g}' for x in value)}: expected three "
+                          "finite numbers each within +-1e9 [m]", where="command line") from None
 
 
 # --------------------------------------------------------------------------- units
