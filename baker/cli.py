@@ -246,6 +246,9 @@ def run_command(argv=None) -> int:
                 cli.main(args=argv, prog_name="baker", standalone_mode=False)
             except click.exceptions.Exit as e:
                 return int(e.exit_code or 0)
+            except click.exceptions.NoArgsIsHelpError as e:  # bare `baker`: the help, as click
+                click.echo(e.ctx.get_help() if e.ctx else "")
+                return EXIT_USAGE
             except click.ClickException as e:
                 error = format_error(ConfigError(e.format_message(), where="command line"))
             except BakerError as e:
