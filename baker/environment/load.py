@@ -1007,6 +1007,8 @@ def _read_usd(path: Path):
         try:
             return _read_usd_trapped(path, trap)
         finally:
+            for w in trap.GetWarnings():
+                log.debug("USD warning while reading %s: %s", path, _usd_diagnostic_text(w))
             trap.Dismiss()
 
 

@@ -43,3 +43,21 @@ def test_estimate_covers_measured_peaks():
     for cols, peak in measured.items():
         est = budget.estimate(cols, 55_000).bytes
         assert peak <= est <= 1.3 * peak + 150e6, (cols, peak, est)
+
+
+@pytest.mark.parametrize("cell", [0.03, 0.015])
+def test_estimate_covers_a_real_build(cell):
+    """A whole build of the default scene in its own process: its peak RSS is under the
+    estimate, and the estimate is not far above it (benchmarks/bench_nav_budget.py's child)."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    bench = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_nav_budget.py"
+    ns: dict = {}
+    exec(compile(bench.read_text(), str(bench), "exec"), ns)
+    out = subprocess.run([sys.executable, "-c", ns["CHILD"], str(cell)], capture_output=True,
+                         text=True, check=True)
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    assert r["peak_mb"] <= r["est_mb"] <= 1.5 * r["peak_mb"] + 150, r
