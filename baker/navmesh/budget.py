@@ -69,10 +69,11 @@ def memory_limit(megabytes: float | None):
 
 
 def check(nx: int, nz: int, cell: float, triangles: int, where: str | None = None,
-          area: float | None = None) -> Estimate:
+          area: float | None = None, hint: str = "") -> Estimate:
     """Raise BudgetError when a build of nx x nz columns at `cell` metres is estimated over
     the limit; the message names a cell size that fits (from `area`, m^2, the build's
-    horizontal area; default nx * nz * cell^2). Returns the estimate."""
+    horizontal area; default nx * nz * cell^2); `hint` is appended to the message.
+    Returns the estimate."""
     nx, nz = int(nx), int(nz)
     area = float(nx) * float(nz) * cell * cell if area is None else float(area)
     est = estimate(nx * nz, triangles)
@@ -84,7 +85,7 @@ def check(nx: int, nz: int, cell: float, triangles: int, where: str | None = Non
         raise BudgetError(
             f"navigation build needs about {est.bytes / 1e9:.3g} GB, over the "
             f"{cap / 1e9:.3g} GB limit, and the level alone ({triangles:,} triangles) leaves no "
-            "room for any grid; raise --max-memory", where=where or "--max-memory")
+            f"room for any grid; raise --max-memory{hint}", where=where or "--max-memory")
     fit_cols = room / BYTES_PER_COLUMN
     # the cell whose grid fits (columns scale with 1 / cell^2), rounded up to 2 digits
     need = math.sqrt(area / fit_cols) * 1.02
@@ -93,5 +94,5 @@ def check(nx: int, nz: int, cell: float, triangles: int, where: str | None = Non
     raise BudgetError(
         f"navigation build of {nx:,} x {nz:,} columns at cell size {cell:g} m needs about "
         f"{est.bytes / 1e9:.3g} GB and {est.seconds:.3g} s, over the {cap / 1e9:.3g} GB memory "
-        f"limit; use --cell-size {fit:.2g} or larger, or raise --max-memory",
+        f"limit; use --cell-size {fit:.2g} or larger, or raise --max-memory{hint}",
         where=where or "--cell-size")

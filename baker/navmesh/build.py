@@ -316,7 +316,9 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
                        where=env.source)
     x0, z0, nx, nz, ytop = _grid(env, bounds, cell)
     ncols = nx * nz
-    budget.check(nx, nz, cell, len(mesh.faces), where=env.source)
+    budget.check(nx, nz, cell, len(mesh.faces), where=env.source,
+                 hint="" if bounds is not None else
+                 " (baker bake --nav-build lazy builds only where the creature goes)")
     if ncols > MAX_COLUMNS:
         raise NavError(f"navigation grid too large: {nx} x {nz} columns at cell size {cell:g} m "
                        f"(limit {MAX_COLUMNS:,}); use a larger cell size (at least "
