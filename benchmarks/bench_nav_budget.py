@@ -1,6 +1,7 @@
 """Measured peak memory and time of navigation builds vs the budget estimate
 (baker.navmesh.budget.estimate). Each build runs in its own process; peak RSS from
-resource.getrusage(RUSAGE_CHILDREN) of that process. Prints one row per cell size.
+VmHWM from /proc/self/status of that process (ru_maxrss would carry the parent's peak
+across fork and exec). Prints one row per cell size.
 
     python benchmarks/bench_nav_budget.py [cell sizes in metres...]
 """
@@ -10,7 +11,7 @@ import subprocess
 import sys
 
 CHILD = r"""
-import json, resource, sys, time
+import json, sys, time
 from dataclasses import replace
 from baker.config import DEFAULT_ENVIRONMENT, DEFAULT_RIG, load_rig_config
 from baker.environment import load_environment
@@ -21,11 +22,15 @@ env = load_environment(DEFAULT_ENVIRONMENT)
 agent = replace(load_rig_config(DEFAULT_RIG).navigation, cell_size=cell)
 x0, z0, nx, nz, _ = _grid(env, None, cell)
 est = budget.estimate(nx * nz, len(env.mesh.faces))
-before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+def vmhwm():
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) * 1024
+before = vmhwm()
 t = time.perf_counter()
 s = build(env, agent)
 dt = time.perf_counter() - t
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+peak = vmhwm()
 print(json.dumps({"cell": cell, "columns": nx * nz, "samples": int(len(s.positions)),
                   "before_mb": before / 1e6, "peak_mb": peak / 1e6, "seconds": dt,
                   "est_mb": est.bytes / 1e6, "est_s": est.seconds}))

@@ -3,8 +3,9 @@ exactly one stderr line `Error: <what> (<where>)`, leaves the out folder as it w
 good outputs byte-identical, no temporary files), within 30 s and 2 GB.
 
 Most cases run in-process through `baker.cli.main` (peak memory from tracemalloc, which sees
-numpy's allocations); SUBPROCESS cases run as real `python -m baker.cli` processes, their peak
-RSS read from os.wait4. Files in other encodings that were refused before (Latin-1 OBJ, STL,
+numpy's allocations); SUBPROCESS cases run as real processes running `baker.cli` as __main__
+(through tests/tools/peak_rss.py, which reports the child's own peak RSS: ru_maxrss from
+wait4 would carry pytest's). Files in other encodings that were refused before (Latin-1 OBJ, STL,
 PLY) must load and bake.
 """
 
@@ -25,6 +26,7 @@ from baker.cli import main
 from baker.config import DEFAULT_ENVIRONMENT
 
 CASES = {c.id: c for c in bad_inputs.all_cases()}
+PEAK_RSS = Path(__file__).resolve().parents[1] / "tools" / "peak_rss.py"
 ERROR_LINE = re.compile(r"^Error: \S.*$")
 MAX_BYTES = 2 * 1024**3
 MAX_SECONDS = 30.0
@@ -117,16 +119,16 @@ def test_bad_input_in_process(cid, tmp_path, previous, capsys):
 def test_bad_input_subprocess(cid, tmp_path, previous):
     folder, out = setup_case(tmp_path, previous)
     argv = bake_args(CASES[cid], folder, out)
-    errf = tmp_path / "stderr.txt"
+    errf, peakf = tmp_path / "stderr.txt", tmp_path / "peak.txt"
     with open(errf, "wb") as err_fh:
         t0 = time.monotonic()
-        p = subprocess.Popen([sys.executable, "-m", "baker.cli", *argv], stdout=subprocess.DEVNULL,
-                             stderr=err_fh, stdin=subprocess.DEVNULL, cwd=tmp_path)
-        _, status, usage = os.wait4(p.pid, 0)
+        r = subprocess.run([sys.executable, str(PEAK_RSS), "baker.cli", *argv],
+                           stdout=subprocess.DEVNULL, stderr=err_fh, stdin=subprocess.DEVNULL,
+                           cwd=tmp_path, env={**os.environ, "PEAK_RSS_FILE": str(peakf)})
         seconds = time.monotonic() - t0
-    p.returncode = os.waitstatus_to_exitcode(status)
-    check_refusal(p.returncode, errf.read_text(), out, previous)
-    assert usage.ru_maxrss * 1024 < MAX_BYTES  # Linux: kilobytes
+    check_refusal(r.returncode, errf.read_text(), out, previous)
+    peak = int(peakf.read_text())  # the child's own VmHWM (see tests/tools/peak_rss.py)
+    assert 0 < peak < MAX_BYTES
     assert seconds < MAX_SECONDS
     # nothing written in the working folder either (the case's own files aside)
     assert not [x for x in tmp_path.iterdir() if x.name.startswith(".") or "tmp" in x.name]
