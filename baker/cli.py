@@ -11,8 +11,8 @@ from pathlib import Path
 
 import click
 
-from baker.config import (DEFAULT_ENVIRONMENT, DEFAULT_RIG, BakeConfig, load_rig_config,
-                          override_rig)
+from baker.config import (DEFAULT_ENVIRONMENT, DEFAULT_RIG, BakeConfig, RigConfig,
+                          load_rig_config, override_rig, validate_bake)
 from baker.errors import EXIT_USAGE, BakerError, ConfigError, format_error
 
 
@@ -118,8 +118,6 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
     from baker.context import Context, TerminalProgress
     from baker.pipeline import bake as run_bake
 
-    from baker.config import validate_bake
-
     t0 = time.perf_counter()
     usd_fmt = "usda" if usda else "usd"
     formats = {"glb": ("glb",), "usd": (usd_fmt,), "both": ("glb", usd_fmt)}[fmt]
@@ -128,7 +126,7 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
     validate_bake(BakeConfig(seconds=seconds, fps=fps, seed=seed, formats=formats,
                              sun_direction=parse_vec3(sun, "--sun"), behaviour=behaviour,
                              prey=prey, cobra=cobra, sun_path=sun_path, nav_build=nav_build))
-    override_rig(DEFAULT_RIG_CONFIG(), **rig_overrides)
+    check_rig_overrides(rig_overrides)
     cfg = BakeConfig(
         environment=environment or DEFAULT_ENVIRONMENT,
         seconds=seconds, fps=fps, seed=seed,
@@ -171,28 +169,26 @@ def navmesh(environment, rig_path, png, path_from, path_to, cache_dir, no_cache,
 
     The surface is cached where `baker bake` looks for it, so a later bake skips the build."""
     from baker.navmesh.report import format_report, run
-
     from baker.schema import check_point
 
     validate_memory(max_memory)
     p_from, p_to = parse_vec3(path_from, "--from"), parse_vec3(path_to, "--to")
     check_point(p_from, "--from")
     check_point(p_to, "--to")
-    override_rig(DEFAULT_RIG_CONFIG(), **rig_overrides)
+    check_rig_overrides(rig_overrides)
     rig = override_rig(load_rig_config(rig_path), **rig_overrides)
     report = run(environment, rig.navigation, None if no_cache else (cache_dir or default_cache_dir()),
                  png=png, path_from=p_from, path_to=p_to, max_memory_mb=max_memory)
     click.echo(format_report(report))
 
 
-def DEFAULT_RIG_CONFIG():
-    """A plain RigConfig, to check the overrides' values before the rig file is read."""
-    from baker.config import RigConfig
-
-    return RigConfig()
+def check_rig_overrides(rig_overrides: dict) -> None:
+    """The rig options' values (schema.Options), checked before the rig file is read."""
+    override_rig(RigConfig(), **rig_overrides)
 
 
-def validate_memory(max_memory):
+def validate_memory(max_memory) -> None:
+    """--max-memory (schema.Options), checked before anything is read."""
     from baker.schema import validate_options
 
     validate_options(max_memory=max_memory)
@@ -241,7 +237,6 @@ def run_command(argv=None) -> int:
     error = None
     try:
         with warnings.catch_warnings(record=True) as held_warnings:
-            warnings.simplefilter("default")
             try:
                 cli.main(args=argv, prog_name="baker", standalone_mode=False)
             except click.exceptions.Exit as e:
