@@ -1009,7 +1009,7 @@ def _read_usd(path: Path):
         finally:
             for w in trap.GetWarnings():
                 log.debug("USD warning while reading %s: %s", path, _usd_diagnostic_text(w))
-            trap.Dismiss()
+            trap.Clear()  # nothing of USD's own reaches stderr
 
 
 def _usd_diagnostic_text(d) -> str:

@@ -506,6 +506,16 @@ def _usd_cases():
         "reference_http": lambda: {"level.usda": good + ref.format("http://example.invalid/a.usda")},
         "payload_outside": lambda: {"level.usda": good + pay.format("../outside.usda")},
         "payload_missing": lambda: {"level.usda": good + pay.format("gone.usdc")},
+        "reference_bad_prim": lambda: {"level.usda": good + ref.format("a.usda").replace(
+            "@a.usda@", "@a.usda@</nope>"), "a.usda": usd_text()},
+        "reference_not_usd": lambda: {"level.usda": good + ref.format("notes.txt"),
+                                      "notes.txt": "hello"},
+        "variant_reference_outside": lambda: {"level.usda": good + (
+            'def Xform "x" (\n    variants = {\n        string v = "b"\n    }\n'
+            '    prepend variantSets = "v"\n)\n{\n    variantSet "v" = {\n'
+            '        "b" (prepend references = @../outside.usda@) {\n        }\n    }\n}\n')},
+        "self_reference_cycle": lambda: {"level.usda": good + ref.format("level.usda").replace(
+            "@level.usda@", "@level.usda@</x>")},
         "face_index_past": lambda: {"level.usda": usd_text(indices="[0, 2, 1, 0, 3, 9]")},
         "face_index_negative": lambda: {"level.usda": usd_text(indices="[0, 2, 1, 0, -5, 2]")},
         "face_counts_mismatch": lambda: {"level.usda": usd_text(counts="[3, 4]")},
