@@ -858,6 +858,36 @@ def _folder_resolver(path: Path):
     return _Resolver(str(path))
 
 
+_OBJ_FACE = re.compile(rb"^[ \t]*f[ \t]+(.*)$", re.M)
+_OBJ_VERTEX = re.compile(rb"^[ \t]*v[ \t]+(.*)$", re.M)
+
+
+def _check_obj(data: bytes) -> None:
+    """OBJ structure trimesh lets through silently: a vertex with fewer than 3 coordinates, a
+    face index of 0 (OBJ counts from 1) or beyond the vertex list (negative: relative)."""
+    nverts = 0
+    for m in _OBJ_VERTEX.finditer(data):
+        nverts += 1
+        if len(m.group(1).split(b"#", 1)[0].split()) < 3:
+            line = data.count(b"\n", 0, m.start()) + 1
+            raise EnvironmentLoadError(f"OBJ line {line}: a vertex needs 3 coordinates")
+    for m in _OBJ_FACE.finditer(data):
+        for tok in m.group(1).split(b"#", 1)[0].split():
+            head = tok.split(b"/", 1)[0]
+            try:
+                k = int(head)
+            except ValueError:
+                line = data.count(b"\n", 0, m.start()) + 1
+                raise EnvironmentLoadError(
+                    f"OBJ line {line}: face index '{head[:20].decode('latin-1')}' is not an "
+                    "integer") from None
+            if k == 0 or abs(k) > nverts:
+                line = data.count(b"\n", 0, m.start()) + 1
+                raise EnvironmentLoadError(
+                    f"OBJ line {line}: face index {k} outside the {nverts} vertices (OBJ "
+                    "indices count from 1; negative ones count back from the end)")
+
+
 def _read_trimesh(path: Path):
     import io
 
@@ -866,6 +896,8 @@ def _read_trimesh(path: Path):
     data = path.read_bytes()
     if path.suffix.lower() == ".obj" and b"\x00" in data[: 1 << 16]:
         raise EnvironmentLoadError("corrupt OBJ: binary data in a text format", where=str(path))
+    if path.suffix.lower() == ".obj":
+        _check_obj(data)
     data = _text_as_utf8(path, data)
     scene = trimesh.load_scene(io.BytesIO(data), file_type=path.suffix.lower()[1:],
                                resolver=_folder_resolver(path), process=False)

@@ -404,6 +404,11 @@ def _mesh_cases():
         _text_case("obj_overflow_coords", "o.obj",
                    GOOD_OBJ.replace("v 2 0 2", "v 1e999 0 2").encode()),
         _text_case("obj_words", "w.obj", b"hello world\nthis is not a mesh\n"),
+        _text_case("obj_face_zero", "z.obj", (GOOD_OBJ + "f 0 1 2\n").encode()),
+        _text_case("obj_face_relative_past", "r.obj", (GOOD_OBJ + "f -9 -8 -7\n").encode()),
+        _text_case("obj_face_past", "p.obj", (GOOD_OBJ + "f 1 2 99\n").encode()),
+        _text_case("obj_face_word", "fw.obj", (GOOD_OBJ + "f 1 two 3\n").encode()),
+        _text_case("obj_vertex_2d", "v2.obj", GOOD_OBJ.replace("v 2 0 2", "v 2 0").encode()),
         _text_case("obj_degenerate", "d.obj", b"v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n"),
         _text_case("obj_steep", "s.obj", b"v 0 0 0\nv 1 0 0\nv 1 10 0.1\nv 0 10 0.1\n"
                                          b"f 1 2 3\nf 1 3 4\n"),
