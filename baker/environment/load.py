@@ -888,6 +888,57 @@ def _check_obj(data: bytes) -> None:
                     "indices count from 1; negative ones count back from the end)")
 
 
+def _check_ascii_ply(data: bytes) -> None:
+    """An ASCII PLY's body must hold exactly the values its header declares (trimesh reads a
+    short or overlong body without a word)."""
+    end = data.find(b"end_header")
+    if end < 0 or b"format ascii" not in data[:end]:
+        return
+    nl = data.find(b"\n", end)
+    header, body = data[:end], (b"" if nl < 0 else data[nl + 1:])
+    elements: list[tuple[str, int, list[bool]]] = []   # name, count, [is a list property]
+    for line in header.splitlines():
+        w = line.split()
+        if len(w) >= 3 and w[0] == b"element":
+            try:
+                n = int(w[2])
+            except ValueError:
+                raise EnvironmentLoadError(f"PLY element {w[1][:20].decode('latin-1')} has "
+                                           "a count that is not an integer") from None
+            elements.append((w[1].decode("latin-1")[:20], n, []))
+        elif len(w) >= 2 and w[0] == b"property" and elements:
+            elements[-1][2].append(w[1] == b"list")
+    tokens = body.split()
+    i = 0
+    for name, count, props in elements:
+        if count < 0 or count > len(tokens):
+            raise EnvironmentLoadError(f"PLY declares {count:,} {name} elements but its body "
+                                       f"has only {len(tokens):,} values")
+        if not any(props):
+            i += count * len(props)
+        else:
+            for _ in range(count):
+                for is_list in props:
+                    if i >= len(tokens):
+                        raise EnvironmentLoadError(
+                            f"PLY body ends inside the {name} elements (truncated)")
+                    if is_list:
+                        try:
+                            n = int(tokens[i])
+                        except ValueError:
+                            raise EnvironmentLoadError(
+                                f"PLY {name} list length '{tokens[i][:20].decode('latin-1')}' "
+                                "is not an integer") from None
+                        i += 1 + max(n, 0)
+                    else:
+                        i += 1
+        if i > len(tokens):
+            raise EnvironmentLoadError(f"PLY body ends inside the {name} elements (truncated)")
+    if i != len(tokens):
+        raise EnvironmentLoadError(f"PLY body has {len(tokens) - i:,} values more than its "
+                                   "header declares")
+
+
 def _read_trimesh(path: Path):
     import io
 
@@ -898,6 +949,8 @@ def _read_trimesh(path: Path):
         raise EnvironmentLoadError("corrupt OBJ: binary data in a text format", where=str(path))
     if path.suffix.lower() == ".obj":
         _check_obj(data)
+    if path.suffix.lower() == ".ply":
+        _check_ascii_ply(data)
     data = _text_as_utf8(path, data)
     scene = trimesh.load_scene(io.BytesIO(data), file_type=path.suffix.lower()[1:],
                                resolver=_folder_resolver(path), process=False)

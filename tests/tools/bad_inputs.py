@@ -435,6 +435,13 @@ def _mesh_cases():
                                                          nverts=2_000_000_000)),
         _text_case("ply_ascii_vertex_2e9", "av.ply", _ply(floor, [[0, 2, 1]],
                                                         nverts=2_000_000_000)),
+        _text_case("ply_ascii_faces_missing", "fm.ply",
+                   _ply(floor, [[0, 2, 1], [0, 3, 2]]).rsplit(b"3 ", 1)[0]),
+        _text_case("ply_ascii_list_overlong", "lo.ply",
+                   _ply(floor, [[0, 2, 1], [0, 3, 2]]).replace(b"\n3 0 2 1", b"\n255 0 2 1")),
+        _text_case("ply_ascii_extra_values", "ev.ply", _ply(floor, [[0, 2, 1]]) + b"1 2 3 4\n"),
+        _text_case("ply_ascii_vertex_short", "vs.ply",
+                   _ply(floor, [[0, 2, 1]]).replace(b"\n2.0 0.0 2.0", b"\n2.0 0.0")),
         _text_case("ply_huge", "hg.ply", _ply(np.array(floor) * 1e12, [[0, 2, 1], [0, 3, 2]])),
     ]
     return c
