@@ -169,3 +169,22 @@ def test_one_key_sun_path_is_a_fixed_sun(tmp_path):
     same = validate_bake(BakeConfig(sun_direction=tuple(expect)))
     assert same == cfg
 
+
+
+def test_one_key_sun_path_bakes_like_sun(tmp_path, capsys):
+    """Both files of a one-key --sun-path bake are byte-identical to those of the same fixed
+    --sun (which the writers export as the scene's light)."""
+    from baker.geometry.transforms import direction_from_angles
+
+    import numpy as np
+
+    scene = tmp_path / "scene.glb"
+    scene.write_bytes(bad_inputs.good_glb())
+    d = direction_from_angles(np.radians([90.0]), np.radians([30.0]))[0]
+    common = ["bake", str(scene), "--seconds", "1", "--no-cache"]
+    assert main([*common, "--out", str(tmp_path / "a" / "c"), "--sun-path", "90,30"]) == 0
+    assert main([*common, "--out", str(tmp_path / "b" / "c"),
+                 "--sun", ",".join(repr(float(x)) for x in d)]) == 0
+    for ext in ("glb", "usd"):
+        assert (tmp_path / "a" / f"c.{ext}").read_bytes() == \
+            (tmp_path / "b" / f"c.{ext}").read_bytes()
