@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -345,10 +345,6 @@ def scale_rig(rig: RigConfig, factor: float) -> RigConfig:
         prey=sc(rig.prey, ["length", "radius", "wander_speed", "flee_speed", "tired_speed",
                            "flee_trigger", "acceleration"]),
     )
-
-
-#: [Limit] --scale factor range (a 0.25 m rig scaled to 0.25 mm .. 250 m)
-SCALE_RANGE = (1e-3, 1e3)
 
 
 def override_rig(rig: RigConfig, *, scale: float | None = None, agent_radius: float | None = None,
