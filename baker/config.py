@@ -1,7 +1,9 @@
 """Configuration: frozen dataclasses, one section per stage, loaded from TOML and validated.
 
-Every field documents its [Limit] and [Units]. Rig files give lengths in body lengths [BL];
-`load_rig_config` converts them to metres, so everything downstream is in metres and seconds.
+Every field documents its [Limit] and [Units] in the units downstream code uses. Rig files and
+options are checked against the declarations in baker/schema.py (types, ranges, units in the
+user's units: rig lengths in body lengths [BL], angles in degrees); `load_rig_config` converts
+them to metres and radians, so everything downstream is in metres and seconds.
 """
 
 from __future__ import annotations
