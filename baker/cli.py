@@ -6,13 +6,14 @@ import logging
 import os
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import click
 
-from baker.config import (DEFAULT_ENVIRONMENT, DEFAULT_RIG, BakeConfig, load_rig_config,
-                          override_rig)
-from baker.errors import BakerError, ConfigError
+from baker.config import (DEFAULT_ENVIRONMENT, DEFAULT_RIG, BakeConfig, RigConfig,
+                          load_rig_config, override_rig, validate_bake)
+from baker.errors import EXIT_USAGE, BakerError, ConfigError, format_error
 
 
 def default_cache_dir() -> Path:
@@ -23,13 +24,21 @@ def default_cache_dir() -> Path:
 def parse_vec3(text: str | None, what: str):
     if text is None:
         return None
+    form = f"{what} must be three comma-separated numbers, e.g. 0.3,1,0.2"
     try:
         vals = tuple(float(x) for x in text.replace(" ", "").split(","))
     except ValueError:
-        raise ConfigError(f"{what} must be three comma-separated numbers, e.g. 0.3,1,0.2") from None
+        raise ConfigError(form, where=what) from None
     if len(vals) != 3:
-        raise ConfigError(f"{what} must be three comma-separated numbers, e.g. 0.3,1,0.2")
+        raise ConfigError(form, where=what)
     return vals
+
+
+def max_memory_option(f):
+    return click.option(
+        "--max-memory", type=float, default=None, metavar="MB",
+        help="Refuse a navigation build estimated to need more memory than this, in MB "
+             "[default: half of the machine's RAM].")(f)
 
 
 def rig_options(f):
@@ -61,7 +70,9 @@ def rig_options(f):
 def cli(verbose: int):
     """baker: bake a procedural centipede walking over an environment into GLB and USD."""
     level = logging.WARNING - 10 * min(verbose, 2)
-    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+    logging.getLogger().setLevel(level)
+    if verbose:  # asked for: logs go out as they come (not held back until the end)
+        _HELD.release(live=True)
 
 
 @cli.command()
@@ -96,9 +107,11 @@ def cli(verbose: int):
               help="Move the sun over the bake: azimuth,elevation keys in degrees, evenly spaced.")
 @click.option("--clips", is_flag=True,
               help="Also write one animation per behaviour segment (glTF animations, USD SkelAnimations).")
+@max_memory_option
 @rig_options
 def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_navmesh,
-         cache_dir, no_cache, nav_build, behaviour, prey, cobra, sun_path, clips, **rig_overrides):
+         cache_dir, no_cache, nav_build, behaviour, prey, cobra, sun_path, clips, max_memory,
+         **rig_overrides):
     """Bake a centipede on ENVIRONMENT (glTF/GLB, OBJ, PLY, STL or USD).
 
     With no ENVIRONMENT, the bundled rainforest floor is used."""
@@ -108,6 +121,12 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
     t0 = time.perf_counter()
     usd_fmt = "usda" if usda else "usd"
     formats = {"glb": ("glb",), "usd": (usd_fmt,), "both": ("glb", usd_fmt)}[fmt]
+    # every option is checked before the rig and the level are read
+    validate_memory(max_memory)
+    validate_bake(BakeConfig(seconds=seconds, fps=fps, seed=seed, formats=formats,
+                             sun_direction=parse_vec3(sun, "--sun"), behaviour=behaviour,
+                             prey=prey, cobra=cobra, sun_path=sun_path, nav_build=nav_build))
+    check_rig_overrides(rig_overrides)
     cfg = BakeConfig(
         environment=environment or DEFAULT_ENVIRONMENT,
         seconds=seconds, fps=fps, seed=seed,
@@ -115,6 +134,7 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
         formats=formats, sun_direction=parse_vec3(sun, "--sun"), debug_navmesh=debug_navmesh,
         nav_cache_dir=None if no_cache else (cache_dir or default_cache_dir()),
         nav_build=nav_build, behaviour=behaviour, prey=prey, cobra=cobra, sun_path=sun_path, clips=clips,
+        max_memory_mb=max_memory,
     )
     progress = TerminalProgress()
     try:
@@ -141,37 +161,120 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
 @click.option("--cache-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Navigation cache folder [default: ~/.cache/baker/navmesh].")
 @click.option("--no-cache", is_flag=True, help="Build without reading or writing the cache.")
+@max_memory_option
 @rig_options
-def navmesh(environment, rig_path, png, path_from, path_to, cache_dir, no_cache, **rig_overrides):
+def navmesh(environment, rig_path, png, path_from, path_to, cache_dir, no_cache, max_memory,
+            **rig_overrides):
     """Build (or load from the cache) the navigation surface of ENVIRONMENT and report on it.
 
     The surface is cached where `baker bake` looks for it, so a later bake skips the build."""
     from baker.navmesh.report import format_report, run
+    from baker.schema import check_point
 
+    validate_memory(max_memory)
+    p_from, p_to = parse_vec3(path_from, "--from"), parse_vec3(path_to, "--to")
+    check_point(p_from, "--from")
+    check_point(p_to, "--to")
+    check_rig_overrides(rig_overrides)
     rig = override_rig(load_rig_config(rig_path), **rig_overrides)
     report = run(environment, rig.navigation, None if no_cache else (cache_dir or default_cache_dir()),
-                 png=png, path_from=parse_vec3(path_from, "--from"),
-                 path_to=parse_vec3(path_to, "--to"))
+                 png=png, path_from=p_from, path_to=p_to, max_memory_mb=max_memory)
     click.echo(format_report(report))
 
 
-def main(argv=None) -> int:
-    """Entry point: user errors become one line on stderr and exit code 2."""
+def check_rig_overrides(rig_overrides: dict) -> None:
+    """The rig options' values (schema.Options), checked before the rig file is read."""
+    override_rig(RigConfig(), **rig_overrides)
+
+
+def validate_memory(max_memory) -> None:
+    """--max-memory (schema.Options), checked before anything is read."""
+    from baker.schema import validate_options
+
+    validate_options(max_memory=max_memory)
+
+
+class _HeldLog(logging.Handler):
+    """Holds log records and Python warnings while a command runs: on success they are printed
+    (in order) when it ends; a rejected input prints only its one error line."""
+
+    def __init__(self):
+        super().__init__(level=logging.NOTSET)
+        self.records: list = []
+        self.live: logging.Handler | None = None
+
+    def emit(self, record):
+        if self.live is not None:
+            self.live.handle(record)
+        else:
+            self.records.append(record)
+
+    def release(self, live: bool = False):
+        out = logging.StreamHandler(sys.stderr)
+        out.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+        for r in self.records:
+            out.handle(r)
+        self.records.clear()
+        if live:
+            self.live = out
+
+    def drop(self):
+        self.records.clear()
+
+
+_HELD = _HeldLog()
+
+
+def run_command(argv=None) -> int:
+    """Run the click command; user errors become one line `Error: <what> (<where>)` on stderr
+    and EXIT_USAGE. Logs and warnings of a run are held and printed only if it succeeds."""
+    root = logging.getLogger()
+    old_level = root.level
+    _HELD.records.clear()
+    _HELD.live = None
+    root.addHandler(_HELD)
+    held_warnings = []
+    error = None
     try:
-        cli.main(args=argv, prog_name="baker", standalone_mode=False)
+        with warnings.catch_warnings(record=True) as held_warnings:
+            try:
+                cli.main(args=argv, prog_name="baker", standalone_mode=False)
+            except click.exceptions.Exit as e:
+                return int(e.exit_code or 0)
+            except click.exceptions.NoArgsIsHelpError as e:  # bare `baker`: the help, as click
+                click.echo(e.ctx.get_help() if e.ctx else "")
+                return EXIT_USAGE
+            except click.ClickException as e:
+                error = format_error(ConfigError(e.format_message(), where="command line"))
+            except BakerError as e:
+                error = format_error(e)
+    finally:
+        root.removeHandler(_HELD)
+        root.setLevel(old_level)
+        if error is not None:
+            _HELD.drop()
+        else:
+            _HELD.release()
+            for w in held_warnings:
+                warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+        _HELD.live = None
+    if error is not None:
+        sys.stderr.write(error + "\n")
+        sys.stderr.flush()
+        return EXIT_USAGE
+    return 0
+
+
+def main(argv=None) -> int:
+    """Entry point: see run_command."""
+    try:
+        return run_command(argv)
     except click.exceptions.Abort:
         click.echo("error: aborted", err=True)
-        return 2
-    except click.ClickException as e:
-        click.echo(f"error: {e.format_message()}", err=True)
-        return 2
-    except BakerError as e:
-        click.echo(f"error: {str(e).splitlines()[0] if str(e) else type(e).__name__}", err=True)
         return 2
     except KeyboardInterrupt:
         click.echo("error: interrupted", err=True)
         return 130
-    return 0
 
 
 if __name__ == "__main__":

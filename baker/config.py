@@ -1,18 +1,21 @@
 """Configuration: frozen dataclasses, one section per stage, loaded from TOML and validated.
 
-Every field documents its [Limit] and [Units]. Rig files give lengths in body lengths [BL];
-`load_rig_config` converts them to metres, so everything downstream is in metres and seconds.
+Every field documents its [Limit] and [Units] in the units downstream code uses. Rig files and
+options are checked against the declarations in baker/schema.py (types, ranges, units in the
+user's units: rig lengths in body lengths [BL], angles in degrees); `load_rig_config` converts
+them to metres and radians, so everything downstream is in metres and seconds.
 """
 
 from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from baker import schema
 from baker.errors import ConfigError
 from baker.geometry.conventions import SIM_RATE_HZ
 from baker.geometry.transforms import direction_from_angles
@@ -195,6 +198,8 @@ class BakeConfig:
     nav_cache_dir: Path | None = None  # None: no on-disk navigation cache
     nav_build: str = "auto"      # auto | full | lazy: the whole level at once, or windows
                                  # around where the creatures go (auto: lazy on big levels)
+    max_memory_mb: float | None = None  # [>0] [MB] largest navigation build allowed;
+                                 # None: half of the machine's RAM (navmesh.budget)
 
     @property
     def sim_rate(self) -> int:
@@ -213,107 +218,93 @@ class BakeConfig:
 
 
 def validate_bake(cfg: BakeConfig) -> BakeConfig:
-    """Raise ConfigError for out-of-range run options; returns cfg unchanged."""
-    if not (isinstance(cfg.seconds, (int, float)) and math.isfinite(cfg.seconds)) or cfg.seconds <= 0:
-        raise ConfigError(f"--seconds must be > 0 (got {cfg.seconds})")
-    if cfg.seconds > 3600:
-        raise ConfigError(f"--seconds must be at most 3600 (got {cfg.seconds})")
-    if cfg.fps <= 0:
-        raise ConfigError(f"--fps must be > 0 (got {cfg.fps})")
-    if cfg.fps > MAX_FPS or SIM_RATE_HZ % cfg.fps:
+    """Raise ConfigError for out-of-range run options (declared in schema.Options). Returns cfg,
+    with a one-key `sun_path` turned into the fixed sun it is (`sun_direction`)."""
+    sun = cfg.sun_direction
+    if sun is not None:
+        try:
+            sun = tuple(float(x) for x in sun)
+        except (TypeError, ValueError):
+            raise ConfigError("--sun must be three numbers x,y,z", where="command line") from None
+    schema.validate_options(seconds=cfg.seconds, fps=cfg.fps, seed=cfg.seed, prey=cfg.prey,
+                            sun=sun)
+    if SIM_RATE_HZ % cfg.fps:
         divisors = [d for d in range(1, MAX_FPS + 1) if SIM_RATE_HZ % d == 0]
         raise ConfigError(
             f"--fps {cfg.fps} is not supported: it must divide the {SIM_RATE_HZ} Hz simulation "
-            f"step (one of {', '.join(map(str, divisors))})")
-    if cfg.seed < 0:
-        raise ConfigError(f"--seed must be >= 0 (got {cfg.seed})")
+            f"step (one of {', '.join(map(str, divisors))})", where="--fps")
     bad = set(cfg.formats) - {"glb", "usd", "usda"}
     if bad or not cfg.formats:
-        raise ConfigError(f"unknown output format(s): {', '.join(sorted(bad)) or 'none given'}")
-    if cfg.behaviour not in ("auto", "wander", "shade", "hunt"):
-        raise ConfigError(f"--behaviour must be auto, wander, shade or hunt (got {cfg.behaviour})")
-    if cfg.cobra not in ("auto", "always", "never"):
-        raise ConfigError(f"--cobra must be auto, always or never (got {cfg.cobra})")
-    if cfg.nav_build not in ("auto", "full", "lazy"):
-        raise ConfigError(f"--nav-build must be auto, full or lazy (got {cfg.nav_build})")
-    if not 0 <= cfg.prey <= 16:
-        raise ConfigError(f"--prey must be in 0..16 (got {cfg.prey})")
-    if cfg.sun_path is not None:
-        parse_sun_path(cfg.sun_path)
-    if cfg.sun_direction is not None:
-        d = np.asarray(cfg.sun_direction, dtype=float)
-        if d.shape != (3,) or not np.all(np.isfinite(d)) or np.linalg.norm(d) < 1e-9:
-            raise ConfigError("--sun must be three numbers x,y,z pointing toward the sun")
+        raise ConfigError(f"unknown output format(s): {', '.join(sorted(bad)) or 'none given'}",
+                          where="--format")
+    for opt, value, allowed in (("--behaviour", cfg.behaviour, ("auto", "wander", "shade", "hunt")),
+                                ("--cobra", cfg.cobra, ("auto", "always", "never")),
+                                ("--nav-build", cfg.nav_build, ("auto", "full", "lazy"))):
+        if value not in allowed:
+            raise ConfigError(f"{opt} must be one of {', '.join(allowed)} (got {value})", where=opt)
+    for what, p in [("start", cfg.start)] + [("prey position", q) for q in cfg.prey_positions]:
+        if p is not None:
+            schema.check_point(tuple(float(x) for x in p), what)
+    if sun is not None:
+        d = np.asarray(sun, dtype=float)
+        if np.linalg.norm(d) < 1e-9:
+            raise ConfigError("--sun must be a non-zero direction x,y,z toward the sun",
+                              where="--sun")
         if d[1] <= 0:
-            raise ConfigError("--sun must point upward (y > 0): the sun is above the horizon")
+            raise ConfigError("--sun must point upward (y > 0): the sun is above the horizon",
+                              where="--sun")
+    if cfg.sun_path is not None:
+        keys = parse_sun_path(cfg.sun_path)
+        if len(keys) == 1:  # one key: a fixed sun, exported as one
+            cfg = replace(cfg, sun_direction=tuple(float(x) for x in keys[0]), sun_path=None)
     return cfg
 
 
 # --------------------------------------------------------------------------- TOML loading
-def _section(cls, data: dict, where: str, scale: dict[str, float]):
-    """Build dataclass `cls` from TOML table `data`, multiplying fields in `scale`."""
-    known = {f.name: f for f in fields(cls)}
-    unknown = set(data) - set(known)
-    if unknown:
-        raise ConfigError(f"{where}: unknown key(s) {', '.join(sorted(unknown))}")
-    kw = {}
-    for k, v in data.items():
-        if isinstance(v, list) and v and isinstance(v[0], list):
-            v = tuple(tuple(float(x) for x in row) for row in v)
-        elif isinstance(v, list):
-            v = tuple(float(x) * scale.get(k, 1.0) for x in v)
-        elif isinstance(v, (int, float)) and not isinstance(v, bool):
-            if k in scale:
-                v = float(v) * scale[k]
-        kw[k] = v
-    return cls(**kw)
+#: dataclass per rig-file table (the schema's tables are in baker/schema.py)
+_SECTION_CLASSES = {"body": BodyConfig, "colors": ColorsConfig, "locomotion": LocomotionConfig,
+                    "wander": WanderConfig, "navigation": NavAgentConfig, "legs": LegsConfig,
+                    "behaviour": BehaviourConfig, "cobra": CobraConfig, "prey": PreyConfig}
+#: rig-file key -> dataclass field, where they differ
+_RENAMED = {"navigation": {"agent_radius": "radius", "agent_height": "height"}}
+
+
+def read_rig_table(path: Path | str) -> dict:
+    """The parsed TOML document of a rig file, or ConfigError (missing, unreadable, not TOML)."""
+    path = Path(path)
+    if not path.exists():
+        raise ConfigError("rig file not found", where=str(path))
+    if not path.is_file():
+        raise ConfigError("rig path is not a file", where=str(path))
+    try:
+        raw = path.read_bytes()
+    except OSError as e:
+        raise ConfigError(f"cannot read rig file: {e.strerror or e}", where=str(path)) from None
+    if len(raw) > 1 << 20:
+        raise ConfigError(f"rig file is {len(raw)} bytes; expected at most 1 MB", where=str(path))
+    try:
+        return tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as e:
+        raise ConfigError(f"rig file is not UTF-8 text (byte {e.start})", where=str(path)) from None
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"rig file is not valid TOML: {e}", where=str(path)) from None
 
 
 def load_rig_config(path: Path | str) -> RigConfig:
-    """Read a rig TOML file. Lengths in [BL] become metres; degrees become radians."""
+    """Read a rig TOML file, checked against the declared schema (baker/schema.py). Lengths in
+    [BL] become metres; degrees become radians. A missing key keeps the dataclass default."""
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"rig file not found: {path}")
-    try:
-        data = tomllib.loads(path.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        raise ConfigError(f"rig file {path} is not valid TOML: {e}") from None
-    body_t = dict(data.get("body", {}))
-    length = float(body_t.get("length", 0.25))
-    if not length > 0:
-        raise ConfigError(f"{path}: body.length must be > 0")
-    bl = {"width_profile": length, "clearance": length, "leg_stub_length": length}
-    body = _section(BodyConfig, body_t, f"{path} [body]", bl)
-    deg = math.pi / 180.0
-    loco = _section(LocomotionConfig, data.get("locomotion", {}), f"{path} [locomotion]",
-                    {"max_speed": length, "acceleration": length, "stopping_distance": length,
-                     "slither_amplitude": deg})
-    wander = _section(WanderConfig, data.get("wander", {}), f"{path} [wander]", {"radius": length})
-    nav_t = dict(data.get("navigation", {}))
-    nav_t = {{"agent_radius": "radius", "agent_height": "height"}.get(k, k): v for k, v in nav_t.items()}
-    nav = _section(NavAgentConfig, nav_t, f"{path} [navigation]",
-                   {"radius": length, "height": length, "step_height": length,
-                    "cell_size": length, "max_slope": deg})
-    colors = _section(ColorsConfig, data.get("colors", {}), f"{path} [colors]", {})
-    legs = _section(LegsConfig, data.get("legs", {}), f"{path} [legs]",
-                    {**{k: length for k in _LEG_LENGTHS},
-                     **{k: deg for k in ("ultimate_raise", "ultimate_spread", "antenna_sweep",
-                                         "max_swing_rate", "ultimate_warning_raise")}})
-    behaviour = _section(BehaviourConfig, data.get("behaviour", {}), f"{path} [behaviour]",
-                         {k: length for k in ("shade_spot_spacing", "shade_sense_radius",
-                                              "detection_range", "strike_range")})
-    cobra = _section(CobraConfig, data.get("cobra", {}), f"{path} [cobra]",
-                     {k: length for k in ("height", "obstacle_probe", "ceiling_margin")})
-    prey = _section(PreyConfig, data.get("prey", {}), f"{path} [prey]",
-                    {k: length for k in ("length", "radius", "wander_speed", "flee_speed",
-                                         "tired_speed", "flee_trigger", "acceleration")})
-    extra = set(data) - {"name", "body", "colors", "locomotion", "wander", "navigation", "legs",
-                         "behaviour", "cobra", "prey"}
-    if extra:
-        raise ConfigError(f"{path}: unknown section(s) {', '.join(sorted(extra))}")
-    rig = RigConfig(name=str(data.get("name", path.stem)), source=str(path), body=body,
-                    colors=colors, locomotion=loco, wander=wander, navigation=nav, legs=legs,
-                    behaviour=behaviour, cobra=cobra, prey=prey)
+    table = schema.validate_rig_table(read_rig_table(path), str(path))
+    length = float(table.body.length)
+    sections = {}
+    for name, cls in _SECTION_CLASSES.items():
+        t = getattr(table, name)
+        kw = {} if t is None else schema.convert(schema.SECTIONS[name], t, length)
+        kw = {_RENAMED.get(name, {}).get(k, k): v for k, v in kw.items()}
+        if name == "body":
+            kw["length"] = length
+        sections[name] = cls(**kw)
+    rig = RigConfig(name=table.name or path.stem, source=str(path), **sections)
     return validate_rig(rig, str(path))
 
 
@@ -323,47 +314,15 @@ _LEG_LENGTHS = ("upper_length", "tip_length", "reach", "stride_min", "stride_max
 
 
 def validate_rig(rig: RigConfig, where: str = "rig") -> RigConfig:
+    """Consistency of a RigConfig built in code (rig files are checked by the schema first):
+    width_profile matches segments. Fills a missing width_profile (0.045 body lengths)."""
     b = rig.body
     if not 3 <= b.segments <= 255:
-        raise ConfigError(f"{where}: body.segments must be in 3..255 (got {b.segments})")
+        raise ConfigError(f"body.segments = {b.segments}: expected an integer in [3, 255]",
+                          where=where)
     if b.width_profile and len(b.width_profile) != b.segments:
-        raise ConfigError(f"{where}: body.width_profile needs {b.segments} values "
-                          f"(got {len(b.width_profile)})")
-    if any(w <= 0 for w in b.width_profile):
-        raise ConfigError(f"{where}: body.width_profile values must be > 0")
-    checks = [
-        (rig.locomotion.max_speed > 0, "locomotion.max_speed must be > 0"),
-        (rig.locomotion.acceleration > 0, "locomotion.acceleration must be > 0"),
-        (0 < rig.locomotion.rough_speed <= 1, "locomotion.rough_speed must be in (0, 1]"),
-        (rig.wander.interval > 0, "wander.interval must be > 0"),
-        (rig.wander.radius > 0, "wander.radius must be > 0"),
-        (rig.navigation.radius > 0, "navigation.agent_radius must be > 0"),
-        (rig.navigation.height > 0, "navigation.agent_height must be > 0"),
-        (rig.navigation.cell_size > 0, "navigation.cell_size must be > 0"),
-        (0 < rig.navigation.max_slope < math.pi / 2, "navigation.max_slope must be in (0, 90) deg"),
-        (b.clearance >= 0, "body.clearance must be >= 0"),
-    ]
-    lg = rig.legs
-    checks += [
-        (isinstance(lg.enabled, bool), "legs.enabled must be true or false"),
-        (all(getattr(lg, k) > 0 for k in _LEG_LENGTHS if k != "lift"),
-         "legs lengths (bones, reach, strides, radius) must be > 0"),
-        (lg.lift >= 0, "legs.lift must be >= 0"),
-        (0 < lg.duty < 1, "legs.duty must be in (0, 1)"),
-        (lg.waves > 0, "legs.waves must be > 0"),
-        (lg.stride_max >= lg.stride_min, "legs.stride_max must be >= legs.stride_min"),
-        (lg.settle_time > 0, "legs.settle_time must be > 0"),
-        (lg.max_swing_rate > 0, "legs.max_swing_rate must be > 0"),
-        (0 <= lg.hip_width <= 1.5, "legs.hip_width must be in [0, 1.5]"),
-        (lg.knee_out >= 0, "legs.knee_out must be >= 0"),
-        (all(0 <= getattr(lg, k) <= math.pi / 2 for k in
-             ("ultimate_raise", "ultimate_spread", "antenna_sweep", "ultimate_warning_raise")),
-         "legs angles must be in [0, 90] deg"),
-        (lg.antenna_rate >= 0, "legs.antenna_rate must be >= 0"),
-    ]
-    for ok, msg in checks:
-        if not ok:
-            raise ConfigError(f"{where}: {msg}")
+        raise ConfigError(f"body.width_profile has {len(b.width_profile)} values; expected "
+                          f"{b.segments}", where=where)
     if not b.width_profile:
         rig = replace(rig, body=replace(b, width_profile=tuple([0.045 * b.length] * b.segments)))
     return rig
@@ -390,46 +349,24 @@ def scale_rig(rig: RigConfig, factor: float) -> RigConfig:
     )
 
 
-#: [Limit] --scale factor range (a 0.25 m rig scaled to 0.25 mm .. 250 m)
-SCALE_RANGE = (1e-3, 1e3)
-
-
 def override_rig(rig: RigConfig, *, scale: float | None = None, agent_radius: float | None = None,
                  agent_height: float | None = None, step_height: float | None = None,
                  max_slope_deg: float | None = None, cell_size: float | None = None) -> RigConfig:
     """The rig with the CLI's overrides applied: first uniformly scaled by `scale` (scale_rig),
     then the navigation agent's fields set (metres; max slope in degrees). None keeps a value.
     Raises ConfigError naming the option for out-of-range values."""
-    def num(v, opt):
-        if v is None:
-            return None
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise ConfigError(f"{opt} must be a finite number (got {v})")
-        return float(v)
-
-    scale = num(scale, "--scale")
-    if scale is not None:
-        if not SCALE_RANGE[0] <= scale <= SCALE_RANGE[1]:
-            raise ConfigError(f"--scale must be in [{SCALE_RANGE[0]:g}, {SCALE_RANGE[1]:g}] "
-                              f"(got {scale:g})")
-        rig = scale_rig(rig, scale)
+    opts = schema.validate_options(scale=scale, agent_radius=agent_radius,
+                                   agent_height=agent_height, step_height=step_height,
+                                   max_slope=max_slope_deg, cell_size=cell_size)
+    if opts.scale is not None:
+        rig = scale_rig(rig, float(opts.scale))
     nav = rig.navigation
-    kw = {}
-    for opt, name, v, ok, rule in (
-            ("--agent-radius", "radius", agent_radius, lambda x: x > 0, "> 0"),
-            ("--agent-height", "height", agent_height, lambda x: x > 0, "> 0"),
-            ("--step-height", "step_height", step_height, lambda x: x >= 0, ">= 0"),
-            ("--cell-size", "cell_size", cell_size, lambda x: x > 0, "> 0")):
-        v = num(v, opt)
-        if v is not None:
-            if not ok(v):
-                raise ConfigError(f"{opt} must be {rule} metres (got {v:g})")
-            kw[name] = v
-    slope = num(max_slope_deg, "--max-slope")
-    if slope is not None:
-        if not 0 < slope < 90:
-            raise ConfigError(f"--max-slope must be in (0, 90) degrees (got {slope:g})")
-        kw["max_slope"] = math.radians(slope)
+    kw = {name: float(v) for name, v in (("radius", opts.agent_radius),
+                                         ("height", opts.agent_height),
+                                         ("step_height", opts.step_height),
+                                         ("cell_size", opts.cell_size)) if v is not None}
+    if opts.max_slope is not None:
+        kw["max_slope"] = math.radians(opts.max_slope)
     if kw:
         rig = replace(rig, navigation=replace(nav, **kw))
     return rig
@@ -439,15 +376,25 @@ def parse_sun_path(text: str, samples_per_key: int = 16) -> np.ndarray:
     """'AZ,EL;AZ,EL;...' in degrees (azimuth from +Z toward +X, elevation above the horizon),
     evenly spaced over the bake -> (K, 3) unit directions toward the sun, densified so that
     interpolating them follows the sky (azimuth and elevation are interpolated, not vectors)."""
+    form = "--sun-path must look like 'AZ,EL;AZ,EL' in degrees, e.g. '90,30;270,30'"
+    if not isinstance(text, str) or len(text) > 100_000:
+        raise ConfigError(form, where="--sun-path")
     try:
         pairs = [tuple(float(v) for v in part.split(",")) for part in text.split(";") if part.strip()]
     except ValueError:
-        raise ConfigError("--sun-path must look like 'AZ,EL;AZ,EL' in degrees, e.g. '90,30;270,30'") from None
+        raise ConfigError(form, where="--sun-path") from None
     if len(pairs) < 1 or any(len(p) != 2 for p in pairs):
-        raise ConfigError("--sun-path must look like 'AZ,EL;AZ,EL' in degrees, e.g. '90,30;270,30'")
-    ang = np.radians(np.array(pairs))
+        raise ConfigError(form, where="--sun-path")
+    if len(pairs) > 1000:
+        raise ConfigError(f"--sun-path has {len(pairs)} keys; expected at most 1000",
+                          where="--sun-path")
+    arr = np.array(pairs)
+    if not np.all(np.isfinite(arr)) or np.any(np.abs(arr[:, 0]) > 3600):
+        raise ConfigError("--sun-path values must be finite; azimuths in [-3600, 3600] degrees",
+                          where="--sun-path")
+    ang = np.radians(arr)
     if np.any(ang[:, 1] <= 0) or np.any(ang[:, 1] > math.pi / 2):
-        raise ConfigError("--sun-path elevations must be in (0, 90] degrees")
+        raise ConfigError("--sun-path elevations must be in (0, 90] degrees", where="--sun-path")
     if len(ang) == 1:
         return direction_from_angles(ang[:1, 0], ang[:1, 1])
     u = np.linspace(0, len(ang) - 1, (len(ang) - 1) * samples_per_key + 1)

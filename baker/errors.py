@@ -1,9 +1,33 @@
-"""Error hierarchy. A BakerError is a user-facing problem: the CLI prints its message on one
-line and exits with code 2. Anything else is a bug and keeps its traceback."""
+"""Error hierarchy and the one format a user error is shown in.
+
+A BakerError is a user-facing problem: the CLI prints `format_error(e)`, one line
+`Error: <what> (<where>)`, on stderr and exits with EXIT_USAGE (2). Anything else is a bug and
+keeps its traceback. `where` names the place: a file (and key), an option, "command line".
+"""
+
+from __future__ import annotations
+
+EXIT_USAGE = 2
+_MAX_LINE = 400
 
 
 class BakerError(Exception):
-    """Base class for every error caused by the user's input or environment."""
+    """Base class for every error caused by the user's input or environment.
+
+    message : what is wrong (one sentence, no trailing period needed)
+    where   : the file, key or option it is about, or None
+    """
+
+    def __init__(self, message: str = "", where: str | None = None):
+        super().__init__(message)
+        self.where = None if where is None else str(where)
+
+    @property
+    def what(self) -> str:
+        return str(self.args[0]) if self.args else ""
+
+    def __str__(self) -> str:
+        return f"{self.what} ({self.where})" if self.where else self.what
 
 
 class ConfigError(BakerError):
@@ -18,9 +42,31 @@ class NavError(BakerError):
     """The navigation surface cannot be built or used (for example: nothing walkable)."""
 
 
+class BudgetError(NavError):
+    """A build would need more memory than allowed (--max-memory)."""
+
+
 class RigError(BakerError):
     """The rig definition is inconsistent."""
 
 
 class ExportError(BakerError):
     """An output file cannot be written."""
+
+
+def one_line(text: str) -> str:
+    """Whitespace (newlines included) collapsed to single spaces, cut at a readable length."""
+    s = " ".join(str(text).split())
+    return s if len(s) <= _MAX_LINE else s[: _MAX_LINE - 3] + "..."
+
+
+def format_error(exc: BaseException, where: str | None = None) -> str:
+    """The single stderr line for a user error: `Error: <what> (<where>)`."""
+    what = exc.what if isinstance(exc, BakerError) else str(exc)
+    what = one_line(what) or type(exc).__name__
+    where = where if where is not None else getattr(exc, "where", None)
+    if where:
+        w = one_line(where)
+        if w and f"({w})" not in what:
+            return f"Error: {what} ({w})"
+    return f"Error: {what}"

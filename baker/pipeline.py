@@ -17,6 +17,7 @@ the writers and the report move positions back to world.
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -81,12 +82,30 @@ def navigation_surface(cfg: BakeConfig, env):
     rig = cfg.rig
     half = (rig.wander.radius + 2.0 * rig.behaviour.detection_range + rig.body.length
             + 4.0 * agent.radius)
+    # refuse now, not after the first window, a bake whose window cannot grow once (twice the
+    # side, within the level) inside the memory budget
+    from baker.navmesh import budget
+
+    span = np.minimum(4.0 * half, (hi - lo)[[0, 2]])
+    cols = [max(1, math.ceil(min(float(s) / agent.cell_size, 1e12))) for s in span]
+    budget.check(cols[0], cols[1], agent.cell_size, len(env.mesh.faces), where=env.source,
+                 area=float(span[0]) * float(span[1]))
     nav = LazyNav(env, agent, cfg.nav_cache_dir, centre, half)
     return nav, nav.cache_hits == 1
 
 
 def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
          ctx: Context | None = None) -> BakeResult:
+    """Run steps 1-7 on `cfg`. Every navigation build (the whole level, or each lazy window) is
+    refused before it starts when its estimated memory is over cfg.max_memory_mb
+    (navmesh.budget)."""
+    from baker.navmesh.budget import memory_limit
+
+    with memory_limit(cfg.max_memory_mb):
+        return _bake(cfg, rng, ctx)
+
+
+def _bake(cfg: BakeConfig, rng: np.random.Generator | None, ctx: Context | None) -> BakeResult:
     from baker import metrics
     from baker.clip import build_clip
     from baker.environment import load_environment

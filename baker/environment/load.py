@@ -24,7 +24,10 @@ Every failure is an `EnvironmentLoadError` with a one-line message naming the fi
 from __future__ import annotations
 
 import base64
+import binascii
+import contextlib
 import json
+import os
 import logging
 import math
 import re
@@ -68,36 +71,46 @@ def load_environment(path: str | Path, sun_override=None) -> Environment:
     ext = path.suffix.lower()
     if ext not in SUPPORTED_EXTS:
         raise EnvironmentLoadError(
-            f"unsupported environment format '{path.suffix or '(none)'}' for {path} "
-            f"(expected one of {', '.join(sorted(SUPPORTED_EXTS))})")
+            f"unsupported environment format '{path.suffix or '(none)'}'; expected one of "
+            f"{', '.join(sorted(SUPPORTED_EXTS))}", where=str(path))
     if not path.exists():
-        raise EnvironmentLoadError(f"environment file not found: {path}")
+        raise EnvironmentLoadError("environment file not found", where=str(path))
     if not path.is_file():
-        raise EnvironmentLoadError(f"environment path is not a file: {path}")
+        raise EnvironmentLoadError("environment path is not a file", where=str(path))
 
     try:
-        if ext in GLTF_EXTS:
-            raw, sun = _read_gltf(path)
-        elif ext in USD_EXTS:
-            raw, sun = _read_usd(path)
-        else:
-            raw, sun = _read_trimesh(path)
-    except EnvironmentLoadError:
-        raise
+        with _quiet():
+            if ext in GLTF_EXTS:
+                raw, sun = _read_gltf(path)
+            elif ext in USD_EXTS:
+                raw, sun = _read_usd(path)
+            else:
+                raw, sun = _read_trimesh(path)
+    except EnvironmentLoadError as exc:
+        raise EnvironmentLoadError(exc.what, where=exc.where or str(path)) from None
+    except MemoryError:
+        raise EnvironmentLoadError("the file needs more memory than is available",
+                                   where=str(path)) from None
     except Exception as exc:  # any parser failure is a corrupt file to the user
         msg = _error_text(exc)
-        raise EnvironmentLoadError(f"cannot read environment {path}: {msg}") from exc
+        raise EnvironmentLoadError(f"cannot read environment: {msg}", where=str(path)) from None
 
     kept = []
     names = _unique_names([r[0] for r in raw])
     for name, (_, v, f, n, color, rough, metal) in zip(names, raw):
+        v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
+        f = np.asarray(f, dtype=np.int64).reshape(-1, 3)
+        try:
+            _check_geometry(v, f, name)
+        except EnvironmentLoadError as e:
+            raise EnvironmentLoadError(e.what, where=str(path)) from None
         cleaned = _clean(v, f, n)
         if cleaned is None:
             log.info("environment %s: dropping mesh %r, it has no usable faces", path, name)
             continue
         kept.append((name, cleaned, color, rough, metal))
     if not kept:
-        raise EnvironmentLoadError(f"environment {path} has no triangle faces")
+        raise EnvironmentLoadError("environment has no triangle faces", where=str(path))
     world = [v for _, (v, _, _), _, _, _ in kept]
     origin = choose_origin(np.min([v.min(axis=0) for v in world], axis=0),
                            np.max([v.max(axis=0) for v in world], axis=0))
@@ -148,6 +161,27 @@ def sanitize_name(name: str, fallback: str = "mesh") -> str:
 
 
 # --------------------------------------------------------------------------- shared helpers
+@contextlib.contextmanager
+def _quiet():
+    """Parsers' own chatter (numpy and Python warnings, trimesh's log) is held back while a
+    file is read: a file that loads keeps the warnings as log records at debug level, a file
+    that is refused prints only the one error line."""
+    import warnings
+
+    trimesh_log = logging.getLogger("trimesh")
+    old = trimesh_log.level
+    trimesh_log.setLevel(logging.CRITICAL)
+    try:
+        with warnings.catch_warnings(record=True) as caught, \
+                np.errstate(all="ignore"):
+            warnings.simplefilter("always")
+            yield
+        for w in caught:
+            log.debug("while reading: %s", w.message)
+    finally:
+        trimesh_log.setLevel(old)
+
+
 def _error_text(exc: Exception) -> str:
     """One short line from a parser exception (pxr's messages carry C++ source locations)."""
     text = " ".join(str(exc).split())
@@ -184,17 +218,35 @@ def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
+#: [m] largest |coordinate| of a level vertex (world)
+COORD_LIMIT = 1e8
+
+
+def _check_geometry(v, f, name: str) -> None:
+    """Refuse (EnvironmentLoadError) a mesh with non-finite or out-of-range vertices, or face
+    indices outside its vertex list. v : (n, 3) float64 world; f : (m, 3) int64."""
+    if len(v) and not np.all(np.isfinite(v)):
+        bad = int(np.nonzero(~np.all(np.isfinite(v), axis=1))[0][0])
+        raise EnvironmentLoadError(f"mesh '{name}' has a non-finite vertex (vertex {bad}: "
+                                   f"{v[bad].tolist()})")
+    if len(v) and np.abs(v).max() > COORD_LIMIT:
+        raise EnvironmentLoadError(
+            f"coordinates out of range in mesh '{name}': up to {np.abs(v).max():.3g} m; "
+            f"expected within +-{COORD_LIMIT:g} m")
+    if len(f) and (f.min() < 0 or f.max() >= len(v)):
+        bad = int(f.max()) if f.max() >= len(v) else int(f.min())
+        raise EnvironmentLoadError(f"mesh '{name}' has a face index {bad} outside its "
+                                   f"{len(v)} vertices")
+
+
 def _clean(v, f, n):
-    """Drop faces with out-of-range indices, non-finite vertices or zero area, and unused
-    vertices. Returns (vertices float64 world, faces uint32, normals float32|None) or None."""
+    """Drop faces of zero area and unused vertices (indices and vertices were checked by
+    _check_geometry). Returns (vertices float64 world, faces uint32, normals float32|None)
+    or None."""
     v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
     f = np.asarray(f, dtype=np.int64).reshape(-1, 3)
     if len(f) == 0 or len(v) == 0:
         return None
-    ok = np.all((f >= 0) & (f < len(v)), axis=1)
-    f = f[ok]
-    finite = np.all(np.isfinite(v), axis=1)
-    f = f[np.all(finite[f], axis=1)]
     f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
     if len(f):
         tri = v[f]
@@ -248,58 +300,312 @@ _UNSUPPORTED_EXT = {"KHR_draco_mesh_compression", "EXT_meshopt_compression"}
 
 def _parse_glb(data: bytes, path: Path):
     if len(data) < 12 or data[:4] != b"glTF":
-        raise EnvironmentLoadError(f"corrupt GLB {path}: not a binary glTF (bad header)")
+        raise EnvironmentLoadError(f"corrupt GLB: not a binary glTF (bad header)")
     version, length = struct.unpack_from("<II", data, 4)
     if version != 2:
-        raise EnvironmentLoadError(f"unsupported glTF version {version} in {path} (need 2)")
+        raise EnvironmentLoadError(f"unsupported glTF version {version} (need 2)")
     if length > len(data):
-        raise EnvironmentLoadError(f"corrupt GLB {path}: truncated ({len(data)} of {length} bytes)")
+        raise EnvironmentLoadError(f"corrupt GLB: truncated ({len(data)} of {length} bytes)")
     off, doc, bin_chunk = 12, None, None
     while off + 8 <= length:
         clen, ctype = struct.unpack_from("<II", data, off)
         chunk = data[off + 8: off + 8 + clen]
         if len(chunk) != clen:
-            raise EnvironmentLoadError(f"corrupt GLB {path}: truncated chunk")
+            raise EnvironmentLoadError(f"corrupt GLB: truncated chunk")
         if ctype == 0x4E4F534A and doc is None:
             doc = json.loads(chunk.decode("utf-8"))
         elif ctype == 0x004E4942 and bin_chunk is None:
             bin_chunk = chunk
         off += 8 + clen
     if doc is None:
-        raise EnvironmentLoadError(f"corrupt GLB {path}: no JSON chunk")
+        raise EnvironmentLoadError(f"corrupt GLB: no JSON chunk")
     return doc, bin_chunk
 
 
+_COMPONENT_NAMES = {5120: "BYTE", 5121: "UNSIGNED_BYTE", 5122: "SHORT",
+                    5123: "UNSIGNED_SHORT", 5125: "UNSIGNED_INT", 5126: "FLOAT"}
+#: required extensions that change nothing this loader reads (shading, textures, lights) or
+#: that it implements (quantized attributes are read in any component type)
+_REQUIRED_OK_PREFIXES = ("KHR_materials_", "KHR_texture_", "EXT_texture_")
+_REQUIRED_OK = {"KHR_lights_punctual", "KHR_mesh_quantization", "KHR_materials_variants"}
+#: accessors without a bufferView are zero-filled: at most this many bytes + 64x the file
+_ZERO_FILL_SLACK = 1 << 20
+
+
+class _Doc:
+    """Checked access to a glTF JSON document: every index, number and array shape is checked
+    against its declaration before use. Errors name the element, e.g. 'accessors[3].count'."""
+
+    def __init__(self, doc, path: Path):
+        if not isinstance(doc, dict):
+            raise EnvironmentLoadError("corrupt glTF: the JSON is not an object", where=str(path))
+        self.doc, self.path = doc, path
+
+    def fail(self, what: str):
+        raise EnvironmentLoadError(f"corrupt glTF: {what}", where=str(self.path))
+
+    def array(self, name: str) -> list:
+        a = self.doc.get(name, [])
+        if not isinstance(a, list) or not all(isinstance(x, dict) for x in a):
+            self.fail(f"'{name}' must be an array of objects")
+        return a
+
+    def integer(self, obj: dict, key: str, where: str, lo: int = 0, hi: int = 2**53,
+                default=None):
+        v = obj.get(key, default)
+        if v is None and default is None and key not in obj:
+            return None
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+            self.fail(f"{where}.{key} = {str(v)[:40]}; expected an integer in [{lo}, {hi}]")
+        return v
+
+    def index(self, obj: dict, key: str, where: str, target: str, required=False):
+        n = len(self.array(target))
+        if key not in obj:
+            if required:
+                self.fail(f"{where}.{key} is missing")
+            return None
+        v = obj[key]
+        if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v < n:
+            self.fail(f"{where}.{key} = {str(v)[:40]} is not an index into {target} "
+                      f"({n} entries)")
+        return v
+
+    def numbers(self, obj: dict, key: str, where: str, n: int):
+        if key not in obj:
+            return None
+        v = obj[key]
+        if (not isinstance(v, list) or len(v) != n
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
+                or not all(math.isfinite(x) for x in v)):
+            self.fail(f"{where}.{key} must be {n} finite numbers")
+        return v
+
+
 class _GltfReader:
-    def __init__(self, doc: dict, bin_chunk: bytes | None, path: Path):
-        if not isinstance(doc, dict) or "asset" not in doc:
-            raise EnvironmentLoadError(f"corrupt glTF {path}: no 'asset' object")
+    def __init__(self, doc: dict, bin_chunk: bytes | None, path: Path, file_size: int = 0):
+        d = _Doc(doc, path)
+        if not isinstance(doc.get("asset"), dict):
+            raise EnvironmentLoadError("corrupt glTF: no 'asset' object", where=str(path))
         ver = str(doc["asset"].get("version", ""))
         if not ver.startswith("2"):
-            raise EnvironmentLoadError(f"unsupported glTF version '{ver}' in {path} (need 2.x)")
-        req = set(doc.get("extensionsRequired", [])) & _UNSUPPORTED_EXT
-        if req:
+            raise EnvironmentLoadError(f"unsupported glTF version '{ver[:20]}' (need 2.x)",
+                                       where=str(path))
+        req = doc.get("extensionsRequired", [])
+        if not isinstance(req, list) or not all(isinstance(x, str) for x in req):
+            d.fail("'extensionsRequired' must be an array of names")
+        unknown = sorted(x for x in req if x not in _REQUIRED_OK
+                         and not x.startswith(_REQUIRED_OK_PREFIXES))
+        if unknown:
             raise EnvironmentLoadError(
-                f"glTF {path} requires unsupported extension(s) {', '.join(sorted(req))}")
-        self.doc, self.bin, self.path = doc, bin_chunk, path
+                f"glTF requires unsupported extension(s) {', '.join(x[:60] for x in unknown)}",
+                where=str(path))
+        self.doc, self.bin, self.path, self.d = doc, bin_chunk, path, d
+        self.file_size = file_size
         self._buffers: dict[int, bytes] = {}
+        self._sizes = [self._buffer_size(i, b) for i, b in enumerate(d.array("buffers"))]
+        self._check_views()
+        self._check_accessors()
+        self._check_scene()
+
+    # ------------------------------------------------------------------ checks, no allocation
+    def _external(self, uri: str, i: int) -> Path:
+        from urllib.parse import unquote, urlparse
+
+        if urlparse(uri).scheme:
+            self.d.fail(f"buffers[{i}].uri '{uri[:60]}' is not a relative file path")
+        rel = unquote(uri)
+        folder = self.path.parent.resolve()
+        target = (folder / rel).resolve()
+        if os.path.isabs(rel) or not target.is_relative_to(folder):
+            raise EnvironmentLoadError(f"buffers[{i}].uri '{uri[:60]}' points outside the "
+                                       "environment's folder", where=str(self.path))
+        if not target.is_file():
+            raise EnvironmentLoadError(f"missing external buffer '{uri[:60]}' (buffers[{i}])",
+                                       where=str(self.path))
+        return target
+
+    def _buffer_size(self, i: int, b: dict) -> int:
+        length = self.d.integer(b, "byteLength", f"buffers[{i}]", lo=1, default=0)
+        uri = b.get("uri")
+        if uri is None:
+            if self.bin is None:
+                self.d.fail(f"buffers[{i}] has no uri and the file has no binary chunk")
+            actual = len(self.bin)
+        elif not isinstance(uri, str):
+            self.d.fail(f"buffers[{i}].uri must be a string")
+        elif uri.startswith("data:"):
+            head, sep, payload = uri.partition(",")
+            if not sep or not head.endswith(";base64"):
+                self.d.fail(f"buffers[{i}].uri is a data: URI without ';base64,'")
+            try:
+                data = base64.b64decode(payload, validate=True)
+            except (binascii.Error, ValueError):
+                raise EnvironmentLoadError(f"buffers[{i}].uri is a data: URI that is not valid "
+                                           "base64", where=str(self.path)) from None
+            self._buffers[i] = data
+            actual = len(data)
+        else:
+            actual = self._external(uri, i).stat().st_size
+        if actual < length:
+            self.d.fail(f"buffers[{i}] declares {length} bytes but has {actual}")
+        return length
+
+    def _check_views(self):
+        d = self.d
+        for j, bv in enumerate(d.array("bufferViews")):
+            w = f"bufferViews[{j}]"
+            b = d.index(bv, "buffer", w, "buffers", required=True)
+            off = d.integer(bv, "byteOffset", w, default=0)
+            length = d.integer(bv, "byteLength", w, lo=1, default=0)
+            if off + length > self._sizes[b]:
+                d.fail(f"{w} (bytes {off}..{off + length}) runs past buffers[{b}] "
+                       f"({self._sizes[b]} bytes)")
+            stride = d.integer(bv, "byteStride", w, lo=4, hi=252)
+            if stride is not None and stride % 4:
+                d.fail(f"{w}.byteStride = {stride}; expected a multiple of 4 in [4, 252]")
+
+    def _span(self, w: str, view: int, offset: int, count: int, elem: int, ctype: int):
+        """Check that count elements of elem bytes at offset fit in bufferViews[view]."""
+        d = self.d
+        bv = self.doc["bufferViews"][view]
+        stride = bv.get("byteStride") or elem
+        if stride < elem:
+            d.fail(f"bufferViews[{view}].byteStride = {stride} is smaller than {w}'s element "
+                   f"({elem} bytes)")
+        if offset % np.dtype(_COMPONENT[ctype]).itemsize:
+            d.fail(f"{w}.byteOffset = {offset} is not a multiple of its component size")
+        end = offset + stride * (count - 1) + elem
+        if end > bv.get("byteLength", 0):
+            d.fail(f"{w} needs {end} bytes of bufferViews[{view}], which has "
+                   f"{bv.get('byteLength', 0)}")
+
+    def _component(self, obj, w, key="componentType", allowed=None):
+        ct = obj.get("componentType") if key == "componentType" else obj.get(key)
+        allowed = allowed or _COMPONENT
+        if isinstance(ct, bool) or ct not in allowed:
+            names = ", ".join(f"{k} ({_COMPONENT_NAMES[k]})" for k in allowed)
+            self.d.fail(f"{w}.componentType = {str(ct)[:20]}; expected one of {names}")
+        return ct
+
+    def _check_accessors(self):
+        d = self.d
+        for k, a in enumerate(d.array("accessors")):
+            w = f"accessors[{k}]"
+            ct = self._component(a, w)
+            if a.get("type") not in _NCOMP:
+                d.fail(f"{w}.type = {str(a.get('type'))[:20]}; expected one of "
+                       f"{', '.join(_NCOMP)}")
+            count = d.integer(a, "count", w, lo=1, hi=2**32, default=0)
+            elem = np.dtype(_COMPONENT[ct]).itemsize * _NCOMP[a["type"]]
+            off = d.integer(a, "byteOffset", w, default=0)
+            view = d.index(a, "bufferView", w, "bufferViews")
+            if view is not None:
+                self._span(w, view, off, count, elem, ct)
+            elif count * elem > 64 * max(self.file_size, 1) + _ZERO_FILL_SLACK:
+                d.fail(f"{w} declares {count:,} elements ({count * elem:,} bytes) with no "
+                       f"bufferView, far more than the file's {self.file_size:,} bytes")
+            sp = a.get("sparse")
+            if sp is not None:
+                if not isinstance(sp, dict) or not isinstance(sp.get("indices"), dict) \
+                        or not isinstance(sp.get("values"), dict):
+                    d.fail(f"{w}.sparse must have indices and values objects")
+                n = d.integer(sp, "count", f"{w}.sparse", lo=1, hi=count, default=0)
+                ii, vv = sp["indices"], sp["values"]
+                ict = self._component(ii, f"{w}.sparse.indices",
+                                      allowed={5121: 1, 5123: 1, 5125: 1})
+                iview = d.index(ii, "bufferView", f"{w}.sparse.indices", "bufferViews",
+                                required=True)
+                self._span(f"{w}.sparse.indices", iview,
+                           d.integer(ii, "byteOffset", f"{w}.sparse.indices", default=0), n,
+                           np.dtype(_COMPONENT[ict]).itemsize, ict)
+                vview = d.index(vv, "bufferView", f"{w}.sparse.values", "bufferViews",
+                                required=True)
+                self._span(f"{w}.sparse.values", vview,
+                           d.integer(vv, "byteOffset", f"{w}.sparse.values", default=0), n,
+                           elem, ct)
+
+    def _check_scene(self):
+        d = self.d
+        acc = self.doc.get("accessors", [])
+        nmat = len(d.array("materials"))
+        for m, mesh in enumerate(d.array("meshes")):
+            prims = mesh.get("primitives", [])
+            if not isinstance(prims, list) or not all(isinstance(p, dict) for p in prims):
+                d.fail(f"meshes[{m}].primitives must be an array of objects")
+            for pi, prim in enumerate(prims):
+                w = f"meshes[{m}].primitives[{pi}]"
+                attrs = prim.get("attributes", {})
+                if not isinstance(attrs, dict):
+                    d.fail(f"{w}.attributes must be an object")
+                for name in attrs:
+                    d.index(attrs, name, f"{w}.attributes", "accessors")
+                if "POSITION" in attrs:
+                    pa = acc[attrs["POSITION"]]
+                    if pa["type"] != "VEC3":
+                        d.fail(f"{w}.attributes.POSITION must be a VEC3 accessor")
+                if "NORMAL" in attrs and acc[attrs["NORMAL"]]["type"] != "VEC3":
+                    d.fail(f"{w}.attributes.NORMAL must be a VEC3 accessor")
+                i = d.index(prim, "indices", w, "accessors")
+                if i is not None:
+                    ia = acc[i]
+                    if ia["type"] != "SCALAR" or ia["componentType"] not in (5121, 5123, 5125):
+                        d.fail(f"{w}.indices must be a SCALAR accessor of unsigned integers "
+                               "(componentType 5121, 5123 or 5125)")
+                d.integer(prim, "mode", w, lo=0, hi=6, default=4)
+                if "material" in prim:
+                    if isinstance(prim["material"], bool) or not isinstance(prim["material"], int) \
+                            or not 0 <= prim["material"] < nmat:
+                        d.fail(f"{w}.material is not an index into materials ({nmat} entries)")
+        for mi, mat in enumerate(d.array("materials")):
+            pbr = mat.get("pbrMetallicRoughness", {})
+            if not isinstance(pbr, dict):
+                d.fail(f"materials[{mi}].pbrMetallicRoughness must be an object")
+            d.numbers(pbr, "baseColorFactor", f"materials[{mi}].pbrMetallicRoughness", 4)
+        lights = self.doc.get("extensions", {})
+        lights = lights.get("KHR_lights_punctual", {}) if isinstance(lights, dict) else {}
+        lights = lights.get("lights", []) if isinstance(lights, dict) else []
+        if not isinstance(lights, list) or not all(isinstance(x, dict) for x in lights):
+            d.fail("KHR_lights_punctual.lights must be an array of objects")
+        for ni, node in enumerate(d.array("nodes")):
+            w = f"nodes[{ni}]"
+            d.index(node, "mesh", w, "meshes")
+            kids = node.get("children", [])
+            if not isinstance(kids, list):
+                d.fail(f"{w}.children must be an array")
+            for c in kids:
+                d.index({"c": c}, "c", f"{w}.children", "nodes")
+            d.numbers(node, "matrix", w, 16)
+            d.numbers(node, "translation", w, 3)
+            d.numbers(node, "rotation", w, 4)
+            d.numbers(node, "scale", w, 3)
+            ext = node.get("extensions", {})
+            ref = ext.get("KHR_lights_punctual") if isinstance(ext, dict) else None
+            if ref is not None:
+                if not isinstance(ref, dict) or isinstance(ref.get("light"), bool) \
+                        or not isinstance(ref.get("light"), int) \
+                        or not 0 <= ref["light"] < len(lights):
+                    d.fail(f"{w}.extensions.KHR_lights_punctual.light is not an index into "
+                           f"the lights ({len(lights)} entries)")
+        scenes = d.array("scenes")
+        for si, sc in enumerate(scenes):
+            roots = sc.get("nodes", [])
+            if not isinstance(roots, list):
+                d.fail(f"scenes[{si}].nodes must be an array")
+            for r in roots:
+                d.index({"n": r}, "n", f"scenes[{si}].nodes", "nodes")
+        if scenes:
+            d.index(self.doc, "scene", "document", "scenes") if "scene" in self.doc else None
 
     def buffer(self, i: int) -> bytes:
         if i not in self._buffers:
-            b = self.doc["buffers"][i]
-            uri = b.get("uri")
+            uri = self.doc["buffers"][i].get("uri")
             if uri is None:
-                if self.bin is None:
-                    raise EnvironmentLoadError(f"corrupt glTF {self.path}: buffer {i} has no data")
                 data = self.bin
-            elif uri.startswith("data:"):
-                data = base64.b64decode(uri.split(",", 1)[1])
             else:
-                from urllib.parse import unquote
-
-                data = (self.path.parent / unquote(uri)).read_bytes()
-            if len(data) < b.get("byteLength", 0):
-                raise EnvironmentLoadError(f"corrupt glTF {self.path}: buffer {i} is too short")
+                data = self._external(uri, i).read_bytes()
+                if len(data) < self._sizes[i]:
+                    self.d.fail(f"buffers[{i}] is shorter than declared")
             self._buffers[i] = data
         return self._buffers[i]
 
@@ -339,7 +645,12 @@ class _GltfReader:
             vbv = self.doc["bufferViews"][val_info["bufferView"]]
             vals = np.frombuffer(self.buffer(vbv["buffer"]), dtype=dtype, count=n * ncomp,
                                  offset=vbv.get("byteOffset", 0) + val_info.get("byteOffset", 0))
-            out[idx.astype(np.int64)] = vals.reshape(n, ncomp)
+            idx = idx.astype(np.int64)
+            if idx.size and (idx.min() < 0 or idx.max() >= count):
+                raise EnvironmentLoadError(f"corrupt glTF: accessors[{i}].sparse index "
+                                           f"{int(idx.max())} is past its {count} elements",
+                                           where=str(self.path))
+            out[idx] = vals.reshape(n, ncomp)
         if a.get("normalized") and dtype.kind in "iu":
             info = np.iinfo(dtype)
             return np.maximum(out.astype(np.float64) / info.max, -1.0)
@@ -375,7 +686,7 @@ class _GltfReader:
         while stack:
             i, parent = stack.pop()
             if i in seen:
-                raise EnvironmentLoadError(f"corrupt glTF {self.path}: node {i} has two parents")
+                raise EnvironmentLoadError(f"corrupt glTF: node {i} has two parents (or is its own ancestor)")
             seen.add(i)
             world = parent @ self.local_matrix(nodes[i])
             yield i, world
@@ -457,8 +768,12 @@ def _read_gltf(path: Path):
     if path.suffix.lower() == ".glb" or data[:4] == b"glTF":
         doc, bin_chunk = _parse_glb(data, path)
     else:
-        doc, bin_chunk = json.loads(data.decode("utf-8")), None
-    return _GltfReader(doc, bin_chunk, path).read()
+        try:
+            doc, bin_chunk = json.loads(data.decode("utf-8")), None
+        except (UnicodeDecodeError, ValueError) as e:
+            raise EnvironmentLoadError(f"corrupt glTF: not UTF-8 JSON ({_error_text(e)})",
+                                       where=str(path)) from None
+    return _GltfReader(doc, bin_chunk, path, file_size=len(data)).read()
 
 
 # --------------------------------------------------------------------------- OBJ / PLY / STL
@@ -487,15 +802,158 @@ def _trimesh_color(geom) -> tuple[float, float, float, float]:
     return DEFAULT_COLOR
 
 
+def _to_utf8(data: bytes) -> bytes:
+    """Text in any common encoding as UTF-8: UTF-8 (with or without a BOM) as it is, else
+    Latin-1 (every byte is a character; the numbers and keywords these formats need are ASCII)."""
+    if data.startswith(b"\xef\xbb\xbf"):
+        return data[3:]
+    try:
+        data.decode("utf-8")
+        return data
+    except UnicodeDecodeError:
+        return data.decode("latin-1").encode("utf-8")
+
+
+def _text_as_utf8(path: Path, data: bytes) -> bytes:
+    """The file's bytes with its text parts re-encoded as UTF-8 (trimesh decodes text as
+    UTF-8): a whole OBJ or ASCII STL, the header of a PLY (and its body when ASCII)."""
+    ext = path.suffix.lower()
+    if ext == ".obj":
+        return _to_utf8(data)
+    if ext == ".stl":
+        if len(data) >= 84:
+            (n,) = struct.unpack_from("<I", data, 80)
+            if len(data) == 84 + 50 * n:
+                return data  # binary STL
+        if data.lstrip()[:5].lower() == b"solid":
+            return _to_utf8(data)
+        if len(data) >= 84:
+            raise EnvironmentLoadError(
+                f"corrupt binary STL: its header says {n:,} triangles ({84 + 50 * n:,} bytes) "
+                f"but the file has {len(data):,} bytes")
+        raise EnvironmentLoadError("corrupt STL: neither ASCII ('solid ...') nor binary")
+    if ext == ".ply":
+        end = data.find(b"end_header")
+        if end < 0:
+            return data
+        nl = data.find(b"\n", end)
+        cut = len(data) if nl < 0 else nl + 1
+        header = data[:cut]
+        if b"format ascii" in header:
+            return _to_utf8(data)
+        return _to_utf8(header) + data[cut:]
+    return data
+
+
+def _folder_resolver(path: Path):
+    """trimesh resolver for the files an OBJ refers to (material libraries, textures): only
+    inside the environment's folder (trimesh's own rule), material text re-encoded as UTF-8."""
+    from trimesh.resolvers import FilePathResolver
+
+    class _Resolver(FilePathResolver):
+        def get(self, name: str):
+            data = super().get(name)
+            return _to_utf8(data) if str(name).lower().endswith(".mtl") else data
+
+    return _Resolver(str(path))
+
+
+_OBJ_FACE = re.compile(rb"^[ \t]*f[ \t]+(.*)$", re.M)
+_OBJ_VERTEX = re.compile(rb"^[ \t]*v[ \t]+(.*)$", re.M)
+
+
+def _check_obj(data: bytes) -> None:
+    """OBJ structure trimesh lets through silently: a vertex with fewer than 3 coordinates, a
+    face index of 0 (OBJ counts from 1) or beyond the vertex list (negative: relative)."""
+    nverts = 0
+    for m in _OBJ_VERTEX.finditer(data):
+        nverts += 1
+        if len(m.group(1).split(b"#", 1)[0].split()) < 3:
+            line = data.count(b"\n", 0, m.start()) + 1
+            raise EnvironmentLoadError(f"OBJ line {line}: a vertex needs 3 coordinates")
+    for m in _OBJ_FACE.finditer(data):
+        for tok in m.group(1).split(b"#", 1)[0].split():
+            head = tok.split(b"/", 1)[0]
+            try:
+                k = int(head)
+            except ValueError:
+                line = data.count(b"\n", 0, m.start()) + 1
+                raise EnvironmentLoadError(
+                    f"OBJ line {line}: face index '{head[:20].decode('latin-1')}' is not an "
+                    "integer") from None
+            if k == 0 or abs(k) > nverts:
+                line = data.count(b"\n", 0, m.start()) + 1
+                raise EnvironmentLoadError(
+                    f"OBJ line {line}: face index {k} outside the {nverts} vertices (OBJ "
+                    "indices count from 1; negative ones count back from the end)")
+
+
+def _check_ascii_ply(data: bytes) -> None:
+    """An ASCII PLY's body must hold exactly the values its header declares (trimesh reads a
+    short or overlong body without a word)."""
+    end = data.find(b"end_header")
+    if end < 0 or b"format ascii" not in data[:end]:
+        return
+    nl = data.find(b"\n", end)
+    header, body = data[:end], (b"" if nl < 0 else data[nl + 1:])
+    elements: list[tuple[str, int, list[bool]]] = []   # name, count, [is a list property]
+    for line in header.splitlines():
+        w = line.split()
+        if len(w) >= 3 and w[0] == b"element":
+            try:
+                n = int(w[2])
+            except ValueError:
+                raise EnvironmentLoadError(f"PLY element {w[1][:20].decode('latin-1')} has "
+                                           "a count that is not an integer") from None
+            elements.append((w[1].decode("latin-1")[:20], n, []))
+        elif len(w) >= 2 and w[0] == b"property" and elements:
+            elements[-1][2].append(w[1] == b"list")
+    tokens = body.split()
+    i = 0
+    for name, count, props in elements:
+        if count < 0 or count > len(tokens):
+            raise EnvironmentLoadError(f"PLY declares {count:,} {name} elements but its body "
+                                       f"has only {len(tokens):,} values")
+        if not any(props):
+            i += count * len(props)
+        else:
+            for _ in range(count):
+                for is_list in props:
+                    if i >= len(tokens):
+                        raise EnvironmentLoadError(
+                            f"PLY body ends inside the {name} elements (truncated)")
+                    if is_list:
+                        try:
+                            n = int(tokens[i])
+                        except ValueError:
+                            raise EnvironmentLoadError(
+                                f"PLY {name} list length '{tokens[i][:20].decode('latin-1')}' "
+                                "is not an integer") from None
+                        i += 1 + max(n, 0)
+                    else:
+                        i += 1
+        if i > len(tokens):
+            raise EnvironmentLoadError(f"PLY body ends inside the {name} elements (truncated)")
+    if i != len(tokens):
+        raise EnvironmentLoadError(f"PLY body has {len(tokens) - i:,} values more than its "
+                                   "header declares")
+
+
 def _read_trimesh(path: Path):
+    import io
+
     import trimesh
 
+    data = path.read_bytes()
+    if path.suffix.lower() == ".obj" and b"\x00" in data[: 1 << 16]:
+        raise EnvironmentLoadError("corrupt OBJ: binary data in a text format", where=str(path))
     if path.suffix.lower() == ".obj":
-        with open(path, "rb") as fh:
-            head = fh.read(1 << 16)
-        if b"\x00" in head:
-            raise EnvironmentLoadError(f"corrupt OBJ {path}: binary data in a text format")
-    scene = trimesh.load_scene(str(path))
+        _check_obj(data)
+    if path.suffix.lower() == ".ply":
+        _check_ascii_ply(data)
+    data = _text_as_utf8(path, data)
+    scene = trimesh.load_scene(io.BytesIO(data), file_type=path.suffix.lower()[1:],
+                               resolver=_folder_resolver(path), process=False)
     raw = []
     for node in scene.graph.nodes_geometry:
         transform, geom_name = scene.graph[node]
@@ -503,9 +961,12 @@ def _read_trimesh(path: Path):
         faces = getattr(geom, "faces", None)
         if faces is None or len(faces) == 0:  # PointCloud, Path3D, empty mesh
             continue
+        _check_geometry(np.asarray(geom.vertices, dtype=np.float64),
+                        np.asarray(faces, dtype=np.int64), str(geom_name))
+        geom.process()  # merge vertices as trimesh does on load (solids are found by them)
         m = np.asarray(transform, dtype=np.float64)
         v = _transform_points(m, np.asarray(geom.vertices, dtype=np.float64))
-        f = _fix_winding(np.asarray(faces, dtype=np.int64), m)
+        f = _fix_winding(np.asarray(geom.faces, dtype=np.int64), m)
         name = node if node != path.name else (geom_name if geom_name != path.name else path.stem)
         raw.append((name, v, f, None, _trimesh_color(geom), 1.0, 0.0))
     return raw, None
@@ -582,15 +1043,82 @@ def _fan_triangulate(counts: np.ndarray, indices: np.ndarray, holes: np.ndarray,
     return tris
 
 
+#: most layers (sublayers, references, payloads) a USD environment may compose
+_MAX_USD_LAYERS = 1000
+
+
+def _check_usd_layers(path: Path) -> None:
+    """Before the stage is composed: every layer the file brings in (sublayers, references,
+    payloads, recursively) must be a file inside the environment's folder that opens."""
+    from pxr import Sdf
+
+    folder = path.parent.resolve()
+    todo, seen = [path.resolve()], set()
+    while todo:
+        p = todo.pop()
+        if p in seen:
+            continue
+        seen.add(p)
+        if len(seen) > _MAX_USD_LAYERS:
+            raise EnvironmentLoadError(f"USD composes more than {_MAX_USD_LAYERS} layers",
+                                       where=str(path))
+        layer = Sdf.Layer.FindOrOpen(str(p))
+        if layer is None:
+            raise EnvironmentLoadError(f"cannot open USD layer {p.name}", where=str(path))
+        for dep in layer.GetCompositionAssetDependencies():
+            dep = str(dep)
+            if not dep:
+                continue
+            if "://" in dep or dep.startswith(("@", "anon:")):
+                raise EnvironmentLoadError(f"USD layer {p.name} refers to '{dep[:80]}', which "
+                                           "is not a file in the environment's folder",
+                                           where=str(path))
+            target = (p.parent / dep).resolve()
+            if not target.is_relative_to(folder):
+                raise EnvironmentLoadError(f"USD layer {p.name} refers to '{dep[:80]}', "
+                                           "outside the environment's folder", where=str(path))
+            if not target.is_file():
+                raise EnvironmentLoadError(f"USD layer {p.name} refers to '{dep[:80]}', which "
+                                           "does not exist", where=str(path))
+            todo.append(target)
+
+
 def _read_usd(path: Path):
+    from pxr import Tf
+
+    # USD reports problems as diagnostics on stderr: trap them, refuse the file on any
+    # composition error or error, and print nothing of USD's own
+    with Tf.DiagnosticTrap() as trap:
+        try:
+            return _read_usd_trapped(path, trap)
+        finally:
+            for w in trap.GetWarnings():
+                log.debug("USD warning while reading %s: %s", path, _usd_diagnostic_text(w))
+            trap.Clear()  # nothing of USD's own reaches stderr
+
+
+def _usd_diagnostic_text(d) -> str:
+    text = getattr(d, "commentary", None) or str(d)
+    return " ".join(str(text).split())
+
+
+def _read_usd_trapped(path: Path, trap):
     from pxr import Usd, UsdGeom, UsdLux
 
+    _check_usd_layers(path)
     stage = Usd.Stage.Open(str(path))
     if stage is None:
-        raise EnvironmentLoadError(f"cannot open USD stage {path}")
+        raise EnvironmentLoadError("cannot open USD stage", where=str(path))
+    errors = list(stage.GetCompositionErrors())
+    if errors:
+        raise EnvironmentLoadError(f"USD composition error: {_usd_diagnostic_text(errors[0])}",
+                                   where=str(path))
+    if trap.HasErrors():
+        raise EnvironmentLoadError(
+            f"USD error: {_usd_diagnostic_text(trap.GetErrors()[0])}", where=str(path))
     mpu = float(UsdGeom.GetStageMetersPerUnit(stage))
     if not (math.isfinite(mpu) and mpu > 0):
-        raise EnvironmentLoadError(f"invalid metersPerUnit {mpu} in {path}")
+        raise EnvironmentLoadError(f"invalid metersPerUnit {mpu}; expected a finite number > 0")
     z_up = UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
     # stage space -> baker space (+Y up, metres)
     fix = np.eye(4)
@@ -637,5 +1165,8 @@ def _read_usd(path: Path):
         v = _transform_points(world, np.asarray(pts, dtype=np.float64).reshape(-1, 3))
         color, rough, metal = _usd_color(prim, mesh, time)
         raw.append((prim.GetName(), v, _fix_winding(faces, world), None, color, rough, metal))
+    if trap.HasErrors():
+        raise EnvironmentLoadError(
+            f"USD error: {_usd_diagnostic_text(trap.GetErrors()[0])}", where=str(path))
     sun = max(suns, key=lambda s: s.intensity) if suns else None
     return raw, sun

@@ -34,6 +34,7 @@ from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 from baker.errors import NavError
+from baker.navmesh import budget
 from baker.navmesh.surface import DIRS, OPPOSITE, NavSurface
 
 log = logging.getLogger(__name__)
@@ -286,6 +287,12 @@ def _link_axis(d, scol, six, siz, y, ceil, nx, nz, col_start, counts, step, heig
     return best
 
 
+def _round_up(x: float) -> str:
+    """x rounded up to 3 significant digits (a suggested cell size that is not below x)."""
+    e = math.floor(math.log10(x)) - 2
+    return f"{math.ceil(x / 10 ** e) * 10 ** e:.3g}"
+
+
 def build(env, agent, *, bounds=None, coarse_factor: int = 4,
           min_island_area: float | None = None) -> NavSurface:
     """Build the navigation surface of `env` for `agent` (a NavAgentConfig).
@@ -306,20 +313,25 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
         raise NavError(f"invalid navigation agent parameters: {agent}")
     mesh = env.mesh
     if len(mesh.faces) == 0:
-        raise NavError("environment has no walkable surface (it has no triangles)")
+        raise NavError("environment has no walkable surface (it has no triangles)",
+                       where=env.source)
     x0, z0, nx, nz, ytop = _grid(env, bounds, cell)
     ncols = nx * nz
+    budget.check(nx, nz, cell, len(mesh.faces), where=env.source,
+                 hint="" if bounds is not None else
+                 " (baker bake --nav-build lazy builds only where the creature goes)")
     if ncols > MAX_COLUMNS:
         raise NavError(f"navigation grid too large: {nx} x {nz} columns at cell size {cell:g} m "
                        f"(limit {MAX_COLUMNS:,}); use a larger cell size (at least "
-                       f"{cell * math.sqrt(ncols / MAX_COLUMNS):.3g} m) or smaller bounds "
-                       "(baker bake --nav-build lazy builds only where the creature goes)")
+                       f"{_round_up(cell * math.sqrt(ncols / MAX_COLUMNS))} m) or smaller bounds "
+                       "(baker bake --nav-build lazy builds only where the creature goes)",
+                       where=env.source)
     caster = _Caster(env)
     solids = _solid_components(mesh)
     timings["setup"] = time.perf_counter() - t0
 
     grid = _Grid(x0, z0, nx, nz, cell)
-    s = _samples(caster, grid, ytop, solids, slope, height, timings)
+    s = _samples(caster, grid, ytop, solids, slope, height, timings, env.source)
     t = time.perf_counter()
     h_off = max(min(step, 0.5 * height), 1e-4)
     links = _links(caster, grid, s, step, height, slope, h_off)
@@ -330,7 +342,8 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
     t = time.perf_counter()
     if min_island_area is None:
         min_island_area = max(64 * cell * cell, (4 * radius) ** 2)
-    sel, links, comp, comp_area = _islands(links, dist >= radius - 1e-9, cell, min_island_area)
+    sel, links, comp, comp_area = _islands(links, dist >= radius - 1e-9, cell, min_island_area,
+                                           env.source)
     scol = s.col[sel]
     counts = np.bincount(scol, minlength=ncols)
     col_start = np.zeros(ncols + 1, dtype=np.int64)
@@ -408,7 +421,8 @@ class _Samples:
     n_hits: int
 
 
-def _samples(caster: _Caster, grid: _Grid, ytop, solids, slope, height, timings) -> _Samples:
+def _samples(caster: _Caster, grid: _Grid, ytop, solids, slope, height, timings,
+             where) -> _Samples:
     """1.-2. the column heightfield and its walkable samples, in bands of columns (bounded
     memory). solids: _solid_components of the mesh."""
     x0, z0, nx, nz, cell = grid.x0, grid.z0, grid.nx, grid.nz, grid.cell
@@ -429,7 +443,8 @@ def _samples(caster: _Caster, grid: _Grid, ytop, solids, slope, height, timings)
     del parts
     if len(scol) == 0:
         raise NavError("environment has no walkable surface (no upward-facing surface within "
-                       f"{math.degrees(slope):.1f} deg with {height:g} m of clearance)")
+                       f"{math.degrees(slope):.1f} deg with {height:g} m of clearance)",
+                       where=where)
     snrm = caster.face_normals[sprim]
     snrm *= np.where(snrm[:, 1] < 0, -1.0, 1.0)[:, None]
     del sprim
@@ -544,7 +559,7 @@ def _clearance(caster: _Caster, grid: _Grid, s: _Samples, links, radius, h_off) 
     return dist
 
 
-def _islands(links, keep, cell, min_island_area):
+def _islands(links, keep, cell, min_island_area, where):
     """5. the kept samples' connected components, dropping those under `min_island_area`.
     Returns (sel: kept sample indices, links renumbered to them, component of each (largest
     first), component areas)."""
@@ -557,7 +572,8 @@ def _islands(links, keep, cell, min_island_area):
     keep2 = keep & big[comp]
     if not keep2.any():
         raise NavError("environment has no walkable surface (every walkable area is narrower "
-                       f"than the agent or smaller than {min_island_area:g} m^2)")
+                       f"than the agent or smaller than {min_island_area:g} m^2)",
+                       where=where)
     remap = np.full(len(keep2) + 1, -1, dtype=np.int32)
     remap[:-1][keep2] = np.arange(int(keep2.sum()), dtype=np.int32)
     links = remap[links[keep2]]

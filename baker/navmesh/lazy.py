@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from baker.errors import NavError
+from baker.errors import BudgetError, NavError
 from baker.navmesh.cache import load_or_build
 from baker.navmesh.surface import NavSurface
 
@@ -41,7 +41,8 @@ LAZY_ABOVE_COLUMNS = 6_000_000
 def full_columns(env, cell: float) -> int:
     """Columns of a whole-level grid at this cell size."""
     lo, hi = np.asarray(env.bounds, dtype=np.float64)
-    return int(math.ceil((hi[0] - lo[0]) / cell)) * int(math.ceil((hi[2] - lo[2]) / cell))
+    return (int(math.ceil(min((hi[0] - lo[0]) / cell, 1e12)))
+            * int(math.ceil(min((hi[2] - lo[2]) / cell, 1e12))))
 
 
 class LazyNav:
@@ -65,6 +66,8 @@ class LazyNav:
             try:
                 self._build(c - half, c + half)
                 break
+            except BudgetError:
+                raise
             except NavError:
                 if self._whole(c - half, c + half):
                     raise

@@ -38,21 +38,22 @@ class NavReport:
 
 
 def run(environment, agent, cache_dir=None, *, png=None, path_from=None, path_to=None,
-        surface_out: list | None = None) -> NavReport:
+        surface_out: list | None = None, max_memory_mb: float | None = None) -> NavReport:
     """Load `environment`, build its surface for `agent` (a NavAgentConfig) or load it from
     `cache_dir` (None: no cache), find the path from `path_from` to `path_to` ((3,) world points,
     both or neither; the surface itself is in the environment's local frame) and draw the map to
     `png` (needs matplotlib; axes in world coordinates).
-    surface_out: optional list that receives the NavSurface (for callers and tests)."""
+    surface_out: optional list that receives the NavSurface (for callers and tests).
+    max_memory_mb: refuse a build estimated over this many MB (None: half of the RAM)."""
     from baker.environment import load_environment
     from baker.navmesh import cache as nav_cache
 
     if (path_from is None) != (path_to is None):
-        raise ConfigError("--from and --to must be given together")
+        raise ConfigError("--from and --to must be given together", where="command line")
     if png is not None:
         png = Path(png)
         if png.suffix.lower() != ".png":
-            raise ConfigError(f"--png must name a .png file (got {png.name})")
+            raise ConfigError(f"--png must name a .png file (got {png.name})", where="--png")
         try:
             import matplotlib  # noqa: F401
         except ImportError:
@@ -61,7 +62,10 @@ def run(environment, agent, cache_dir=None, *, png=None, path_from=None, path_to
             raise ConfigError(f"--png folder is not a folder: {png.parent}")
     env = load_environment(Path(environment))
     t = time.perf_counter()
-    surface, hit = nav_cache.load_or_build(env, agent, cache_dir)
+    from baker.navmesh.budget import memory_limit
+
+    with memory_limit(max_memory_mb):
+        surface, hit = nav_cache.load_or_build(env, agent, cache_dir)
     seconds = time.perf_counter() - t
     cpath = None if cache_dir is None else nav_cache.cache_path(cache_dir, env, agent)
     stats = surface.stats()

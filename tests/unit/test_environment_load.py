@@ -220,14 +220,17 @@ def test_stl_round_trip(tmp_path):
     assert env.name == "c"
 
 
-def test_degenerate_faces_and_nan_vertices_are_dropped(tmp_path):
+def test_degenerate_faces_are_dropped_and_nan_vertices_refused(tmp_path):
     p = tmp_path / "dirty.obj"
-    p.write_text("v 0 0 0\nv 1 0 0\nv 0 0 1\nv nan 0 0\nv 2 0 0\n"
+    p.write_text("v 0 0 0\nv 1 0 0\nv 0 0 1\nv 3 0 0\nv 2 0 0\nv 5 5 5\n"
                  "f 1 2 3\nf 1 2 4\nf 1 2 5\nf 1 1 3\n")
     env = load_environment(p)
     m = env.meshes[0]
-    assert len(m.faces) == 1
+    assert len(m.faces) == 1  # two collinear faces and one with a repeated vertex dropped
     assert len(m.vertices) == 3  # unused vertices removed too
+    p.write_text("v 0 0 0\nv 1 0 0\nv 0 0 1\nv nan 0 0\nf 1 2 3\nf 1 2 4\n")
+    with pytest.raises(EnvironmentLoadError, match="non-finite vertex"):
+        load_environment(p)
 
 
 # --------------------------------------------------------------------------- USD

@@ -206,3 +206,13 @@ def test_skeleton_rejects_names_equal_ignoring_case():
     with pytest.raises(RigError, match="case"):
         Skeleton(names=("head", "Head"), parents=np.array([-1, 0]),
                  rest_translations=np.zeros((2, 3)), rest_rotations=np.tile([0, 0, 0, 1.0], (2, 1)))
+
+
+def test_readme_tables_match_the_schema():
+    """The README's rig-key and option tables are rendered from baker/schema.py."""
+    import readme_tables
+
+    text = readme_tables.README.read_text()
+    for name, body in readme_tables.tables().items():
+        assert readme_tables.section(text, name) == body.strip(), (
+            f"README '{name}' table is stale: run python tests/tools/readme_tables.py")

@@ -1,0 +1,190 @@
+"""The bad-input corpus (tests/tools/bad_inputs.py): every case is refused with exit code 2 and
+exactly one stderr line `Error: <what> (<where>)`, leaves the out folder as it was (the previous
+good outputs byte-identical, no temporary files), within 30 s and 2 GB.
+
+Most cases run in-process through `baker.cli.main` (peak memory from tracemalloc, which sees
+numpy's allocations); SUBPROCESS cases run as real processes running `baker.cli` as __main__
+(through tests/tools/peak_rss.py, which reports the child's own peak RSS: ru_maxrss from
+wait4 would carry pytest's). Files in other encodings that were refused before (Latin-1 OBJ, STL,
+PLY) must load and bake.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+import time
+import tracemalloc
+from pathlib import Path
+
+import pytest
+
+import bad_inputs
+from baker.cli import main
+from baker.config import DEFAULT_ENVIRONMENT
+
+CASES = {c.id: c for c in bad_inputs.all_cases()}
+PEAK_RSS = Path(__file__).resolve().parents[1] / "tools" / "peak_rss.py"
+ERROR_LINE = re.compile(r"^Error: \S.*$")
+MAX_BYTES = 2 * 1024**3
+MAX_SECONDS = 30.0
+
+#: cases run as real processes (the hostile sizes among them), the rest in-process
+SUBPROCESS = [
+    "glb_count_2e9_no_view", "glb_count_2e9", "glb_count_huge_indices", "glb_sparse_2e9_no_view",
+    "glb_view_length_huge", "glb_buffer_length_huge", "glb_chunk_length_huge", "glb_json_deep",
+    "glb_index_minus_5", "glb_node_translation_1e12", "stl_count_2e9", "stl_binary_nan",
+    "ply_binary_vertex_2e9", "ply_ascii_vertex_2e9", "obj_nan_vertex", "gltf_bin_outside",
+    "usd_sublayer_missing", "usd_reference_outside", "usd_syntax_error", "usd_face_index_past",
+    "usd_reference_bad_prim", "usd_variant_reference_outside",
+    "rig_legs_none", "rig_empty", "opt_cell-size_5_0.0036", "opt_sun_0_1e308,0,0",
+    "opt_navmesh_from_nan", "opt_seconds_0_nan",
+]
+
+
+def bake_args(case, folder: Path, out: Path) -> list[str]:
+    extra = [str(a) for a in case.make(folder)]
+    if extra and extra[0] == "navmesh":
+        return ["navmesh", str(DEFAULT_ENVIRONMENT), "--no-cache", *extra[1:]]
+    env = []
+    if extra and not extra[0].startswith("--"):
+        env, extra = [extra[0]], extra[1:]
+    return ["bake", *env, "--out", str(out / "c"), "--seconds", "1", "--no-cache", *extra]
+
+
+@pytest.fixture(scope="module")
+def previous(tmp_path_factory) -> dict[str, bytes]:
+    """A good bake's files (the small corpus scene), to pre-create in every case's out folder."""
+    d = tmp_path_factory.mktemp("good")
+    scene = d / "scene.glb"
+    scene.write_bytes(bad_inputs.good_glb())
+    code = main(["bake", str(scene), "--out", str(d / "out" / "c"), "--seconds", "1",
+                 "--no-cache"])
+    assert code == 0
+    files = {p.name: p.read_bytes() for p in (d / "out").iterdir()}
+    assert set(files) == {"c.glb", "c.usd", "c.json"}
+    return files
+
+
+def setup_case(tmp_path: Path, previous: dict[str, bytes]):
+    folder, out = tmp_path / "in", tmp_path / "out"
+    folder.mkdir()
+    out.mkdir()
+    for name, data in previous.items():
+        (out / name).write_bytes(data)
+    return folder, out
+
+
+def check_refusal(code: int, err: str, out: Path, previous: dict[str, bytes]):
+    assert code == 2, err
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    assert ERROR_LINE.match(lines[0]), lines[0]
+    assert "Traceback" not in err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == previous  # nothing added or lost
+
+
+IN_PROCESS = sorted(set(CASES) - set(SUBPROCESS))
+
+
+def test_corpus_size():
+    assert len(CASES) >= 200
+    classes = {c.split("_")[0] for c in CASES}
+    assert classes >= {"glb", "gltf", "obj", "stl", "ply", "usd", "rig", "opt"}
+    assert set(SUBPROCESS) <= set(CASES)
+
+
+@pytest.mark.parametrize("cid", IN_PROCESS)
+def test_bad_input_in_process(cid, tmp_path, previous, capsys):
+    folder, out = setup_case(tmp_path, previous)
+    argv = bake_args(CASES[cid], folder, out)
+    capsys.readouterr()
+    tracemalloc.start()
+    t0 = time.monotonic()
+    try:
+        code = main(argv)
+    finally:
+        _, peak = tracemalloc.get_traced_memory()
+        tracemalloc.stop()
+    seconds = time.monotonic() - t0
+    captured = capsys.readouterr()
+    check_refusal(code, captured.err, out, previous)
+    assert captured.out == ""
+    assert peak < MAX_BYTES
+    assert seconds < MAX_SECONDS
+
+
+@pytest.mark.parametrize("cid", SUBPROCESS)
+def test_bad_input_subprocess(cid, tmp_path, previous):
+    folder, out = setup_case(tmp_path, previous)
+    argv = bake_args(CASES[cid], folder, out)
+    errf, peakf = tmp_path / "stderr.txt", tmp_path / "peak.txt"
+    with open(errf, "wb") as err_fh:
+        t0 = time.monotonic()
+        r = subprocess.run([sys.executable, str(PEAK_RSS), "baker.cli", *argv],
+                           stdout=subprocess.DEVNULL, stderr=err_fh, stdin=subprocess.DEVNULL,
+                           cwd=tmp_path, env={**os.environ, "PEAK_RSS_FILE": str(peakf)})
+        seconds = time.monotonic() - t0
+    check_refusal(r.returncode, errf.read_text(), out, previous)
+    peak = int(peakf.read_text())  # the child's own VmHWM (see tests/tools/peak_rss.py)
+    assert 0 < peak < MAX_BYTES
+    assert seconds < MAX_SECONDS
+    # nothing written in the working folder either (the case's own files aside)
+    assert not [x for x in tmp_path.iterdir() if x.name.startswith(".") or "tmp" in x.name]
+
+
+@pytest.mark.parametrize("name", sorted(bad_inputs.GOOD_LATIN1))
+def test_files_in_other_encodings_load(name, tmp_path):
+    from baker.environment import load_environment
+
+    p = tmp_path / name
+    p.write_bytes(bad_inputs.GOOD_LATIN1[name])
+    env = load_environment(p)
+    assert sum(len(m.faces) for m in env.meshes) == 2
+
+
+def test_latin1_obj_bakes(tmp_path, capsys):
+    p = tmp_path / "latin1.obj"
+    p.write_bytes(bad_inputs.GOOD_LATIN1["latin1.obj"])
+    code = main(["bake", str(p), "--out", str(tmp_path / "o" / "c"), "--seconds", "1",
+                 "--no-cache", "--format", "glb"])
+    assert code == 0, capsys.readouterr().err
+    assert (tmp_path / "o" / "c.glb").stat().st_size > 0
+
+
+def test_one_key_sun_path_is_a_fixed_sun(tmp_path):
+    """A --sun-path of one key is a fixed sun: used by the creature and written to both files
+    like --sun."""
+    from baker.config import BakeConfig, validate_bake
+    from baker.geometry.transforms import direction_from_angles
+
+    import numpy as np
+
+    cfg = validate_bake(BakeConfig(sun_path="90,30"))
+    assert cfg.sun_path is None
+    expect = direction_from_angles(np.radians([90.0]), np.radians([30.0]))[0]
+    np.testing.assert_allclose(cfg.sun_direction, expect)
+    same = validate_bake(BakeConfig(sun_direction=tuple(expect)))
+    assert same == cfg
+
+
+
+def test_one_key_sun_path_bakes_like_sun(tmp_path, capsys):
+    """Both files of a one-key --sun-path bake are byte-identical to those of the same fixed
+    --sun (which the writers export as the scene's light)."""
+    from baker.geometry.transforms import direction_from_angles
+
+    import numpy as np
+
+    scene = tmp_path / "scene.glb"
+    scene.write_bytes(bad_inputs.good_glb())
+    d = direction_from_angles(np.radians([90.0]), np.radians([30.0]))[0]
+    common = ["bake", str(scene), "--seconds", "1", "--no-cache"]
+    assert main([*common, "--out", str(tmp_path / "a" / "c"), "--sun-path", "90,30"]) == 0
+    assert main([*common, "--out", str(tmp_path / "b" / "c"),
+                 "--sun", ",".join(repr(float(x)) for x in d)]) == 0
+    for ext in ("glb", "usd"):
+        assert (tmp_path / "a" / f"c.{ext}").read_bytes() == \
+            (tmp_path / "b" / f"c.{ext}").read_bytes()

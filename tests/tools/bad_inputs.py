@@ -1,0 +1,742 @@
+"""A corpus of bad inputs for `baker`, generated in code (tests/integration/test_bad_inputs.py).
+
+Each case is a `Case(id, make)`: `make(folder)` writes whatever files the case needs into
+`folder` and returns the extra command-line arguments of a `baker bake` (or, when the first
+item is "navmesh", of a `baker navmesh`). Classes:
+
+- glb_*   : a small good GLB (a floor and a box, a light, a material; built here), its JSON or
+            binary mutated: counts, component types, views, strides, buffers, URIs, indices,
+            NaN/inf/huge vertices, node transforms, references, required extensions, truncation
+- gltf_*  : the same scene as .gltf with external and data: buffers, mutated
+- obj_*, stl_*, ply_* : text and binary meshes with bad numbers, indices, structure
+- usd_*   : bad USD layers: missing or outside sublayers, references, payloads, bad topology
+- rig_*   : the default rig file mutated, generated from the declared schema (every key: a wrong
+            type, each bound crossed, NaN) plus structural cases (not a table, unknown key, ...)
+- opt_*   : bad option values (every numeric option: NaN, inf, out of range, not a number)
+
+`GOOD_LATIN1` are files in other encodings that must load.
+"""
+
+from __future__ import annotations
+
+import base64
+import copy
+import json
+import math
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from baker.config import DEFAULT_RIG
+
+
+@dataclass(frozen=True)
+class Case:
+    id: str
+    make: Callable[[Path], list]
+
+
+# --------------------------------------------------------------------------- a good scene
+def scene_arrays():
+    """A 4 x 4 m floor (2 triangles) and a 0.4 m box on it: positions (n, 3) float32, normals,
+    uint32 indices."""
+    floor = np.array([[-2, 0, -2], [2, 0, -2], [2, 0, 2], [-2, 0, 2]], np.float32)
+    fi = np.array([0, 2, 1, 0, 3, 2], np.uint32)
+    c = np.array([[x, y, z] for x in (-.2, .2) for y in (0, .4) for z in (-.2, .2)], np.float32)
+    c[:, 0] += 1.0
+    bi = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                   [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]],
+                  np.uint32).reshape(-1) + 4
+    pos = np.concatenate([floor, c])
+    idx = np.concatenate([fi, bi]).astype(np.uint32)
+    nrm = np.tile(np.array([[0, 1, 0]], np.float32), (len(pos), 1))
+    return pos, nrm, idx
+
+
+def good_gltf():
+    """(doc, bin) of the good scene: buffer 0 = positions | normals | indices."""
+    pos, nrm, idx = scene_arrays()
+    blob = pos.tobytes() + nrm.tobytes() + idx.tobytes()
+    doc = {
+        "asset": {"version": "2.0", "generator": "bad_inputs"},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"name": "ground", "mesh": 0, "translation": [0.0, 0.0, 0.0]},
+                  {"name": "sun", "rotation": [-0.5, 0.0, 0.0, 0.8660254],
+                   "extensions": {"KHR_lights_punctual": {"light": 0}}}],
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "extensions": {"KHR_lights_punctual": {"lights": [{"type": "directional",
+                                                            "intensity": 3.0}]}},
+        "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.4, 0.3, 0.2, 1.0]}}],
+        "meshes": [{"name": "ground", "primitives": [
+            {"attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 2, "material": 0}]}],
+        "buffers": [{"byteLength": len(blob)}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": pos.nbytes},
+            {"buffer": 0, "byteOffset": pos.nbytes, "byteLength": nrm.nbytes},
+            {"buffer": 0, "byteOffset": pos.nbytes + nrm.nbytes, "byteLength": idx.nbytes}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": len(pos), "type": "VEC3",
+             "min": pos.min(0).tolist(), "max": pos.max(0).tolist()},
+            {"bufferView": 1, "componentType": 5126, "count": len(nrm), "type": "VEC3"},
+            {"bufferView": 2, "componentType": 5125, "count": len(idx), "type": "SCALAR"}],
+    }
+    return doc, blob
+
+
+def pack_glb(doc, blob: bytes | None, json_bytes: bytes | None = None) -> bytes:
+    j = json_bytes if json_bytes is not None else json.dumps(doc).encode()
+    j += b" " * (-len(j) % 4)
+    chunks = struct.pack("<II", len(j), 0x4E4F534A) + j
+    if blob is not None:
+        b = blob + b"\0" * (-len(blob) % 4)
+        chunks += struct.pack("<II", len(b), 0x004E4942) + b
+    return b"glTF" + struct.pack("<II", 2, 12 + len(chunks)) + chunks
+
+
+def good_glb() -> bytes:
+    doc, blob = good_gltf()
+    return pack_glb(doc, blob)
+
+
+# --------------------------------------------------------------------------- glTF mutations
+def _set(doc, path: str, value):
+    """Set doc[a][b]... from 'a.b.0.c'; value DELETE removes the key."""
+    parts = [int(p) if p.lstrip("-").isdigit() else p for p in path.split(".")]
+    obj = doc
+    for p in parts[:-1]:
+        obj = obj[p]
+    if value is DELETE:
+        del obj[parts[-1]]
+    else:
+        obj[parts[-1]] = value
+
+
+DELETE = object()
+
+#: JSON edits of the good GLB: (id, [(path, value), ...])
+GLB_JSON_EDITS = [
+    ("count_2e9_no_view", [("accessors.0.count", 2_000_000_000),
+                           ("accessors.0.bufferView", DELETE)]),
+    ("count_2e9", [("accessors.0.count", 2_000_000_000)]),
+    ("count_huge_indices", [("accessors.2.count", 4_000_000_000)]),
+    ("count_negative", [("accessors.0.count", -1)]),
+    ("count_zero", [("accessors.0.count", 0)]),
+    ("count_string", [("accessors.0.count", "many")]),
+    ("count_float", [("accessors.0.count", 12.5)]),
+    ("count_null", [("accessors.0.count", None)]),
+    ("count_past_view", [("accessors.0.count", 13)]),
+    ("component_9999", [("accessors.0.componentType", 9999)]),
+    ("component_string", [("accessors.0.componentType", "FLOAT")]),
+    ("component_5124", [("accessors.1.componentType", 5124)]),
+    ("component_missing", [("accessors.0.componentType", DELETE)]),
+    ("indices_float", [("accessors.2.componentType", 5126)]),
+    ("indices_signed", [("accessors.2.componentType", 5122)]),
+    ("indices_vec3", [("accessors.2.type", "VEC3"), ("accessors.2.count", 18)]),
+    ("type_vec7", [("accessors.0.type", "VEC7")]),
+    ("type_number", [("accessors.0.type", 3)]),
+    ("position_vec2", [("accessors.0.type", "VEC2")]),
+    ("accessor_offset_big", [("accessors.0.byteOffset", 1 << 40)]),
+    ("accessor_offset_negative", [("accessors.0.byteOffset", -4)]),
+    ("accessor_offset_unaligned", [("accessors.1.byteOffset", 2), ("accessors.1.count", 11)]),
+    ("view_index_99", [("accessors.0.bufferView", 99)]),
+    ("view_index_negative", [("accessors.0.bufferView", -1)]),
+    ("view_index_string", [("accessors.0.bufferView", "0")]),
+    ("view_offset_huge", [("bufferViews.0.byteOffset", 1 << 50)]),
+    ("view_offset_negative", [("bufferViews.0.byteOffset", -8)]),
+    ("view_length_huge", [("bufferViews.2.byteLength", 1 << 40)]),
+    ("view_length_zero", [("bufferViews.0.byteLength", 0)]),
+    ("view_buffer_7", [("bufferViews.0.buffer", 7)]),
+    ("view_buffer_missing", [("bufferViews.0.buffer", DELETE)]),
+    ("stride_1", [("bufferViews.0.byteStride", 1)]),
+    ("stride_2", [("bufferViews.0.byteStride", 2)]),
+    ("stride_6", [("bufferViews.0.byteStride", 6)]),
+    ("stride_8_lt_elem", [("bufferViews.0.byteStride", 8)]),
+    ("stride_256", [("bufferViews.0.byteStride", 256)]),
+    ("stride_negative", [("bufferViews.0.byteStride", -12)]),
+    ("stride_past_end", [("bufferViews.0.byteStride", 24)]),
+    ("buffer_length_huge", [("buffers.0.byteLength", 1 << 40)]),
+    ("buffer_length_string", [("buffers.0.byteLength", "big")]),
+    ("buffer_uri_outside", [("buffers.0.uri", "../outside.bin")]),
+    ("buffer_uri_absolute", [("buffers.0.uri", "/etc/passwd")]),
+    ("buffer_uri_http", [("buffers.0.uri", "http://example.invalid/x.bin")]),
+    ("buffer_uri_file_scheme", [("buffers.0.uri", "file:///etc/passwd")]),
+    ("buffer_uri_missing", [("buffers.0.uri", "missing.bin")]),
+    ("buffer_uri_bad_base64", [("buffers.0.uri", "data:application/octet-stream;base64,@@@!")]),
+    ("buffer_uri_not_base64", [("buffers.0.uri", "data:text/plain,hello")]),
+    ("buffer_uri_number", [("buffers.0.uri", 5)]),
+    ("buffer_uri_dotdot_encoded", [("buffers.0.uri", "%2e%2e/%2e%2e/etc/passwd")]),
+    ("buffers_not_array", [("buffers", {"0": 1})]),
+    ("node_mesh_99", [("nodes.0.mesh", 99)]),
+    ("node_mesh_string", [("nodes.0.mesh", "ground")]),
+    ("node_child_self", [("nodes.0.children", [0])]),
+    ("node_child_99", [("nodes.0.children", [99])]),
+    ("node_child_cycle", [("nodes.0.children", [1]), ("nodes.1.children", [0])]),
+    ("node_matrix_15", [("nodes.0.matrix", [1.0] * 15)]),
+    ("node_matrix_strings", [("nodes.0.matrix", ["1"] * 16)]),
+    ("node_rotation_3", [("nodes.1.rotation", [0, 0, 1])]),
+    ("node_scale_string", [("nodes.0.scale", "big")]),
+    ("node_translation_1e12", [("nodes.0.translation", [1e12, 0.0, 0.0])]),
+    ("node_scale_1e12", [("nodes.0.scale", [1e12, 1e12, 1e12])]),
+    ("node_scale_1e300", [("nodes.0.scale", [1e300, 1e300, 1e300])]),
+    ("node_light_9", [("nodes.1.extensions.KHR_lights_punctual.light", 9)]),
+    ("scene_5", [("scene", 5)]),
+    ("scene_nodes_99", [("scenes.0.nodes", [99])]),
+    ("mesh_primitives_object", [("meshes.0.primitives", {"a": 1})]),
+    ("attribute_position_99", [("meshes.0.primitives.0.attributes.POSITION", 99)]),
+    ("attribute_normal_indices", [("meshes.0.primitives.0.attributes.NORMAL", 2)]),
+    ("attributes_list", [("meshes.0.primitives.0.attributes", [0])]),
+    ("prim_indices_99", [("meshes.0.primitives.0.indices", 99)]),
+    ("prim_indices_positions", [("meshes.0.primitives.0.indices", 0)]),
+    ("prim_mode_99", [("meshes.0.primitives.0.mode", 99)]),
+    ("prim_mode_points", [("meshes.0.primitives.0.mode", 0)]),
+    ("prim_material_99", [("meshes.0.primitives.0.material", 99)]),
+    ("material_color_3", [("materials.0.pbrMetallicRoughness.baseColorFactor", [1, 1, 1])]),
+    ("ext_required_draco", [("extensionsRequired", ["KHR_draco_mesh_compression"])]),
+    ("ext_required_unknown", [("extensionsRequired", ["EXT_made_up"])]),
+    ("ext_required_meshopt", [("extensionsRequired", ["EXT_meshopt_compression"])]),
+    ("ext_required_string", [("extensionsRequired", "KHR_lights_punctual")]),
+    ("asset_missing", [("asset", DELETE)]),
+    ("asset_version_1", [("asset.version", "1.0")]),
+    ("asset_string", [("asset", "2.0")]),
+    ("sparse_index_past", [("accessors.0.sparse", {
+        "count": 1, "indices": {"bufferView": 2, "componentType": 5125},
+        "values": {"bufferView": 0}}), ("accessors.0.count", 2)]),
+    ("sparse_count_huge", [("accessors.0.sparse", {
+        "count": 1000, "indices": {"bufferView": 2, "componentType": 5125},
+        "values": {"bufferView": 0}})]),
+    ("sparse_values_missing", [("accessors.0.sparse", {
+        "count": 1, "indices": {"bufferView": 2, "componentType": 5125}, "values": {}})]),
+    ("sparse_float_indices", [("accessors.0.sparse", {
+        "count": 1, "indices": {"bufferView": 2, "componentType": 5126},
+        "values": {"bufferView": 0}})]),
+    ("sparse_2e9_no_view", [("accessors.0.count", 2_000_000_000),
+                            ("accessors.0.bufferView", DELETE),
+                            ("accessors.0.sparse", {
+                                "count": 1, "indices": {"bufferView": 2, "componentType": 5125},
+                                "values": {"bufferView": 0}})]),
+]
+
+#: edits of the binary data (positions are floats 0..35 bytes per vertex; indices at the end)
+def _blob_edit(kind: str):
+    pos, nrm, idx = scene_arrays()
+    ioff = pos.nbytes + nrm.nbytes
+
+    def edit(blob: bytes) -> bytes:
+        b = bytearray(blob)
+        if kind == "nan_vertex":
+            struct.pack_into("<f", b, 4, math.nan)
+        elif kind == "inf_vertex":
+            struct.pack_into("<f", b, 0, math.inf)
+        elif kind == "neg_inf_vertex":
+            struct.pack_into("<f", b, 8 + 12 * 5, -math.inf)
+        elif kind == "huge_vertex":
+            struct.pack_into("<f", b, 0, 1e12)
+        elif kind == "huge_vertices_all":
+            arr = np.frombuffer(bytes(b[: pos.nbytes]), np.float32) * np.float32(1e12)
+            b[: pos.nbytes] = arr.tobytes()
+        elif kind == "index_past":
+            struct.pack_into("<I", b, ioff + 4, len(pos) + 7)
+        elif kind == "index_minus_5":
+            struct.pack_into("<I", b, ioff, 0xFFFFFFFB)
+        elif kind == "index_max":
+            struct.pack_into("<I", b, ioff + 8, 0xFFFFFFFF)
+        elif kind == "all_degenerate":
+            b[ioff:] = np.zeros(len(idx), np.uint32).tobytes()
+        return bytes(b)
+    return edit
+
+
+GLB_BLOB_EDITS = ["nan_vertex", "inf_vertex", "neg_inf_vertex", "huge_vertex", "huge_vertices_all",
+                  "index_past", "index_minus_5", "index_max", "all_degenerate"]
+
+
+def _glb_json_case(name, edits):
+    def make(folder: Path):
+        doc, blob = good_gltf()
+        doc = copy.deepcopy(doc)
+        for path, value in edits:
+            _set(doc, path, value)
+        (folder.parent / "outside.bin").write_bytes(blob)  # exists, but outside the folder
+        p = folder / f"{name}.glb"
+        p.write_bytes(pack_glb(doc, blob))
+        return [p]
+    return Case(f"glb_{name}", make)
+
+
+def _glb_blob_case(kind):
+    def make(folder: Path):
+        doc, blob = good_gltf()
+        p = folder / f"{kind}.glb"
+        p.write_bytes(pack_glb(doc, _blob_edit(kind)(blob)))
+        return [p]
+    return Case(f"glb_{kind}", make)
+
+
+def _glb_raw_case(name, fn):
+    def make(folder: Path):
+        p = folder / f"{name}.glb"
+        p.write_bytes(fn())
+        return [p]
+    return Case(f"glb_{name}", make)
+
+
+def _truncated(n):
+    return lambda: good_glb()[:n]
+
+
+def _glb_raw_cases():
+    g = good_glb()
+    doc, blob = good_gltf()
+    jlen = struct.unpack_from("<I", g, 12)[0]
+    raw = {
+        "empty": lambda: b"",
+        "magic": lambda: b"gLTF" + g[4:],
+        "version_1": lambda: g[:4] + struct.pack("<I", 1) + g[8:],
+        "length_past_end": lambda: g[:8] + struct.pack("<I", len(g) + 100) + g[12:],
+        "chunk_length_huge": lambda: g[:12] + struct.pack("<I", 0x7FFFFFF0) + g[16:],
+        "json_not_json": lambda: pack_glb(None, blob, b"{not json"),
+        "json_array": lambda: pack_glb(None, blob, b"[1, 2, 3]"),
+        "json_latin1": lambda: pack_glb(None, blob, b'{"asset": {"version": "2.0\xe9"}}'),
+        "json_deep": lambda: pack_glb(None, blob, b"[" * 100000 + b"]" * 100000),
+        "no_json_chunk": lambda: b"glTF" + struct.pack("<II", 2, 20 + len(blob))
+        + struct.pack("<II", len(blob), 0x004E4942) + blob,
+        "no_bin_chunk": lambda: pack_glb(doc, None),
+        "bin_short": lambda: pack_glb(doc, blob[: len(blob) // 2]),
+        "garbage": lambda: bytes(range(256)) * 64,
+    }
+    cases = [_glb_raw_case(k, v) for k, v in raw.items()]
+    for n in (11, 12, 19, 20, 20 + jlen // 2, 20 + jlen, 28 + jlen, len(g) - 1):
+        cases.append(_glb_raw_case(f"truncated_{n}", _truncated(n)))
+    return cases
+
+
+def _write(path: Path, data: bytes) -> list:
+    path.write_bytes(data)
+    return [path]
+
+
+def _gltf_cases():
+    """A .gltf with an external .bin and a data: buffer, mutated."""
+    def base(folder: Path, uri="scene.bin", write_bin=True, edit=None):
+        doc, blob = good_gltf()
+        doc = copy.deepcopy(doc)
+        doc["buffers"][0]["uri"] = uri
+        if write_bin:
+            (folder / "scene.bin").write_bytes(blob)
+        if edit:
+            edit(doc, blob)
+        p = folder / "scene.gltf"
+        p.write_text(json.dumps(doc))
+        return [p]
+
+    def dataurl(text):
+        return lambda f: base(f, uri=text, write_bin=False)
+
+    _, blob = good_gltf()
+    b64 = base64.b64encode(blob).decode()
+    cases = {
+        "bin_missing": lambda f: base(f, write_bin=False),
+        "bin_outside": lambda f: (f.parent.joinpath("o.bin").write_bytes(blob),
+                                  base(f, uri="../o.bin", write_bin=False))[1],
+        "bin_subdir_escape": lambda f: base(f, uri="sub/../../o.bin", write_bin=False),
+        "bin_short": lambda f: (base(f), (f / "scene.bin").write_bytes(blob[:40]))[0],
+        "bin_is_folder": lambda f: ((f / "dir.bin").mkdir(), base(f, uri="dir.bin"))[1],
+        "data_bad_base64": dataurl("data:application/octet-stream;base64," + b64[:-3] + "*=="),
+        "data_short": dataurl("data:application/octet-stream;base64," + b64[:40]),
+        "data_no_comma": dataurl("data:application/octet-stream;base64"),
+        "not_utf8": lambda f: _write(f / "x.gltf", b'{"asset": \xff\xfe}'),
+        "not_json": lambda f: _write(f / "y.gltf", b"asset: 2.0"),
+        "json_number": lambda f: _write(f / "z.gltf", b"42"),
+    }
+    return [Case(f"gltf_{k}", v) for k, v in cases.items()]
+
+
+# --------------------------------------------------------------------------- OBJ / STL / PLY
+GOOD_OBJ = ("v -2 0 -2\nv 2 0 -2\nv 2 0 2\nv -2 0 2\nf 1 3 2\nf 1 4 3\n")
+
+
+def _text_case(cid, name, data: bytes):
+    def make(folder: Path):
+        p = folder / name
+        p.write_bytes(data)
+        return [p]
+    return Case(cid, make)
+
+
+def _stl_binary(tris: np.ndarray, count=None) -> bytes:
+    tris = np.asarray(tris, np.float32).reshape(-1, 3, 3)
+    n = len(tris) if count is None else count
+    body = b"".join(struct.pack("<3f", 0, 1, 0) + t.tobytes() + b"\0\0" for t in tris)
+    return b"\0" * 80 + struct.pack("<I", n) + body
+
+
+def _ply(vertices, faces, fmt="ascii", nverts=None, extra_header=b"") -> bytes:
+    v = np.asarray(vertices, np.float32)
+    head = (b"ply\nformat " + (b"ascii" if fmt == "ascii" else b"binary_little_endian")
+            + b" 1.0\n" + extra_header + b"element vertex %d\nproperty float x\n"
+            b"property float y\nproperty float z\nelement face %d\n"
+            b"property list uchar int vertex_indices\nend_header\n"
+            % (len(v) if nverts is None else nverts, len(faces)))
+    if fmt == "ascii":
+        body = "".join(f"{a} {b} {c}\n" for a, b, c in v.tolist())
+        body += "".join("3 " + " ".join(map(str, f)) + "\n" for f in faces)
+        return head + body.encode()
+    body = v.tobytes() + b"".join(struct.pack("<B3i", 3, *f) for f in faces)
+    return head + body
+
+
+def _mesh_cases():
+    floor = [[-2, 0, -2], [2, 0, -2], [2, 0, 2], [-2, 0, 2]]
+    tri = np.array([[[-2, 0, -2], [2, 0, 2], [2, 0, -2]], [[-2, 0, -2], [-2, 0, 2], [2, 0, 2]]])
+    c = [
+        _text_case("obj_binary_garbage", "g.obj", b"\x00\xff\xfe v 1 2\nf 9 9 9\n\x00"),
+        _text_case("obj_empty", "e.obj", b""),
+        _text_case("obj_only_vertices", "v.obj", b"v 0 0 0\nv 1 0 0\nv 0 0 1\n"),
+        _text_case("obj_nan_vertex", "n.obj", GOOD_OBJ.replace("v 2 0 2", "v nan 0 2").encode()),
+        _text_case("obj_inf_vertex", "i.obj", GOOD_OBJ.replace("v 2 0 2", "v inf 0 2").encode()),
+        _text_case("obj_huge_coords", "h.obj",
+                   GOOD_OBJ.replace("v 2 0 2", "v 1e12 0 1e12").encode()),
+        _text_case("obj_all_huge", "ah.obj", GOOD_OBJ.replace("2", "2e12").encode()),
+        _text_case("obj_overflow_coords", "o.obj",
+                   GOOD_OBJ.replace("v 2 0 2", "v 1e999 0 2").encode()),
+        _text_case("obj_words", "w.obj", b"hello world\nthis is not a mesh\n"),
+        _text_case("obj_face_zero", "z.obj", (GOOD_OBJ + "f 0 1 2\n").encode()),
+        _text_case("obj_face_relative_past", "r.obj", (GOOD_OBJ + "f -9 -8 -7\n").encode()),
+        _text_case("obj_face_past", "p.obj", (GOOD_OBJ + "f 1 2 99\n").encode()),
+        _text_case("obj_face_word", "fw.obj", (GOOD_OBJ + "f 1 two 3\n").encode()),
+        _text_case("obj_vertex_2d", "v2.obj", GOOD_OBJ.replace("v 2 0 2", "v 2 0").encode()),
+        _text_case("obj_degenerate", "d.obj", b"v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n"),
+        _text_case("obj_steep", "s.obj", b"v 0 0 0\nv 1 0 0\nv 1 10 0.1\nv 0 10 0.1\n"
+                                         b"f 1 2 3\nf 1 3 4\n"),
+        _text_case("stl_empty", "e.stl", b""),
+        _text_case("stl_binary_truncated", "t.stl", _stl_binary(tri, count=1000)),
+        _text_case("stl_binary_nan", "n.stl", _stl_binary(np.where(tri == 2, np.nan, tri))),
+        _text_case("stl_binary_inf", "i.stl", _stl_binary(np.where(tri == 2, np.inf, tri))),
+        _text_case("stl_binary_huge", "h.stl", _stl_binary(tri * 1e12)),
+        _text_case("stl_binary_zero_tris", "z.stl", _stl_binary(tri[:0])),
+        _text_case("stl_ascii_garbage", "a.stl", b"solid x\nfacet normal banana\nendsolid\n"),
+        _text_case("stl_ascii_nan", "an.stl", b"solid x\nfacet normal 0 1 0\nouter loop\n"
+                   b"vertex nan 0 0\nvertex 1 0 0\nvertex 0 0 1\nendloop\nendfacet\nendsolid x\n"),
+        _text_case("stl_count_2e9", "c.stl", b"\0" * 80 + struct.pack("<I", 2_000_000_000)
+                   + b"\0" * 50),
+        _text_case("ply_empty", "e.ply", b""),
+        _text_case("ply_bad_header", "b.ply", b"ply\nformat banana 1.0\nend_header\n"),
+        _text_case("ply_no_end_header", "n.ply", b"ply\nformat ascii 1.0\nelement vertex 3\n"),
+        _text_case("ply_nan", "nan.ply", _ply([[0, 0, 0], [1, 0, 0], [np.nan, 0, 1]], [[0, 2, 1]])),
+        _text_case("ply_index_past", "ip.ply", _ply(floor, [[0, 2, 1], [0, 3, 9]])),
+        _text_case("ply_index_negative", "in.ply", _ply(floor, [[0, 2, 1], [0, -5, 2]])),
+        _text_case("ply_binary_index_past", "bp.ply", _ply(floor, [[0, 2, 1], [0, 3, 99]],
+                                                         fmt="binary")),
+        _text_case("ply_binary_vertex_2e9", "bv.ply", _ply(floor, [[0, 2, 1]], fmt="binary",
+                                                         nverts=2_000_000_000)),
+        _text_case("ply_ascii_vertex_2e9", "av.ply", _ply(floor, [[0, 2, 1]],
+                                                        nverts=2_000_000_000)),
+        _text_case("ply_ascii_faces_missing", "fm.ply",
+                   _ply(floor, [[0, 2, 1], [0, 3, 2]]).rsplit(b"3 ", 1)[0]),
+        _text_case("ply_ascii_list_overlong", "lo.ply",
+                   _ply(floor, [[0, 2, 1], [0, 3, 2]]).replace(b"\n3 0 2 1", b"\n255 0 2 1")),
+        _text_case("ply_ascii_extra_values", "ev.ply", _ply(floor, [[0, 2, 1]]) + b"1 2 3 4\n"),
+        _text_case("ply_ascii_vertex_short", "vs.ply",
+                   _ply(floor, [[0, 2, 1]]).replace(b"\n2.0 0.0 2.0", b"\n2.0 0.0")),
+        _text_case("ply_huge", "hg.ply", _ply(np.array(floor) * 1e12, [[0, 2, 1], [0, 3, 2]])),
+    ]
+    return c
+
+
+GOOD_LATIN1 = {
+    "latin1.obj": b"# Fl\xe4che f\xfcr den Tausendf\xfc\xdfler, \xa9 2026\n" + GOOD_OBJ.encode(),
+    "cp1252.obj": b"# caf\xe9 \x93quoted\x94\n" + GOOD_OBJ.encode(),
+    "utf16bom.obj": b"\xef\xbb\xbf# \xc3\xa9t\xc3\xa9\n" + GOOD_OBJ.encode(),
+    "latin1.stl": (b"solid sol \xe9t\xe9\nfacet normal 0 1 0\nouter loop\nvertex -2 0 -2\n"
+                   b"vertex 2 0 2\nvertex 2 0 -2\nendloop\nendfacet\nfacet normal 0 1 0\n"
+                   b"outer loop\nvertex -2 0 -2\nvertex -2 0 2\nvertex 2 0 2\nendloop\n"
+                   b"endfacet\nendsolid sol \xe9t\xe9\n"),
+    "latin1.ply": _ply([[-2, 0, -2], [2, 0, -2], [2, 0, 2], [-2, 0, 2]], [[0, 2, 1], [0, 3, 2]],
+                       extra_header=b"comment cr\xe9\xe9 par baker\n"),
+    "latin1_binary.ply": _ply([[-2, 0, -2], [2, 0, -2], [2, 0, 2], [-2, 0, 2]],
+                              [[0, 2, 1], [0, 3, 2]], fmt="binary",
+                              extra_header=b"comment cr\xe9\xe9 par baker\n"),
+}
+
+
+# --------------------------------------------------------------------------- USD
+USD_MESH = """def Mesh "floor"
+{{
+    int[] faceVertexCounts = {counts}
+    int[] faceVertexIndices = {indices}
+    point3f[] points = {points}
+}}
+"""
+USD_HEAD = '#usda 1.0\n(\n    upAxis = "Y"\n    metersPerUnit = {mpu}\n{extra})\n\n'
+USD_POINTS = "[(-2, 0, -2), (2, 0, -2), (2, 0, 2), (-2, 0, 2)]"
+
+
+def usd_text(counts="[3, 3]", indices="[0, 2, 1, 0, 3, 2]", points=USD_POINTS, mpu="1",
+             extra="", body=None) -> str:
+    return USD_HEAD.format(mpu=mpu, extra=extra) + (
+        body if body is not None else USD_MESH.format(counts=counts, indices=indices,
+                                                      points=points))
+
+
+def _usd_case(cid, make_files):
+    def make(folder: Path):
+        files = make_files()
+        for name, text in files.items():
+            target = folder / name
+            target.parent.mkdir(parents=True, exist_ok=True)
+            if isinstance(text, bytes):
+                target.write_bytes(text)
+            else:
+                target.write_text(text)
+        (folder.parent / "outside.usda").write_text(usd_text())
+        return [folder / "level.usda" if "level.usda" in files else folder / next(iter(files))]
+    return Case(f"usd_{cid}", make)
+
+
+def _usd_cases():
+    good = usd_text()
+    ref = 'def Xform "x" (\n    prepend references = @{}@\n)\n{{\n}}\n'
+    pay = 'def Xform "x" (\n    prepend payload = @{}@\n)\n{{\n}}\n'
+    cases = {
+        "sublayer_missing": lambda: {"level.usda": usd_text(extra="    subLayers = [@missing.usda@]\n")},
+        "sublayer_outside": lambda: {"level.usda": usd_text(extra="    subLayers = [@../outside.usda@]\n")},
+        "sublayer_absolute": lambda: {"level.usda": usd_text(extra="    subLayers = [@/etc/hosts@]\n")},
+        "sublayer_nested_missing": lambda: {
+            "level.usda": usd_text(extra="    subLayers = [@a.usda@]\n"),
+            "a.usda": usd_text(extra="    subLayers = [@gone.usda@]\n")},
+        "sublayer_nested_outside": lambda: {
+            "level.usda": usd_text(extra="    subLayers = [@sub/a.usda@]\n"),
+            "sub/a.usda": usd_text(extra="    subLayers = [@../../outside.usda@]\n")},
+        "sublayer_corrupt": lambda: {"level.usda": usd_text(extra="    subLayers = [@a.usda@]\n"),
+                                     "a.usda": "#usda 1.0\ndef Mesh \"x\" {{{"},
+        "reference_outside": lambda: {"level.usda": good + ref.format("../outside.usda")},
+        "reference_missing": lambda: {"level.usda": good + ref.format("nothere.usda")},
+        "reference_http": lambda: {"level.usda": good + ref.format("http://example.invalid/a.usda")},
+        "payload_outside": lambda: {"level.usda": good + pay.format("../outside.usda")},
+        "payload_missing": lambda: {"level.usda": good + pay.format("gone.usdc")},
+        "reference_bad_prim": lambda: {"level.usda": good + ref.format("a.usda").replace(
+            "@a.usda@", "@a.usda@</nope>"), "a.usda": usd_text()},
+        "reference_not_usd": lambda: {"level.usda": good + ref.format("notes.txt"),
+                                      "notes.txt": "hello"},
+        "variant_reference_outside": lambda: {"level.usda": good + (
+            'def Xform "x" (\n    variants = {\n        string v = "b"\n    }\n'
+            '    prepend variantSets = "v"\n)\n{\n    variantSet "v" = {\n'
+            '        "b" (prepend references = @../outside.usda@) {\n        }\n    }\n}\n')},
+        "self_reference_cycle": lambda: {"level.usda": good + ref.format("level.usda").replace(
+            "@level.usda@", "@level.usda@</x>")},
+        "face_index_past": lambda: {"level.usda": usd_text(indices="[0, 2, 1, 0, 3, 9]")},
+        "face_index_negative": lambda: {"level.usda": usd_text(indices="[0, 2, 1, 0, -5, 2]")},
+        "face_counts_mismatch": lambda: {"level.usda": usd_text(counts="[3, 4]")},
+        "face_counts_negative": lambda: {"level.usda": usd_text(counts="[-3, 9]")},
+        "points_nan": lambda: {"level.usda": usd_text(points=USD_POINTS.replace("(2, 0, 2)", "(nan, 0, 2)"))},
+        "points_inf": lambda: {"level.usda": usd_text(points=USD_POINTS.replace("(2, 0, 2)", "(inf, 0, 2)"))},
+        "points_huge": lambda: {"level.usda": usd_text(points=USD_POINTS.replace("2", "2e12"))},
+        "mpu_zero": lambda: {"level.usda": usd_text(mpu="0")},
+        "mpu_negative": lambda: {"level.usda": usd_text(mpu="-1")},
+        "mpu_huge": lambda: {"level.usda": usd_text(mpu="1e15")},
+        "syntax_error": lambda: {"level.usda": "#usda 1.0\ndef Mesh \"x\" {\n  int[] = \n"},
+        "empty": lambda: {"level.usda": ""},
+        "no_meshes": lambda: {"level.usda": usd_text(body='def Xform "x"\n{\n}\n')},
+        "crate_garbage": lambda: {"level.usdc": b"PXR-USDC" + bytes(range(256)) * 8},
+        "usd_text_garbage": lambda: {"level.usd": b"\x00\x01\x02 not usd at all"},
+    }
+    return [_usd_case(k, v) for k, v in cases.items()]
+
+
+# --------------------------------------------------------------------------- rig files
+def _rig_case(cid, text_fn):
+    def make(folder: Path):
+        p = folder / "rig.toml"
+        data = text_fn()
+        p.write_bytes(data if isinstance(data, bytes) else data.encode())
+        return ["--rig", p]
+    return Case(f"rig_{cid}", make)
+
+
+def _replace_key(text: str, section: str, key: str, value: str) -> str:
+    """The rig text with `key = value` in [section] (replaced, or added at the section's top)."""
+    lines = text.splitlines()
+    out, cur, done = [], None, False
+    for ln in lines:
+        s = ln.strip()
+        if s.startswith("[") and not s.startswith("[["):
+            if cur == section and not done:
+                out.append(f"{key} = {value}")
+                done = True
+            cur = s.split("]")[0][1:].strip()
+            out.append(ln)
+            continue
+        if cur == section and not done and s.split("=")[0].strip() == key and "=" in s \
+                and not s.startswith("#"):
+            out.append(f"{key} = {value}")
+            done = True
+            # a multi-line array value: drop its continuation lines
+            if s.count("[") > s.count("]"):
+                cur = "__skip__"
+            continue
+        if cur == "__skip__":
+            if "]" in s:
+                cur = section
+            continue
+        out.append(ln)
+    if not done:
+        out.append(f"[{section}]" if cur != section else "")
+        out.append(f"{key} = {value}")
+    return "\n".join(out) + "\n"
+
+
+def _schema_rig_cases():
+    """For every declared rig key: a value of the wrong type, each bound crossed, NaN."""
+    from baker.schema import SECTIONS, _base
+
+    base = DEFAULT_RIG.read_text()
+    cases = []
+    for sec, model in SECTIONS.items():
+        for key, info in model.model_fields.items():
+            t = _base(info.annotation)
+            lo = hi = None
+            lo_strict = hi_strict = False
+            for m in info.metadata:
+                if getattr(m, "gt", None) is not None:
+                    lo, lo_strict = m.gt, True
+                if getattr(m, "ge", None) is not None:
+                    lo = m.ge
+                if getattr(m, "lt", None) is not None:
+                    hi, hi_strict = m.lt, True
+                if getattr(m, "le", None) is not None:
+                    hi = m.le
+            wrong = '"x"' if t is not str else "5"
+            vals = {"type": wrong}
+            if t in (int, float):
+                if lo is not None:
+                    vals["below"] = repr(lo if lo_strict else (lo - 1 if t is int else lo - 0.5))
+                if hi is not None:
+                    vals["above"] = repr(hi if hi_strict else (hi + 1 if t is int else hi * 2 + 1))
+                if t is float:
+                    vals["nan"] = "nan"
+                if t is int:
+                    vals["fraction"] = "4.5"
+            elif t is bool:
+                vals["int"] = "1"
+            else:
+                vals["table"] = "{ a = 1 }"
+            for kind, v in vals.items():
+                cases.append(_rig_case(f"{sec}_{key}_{kind}",
+                                       (lambda s=sec, k=key, v=v: _replace_key(base, s, k, v))))
+    return cases
+
+
+def _structural_rig_cases():
+    base = DEFAULT_RIG.read_text()
+    rk = _replace_key
+    c = {
+        "empty": lambda: "",
+        "comments_only": lambda: "# nothing here\n",
+        "not_toml": lambda: "this is = not = toml\n",
+        "not_utf8": lambda: b"[body]\nlength = 0.25 # \xff\xfe\n",
+        "binary": lambda: bytes(range(256)),
+        "legs_none": lambda: 'legs = "none"\n' + base[:base.index("[legs]")]
+        + base[base.index("[behaviour]"):],
+        "body_number": lambda: "body = 5\n",
+        "colors_string": lambda: 'colors = "red"\n' + base.replace("[colors]", "[colorz]"),
+        "unknown_key": lambda: rk(base, "locomotion", "max_sped", "0.8"),
+        "unknown_section": lambda: base + "\n[wandr]\nradius = 3\n",
+        "body_missing": lambda: base.split("[body]")[0] + "[colors]\nbody = [0.1, 0.1, 0.1]\n",
+        "segments_missing": lambda: base.replace("segments = 21", ""),
+        "segments_x": lambda: rk(base, "body", "segments", '"x"'),
+        "length_long": lambda: rk(base, "body", "length", '"long"'),
+        "length_inf": lambda: rk(base, "body", "length", "inf"),
+        "max_speed_list": lambda: rk(base, "locomotion", "max_speed", "[1, 2]"),
+        "curve_ragged": lambda: rk(base, "cobra", "curve", "[[0.0, 0.0], [0.5, 0.1, 0.2], [1.0, 1.0]]"),
+        "curve_flat": lambda: rk(base, "cobra", "curve", "[0.0, 0.5, 1.0]"),
+        "curve_decreasing": lambda: rk(base, "cobra", "curve", "[[0.0, 0.0], [0.9, 0.1], [0.5, 1.0]]"),
+        "curve_out_of_01": lambda: rk(base, "cobra", "curve", "[[0.0, 0.0], [1.0, 5.0]]"),
+        "color_2": lambda: rk(base, "colors", "body", "[0.1, 0.2]"),
+        "color_4": lambda: rk(base, "colors", "legs", "[0.1, 0.2, 0.3, 1.0]"),
+        "color_range": lambda: rk(base, "colors", "body", "[0.1, 2.0, 0.3]"),
+        "color_strings": lambda: rk(base, "prey", "color", '["r", "g", "b"]'),
+        "color_nested": lambda: rk(base, "prey", "color", "[[0.1], [0.2], [0.3]]"),
+        "width_profile_short": lambda: rk(base, "body", "width_profile", "[0.04, 0.04, 0.04]"),
+        "width_profile_negative": lambda: rk(base, "body", "width_profile", "[-0.04]" ),
+        "width_profile_strings": lambda: rk(base, "body", "width_profile", '["a", "b", "c"]'),
+        "stride_order": lambda: rk(rk(base, "legs", "stride_min", "0.3"), "legs", "stride_max", "0.1"),
+        "detection_far": lambda: rk(base, "behaviour", "detection_range", '"far"'),
+        "decision_zero": lambda: rk(base, "behaviour", "decision_interval", "0"),
+        "ramp_negative": lambda: rk(base, "cobra", "ramp_time", "-0.4"),
+        "slither_1e9": lambda: rk(base, "locomotion", "slither_amplitude", "1e9"),
+        "roll_4_7": lambda: rk(base, "behaviour", "shade_roll_max", "4.7"),
+        "prey_radius_negative": lambda: rk(base, "prey", "radius", "-0.05"),
+        "feed_negative": lambda: rk(base, "behaviour", "feed_time", "-1.0"),
+        "name_number": lambda: "name = 5\n" + base.split("\n", 2)[2],
+        "huge_file": lambda: base + "# " + "x" * (2 << 20) + "\n",
+        "array_of_tables": lambda: base + "\n[[legs2]]\na = 1\n",
+    }
+    return [_rig_case(k, v) for k, v in c.items()]
+
+
+def _rig_path_cases():
+    return [
+        Case("rig_missing", lambda f: ["--rig", f / "nope.toml"]),
+        Case("rig_folder", lambda f: ((f / "dir.toml").mkdir(), ["--rig", f / "dir.toml"])[1]),
+    ]
+
+
+# --------------------------------------------------------------------------- options
+OPTION_CASES = {
+    "seconds": ["nan", "inf", "-inf", "0", "-3", "1e9", "abc", "1e400"],
+    "fps": ["0", "-30", "7", "1000", "abc", "nan", "30.5", "99999999999999999999"],
+    "seed": ["-1", "abc", "1e30", "99999999999999999999999"],
+    "prey": ["-1", "17", "abc", "1000000"],
+    "sun": ["1e308,0,0", "nan,1,0", "inf,1,0", "0,-1,0", "0,0,0", "1,2", "a,b,c", "1,1e300,1",
+            "1,2,3,4", ""],
+    "sun-path": ["nan,30", "inf,30", "90,nan", "90,0", "90,91", "abc", "90", "1e308,30",
+                 "90,30;nan,40", "90,30;270", ";;", "90,-inf"],
+    "scale": ["0", "nan", "inf", "-1", "1e6", "abc"],
+    "cell-size": ["0", "-1", "nan", "inf", "abc", "0.0036", "1e-5", "1e-300"],
+    "agent-radius": ["nan", "0", "-1", "inf", "1e9"],
+    "agent-height": ["nan", "0", "-0.5", "inf"],
+    "step-height": ["-1", "nan", "inf"],
+    "max-slope": ["90", "0", "nan", "-5", "1e9"],
+    "max-memory": ["0", "-1", "nan", "inf", "abc", "10"],
+    "format": ["fbx"],
+    "behaviour": ["sleep"],
+    "cobra": ["sometimes"],
+    "nav-build": ["partial"],
+}
+
+NAVMESH_OPTION_CASES = [
+    ("from_nan", ["--from", "nan,0,0", "--to", "0,0,0"]),
+    ("to_inf", ["--from", "0,0,0", "--to", "inf,0,0"]),
+    ("from_1e308", ["--from", "1e308,0,0", "--to", "0,0,0"]),
+    ("from_only", ["--from", "0,0,0"]),
+    ("from_short", ["--from", "0,0", "--to", "1,0,0"]),
+    ("cell_tiny", ["--cell-size", "0.0005"]),
+    ("cell_nan", ["--cell-size", "nan"]),
+    ("memory_tiny", ["--max-memory", "50"]),
+]
+
+
+def _option_cases():
+    cases = []
+    for opt, values in OPTION_CASES.items():
+        for i, v in enumerate(values):
+            cases.append(Case(f"opt_{opt}_{i}_{v[:12]}", (lambda f, o=opt, v=v: [f"--{o}", v])))
+    for name, args in NAVMESH_OPTION_CASES:
+        cases.append(Case(f"opt_navmesh_{name}", (lambda f, a=args: ["navmesh", *a])))
+    return cases
+
+
+# --------------------------------------------------------------------------- all
+def all_cases() -> list[Case]:
+    cases = ([_glb_json_case(n, e) for n, e in GLB_JSON_EDITS]
+             + [_glb_blob_case(k) for k in GLB_BLOB_EDITS]
+             + _glb_raw_cases() + _gltf_cases() + _mesh_cases() + _usd_cases()
+             + _schema_rig_cases() + _structural_rig_cases() + _rig_path_cases()
+             + _option_cases())
+    ids = [c.id for c in cases]
+    assert len(ids) == len(set(ids)), "duplicate case ids"
+    return cases

@@ -1,0 +1,63 @@
+"""The navigation budget (navmesh/budget.py): a build over the memory limit is refused before any
+ray is cast, and the cell size the message names really fits the same limit."""
+
+import re
+
+import numpy as np
+import pytest
+
+from baker.errors import BudgetError
+from baker.navmesh import budget
+
+
+@pytest.mark.parametrize("limit_mb", [600, 2000, 8000, 12640, 30000])
+@pytest.mark.parametrize("side_m,cell", [(22.5, 0.0036), (200.0, 0.015), (5.0, 0.0005)])
+def test_suggested_cell_size_fits(limit_mb, side_m, cell):
+    n = int(np.ceil(side_m / cell))
+    if budget.estimate(n * n, 55_000).bytes <= limit_mb * 1e6:
+        pytest.skip("fits this limit")
+    with budget.memory_limit(limit_mb):
+        with pytest.raises(BudgetError) as ei:
+            budget.check(n, n, cell, 55_000)
+        fit = float(re.search(r"--cell-size ([0-9.e-]+)", str(ei.value)).group(1))
+        assert fit > cell
+        m = int(np.ceil(side_m / fit))
+        est = budget.check(m, m, fit, 55_000)  # does not raise
+        assert est.bytes <= limit_mb * 1e6
+
+
+def test_default_limit_is_half_the_ram():
+    import os
+
+    ram = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    assert budget.limit() == pytest.approx(ram / 2)
+    with budget.memory_limit(100):
+        assert budget.limit() == 100e6
+    assert budget.limit() == pytest.approx(ram / 2)
+
+
+def test_estimate_covers_measured_peaks():
+    """Peak RSS of whole builds of the default scene (55k triangles), measured with
+    benchmarks/bench_nav_budget.py: the estimate is above each, by at most 30 %."""
+    measured = {562_500: 357e6, 2_250_000: 1035e6, 9_000_000: 3706e6, 14_062_500: 5711e6}
+    for cols, peak in measured.items():
+        est = budget.estimate(cols, 55_000).bytes
+        assert peak <= est <= 1.3 * peak + 150e6, (cols, peak, est)
+
+
+@pytest.mark.parametrize("cell", [0.03, 0.015])
+def test_estimate_covers_a_real_build(cell):
+    """A whole build of the default scene in its own process: its peak RSS is under the
+    estimate, and the estimate is not far above it (benchmarks/bench_nav_budget.py's child)."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    bench = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_nav_budget.py"
+    ns: dict = {}
+    exec(compile(bench.read_text(), str(bench), "exec"), ns)
+    out = subprocess.run([sys.executable, "-c", ns["CHILD"], str(cell)], capture_output=True,
+                         text=True, check=True)
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    assert r["peak_mb"] <= r["est_mb"] <= 1.5 * r["peak_mb"] + 150, r
