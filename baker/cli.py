@@ -72,8 +72,9 @@ def cli(verbose: int):
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
               default=DEFAULT_RIG, show_default="rigs/scolopendra.toml", help="Rig definition (TOML).")
-@click.option("--out", type=click.Path(path_type=Path), default=Path("outputs/centipede"),
-              show_default=True, help="Output path without extension.")
+@click.option("--out", type=click.Path(), default="outputs/centipede", show_default=True,
+              help="Output path without extension; a folder (or a path ending in /) writes "
+                   "<folder>/centipede.*.")
 @click.option("--format", "fmt", type=click.Choice(["glb", "usd", "both"]), default="both",
               show_default=True, help="Which animation files to write (the JSON report is always written).")
 @click.option("--usda", is_flag=True, help="Write the USD as ASCII (.usda) instead of crate (.usd).")
@@ -83,6 +84,9 @@ def cli(verbose: int):
 @click.option("--cache-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Navigation cache folder [default: ~/.cache/baker/navmesh].")
 @click.option("--no-cache", is_flag=True, help="Always rebuild the navigation surface.")
+@click.option("--cache-max", type=float, default=None, metavar="MB",
+              help="Bound of the navigation cache folder in MB; least recently used entries "
+                   "are evicted [default: 1024].")
 @click.option("--nav-build", type=click.Choice(["auto", "full", "lazy"]), default="auto",
               show_default=True,
               help="Build the navigation surface for the whole level, or lazily in windows "
@@ -98,11 +102,13 @@ def cli(verbose: int):
               help="Also write one animation per behaviour segment (glTF animations, USD SkelAnimations).")
 @rig_options
 def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_navmesh,
-         cache_dir, no_cache, nav_build, behaviour, prey, cobra, sun_path, clips, **rig_overrides):
+         cache_dir, no_cache, cache_max, nav_build, behaviour, prey, cobra, sun_path, clips, **rig_overrides):
     """Bake a centipede on ENVIRONMENT (glTF/GLB, OBJ, PLY, STL or USD).
 
     With no ENVIRONMENT, the bundled rainforest floor is used."""
+    from baker.atomic import check_outputs, resolve_out
     from baker.context import Context, TerminalProgress
+    from baker.navmesh.cache import NavCache
     from baker.pipeline import bake as run_bake
 
     t0 = time.perf_counter()
@@ -111,11 +117,12 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
     cfg = BakeConfig(
         environment=environment or DEFAULT_ENVIRONMENT,
         seconds=seconds, fps=fps, seed=seed,
-        rig=override_rig(load_rig_config(rig_path), **rig_overrides), out=out,
+        rig=override_rig(load_rig_config(rig_path), **rig_overrides), out=resolve_out(out),
         formats=formats, sun_direction=parse_vec3(sun, "--sun"), debug_navmesh=debug_navmesh,
-        nav_cache_dir=None if no_cache else (cache_dir or default_cache_dir()),
+        nav_cache_dir=None if no_cache else NavCache.of(cache_dir or default_cache_dir(), cache_max),
         nav_build=nav_build, behaviour=behaviour, prey=prey, cobra=cobra, sun_path=sun_path, clips=clips,
     )
+    check_outputs(cfg.output_paths())
     progress = TerminalProgress()
     try:
         result = run_bake(cfg, ctx=Context(progress=progress))
@@ -141,15 +148,21 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
 @click.option("--cache-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Navigation cache folder [default: ~/.cache/baker/navmesh].")
 @click.option("--no-cache", is_flag=True, help="Build without reading or writing the cache.")
+@click.option("--cache-max", type=float, default=None, metavar="MB",
+              help="Bound of the navigation cache folder in MB; least recently used entries "
+                   "are evicted [default: 1024].")
 @rig_options
-def navmesh(environment, rig_path, png, path_from, path_to, cache_dir, no_cache, **rig_overrides):
+def navmesh(environment, rig_path, png, path_from, path_to, cache_dir, no_cache, cache_max,
+            **rig_overrides):
     """Build (or load from the cache) the navigation surface of ENVIRONMENT and report on it.
 
     The surface is cached where `baker bake` looks for it, so a later bake skips the build."""
+    from baker.navmesh.cache import NavCache
     from baker.navmesh.report import format_report, run
 
     rig = override_rig(load_rig_config(rig_path), **rig_overrides)
-    report = run(environment, rig.navigation, None if no_cache else (cache_dir or default_cache_dir()),
+    report = run(environment, rig.navigation,
+                 None if no_cache else NavCache.of(cache_dir or default_cache_dir(), cache_max),
                  png=png, path_from=parse_vec3(path_from, "--from"),
                  path_to=parse_vec3(path_to, "--to"))
     click.echo(format_report(report))
