@@ -41,15 +41,23 @@ def _why(e: OSError) -> str:
     return e.strerror or str(e)
 
 
+def _isdir(p: Path) -> bool:
+    """Path.is_dir() that says False instead of raising (a name too long, a loop)."""
+    try:
+        return Path(p).is_dir()
+    except (OSError, ValueError):
+        return False
+
+
 def _folder(path: Path) -> Path:
     return path.parent if str(path.parent) else Path(".")
 
 
 def _check_folder(path: Path) -> Path:
     folder = _folder(path)
-    if not folder.is_dir():
+    if not _isdir(folder):
         raise ExportError(f"cannot write {path}: folder {folder} does not exist")
-    if path.is_dir():
+    if _isdir(path):
         raise ExportError(f"cannot write {path}: it is a folder")
     return folder
 
@@ -128,7 +136,7 @@ def resolve_out(out) -> Path:
         raise ExportError("--out is empty: give an output path without extension, "
                           "e.g. outputs/centipede")
     text = str(text)
-    if text.endswith(os.sep) or (os.altsep and text.endswith(os.altsep)) or Path(text).is_dir():
+    if text.endswith(os.sep) or (os.altsep and text.endswith(os.altsep)) or _isdir(Path(text)):
         return Path(text) / DEFAULT_NAME
     return Path(text)
 
@@ -168,7 +176,7 @@ def check_outputs(paths: Mapping[str, Path] | Path) -> None:
                 raise ExportError(f"output name is too long for its temporary file ({p.name[:40]}...)")
         check_writable(folder)
         for p in paths.values():
-            if _folder(p) == folder and p.is_dir():
+            if _folder(p) == folder and _isdir(p):
                 raise ExportError(f"cannot write {p}: it is a folder")
 
 
@@ -272,7 +280,7 @@ class OutputSet:
                 # Checked again under the lock: a target that became a folder (or a vanished
                 # folder) fails the whole set before anything is renamed.
                 for key, path in self.paths.items():
-                    if path.is_dir():
+                    if _isdir(path):
                         raise ExportError(f"cannot write {path}: it is a folder")
                     if not self._tmp[key].is_file():
                         raise ExportError(f"cannot write {path}: its temporary file vanished")

@@ -14,8 +14,9 @@ This module only imports the standard library: it must be cheap to import before
 
 Test hook (harmless when unset; read at every checkpoint):
     BAKER_TEST_PAUSE_AT=<phase>   at checkpoint <phase> print "baker-test: at <phase>" on
-                                  stdout and sleep (up to 60 s) so a test can send a signal
-                                  while the bake is in that phase.
+                                  stdout and sleep (up to 60 s, or until SIGUSR1) so a test can
+                                  send a signal, or change the files, while the bake is in that
+                                  phase.
     BAKER_TEST_MARKS=1            print "baker-test: at <phase>" at every checkpoint, no sleep.
 Phases: "start" (handlers installed, nothing heavy imported), every pipeline stage as it starts
 ("load", "navmesh", "rig", "simulate", "pose", "metrics", "export"), "write:<format>" before each
@@ -112,6 +113,15 @@ def checkpoint(name: str) -> None:
         sys.stdout.write(f"baker-test: at {name}\n")
         sys.stdout.flush()
         if pause == name:
-            end = time.monotonic() + 60.0
-            while time.monotonic() < end:
-                time.sleep(0.05)
+            resume = []
+            try:
+                old = signal.signal(signal.SIGUSR1, lambda *a: resume.append(1))
+            except ValueError:              # not the main thread: sleep the whole time
+                old = None
+            try:
+                end = time.monotonic() + 60.0
+                while time.monotonic() < end and not resume:
+                    time.sleep(0.02)
+            finally:
+                if old is not None:
+                    signal.signal(signal.SIGUSR1, old)

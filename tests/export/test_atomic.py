@@ -103,13 +103,15 @@ def test_successful_atomic_output(tmp_path):
 
 
 def test_permission_denied_is_export_error(tmp_path, monkeypatch):
-    import tempfile
+    real_open = os.open
 
-    def denied(*a, **k):
-        raise PermissionError(13, "Permission denied")
+    def denied(path, flags, *a, **k):       # creating a file is refused, as in a read-only folder
+        if flags & os.O_CREAT:
+            raise PermissionError(13, "Permission denied")
+        return real_open(path, flags, *a, **k)
 
     (tmp_path / "out.glb").write_bytes(b"old")
-    monkeypatch.setattr(tempfile, "mkstemp", denied)
+    monkeypatch.setattr(os, "open", denied)
     with pytest.raises(ExportError) as e:
         atomic_write_bytes(tmp_path / "out.glb", b"new")
     assert "Permission denied" in str(e.value) and "\n" not in str(e.value)
