@@ -109,19 +109,21 @@ def checkpoint(name: str) -> None:
         raise Interrupted(_state["raised"], _state["phase"])
     _state["phase"] = name
     pause = os.environ.get("BAKER_TEST_PAUSE_AT")
-    if pause == name or os.environ.get("BAKER_TEST_MARKS"):
+    if pause != name and not os.environ.get("BAKER_TEST_MARKS"):
+        return
+    resume, old = [], None
+    if pause == name:
+        try:    # installed before the marker is printed: a test may resume us at once
+            old = signal.signal(signal.SIGUSR1, lambda *a: resume.append(1))
+        except ValueError:              # not the main thread: sleep the whole time
+            pass
+    try:
         sys.stdout.write(f"baker-test: at {name}\n")
         sys.stdout.flush()
         if pause == name:
-            resume = []
-            try:
-                old = signal.signal(signal.SIGUSR1, lambda *a: resume.append(1))
-            except ValueError:              # not the main thread: sleep the whole time
-                old = None
-            try:
-                end = time.monotonic() + 60.0
-                while time.monotonic() < end and not resume:
-                    time.sleep(0.02)
-            finally:
-                if old is not None:
-                    signal.signal(signal.SIGUSR1, old)
+            end = time.monotonic() + 60.0
+            while time.monotonic() < end and not resume:
+                time.sleep(0.02)
+    finally:
+        if old is not None:
+            signal.signal(signal.SIGUSR1, old)
