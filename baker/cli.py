@@ -102,7 +102,8 @@ def cli(verbose: int):
               help="Also write one animation per behaviour segment (glTF animations, USD SkelAnimations).")
 @rig_options
 def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_navmesh,
-         cache_dir, no_cache, cache_max, nav_build, behaviour, prey, cobra, sun_path, clips, **rig_overrides):
+         cache_dir, no_cache, cache_max, nav_build, behaviour, prey, cobra, sun_path, clips,
+         **rig_overrides):
     """Bake a centipede on ENVIRONMENT (glTF/GLB, OBJ, PLY, STL or USD).
 
     With no ENVIRONMENT, the bundled rainforest floor is used."""
