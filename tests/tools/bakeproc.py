@@ -1,6 +1,10 @@
 """Run `python -m baker` as a real subprocess for the output and signal tests: wait for the
 test hook's markers (baker/signals.py: BAKER_TEST_PAUSE_AT, BAKER_TEST_MARKS), send signals,
-and collect the exit code, stderr and the child's peak memory (os.wait4)."""
+and collect the exit code, stderr and the child's peak memory.
+
+Peak memory is the child's VmHWM (/proc/<pid>/status), sampled until it exits: the rusage of
+a child started from pytest is no use, since its ru_maxrss keeps the high-water mark of the
+(large) pytest process it was forked from."""
 
 from __future__ import annotations
 
@@ -9,6 +13,7 @@ import os
 import selectors
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,6 +52,20 @@ class Bake:
         self.out_lines: list[str] = []
         self._sel = selectors.DefaultSelector()
         self._sel.register(self.proc.stdout, selectors.EVENT_READ)
+        self.peak_kb = 0
+        self._watch = threading.Thread(target=self._sample_peak, daemon=True)
+        self._watch.start()
+
+    def _sample_peak(self):
+        status = Path(f"/proc/{self.proc.pid}/status")
+        while self.proc.returncode is None:
+            try:
+                for line in status.read_text().splitlines():
+                    if line.startswith("VmHWM:"):
+                        self.peak_kb = max(self.peak_kb, int(line.split()[1]))
+            except (OSError, ValueError, IndexError):
+                pass
+            time.sleep(0.02)
 
     def wait_marker(self, phase: str) -> bool:
         """Read stdout until `baker-test: at <phase>`; False when the process ended first."""
@@ -71,12 +90,12 @@ class Bake:
     def wait(self) -> Done:
         out = self.proc.stdout.read().decode(errors="replace")
         err = self.proc.stderr.read().decode(errors="replace")
-        _, status, usage = os.wait4(self.proc.pid, 0)
-        self.proc.returncode = os.waitstatus_to_exitcode(status)
+        self.proc.wait()
+        self._watch.join()
         self.proc.stdout.close()
         self.proc.stderr.close()
         return Done(self.proc.returncode, "".join(self.out_lines) + out, err,
-                    usage.ru_maxrss / 1024.0)
+                    self.peak_kb / 1024.0)
 
 
 def run(args, **kw) -> Done:
