@@ -149,15 +149,3 @@ def test_concurrent_bakes_into_one_out_leave_files_of_one_run(out_dir, nav_cache
     seeds = seeds_of(out_dir / "centipede")
     assert len(set(seeds.values())) == 1 and seeds["json"] in (11, 12), seeds
     assert sorted(p.name for p in out_dir.iterdir()) == FILES
-
-
-@pytest.mark.slow
-def test_concurrent_bakes_unsynchronised(out_dir, nav_cache_dir):
-    """The same without the hook: both run freely; the survivor's files agree."""
-    bakes = [Bake(bake_args(out_dir / "centipede", nav_cache_dir, s)) for s in (21, 22)]
-    for b in bakes:
-        d = b.wait()
-        assert d.code == 0, d.stderr
-    seeds = seeds_of(out_dir / "centipede")
-    assert len(set(seeds.values())) == 1 and seeds["json"] in (21, 22), seeds
-    assert sorted(p.name for p in out_dir.iterdir()) == FILES

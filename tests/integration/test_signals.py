@@ -25,11 +25,8 @@ CODES = {signal.SIGINT: 130, signal.SIGTERM: 143}
 POINTS = [
     ("start", "pause", "start", (), 0.0),
     ("imports", "mark", "start", (), 0.0),               # numpy, scipy, trimesh, pxr loading
-    ("imports-later", "mark", "start", (), 0.3),
-    ("load", "pause", "load", (), 0.0),
     ("navmesh-build", "mark", "navmesh", ("--no-cache",), 0.3),   # the build takes seconds
     ("simulate", "mark", "simulate", ("--seconds", "4"), 0.0),
-    ("write-glb", "pause", "write:glb", (), 0.0),
     ("write-usd", "pause", "write:usd", (), 0.0),        # the GLB's temporary exists
     ("commit", "pause", "commit", (), 0.0),              # every temporary exists
 ]
