@@ -79,23 +79,37 @@ def main():
     s = build(env, agent)
     print(f"{args.env.name}: {s.n_samples:,} samples, grid {s.shape[0]} x {s.shape[1]}, "
           f"built in {time.perf_counter() - t:.2f} s; {args.runs} runs, medians")
+    variants = [("raw (before)", save_raw, load_raw)]
+    for label, raw in (("compact", ()), ("links raw", ("link_offsets",)),
+                       ("links+normals raw", ("link_offsets", "normals"))):
+        tag = " (now)" if frozenset(raw) == cache.RAW_MEMBERS else ""
+        variants.append((label + tag, lambda surf, p, raw=raw: _save(surf, p, raw),
+                         lambda p: cache.load(p, strict=True)))
     with tempfile.TemporaryDirectory() as tmp:
-        old, new = Path(tmp) / "raw.npz", Path(tmp) / "compact.npz"
-        rows = []
-        for name, path, save, load in (("raw (before)", old, save_raw, load_raw),
-                                       ("compact (now)", new, cache.save,
-                                        lambda p: cache.load(p, strict=True))):
-            t_save = timed(lambda: save(s, path), max(1, args.runs // 3))
+        paths = [Path(tmp) / f"v{i}.npz" for i in range(len(variants))]
+        saves = []
+        for (name, save, load), path in zip(variants, paths):
+            saves.append(timed(lambda: save(s, path), max(1, args.runs // 3)))
             load(path)
-            t_warm = timed(lambda: load(path), args.runs)
-            cold = drop_page_cache(path)
-            t_cold = timed(lambda: load(path), max(1, args.runs // 3),
-                           before=lambda: drop_page_cache(path)) if cold else float("nan")
-            rows.append((name, path.stat().st_size / 1e6, t_save, t_warm, t_cold))
-    print(f"  {'entry':<14} {'size':>9} {'save':>8} {'load (page cache)':>18} {'load (disk)':>12}")
-    for name, mb, ts, tw, tc in rows:
-        print(f"  {name:<14} {mb:7.1f} MB {ts:6.2f} s {tw:16.3f} s {tc:10.3f} s")
-    print(f"  size ratio {rows[0][1] / rows[1][1]:.1f}x smaller")
+        # loads round-robin, so every variant sees the same machine load
+        warm = [[] for _ in variants]
+        disk = [[] for _ in variants]
+        for _ in range(args.runs):
+            for i, ((name, save, load), path) in enumerate(zip(variants, paths)):
+                warm[i].append(timed(lambda: load(path), 1))
+                if drop_page_cache(path):
+                    disk[i].append(timed(lambda: load(path), 1))
+        print(f"  {'entry':<24} {'size':>9} {'save':>8} {'load (page cache)':>18} {'load (dropped)':>15}")
+        med = statistics.median
+        for i, (name, _, _) in enumerate(variants):
+            print(f"  {name:<24} {paths[i].stat().st_size / 1e6:7.1f} MB {saves[i]:6.2f} s "
+                  f"{med(warm[i]):16.3f} s {med(disk[i]) if disk[i] else float('nan'):13.3f} s")
+
+
+def _save(surface, path, raw):
+    members = cache.encode(surface, raw=raw)
+    with open(path, "wb") as fh:
+        np.savez(fh, **members)
 
 
 if __name__ == "__main__":

@@ -170,6 +170,9 @@ def _links(off: np.ndarray, first: int = 0) -> np.ndarray:
     return links
 
 
+#: Packed arrays stored without deflating (chosen by benchmarks/bench_nav_cache.py: the
+#: trade between entry size and load time).
+RAW_MEMBERS = frozenset()
 #: Raw bytes per compressed chunk; chunks are inflated in parallel when an entry is loaded.
 CHUNK = 4 << 20
 
@@ -184,10 +187,12 @@ def _final_dtypes(a: dict) -> dict[str, str]:
     return out
 
 
-def encode(surface: NavSurface) -> dict[str, np.ndarray]:
+def encode(surface: NavSurface, raw=None) -> dict[str, np.ndarray]:
     """The entry's members: {name: array}; see the module docstring. Packed arrays are cut
     into chunks of whole rows (about CHUNK raw bytes each), each deflated on its own, so a
-    load inflates them in parallel straight into the surface's arrays."""
+    load inflates them in parallel straight into the surface's arrays. Those named in `raw`
+    (default RAW_MEMBERS) are stored as they are, in the same chunks."""
+    raw = RAW_MEMBERS if raw is None else frozenset(raw)
     a = surface.arrays()
     nx, nz = (int(v) for v in surface.shape)
     counts = np.diff(np.asarray(a["col_start"], dtype=np.int64))
@@ -220,14 +225,18 @@ def encode(surface: NavSurface) -> dict[str, np.ndarray]:
         starts = list(range(0, max(len(v), 1), step))
         chunks[k] = [[r0, min(r0 + step, len(v))] for r0 in starts]
         for i, (r0, r1) in enumerate(chunks[k]):
-            out[f"z_{k}.{i}"] = np.frombuffer(zlib.compress(memoryview(v[r0:r1]).cast("B"), 1),
-                                              dtype=np.uint8)
+            if k in raw:
+                out[f"r_{k}.{i}"] = v[r0:r1]
+            else:
+                out[f"z_{k}.{i}"] = np.frombuffer(
+                    zlib.compress(memoryview(v[r0:r1]).cast("B"), 1), dtype=np.uint8)
     meta = {
         "layout": LAYOUT, "format_version": FORMAT_VERSION, "derived": derived,
         "samples": int(len(pos)),
         "scalars": {k: (list(a[k]) if isinstance(a[k], tuple) else a[k]) for k in _SCALARS},
         "dtypes": _final_dtypes(a),
-        "packed": {k: [str(v.dtype), list(v.shape), chunks[k]] for k, v in packed.items()},
+        "packed": {k: [str(v.dtype), list(v.shape), chunks[k], "raw" if k in raw else "zlib"]
+                   for k, v in packed.items()},
     }
     meta["scalars"] = json.loads(json.dumps(meta["scalars"], default=float))
     out["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
@@ -249,19 +258,25 @@ def decode(members) -> NavSurface:
             "positions": (n, 3)}
     arrays: dict[str, np.ndarray] = {}
     tasks = []
-    for name, (stored, shape, chunks) in meta["packed"].items():
+    for name, (stored, shape, chunks, codec) in meta["packed"].items():
         shape = tuple(int(v) for v in shape)
         if name in want and shape != want[name]:
             raise ValueError(f"{name}: wrong shape {shape}")
         arrays[name] = np.empty(shape, dtype=np.dtype(dt[name]))
         for i, (r0, r1) in enumerate(chunks):
-            tasks.append((name, np.dtype(stored), int(r0), int(r1), members[f"z_{name}.{i}"]))
+            key = f"{'r' if codec == 'raw' else 'z'}_{name}.{i}"
+            tasks.append((name, np.dtype(stored), int(r0), int(r1), members[key], codec == "raw"))
     covered = {k: 0 for k in arrays}
 
     def inflate(task):
-        name, stored, r0, r1, blob = task
+        name, stored, r0, r1, blob, plain = task
         out = arrays[name]
-        part = np.frombuffer(zlib.decompress(blob), dtype=stored)
+        if plain:
+            if blob.dtype != stored:
+                raise ValueError(f"{name}: chunk of the wrong type")
+            part = blob.reshape(-1)
+        else:
+            part = np.frombuffer(zlib.decompress(blob), dtype=stored)
         if part.size != (r1 - r0) * int(np.prod(out.shape[1:])):
             raise ValueError(f"{name}: chunk of the wrong length")
         part = part.reshape((r1 - r0,) + out.shape[1:])
@@ -271,7 +286,7 @@ def decode(members) -> NavSurface:
         return name, r1 - r0
 
     # zlib and numpy release the GIL: inflate the chunks on two threads, biggest first
-    tasks.sort(key=lambda t: -len(t[4]))
+    tasks.sort(key=lambda t: -t[4].nbytes)
     with ThreadPoolExecutor(max_workers=2) as pool:
         for name, rows in pool.map(inflate, tasks):
             covered[name] += rows
