@@ -9,8 +9,8 @@ An entry (`navsurface-<key>.npz`) holds only what the queries cannot rebuild exa
   zlib squeezes to almost nothing (a few hundred kB for 2.2 M samples);
 - the other arrays are zlib-compressed (level 1) in their own, narrowest exact dtype, except
   the heights, which do not compress and are stored raw.
-The default scene's entry goes from 191 MB (every array raw) to about 13 MB; the load takes a
-few hundredths of a second more in exchange (benchmarks/bench_nav_cache.py).
+The default scene's entry goes from 191 MB (every array raw) to 13.3 MB; the load takes about
+0.05-0.1 s more in exchange (inflating, rebuilding; benchmarks/bench_nav_cache.py).
 
 The cache heals itself:
 - an entry that cannot be read (truncated, empty, corrupt: zip and zlib checksums, lengths) is
