@@ -6,6 +6,9 @@ KeyboardInterrupt, so neither click nor an `except Exception` swallows it; it un
 whose `finally` blocks and the output set (baker/atomic.py) delete every temporary file, and the
 entry point prints one line and exits with 128 + the signal number. Only the first signal
 raises; later ones (a second Ctrl-C while the bake cleans up) are ignored, so cleanup finishes.
+A signal that arrives while a module is being imported is not raised there (a half-imported
+module, and libraries that catch BaseException around optional imports, would turn it into a
+traceback): the handler sends it again RETRY_S later, until no import is in progress.
 
 `deferred()` holds signals back around a critical section (the renames of a commit): a signal
 that arrives inside it is raised when it ends, so the outputs are either all old or all new.
@@ -56,11 +59,36 @@ class Interrupted(BaseException):
 _state = {"phase": "start", "defer": 0, "pending": 0, "raised": 0}
 
 
+#: How long to wait before looking again when a signal arrives in the middle of an import.
+RETRY_S = 0.05
+
+
+def _importing() -> bool:
+    """True while a module is being imported (CPython keeps a lock per module being imported;
+    False where that detail is missing)."""
+    boot = sys.modules.get("_frozen_importlib")
+    return bool(getattr(boot, "_module_locks", None))
+
+
+def _again(signum: int) -> None:
+    """Deliver `signum` to this process again in RETRY_S (from a timer thread)."""
+    import threading
+
+    t = threading.Timer(RETRY_S, os.kill, (os.getpid(), signum))
+    t.daemon = True
+    t.start()
+
+
 def _handler(signum, frame):
     if _state["raised"]:
         return                      # already stopping: let the cleanup finish
     if _state["defer"]:
         _state["pending"] = _state["pending"] or signum
+        return
+    if _importing():
+        # Raising inside an import leaves half-imported modules, and some libraries catch
+        # BaseException around their optional imports: come back once the import is done.
+        _again(signum)
         return
     _state["raised"] = signum
     raise Interrupted(signum, _state["phase"])

@@ -71,6 +71,27 @@ def test_signal_keeps_previous_outputs(point, sig, good, tmp_path, nav_cache_dir
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("delay", [0.0, 0.25])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_navmesh_command_stops_cleanly_during_imports(sig, delay, tmp_path):
+    """`baker navmesh` imports numpy, scipy and trimesh lazily: a signal among them (some
+    libraries catch BaseException around optional imports) still gives one line and 130/143."""
+    from pathlib import Path
+
+    level = Path(__file__).resolve().parents[2] / "environments" / "multistorey.glb"
+    b = Bake(["navmesh", level, "--scale", "8", "--cache-dir", tmp_path / "c"], marks=True)
+    assert b.wait_marker("start")
+    if delay:
+        import time
+        time.sleep(delay)
+    b.signal(sig)
+    done = b.wait()
+    assert done.code == CODES[sig], (done.code, done.stderr)
+    assert len(done.err_lines) == 1 and LINE.match(done.err_lines[0]), done.stderr
+    assert not list(tmp_path.glob("c/.*"))                # no temporary cache entry
+
+
+@pytest.mark.slow
 def test_second_signal_during_cleanup_changes_nothing(good, tmp_path, nav_cache_dir):
     """Ctrl-C pressed twice: the first stops the bake, the second is ignored while the
     temporaries are removed."""
