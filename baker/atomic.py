@@ -284,12 +284,58 @@ class OutputSet:
                         raise ExportError(f"cannot write {path}: it is a folder")
                     if not self._tmp[key].is_file():
                         raise ExportError(f"cannot write {path}: its temporary file vanished")
-                for key, path in self.paths.items():
-                    _replace(self._tmp.pop(key), path)
+                self._rename_all()
                 self.committed = True
                 for folder in folders:
                     _fsync_dir(folder)
         return dict(self.paths)
+
+    def _rename_all(self) -> None:
+        """Rename the temporaries over the targets. The previous targets are kept as hard-linked
+        backups until every rename is done, so a rename that fails half way (an I/O error) puts
+        the old files back and removes the new ones: still all or nothing."""
+        backups: dict[str, Path | None] = {}
+        done: list[str] = []
+        try:
+            for key, path in self.paths.items():
+                backups[key] = _backup(path)
+            for key, path in self.paths.items():
+                os.replace(self._tmp[key], path)
+                done.append(key)
+                del self._tmp[key]
+        except OSError as e:
+            for key in reversed(done):
+                path, old = self.paths[key], backups.get(key)
+                try:
+                    if old is not None:
+                        os.replace(old, path)
+                        backups[key] = None
+                    else:
+                        os.unlink(path)
+                except OSError:
+                    pass
+            raise ExportError(f"cannot write the outputs: {_why(e)}") from None
+        finally:
+            for old in backups.values():
+                if old is not None:
+                    _unlink(old)
+
+
+def _backup(path: Path) -> Path | None:
+    """A hidden hard link to `path` beside it (None when there is no file to keep, or the file
+    system has no hard links: then a failed rename cannot be undone)."""
+    if not path.is_file():
+        return None
+    for _ in range(100):
+        link = path.parent / f".{path.stem[:_TMP_STEM]}.bak{secrets.token_hex(4)}{path.suffix}"
+        try:
+            os.link(path, link)
+            return link
+        except FileExistsError:
+            continue
+        except OSError:
+            return None
+    return None
 
 
 def _fsync_dir(folder: Path) -> None:

@@ -239,3 +239,32 @@ def test_check_outputs_name_length(tmp_path, n, ok):
         with pytest.raises(ExportError) as e:
             check_outputs(paths)
         assert "too long" in str(e.value) and "\n" not in str(e.value)
+
+
+@pytest.mark.parametrize("fail_at", [0, 1, 2])
+def test_a_rename_failing_half_way_puts_the_old_files_back(tmp_path, monkeypatch, fail_at):
+    """An I/O error on the k-th rename of a commit: the renamed ones are rolled back from their
+    hard-linked backups, so the folder holds exactly the old files (a new file whose target did
+    not exist before is removed)."""
+    paths = _set(tmp_path)
+    for k in ("glb", "json"):
+        paths[k].write_bytes(b"old " + k.encode())          # no old usd: it is new
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    real_replace = os.replace
+    calls = []
+
+    def flaky(src, dst):
+        if not Path(src).name.startswith(".c.bak"):
+            calls.append(dst)
+            if len(calls) == fail_at + 1:
+                raise OSError(5, "Input/output error")
+        return real_replace(src, dst)
+
+    with pytest.raises(ExportError) as e:
+        with OutputSet(paths) as out:
+            for k in paths:
+                out.write_bytes(k, b"new")
+            monkeypatch.setattr(os, "replace", flaky)
+            out.commit()
+    assert "Input/output error" in str(e.value)
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
