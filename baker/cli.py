@@ -83,8 +83,9 @@ def cli(verbose: int):
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
               default=DEFAULT_RIG, show_default="rigs/scolopendra.toml", help="Rig definition (TOML).")
-@click.option("--out", type=click.Path(path_type=Path), default=Path("outputs/centipede"),
-              show_default=True, help="Output path without extension.")
+@click.option("--out", type=click.Path(), default="outputs/centipede", show_default=True,
+              help="Output path without extension; a folder (or a path ending in /) writes "
+                   "<folder>/centipede.*.")
 @click.option("--format", "fmt", type=click.Choice(["glb", "usd", "both"]), default="both",
               show_default=True, help="Which animation files to write (the JSON report is always written).")
 @click.option("--usda", is_flag=True, help="Write the USD as ASCII (.usda) instead of crate (.usd).")
@@ -94,6 +95,9 @@ def cli(verbose: int):
 @click.option("--cache-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Navigation cache folder [default: ~/.cache/baker/navmesh].")
 @click.option("--no-cache", is_flag=True, help="Always rebuild the navigation surface.")
+@click.option("--cache-max", type=float, default=None, metavar="MB",
+              help="Bound of the navigation cache folder in MB; least recently used entries "
+                   "are evicted [default: 1024].")
 @click.option("--nav-build", type=click.Choice(["auto", "full", "lazy"]), default="auto",
               show_default=True,
               help="Build the navigation surface for the whole level, or lazily in windows "
@@ -110,19 +114,22 @@ def cli(verbose: int):
 @max_memory_option
 @rig_options
 def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_navmesh,
-         cache_dir, no_cache, nav_build, behaviour, prey, cobra, sun_path, clips, max_memory,
+         cache_dir, no_cache, cache_max, nav_build, behaviour, prey, cobra, sun_path, clips,
+         max_memory,
          **rig_overrides):
     """Bake a centipede on ENVIRONMENT (glTF/GLB, OBJ, PLY, STL or USD).
 
     With no ENVIRONMENT, the bundled rainforest floor is used."""
+    from baker.atomic import check_outputs, resolve_out
     from baker.context import Context, TerminalProgress
+    from baker.navmesh.cache import NavCache
     from baker.pipeline import bake as run_bake
 
     t0 = time.perf_counter()
     usd_fmt = "usda" if usda else "usd"
     formats = {"glb": ("glb",), "usd": (usd_fmt,), "both": ("glb", usd_fmt)}[fmt]
     # every option is checked before the rig and the level are read
-    validate_memory(max_memory)
+    validate_memory(max_memory, cache_max)
     validate_bake(BakeConfig(seconds=seconds, fps=fps, seed=seed, formats=formats,
                              sun_direction=parse_vec3(sun, "--sun"), behaviour=behaviour,
                              prey=prey, cobra=cobra, sun_path=sun_path, nav_build=nav_build))
@@ -130,12 +137,13 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
     cfg = BakeConfig(
         environment=environment or DEFAULT_ENVIRONMENT,
         seconds=seconds, fps=fps, seed=seed,
-        rig=override_rig(load_rig_config(rig_path), **rig_overrides), out=out,
+        rig=override_rig(load_rig_config(rig_path), **rig_overrides), out=resolve_out(out),
         formats=formats, sun_direction=parse_vec3(sun, "--sun"), debug_navmesh=debug_navmesh,
-        nav_cache_dir=None if no_cache else (cache_dir or default_cache_dir()),
+        nav_cache_dir=None if no_cache else NavCache.of(cache_dir or default_cache_dir(), cache_max),
         nav_build=nav_build, behaviour=behaviour, prey=prey, cobra=cobra, sun_path=sun_path, clips=clips,
         max_memory_mb=max_memory,
     )
+    check_outputs(cfg.output_paths())
     progress = TerminalProgress()
     try:
         result = run_bake(cfg, ctx=Context(progress=progress))
@@ -161,23 +169,29 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
 @click.option("--cache-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Navigation cache folder [default: ~/.cache/baker/navmesh].")
 @click.option("--no-cache", is_flag=True, help="Build without reading or writing the cache.")
+@click.option("--cache-max", type=float, default=None, metavar="MB",
+              help="Bound of the navigation cache folder in MB; least recently used entries "
+                   "are evicted [default: 1024].")
 @max_memory_option
 @rig_options
-def navmesh(environment, rig_path, png, path_from, path_to, cache_dir, no_cache, max_memory,
+def navmesh(environment, rig_path, png, path_from, path_to, cache_dir, no_cache, cache_max,
+            max_memory,
             **rig_overrides):
     """Build (or load from the cache) the navigation surface of ENVIRONMENT and report on it.
 
     The surface is cached where `baker bake` looks for it, so a later bake skips the build."""
+    from baker.navmesh.cache import NavCache
     from baker.navmesh.report import format_report, run
     from baker.schema import check_point
 
-    validate_memory(max_memory)
+    validate_memory(max_memory, cache_max)
     p_from, p_to = parse_vec3(path_from, "--from"), parse_vec3(path_to, "--to")
     check_point(p_from, "--from")
     check_point(p_to, "--to")
     check_rig_overrides(rig_overrides)
     rig = override_rig(load_rig_config(rig_path), **rig_overrides)
-    report = run(environment, rig.navigation, None if no_cache else (cache_dir or default_cache_dir()),
+    report = run(environment, rig.navigation,
+                 None if no_cache else NavCache.of(cache_dir or default_cache_dir(), cache_max),
                  png=png, path_from=p_from, path_to=p_to, max_memory_mb=max_memory)
     click.echo(format_report(report))
 
@@ -187,11 +201,11 @@ def check_rig_overrides(rig_overrides: dict) -> None:
     override_rig(RigConfig(), **rig_overrides)
 
 
-def validate_memory(max_memory) -> None:
-    """--max-memory (schema.Options), checked before anything is read."""
+def validate_memory(max_memory, cache_max=None) -> None:
+    """--max-memory and --cache-max (schema.Options), checked before anything is read."""
     from baker.schema import validate_options
 
-    validate_options(max_memory=max_memory)
+    validate_options(max_memory=max_memory, cache_max=cache_max)
 
 
 class _HeldLog(logging.Handler):
@@ -248,6 +262,9 @@ def run_command(argv=None) -> int:
                 error = format_error(ConfigError(e.format_message(), where="command line"))
             except BakerError as e:
                 error = format_error(e)
+    except BaseException:       # a signal (entry.py prints its one line): nothing held is shown
+        error = ""
+        raise
     finally:
         root.removeHandler(_HELD)
         root.setLevel(old_level)

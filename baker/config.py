@@ -195,7 +195,7 @@ class BakeConfig:
                                  # starts (snapped); when given, they replace the `prey` count
                                  # (world positions are moved into the environment's local
                                  # frame by pipeline.in_local_frame)
-    nav_cache_dir: Path | None = None  # None: no on-disk navigation cache
+    nav_cache_dir: Path | None = None  # None: no cache; a folder or a navmesh.cache.NavCache (folder + bound)
     nav_build: str = "auto"      # auto | full | lazy: the whole level at once, or windows
                                  # around where the creatures go (auto: lazy on big levels)
     max_memory_mb: float | None = None  # [>0] [MB] largest navigation build allowed;

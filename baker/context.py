@@ -9,6 +9,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Callable
 
+from baker.signals import checkpoint
+
 log = logging.getLogger("baker")
 
 
@@ -27,6 +29,7 @@ class Context:
     @contextmanager
     def stage(self, name: str):
         """Time a named stage; repeated names accumulate."""
+        checkpoint(name)
         log.debug("stage %s: start", name)
         self.report_progress(name, 0.0)
         t = time.perf_counter()

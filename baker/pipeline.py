@@ -100,7 +100,12 @@ def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
     refused before it starts when its estimated memory is over cfg.max_memory_mb
     (navmesh.budget)."""
     from baker.navmesh.budget import memory_limit
+    from baker.signals import deferred
 
+    # Imports are not interrupted half way (some libraries swallow the exception and fail
+    # later): a signal during them is raised once they are done.
+    with deferred():
+        _import_stages()
     with memory_limit(cfg.max_memory_mb):
         return _bake(cfg, rng, ctx)
 
@@ -110,9 +115,9 @@ def _bake(cfg: BakeConfig, rng: np.random.Generator | None, ctx: Context | None)
     from baker.clip import build_clip
     from baker.environment import load_environment
     from baker.export import report as report_mod
-    from baker.atomic import atomic_write_bytes, check_writable
+    from baker.atomic import OutputSet, check_outputs
     from baker.export.gltf import build_glb
-    from baker.export.usd import write_usd
+    from baker.export.usd import build_stage, save_stage
     from baker.navmesh import debug as nav_debug
     from baker.rig import build_rig
     from baker.sim.loop import simulate
@@ -121,7 +126,7 @@ def _bake(cfg: BakeConfig, rng: np.random.Generator | None, ctx: Context | None)
     ctx = ctx or Context()
     rng = rng if rng is not None else make_rng(cfg.seed)
     paths = cfg.output_paths()
-    check_writable(paths["json"].parent)
+    check_outputs(paths)
 
     # Step 1: the environment, in metres, +Y up, with the sun.
     with ctx.stage("load"):
@@ -162,7 +167,9 @@ def _bake(cfg: BakeConfig, rng: np.random.Generator | None, ctx: Context | None)
         motion["behaviour"] = metrics.behaviour_metrics(traj, env.rays, fps=cfg.fps,
                                                         clearance=cfg.rig.body.clearance)
 
-    # Step 7: files. Every file is complete before it replaces an older one.
+    # Step 7: files, all or nothing: each is written to a temporary beside its target and
+    # they are renamed together at the end (atomic.OutputSet); a failure or a signal before
+    # that leaves the previous outputs as they were.
     extras = report_mod.extras(cfg, traj, env.origin)
     debug_meshes = ()
     if cfg.debug_navmesh:
@@ -171,19 +178,27 @@ def _bake(cfg: BakeConfig, rng: np.random.Generator | None, ctx: Context | None)
     props = prey_props(cfg.rig, traj)
     segments = behaviour_clips(clip, traj.events, cfg.fps) if cfg.clips else ()
     scene = dict(extras=extras, debug_meshes=debug_meshes, props=props, extra_clips=segments)
-    written: dict[str, Path] = {}
-    with ctx.stage("export"):
-        if "glb" in paths:
-            atomic_write_bytes(paths["glb"], build_glb(env, rig, clip, **scene))
-            written["glb"] = paths["glb"]
-        for fmt in ("usd", "usda"):
-            if fmt in paths:
-                write_usd(paths[fmt], env, rig, clip, fps=cfg.fps, **scene)
-                written[fmt] = paths[fmt]
-    written["json"] = paths["json"]
-    rep = report_mod.build_report(cfg, env, nav, traj, motion, ctx, written)
-    atomic_write_bytes(paths["json"], report_mod.to_json_bytes(rep))
+    with OutputSet(paths) as out:
+        with ctx.stage("export"):
+            if "glb" in paths:
+                out.write_bytes("glb", build_glb(env, rig, clip, **scene))
+            for fmt in ("usd", "usda"):
+                if fmt in paths:
+                    stage = build_stage(env, rig, clip, fps=cfg.fps, **scene)
+                    save_stage(stage, out.temp(fmt), paths[fmt])
+        written = {k: p for k, p in paths.items() if k != "json"}
+        written["json"] = paths["json"]
+        rep = report_mod.build_report(cfg, env, nav, traj, motion, ctx, written)
+        out.write_bytes("json", report_mod.to_json_bytes(rep))
+        out.commit()
     return BakeResult(outputs=written, report=rep, trajectory=traj, clip=clip, origin=env.origin)
+
+
+def _import_stages() -> None:
+    """Import every stage's modules (and so numpy, scipy, trimesh, embree, pygltflib, pxr)."""
+    import baker.clip, baker.environment, baker.export.gltf, baker.export.report  # noqa: F401
+    import baker.export.usd, baker.metrics, baker.navmesh.cache, baker.navmesh.debug  # noqa: F401
+    import baker.navmesh.lazy, baker.rig, baker.sim.loop  # noqa: F401
 
 
 def prey_props(rig_cfg, traj) -> tuple:

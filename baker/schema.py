@@ -194,6 +194,7 @@ class Options(_Table):
     max_slope: Num | None = key("deg", "steepest walkable slope", gt=0, lt=90)
     cell_size: Num | None = key("m", "navigation grid cell size", gt=0, le=1e3)
     max_memory: Num | None = key("MB", "largest navigation build allowed", gt=0, le=1e9)
+    cache_max: Num | None = key("MB", "bound of the navigation cache folder", ge=0, le=1e9)
     sun: tuple[Num, Num, Num] | None = key(
         "", "direction toward the sun, y > 0, each component within +-1e6")
     coordinate: tuple[Num, Num, Num] | None = key(

@@ -47,7 +47,7 @@ def main():
         cli = []
         for _ in range(args.runs):
             t = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "baker.cli", "bake", "--seconds", str(args.seconds),
+            subprocess.run([sys.executable, "-m", "baker", "bake", "--seconds", str(args.seconds),
                             "--out", str(tmp / "cli"), "--cache-dir", str(tmp / "cache0")],
                            check=True, capture_output=True)
             cli.append(time.perf_counter() - t)

@@ -321,6 +321,12 @@ def write_usd(path: Path, env: Environment, rig: Rig, clip: Clip, *, fps: int, e
     stage = build_stage(env, rig, clip, fps=fps, extras=extras, debug_meshes=debug_meshes,
                         props=props, extra_clips=extra_clips)
     with atomic_output(path) as tmp:
-        args = {"format": "usdc"} if path.suffix == ".usd" else {}
-        if not stage.GetRootLayer().Export(str(tmp), args=args):
-            raise ExportError(f"cannot write {path}: USD export failed")
+        save_stage(stage, tmp, path)
+
+
+def save_stage(stage, tmp: Path, path: Path) -> None:
+    """Export `stage` into the (temporary) file `tmp`, in the format `path`'s suffix asks for:
+    `.usda` text, `.usd`/`.usdc` crate. ExportError when USD fails."""
+    args = {"format": "usdc"} if Path(path).suffix == ".usd" else {}
+    if not stage.GetRootLayer().Export(str(tmp), args=args):
+        raise ExportError(f"cannot write {path}: USD export failed")

@@ -1,0 +1,157 @@
+"""SIGINT and SIGTERM: a clean stop with exit codes 130 and 143.
+
+`install()` (called by the console entry point, baker/entry.py, before any heavy import) makes
+both signals raise `Interrupted` in the main thread. `Interrupted` is a BaseException but not a
+KeyboardInterrupt, so neither click nor an `except Exception` swallows it; it unwinds the bake,
+whose `finally` blocks and the output set (baker/atomic.py) delete every temporary file, and the
+entry point prints one line and exits with 128 + the signal number. Only the first signal
+raises; later ones (a second Ctrl-C while the bake cleans up) are ignored, so cleanup finishes.
+A signal that arrives while a module is being imported is not raised there (a half-imported
+module, and libraries that catch BaseException around optional imports, would turn it into a
+traceback): the handler sends it again RETRY_S later, until no import is in progress.
+
+`deferred()` holds signals back around a critical section (the renames of a commit): a signal
+that arrives inside it is raised when it ends, so the outputs are either all old or all new.
+
+This module only imports the standard library: it must be cheap to import before numpy.
+
+Test hook (harmless when unset; read at every checkpoint):
+    BAKER_TEST_PAUSE_AT=<phase>   at checkpoint <phase> print "baker-test: at <phase>" on
+                                  stdout and sleep (up to 60 s, or until SIGUSR1) so a test can
+                                  send a signal, or change the files, while the bake is in that
+                                  phase.
+    BAKER_TEST_MARKS=1            print "baker-test: at <phase>" at every checkpoint, no sleep.
+Phases: "start" (handlers installed, nothing heavy imported), every pipeline stage as it starts
+("load", "navmesh", "rig", "simulate", "pose", "metrics", "export"), "write:<format>" before each
+file is written to its temporary, and "commit" (every temporary written, nothing renamed yet).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+from contextlib import contextmanager
+
+HANDLED = (signal.SIGINT, signal.SIGTERM)
+
+
+class Interrupted(BaseException):
+    """Raised in the main thread by SIGINT or SIGTERM once `install()` has run."""
+
+    def __init__(self, signum: int, phase: str = ""):
+        self.signum = int(signum)
+        self.phase = phase
+        super().__init__(f"interrupted by {self.name}")
+
+    @property
+    def name(self) -> str:
+        return signal.Signals(self.signum).name
+
+    @property
+    def exit_code(self) -> int:
+        """128 + the signal number: 130 for SIGINT, 143 for SIGTERM (the shell convention)."""
+        return 128 + self.signum
+
+
+#: raised: the signal number once Interrupted was raised (0 before)
+_state = {"phase": "start", "defer": 0, "pending": 0, "raised": 0}
+
+
+#: How long to wait before looking again when a signal arrives in the middle of an import.
+RETRY_S = 0.05
+
+
+def _importing() -> bool:
+    """True while a module is being imported (CPython keeps a lock per module being imported;
+    False where that detail is missing)."""
+    boot = sys.modules.get("_frozen_importlib")
+    return bool(getattr(boot, "_module_locks", None))
+
+
+def _again(signum: int) -> None:
+    """Deliver `signum` to this process again in RETRY_S (from a timer thread)."""
+    import threading
+
+    t = threading.Timer(RETRY_S, os.kill, (os.getpid(), signum))
+    t.daemon = True
+    t.start()
+
+
+def _handler(signum, frame):
+    if _state["raised"]:
+        return                      # already stopping: let the cleanup finish
+    if _state["defer"]:
+        _state["pending"] = _state["pending"] or signum
+        return
+    if _importing():
+        # Raising inside an import leaves half-imported modules, and some libraries catch
+        # BaseException around their optional imports: come back once the import is done.
+        _again(signum)
+        return
+    _state["raised"] = signum
+    raise Interrupted(signum, _state["phase"])
+
+
+def stopping() -> int:
+    """The signal number once one has interrupted the process, else 0."""
+    return _state["raised"]
+
+
+def install() -> None:
+    """Make SIGINT and SIGTERM raise Interrupted (main thread only; a no-op elsewhere)."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+    for s in HANDLED:
+        signal.signal(s, _handler)
+
+
+def phase() -> str:
+    """The phase the last checkpoint named."""
+    return _state["phase"]
+
+
+@contextmanager
+def deferred():
+    """Hold SIGINT/SIGTERM back inside the block; one that arrived is raised at its end."""
+    _state["defer"] += 1
+    try:
+        yield
+    finally:
+        _state["defer"] -= 1
+    if not _state["defer"] and _state["pending"] and not _state["raised"]:
+        signum, _state["pending"] = _state["pending"], 0
+        _state["raised"] = signum
+        raise Interrupted(signum, _state["phase"])
+
+
+def checkpoint(name: str) -> None:
+    """Record the current phase (named in the interruption message) and run the test hook.
+
+    An Interrupted that some library swallowed (a few optional imports catch BaseException,
+    trimesh's among them) is raised again here, so the bake still stops before its commit."""
+    if _state["raised"] and not _state["defer"]:
+        raise Interrupted(_state["raised"], _state["phase"])
+    _state["phase"] = name
+    pause = os.environ.get("BAKER_TEST_PAUSE_AT")
+    if pause != name and not os.environ.get("BAKER_TEST_MARKS"):
+        return
+    resume, old = [], None
+    if pause == name:
+        try:    # installed before the marker is printed: a test may resume us at once
+            old = signal.signal(signal.SIGUSR1, lambda *a: resume.append(1))
+        except ValueError:              # not the main thread: sleep the whole time
+            pass
+    try:
+        sys.stdout.write(f"baker-test: at {name}\n")
+        sys.stdout.flush()
+        if pause == name:
+            end = time.monotonic() + 60.0
+            while time.monotonic() < end and not resume:
+                time.sleep(0.02)
+    finally:
+        if old is not None:
+            signal.signal(signal.SIGUSR1, old)

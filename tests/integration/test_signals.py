@@ -1,0 +1,135 @@
+"""SIGINT and SIGTERM at several points of a real bake: exit 130 / 143, one line on stderr, no
+traceback, no temporary files, the previous outputs byte-identical.
+
+The phases are hit with the test hook in baker/signals.py: BAKER_TEST_PAUSE_AT=<phase> holds
+the bake at that checkpoint (so the signal lands there for sure), BAKER_TEST_MARKS=1 only
+announces each phase (so the signal lands in the real work that follows: the imports, the
+navigation build, the simulation)."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import signal
+
+import pytest
+
+from bakeproc import Bake, snapshot
+
+PEAK_MB = 2048
+LINE = re.compile(r"^Error: interrupted by (SIGINT|SIGTERM) \(during [a-z:]+\)$")
+CODES = {signal.SIGINT: 130, signal.SIGTERM: 143}
+
+#: (id, how, phase, extra bake args, seconds to wait after the marker)
+#: how = "pause": held at the checkpoint; "mark": the signal follows the announcement.
+POINTS = [
+    ("start", "pause", "start", (), 0.0),
+    ("imports", "mark", "start", (), 0.0),               # numpy, scipy, trimesh, pxr loading
+    ("navmesh-build", "mark", "navmesh", ("--no-cache",), 0.3),   # the build takes seconds
+    ("simulate", "mark", "simulate", ("--seconds", "4"), 0.0),
+    ("write-usd", "pause", "write:usd", (), 0.0),        # the GLB's temporary exists
+    ("commit", "pause", "commit", (), 0.0),              # every temporary exists
+]
+CASES = [(p, s) for p in POINTS for s in (signal.SIGINT, signal.SIGTERM)]
+
+
+@pytest.fixture(scope="module")
+def good(tmp_path_factory, nav_cache_dir):
+    from bakeproc import run
+
+    folder = tmp_path_factory.mktemp("good_sig")
+    done = run(["bake", "--seconds", "1", "--seed", "1", "--out", folder / "centipede",
+                "--cache-dir", nav_cache_dir])
+    assert done.code == 0, done.stderr
+    return folder
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("point,sig", CASES,
+                         ids=[f"{p[0]}-{signal.Signals(s).name}" for p, s in CASES])
+def test_signal_keeps_previous_outputs(point, sig, good, tmp_path, nav_cache_dir):
+    _, how, phase, extra, delay = point
+    out = tmp_path / "out"
+    shutil.copytree(good, out)
+    before = snapshot(out)
+    args = ["bake", "--seconds", "1", "--seed", "9", "--out", out / "centipede",
+            "--cache-dir", nav_cache_dir, *extra]
+    b = Bake(args, pause_at=phase if how == "pause" else None, marks=how == "mark")
+    assert b.wait_marker(phase), "the bake ended before the phase"
+    if delay:
+        import time
+        time.sleep(delay)
+    b.signal(sig)
+    done = b.wait()
+    assert done.code == CODES[sig], (done.code, done.stderr)
+    assert "Traceback" not in done.stderr
+    assert len(done.err_lines) == 1, done.stderr
+    assert LINE.match(done.err_lines[0]), done.err_lines[0]
+    assert signal.Signals(sig).name in done.err_lines[0]
+    assert snapshot(out) == before          # byte-identical, and no hidden temporaries
+    assert done.peak_mb < PEAK_MB
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("delay", [0.0, 0.25])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_navmesh_command_stops_cleanly_during_imports(sig, delay, tmp_path):
+    """`baker navmesh` imports numpy, scipy and trimesh lazily: a signal among them (some
+    libraries catch BaseException around optional imports) still gives one line and 130/143."""
+    from pathlib import Path
+
+    level = Path(__file__).resolve().parents[2] / "environments" / "multistorey.glb"
+    b = Bake(["navmesh", level, "--scale", "8", "--cache-dir", tmp_path / "c"], marks=True)
+    assert b.wait_marker("start")
+    if delay:
+        import time
+        time.sleep(delay)
+    b.signal(sig)
+    done = b.wait()
+    assert done.code == CODES[sig], (done.code, done.stderr)
+    assert len(done.err_lines) == 1 and LINE.match(done.err_lines[0]), done.stderr
+    assert not list(tmp_path.glob("c/.*"))                # no temporary cache entry
+
+
+@pytest.mark.slow
+def test_second_signal_during_cleanup_changes_nothing(good, tmp_path, nav_cache_dir):
+    """Ctrl-C pressed twice: the first stops the bake, the second is ignored while the
+    temporaries are removed."""
+    out = tmp_path / "out"
+    shutil.copytree(good, out)
+    before = snapshot(out)
+    b = Bake(["bake", "--seconds", "1", "--seed", "9", "--out", out / "centipede",
+              "--cache-dir", nav_cache_dir], pause_at="commit")
+    assert b.wait_marker("commit")
+    b.signal(signal.SIGINT)
+    b.signal(signal.SIGTERM)
+    done = b.wait()
+    assert done.code == 130 and len(done.err_lines) == 1, done.stderr
+    assert snapshot(out) == before
+
+
+def test_console_entry_point_installs_the_handlers_first():
+    """`baker` runs baker.entry:main, which imports only the standard library and
+    baker.signals before installing the handlers."""
+    import ast
+    import tomllib
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    scripts = tomllib.loads((root / "pyproject.toml").read_text())["project"]["scripts"]
+    assert scripts["baker"] == "baker.entry:main"
+    for mod in ("entry.py", "signals.py", "__init__.py"):
+        tree = ast.parse((root / "baker" / mod).read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                names = [node.module or ""]
+            else:
+                continue
+            for n in names:
+                top = n.split(".")[0]
+                assert top in ("__future__", "os", "signal", "sys", "time", "contextlib",
+                               "threading", "baker"), (mod, n)
+                if top == "baker":
+                    assert n in ("baker", "baker.signals", "baker.cli"), (mod, n)
