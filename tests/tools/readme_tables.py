@@ -17,9 +17,8 @@ def tables() -> dict[str, str]:
     from baker import schema
 
     return {"rig keys": schema.rig_keys_markdown(),
-            "option ranges": schema.markdown_table(schema.Options, prefix="--").replace(
-                "`--agent_", "`--agent-").replace("`--step_", "`--step-").replace(
-                "`--max_", "`--max-").replace("`--cell_", "`--cell-").replace(
+            "option ranges": re.sub(r"`--(\w+)`", lambda m: f"`--{m.group(1).replace('_', '-')}`",
+                                    schema.markdown_table(schema.Options, prefix="--")).replace(
                 "`--coordinate`", "`--from`, `--to`")}
 
 
