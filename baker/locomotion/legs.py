@@ -189,7 +189,11 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     d = np.concatenate(cands_d)
     h = rays.first_hit(o, d, max_distance=4.0 * probe + reach)
     pts = h.points.reshape(k, n, 3)
-    facing = np.sum(h.normals.reshape(k, n, 3) * up[None], -1) > np.cos(FOOT_SLOPE)
+    # a hold faces up, for the segment and in the world: on a stair the segment's up leans
+    # back with the flight, and a riser would face it
+    nrm = h.normals.reshape(k, n, 3)
+    facing = ((np.sum(nrm * up[None], -1) > np.cos(FOOT_SLOPE))
+              & (nrm @ UP > np.cos(FOOT_SLOPE)))
     out_dist = -np.sum((pts - hips[None]) * inward[None], -1)
     drop = -np.sum((pts - hips[None]) * up[None], -1)
     ok = (h.hit.reshape(k, n) & facing & (out_dist >= np.broadcast_to(min_out, (n,))[None])
@@ -1015,7 +1019,8 @@ def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, cont
                        iterations: int = 12) -> np.ndarray:
     """Legs that know where their neighbours are: when two planted feet of neighbouring legs on
     one side come closer than `gap`, the one that landed later steps away from the other (its
-    foothold moves along the line between them and is dropped back onto the surface).
+    foothold moves along the line between them and is dropped back onto the surface); where
+    that would take it off the surface (over a stair's nosing), the other one steps away.
 
     holds : (C+1, L, 3) footholds; Ts : (C+1, L) their touchdown frames; cidx : (F, L) hold of
     each frame; contact : (F, L) planted. Legs are ordered L_01, R_01, L_02, ... so leg l's
@@ -1037,26 +1042,39 @@ def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, cont
         later_rear = Ts[cr, rear] >= Ts[cf, front]
         unit = d[f, k] / np.maximum(dist[f, k], 1e-12)[:, None]
         need = gap - dist[f, k]
-        leg = np.where(later_rear, rear, front)
-        hold = np.where(later_rear, cr, cf)
         vec = np.where(later_rear[:, None], unit, -unit) * (need * 1.3 + 0.02 * gap)[:, None]
-        # per hold, keep the largest push
-        order = np.argsort(need, kind="stable")
-        disp = np.zeros_like(holds)
-        disp[hold[order], leg[order]] = vec[order]
-        moved = np.any(disp != 0, axis=-1)
-        new = holds[moved] + disp[moved]
-        # back onto the surface, along the up axis at the frame it was planted
-        frame = np.minimum(Ts[moved], F - 1)
-        u = up[frame, np.nonzero(moved)[1]]
-        h = rays.first_hit(new + probe * u, -u, max_distance=2.0 * probe)
-        ok = (h.hit & (np.abs(np.sum((h.points - holds[moved]) * u, -1)) < 0.5 * probe)
-              & (np.sum(np.nan_to_num(h.normals) * u, -1) > np.cos(FOOT_SLOPE)))
-        new[ok] = h.points[ok]
-        sel = np.nonzero(moved)
-        keep = ok | ~moved[sel]        # a move that would leave the surface is dropped
-        holds[sel[0][keep], sel[1][keep]] = new[keep]
+        moved = _push(holds, np.where(later_rear, cr, cf), np.where(later_rear, rear, front),
+                      vec, need, Ts, rays, up, probe)
+        # the pairs whose later foot could not step away: the other one steps away instead
+        other = ~moved
+        _push(holds, np.where(later_rear, cf, cr)[other], np.where(later_rear, front, rear)[other],
+              -vec[other], need[other], Ts, rays, up, probe)
     return holds
+
+
+def _push(holds, hold, leg, vec, need, Ts, rays, up, probe) -> np.ndarray:
+    """Move holds[hold, leg] by vec (n, 3) (per hold the largest push) and drop them back onto
+    the surface along the up axis at their touchdown; a move that would leave the surface is
+    dropped. Updates `holds` in place; returns (n,) bool, the entry's hold moved."""
+    F = len(up)
+    order = np.argsort(need, kind="stable")
+    disp = np.zeros_like(holds)
+    disp[hold[order], leg[order]] = vec[order]
+    moved = np.any(disp != 0, axis=-1)
+    new = holds[moved] + disp[moved]
+    frame = np.minimum(Ts[moved], F - 1)
+    u = up[frame, np.nonzero(moved)[1]]
+    h = rays.first_hit(new + probe * u, -u, max_distance=2.0 * probe)
+    nrm = np.nan_to_num(h.normals)
+    ok = (h.hit & (np.abs(np.sum((h.points - holds[moved]) * u, -1)) < 0.5 * probe)
+          & (np.sum(nrm * u, -1) > np.cos(FOOT_SLOPE)) & (nrm @ UP > np.cos(FOOT_SLOPE)))
+    new[ok] = h.points[ok]
+    sel = np.nonzero(moved)
+    keep = ok | ~moved[sel]
+    holds[sel[0][keep], sel[1][keep]] = new[keep]
+    done = np.zeros(holds.shape[:2], bool)
+    done[sel[0][ok], sel[1][ok]] = True
+    return done[hold, leg]
 
 
 def _chain_dirs(side, yaw, pitch, backward):
