@@ -130,15 +130,16 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
     formats = {"glb": ("glb",), "usd": (usd_fmt,), "both": ("glb", usd_fmt)}[fmt]
     # every option is checked before the rig and the level are read
     validate_memory(max_memory, cache_max)
+    sun_direction = parse_vec3(sun, "--sun")
     validate_bake(BakeConfig(seconds=seconds, fps=fps, seed=seed, formats=formats,
-                             sun_direction=parse_vec3(sun, "--sun"), behaviour=behaviour,
+                             sun_direction=sun_direction, behaviour=behaviour,
                              prey=prey, cobra=cobra, sun_path=sun_path, nav_build=nav_build))
     check_rig_overrides(rig_overrides)
     cfg = BakeConfig(
         environment=environment or DEFAULT_ENVIRONMENT,
         seconds=seconds, fps=fps, seed=seed,
         rig=override_rig(load_rig_config(rig_path), **rig_overrides), out=resolve_out(out),
-        formats=formats, sun_direction=parse_vec3(sun, "--sun"), debug_navmesh=debug_navmesh,
+        formats=formats, sun_direction=sun_direction, debug_navmesh=debug_navmesh,
         nav_cache_dir=None if no_cache else NavCache.of(cache_dir or default_cache_dir(), cache_max),
         nav_build=nav_build, behaviour=behaviour, prey=prey, cobra=cobra, sun_path=sun_path, clips=clips,
         max_memory_mb=max_memory,

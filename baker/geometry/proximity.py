@@ -141,9 +141,3 @@ def distance_to_mesh(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray
     points : (n, 3) float; vertices : (v, 3) float; faces : (m, 3) int
     """
     return TriangleSet(vertices, faces).closest(points, cap)[0]
-
-
-def closest_on_mesh(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray,
-                    cap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """TriangleSet(vertices, faces).closest(points, cap), for one-off queries."""
-    return TriangleSet(vertices, faces).closest(points, cap)

@@ -177,11 +177,13 @@ def _hip_bound(rays, pts: np.ndarray, ground_pts: np.ndarray, probe: float, clea
     t = np.gradient(pts, axis=0)
     t[:, 1] = 0.0
     side = normalize(np.cross(UP, t))
-    for sgn in (1.0, -1.0):
-        q = ground_pts + sgn * offset * side
-        g, _, hit = project_to_surface(rays, q, probe)
-        need = g[:, 1] + drop + HIP_CLEAR * clearance - clearance
-        out = np.where(hit & (g[:, 1] < ground_pts[:, 1] + probe), np.maximum(out, need), out)
+    # both sides in one batch of rays
+    g, _, hit = project_to_surface(rays, np.concatenate([ground_pts + offset * side,
+                                                         ground_pts - offset * side]), probe)
+    n = len(pts)
+    for g_s, hit_s in ((g[:n], hit[:n]), (g[n:], hit[n:])):
+        need = g_s[:, 1] + drop + HIP_CLEAR * clearance - clearance
+        out = np.where(hit_s & (g_s[:, 1] < ground_pts[:, 1] + probe), np.maximum(out, need), out)
     return out
 
 

@@ -189,11 +189,7 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     d = np.concatenate(cands_d)
     h = rays.first_hit(o, d, max_distance=4.0 * probe + reach)
     pts = h.points.reshape(k, n, 3)
-    # a hold faces up, for the segment and in the world: on a stair the segment's up leans
-    # back with the flight, and a riser would face it
-    nrm = h.normals.reshape(k, n, 3)
-    facing = ((np.sum(nrm * up[None], -1) > np.cos(FOOT_SLOPE))
-              & (nrm @ UP > np.cos(FOOT_SLOPE)))
+    facing = _faces_up(h.normals.reshape(k, n, 3), up[None])
     out_dist = -np.sum((pts - hips[None]) * inward[None], -1)
     drop = -np.sum((pts - hips[None]) * up[None], -1)
     ok = (h.hit.reshape(k, n) & facing & (out_dist >= np.broadcast_to(min_out, (n,))[None])
@@ -226,6 +222,15 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     out = points.copy()
     out[any_ok] = pts[first[any_ok], np.nonzero(any_ok)[0]]
     return out
+
+
+def _faces_up(normals: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """Surface normals (..., 3) a foot can stand on: within FOOT_SLOPE of the segment's `up`
+    and of the world's (on a stair the segment's up leans back with the flight, and a riser
+    would face it). NaN normals (no hit) give False."""
+    n = np.nan_to_num(normals)
+    cos = np.cos(FOOT_SLOPE)
+    return (np.sum(n * up, -1) > cos) & (n @ UP > cos)
 
 
 def is_level(rays, pts: np.ndarray, up: np.ndarray, inward: np.ndarray, edge: float) -> np.ndarray:
@@ -464,13 +469,14 @@ def _stances(rays, lf: _Frames, cfg: RigConfig, st: _Steps, holds: np.ndarray):
     F, L = lf.shape
     Ts, LOs = st.Ts, st.LOs
     C1 = len(Ts)
-    f_idx = np.arange(F)
-    contact = np.zeros((F, L), bool)
-    cidx = np.empty((F, L), dtype=np.int64)   # hold (cycle) index of each frame
-    for leg in range(L):
-        c = np.searchsorted(Ts[:, leg], f_idx, side="right") - 1      # cycle of each frame
-        cidx[:, leg] = c = np.clip(c, 0, C1 - 2)
-        contact[:, leg] = f_idx < LOs[c, leg]
+    f_idx, legs = np.arange(F), np.arange(L)
+    # hold (cycle) index of each frame: one search over every leg's touchdowns, each leg's
+    # (non-decreasing, at most F) offset past the previous leg's
+    off = legs * (F + 1)
+    c = np.searchsorted((Ts.T + off[:, None]).ravel(), f_idx[:, None] + off[None, :],
+                        side="right") - 1 - legs[None, :] * C1
+    cidx = np.clip(c, 0, C1 - 2)
+    contact = f_idx[:, None] < LOs[cidx, legs[None, :]]
     holds = _spread_neighbours(holds, Ts, cidx, contact, NEIGHBOUR_GAP * cfg.body.spacing, rays,
                                lf.up, probe=cfg.body.clearance + 2.0 * lf.lg.lift)
     # the surface (and the neighbours) put some feet elsewhere than planned: lift those early
@@ -480,8 +486,7 @@ def _stances(rays, lf: _Frames, cfg: RigConfig, st: _Steps, holds: np.ndarray):
         bad = lf.first_bad(rays, holds[c], np.minimum(Ts[c], F - 1),
                            np.minimum(LOs[c] + 1, F), sight=True)
         LOs[c] = np.clip(np.minimum(LOs[c], bad), Ts[c], F)
-    for leg in range(L):
-        contact[:, leg] = f_idx < LOs[cidx[:, leg], leg]
+    contact = f_idx[:, None] < LOs[cidx, legs[None, :]]
     return holds, cidx, contact
 
 
@@ -489,24 +494,18 @@ def _swing_progress(lf: _Frames, st: _Steps, holds, cidx, contact, clock, times)
     """Per frame and leg: the hold it left (p0), the hold it goes to (p1), its swing progress
     u in [0, 1] (0 while planted) and whether the frame is a phase touchdown."""
     F, L = lf.shape
-    lag, settle = lf.lay.lag, lf.lg.settle_time
-    phi = clock.phase
+    legs = np.arange(L)[None, :]
+    p0, p1 = holds[cidx, legs], holds[cidx + 1, legs]
+    lo_c = np.minimum(st.LOs[cidx, legs], F - 1)
+    ph = clock.phase[:, None] + lf.lay.lag[None, :]
+    ph_lo = ph[lo_c, legs]
+    u_phase = (ph - ph_lo) / np.maximum(cidx + 1 - ph_lo, 1e-9)
+    u_time = (times[:, None] - times[lo_c]) / lf.lg.settle_time
+    swing_u = np.where(contact, 0.0, np.clip(np.maximum(u_phase, u_time), 0.0, 1.0))
     td_flag = np.zeros((F, L), bool)
-    swing_u = np.zeros((F, L))
-    p0 = np.empty((F, L, 3))
-    p1 = np.empty((F, L, 3))
-    for leg in range(L):
-        c = cidx[:, leg]
-        lo = st.LOs[c, leg]
-        p0[:, leg], p1[:, leg] = holds[c, leg], holds[c + 1, leg]
-        lo_c = np.minimum(lo, F - 1)
-        ph = phi + lag[leg]
-        u_phase = (ph - ph[lo_c]) / np.maximum(c + 1 - ph[lo_c], 1e-9)
-        u_time = (times - times[lo_c]) / settle
-        swing_u[:, leg] = np.where(contact[:, leg], 0.0,
-                                   np.clip(np.maximum(u_phase, u_time), 0.0, 1.0))
-        starts = st.Ts[1:, leg][st.phase_td[1:, leg]]
-        td_flag[starts[starts < F], leg] = True
+    r, leg = np.nonzero(st.phase_td[1:])
+    starts = st.Ts[1:][r, leg]
+    td_flag[starts[starts < F], leg[starts < F]] = True
     return p0, p1, swing_u, td_flag
 
 
@@ -582,6 +581,7 @@ def _step_over(rays, lf: _Frames, target, sw):
     (or it ends inside something), it goes over, raised in lift-sized steps."""
     lg, lay = lf.lg, lf.lay
     start = target[sw].copy()
+    ceiling = lf.hip[sw][:, 1] + SWING_CEILING * lay.l1
     wall_side = np.zeros(len(start), bool)     # by something too tall to step over
     for _ in range(WALL_STEPS):
         prev = np.concatenate([target[:1], target[:-1]])[sw]
@@ -606,8 +606,7 @@ def _step_over(rays, lf: _Frames, target, sw):
         cur[below, 1] = np.maximum(cur[below, 1], lift_to)
         # never above knee height over the hip: something that tall is not stepped over;
         # the foot keeps its path and is pushed off the face later (_clear_swings)
-        too_high = cur[:, 1] > lf.hip[sw][:, 1] + SWING_CEILING * lay.l1
-        wall_side |= too_high
+        wall_side |= cur[:, 1] > ceiling
         cur[wall_side] = start[wall_side]
         target[sw] = cur
     return target
@@ -1065,9 +1064,8 @@ def _push(holds, hold, leg, vec, need, Ts, rays, up, probe) -> np.ndarray:
     frame = np.minimum(Ts[moved], F - 1)
     u = up[frame, np.nonzero(moved)[1]]
     h = rays.first_hit(new + probe * u, -u, max_distance=2.0 * probe)
-    nrm = np.nan_to_num(h.normals)
     ok = (h.hit & (np.abs(np.sum((h.points - holds[moved]) * u, -1)) < 0.5 * probe)
-          & (np.sum(nrm * u, -1) > np.cos(FOOT_SLOPE)) & (nrm @ UP > np.cos(FOOT_SLOPE)))
+          & _faces_up(h.normals, u))
     new[ok] = h.points[ok]
     sel = np.nonzero(moved)
     keep = ok | ~moved[sel]
