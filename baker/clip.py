@@ -56,6 +56,11 @@ class Clip:
     tracks       : animated scene nodes that are not joints (prey, sun)
     placement    : (3,) float64, metres, world translation of the placement node ("Centipede"
                    in glTF, the SkelRoot in USD) and of the prey's parent; whole metres
+    loop         : the clip repeats seamlessly (locomotion cycles); importers see it by name
+    events       : JSON-safe animation events (foot contacts, behaviour changes, loop markers),
+                   written to the glTF animation's extras and the USD SkelAnimation's customData
+    keys         : the frames each channel keeps after keyframe reduction (set by
+                   baker.export.reduce), or None: every frame is a key
     """
 
     name: str
@@ -66,6 +71,9 @@ class Clip:
     fps: int = 30
     tracks: tuple[NodeTrack, ...] = ()
     placement: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    loop: bool = False
+    events: dict = field(default_factory=dict)
+    keys: object | None = None
 
     def __post_init__(self) -> None:
         p = np.array(self.placement, dtype=np.float64).reshape(3)
