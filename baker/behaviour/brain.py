@@ -58,7 +58,10 @@ class Brain:
     stopping_distance       : metres
     cobra                   : 0/1 request for the cobra lift (smoothed by the body stage)
     warning                 : 0/1 request for Posture 1
+    route                   : always None: the brain gives targets, the path is planned
     """
+
+    route = None
 
     def __init__(self, rig: RigConfig, nav, rays, sun: SunPath, rng: np.random.Generator,
                  preys: list[Prey], *, mode: str = "auto", cobra_mode: str = "auto"):

@@ -1082,14 +1082,25 @@ def _chain_dirs(side, yaw, pitch, backward):
                      f * np.cos(yaw) * np.cos(pitch)], -1)
 
 
+def whole_cycles(freq: float, period: float | None) -> float:
+    """`freq` [Hz], or with a `period` [s] the nearest frequency with a whole number of cycles
+    in it (none: 0 Hz), so the motion repeats exactly after `period` (looping cycles)."""
+    if period is None:
+        return freq
+    return round(freq * period) / period
+
+
 def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
-                 warning: np.ndarray | None = None):
+                 warning: np.ndarray | None = None, chain_period: float | None = None):
     """Ultimate legs and antennae: angle-driven two-bone chains, lifted clear of the surface.
 
-    warning : (F,) float 0..1 or None, Posture 1 strength: the ultimate legs rise from
-              legs.ultimate_raise toward legs.ultimate_warning_raise in proportion (eased over
-              about a quarter of a second)
+    warning      : (F,) float 0..1 or None, Posture 1 strength: the ultimate legs rise from
+                   legs.ultimate_raise toward legs.ultimate_warning_raise in proportion (eased
+                   over about a quarter of a second)
+    chain_period : [s] or None: every sway and grope frequency is rounded to a whole number of
+                   cycles in this period (whole_cycles), so the chains repeat after it
     """
+    hz = (lambda f: 2 * np.pi * whole_cycles(f, chain_period))
     lg = cfg.legs
     F = len(times)
     fps = (F - 1) / max(float(times[-1] - times[0]), 1e-9) if F > 1 else 30.0
@@ -1116,12 +1127,11 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
         pit2 = np.arcsin(np.clip(rest2[1], -1, 1))
         back = ch.kind == "ultimate"
         if back:                       # a slow sway, out of step with the other side
-            dyaw = np.radians(6.0) * np.sin(2 * np.pi * 0.35 * t + (0.0 if s > 0 else np.pi))
-            dpitch = np.radians(3.0) * np.sin(2 * np.pi * 0.22 * t + (0.5 if s > 0 else 2.0))
+            dyaw = np.radians(6.0) * np.sin(hz(0.35) * t + (0.0 if s > 0 else np.pi))
+            dpitch = np.radians(3.0) * np.sin(hz(0.22) * t + (0.5 if s > 0 else 2.0))
         else:                          # antennae sweep side to side and dip to grope the ground
-            w = 2 * np.pi * lg.antenna_rate
-            dyaw = lg.antenna_sweep * np.sin(w * t + (0.0 if s > 0 else 0.6 * np.pi))
-            grope = 0.5 + 0.5 * np.sin(0.5 * w * t + (1.0 if s > 0 else 2.5))
+            dyaw = lg.antenna_sweep * np.sin(hz(lg.antenna_rate) * t + (0.0 if s > 0 else 0.6 * np.pi))
+            grope = 0.5 + 0.5 * np.sin(hz(0.5 * lg.antenna_rate) * t + (1.0 if s > 0 else 2.5))
             dpitch = -np.radians(22.0) * grope ** 3
         base_pitch = pit1 + dpitch
         if back:                       # Posture 1: raised in proportion to the warning
@@ -1181,7 +1191,7 @@ def hip_extent(cfg: RigConfig) -> tuple[float, float]:
 
 
 def leg_frames(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: RigConfig,
-               warning: np.ndarray | None = None) -> LegFrames:
+               warning: np.ndarray | None = None, chain_period: float | None = None) -> LegFrames:
     """All limbs for all frames.
 
     bf      : the spine's BodyFrames (F frames)
@@ -1190,9 +1200,11 @@ def leg_frames(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: Ri
     times   : (F,) float, seconds
     rays    : the environment's RayCaster
     warning : (F,) float 0..1 or None, Posture 1 strength (raises the ultimate legs)
+    chain_period : [s] or None, see posed_chains
     """
     w = walking_legs(bf, np.asarray(arc, float), np.asarray(times, float), rays, cfg)
-    cn, cp, cq = posed_chains(bf, np.asarray(times, float), rays, cfg, warning=warning)
+    cn, cp, cq = posed_chains(bf, np.asarray(times, float), rays, cfg, warning=warning,
+                              chain_period=chain_period)
     return LegFrames(names=w["names"] + tuple(cn),
                      positions=np.concatenate([w["positions"], cp], axis=1),
                      rotations=np.concatenate([w["rotations"], cq], axis=1),

@@ -80,13 +80,17 @@ class Follower:
         p[1] = self.height
         return p
 
-    def go(self, target: np.ndarray) -> None:
+    def go(self, target: np.ndarray, route: np.ndarray | None = None) -> None:
         """A new path from the agent to `target` (a partial one when it is out of reach).
         On risers (a staircase) a path that would turn the head round waits until the body is
-        off them or the current path is walked: the body does not turn back across steps."""
+        off them or the current path is walked: the body does not turn back across steps.
+
+        route : (k, 3) float or None: walk this polyline (from the agent, ending at `target`)
+                instead of planning a path (scripted locomotion: a straight line, a circle)"""
         target = np.asarray(target, dtype=np.float64)
         self.pending = None
-        path = self._path(self.agent.position, target)
+        path = (self._path(self.agent.position, target) if route is None
+                else np.asarray(route, dtype=np.float64).reshape(-1, 3))
         if self.terrain_scale < 1.0 and self.target is not None and not self.agent.arrived:
             ahead = path[min(np.searchsorted(polyline.arc_lengths(path), 0.5 * self.body_length),
                              len(path) - 1)]

@@ -68,8 +68,15 @@ def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None
     return start, dirs[int(np.argmax(ok))]
 
 
-def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) -> Trajectory:
-    """Run the bake's simulation and return the creature's world frames at the export fps."""
+def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context,
+             intent=None) -> Trajectory:
+    """Run the bake's simulation and return the creature's world frames at the export fps.
+
+    intent : None lets the brain decide (behaviour.brain.Brain); otherwise a scripted source of
+             the same drives (behaviour.script.ScriptedIntent: target or route, halt, speed and
+             turn scales, cobra, warning) takes its place, and no prey are spawned. Its
+             `chain_period` (seconds or None) makes the antennae and ultimate legs periodic.
+    """
     rig = cfg.rig
     body, navc = rig.body, rig.navigation
     dt = 1.0 / cfg.sim_rate
@@ -83,10 +90,14 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     head = follow.head
     sun = sun_path(parse_sun_path(cfg.sun_path) if cfg.sun_path else None, env.sun.direction,
                    cfg.seconds)
-    preys = ([Prey(i, nav.nearest(p, np.inf), rig.prey, nav, rng)
-              for i, p in enumerate(cfg.prey_positions)]
-             if cfg.prey_positions else spawn_prey(cfg.prey, start, nav, rig, rng))
-    brain = Brain(rig, nav, env.rays, sun, rng, preys, mode=cfg.behaviour, cobra_mode=cfg.cobra)
+    if intent is None:
+        preys = ([Prey(i, nav.nearest(p, np.inf), rig.prey, nav, rng)
+                  for i, p in enumerate(cfg.prey_positions)]
+                 if cfg.prey_positions else spawn_prey(cfg.prey, start, nav, rig, rng))
+        brain = Brain(rig, nav, env.rays, sun, rng, preys, mode=cfg.behaviour,
+                      cobra_mode=cfg.cobra)
+    else:
+        preys, brain = [], intent
 
     # The body starts straight behind the head.
     tail = start[None, :] - heading[None, :] * np.linspace(body.length * 1.05, 0, 22)[:, None]
@@ -95,13 +106,13 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     rec = Recorder(n_frames, len(preys))
     ramp = dt / rig.cobra.ramp_time
     cobra = brain.cobra
-    rec.sample(0, brain, preys, cobra)
+    rec.sample(0, brain, preys, cobra, head.phase)
     for k in range(1, n_steps + 1):
         t = (k - 1) * dt
         # 1. brain: perception, the d10, hunting; a new target means a new path
         brain.step(Senses(t, follow.position, head.heading, follow.agent.arrived))
         if brain.new_target:
-            follow.go(brain.target)
+            follow.go(brain.target, route=brain.route)
         elif brain.halt:
             follow.halt()
         follow.drive(brain.speed_scale, brain.stopping_distance, brain.turn_scale)
@@ -113,7 +124,7 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
             p.step(t, dt, heads[k])
         cobra += max(-ramp, min(ramp, brain.cobra - cobra))
         if k % per_frame == 0:
-            rec.sample(k // per_frame, brain, preys, cobra)
+            rec.sample(k // per_frame, brain, preys, cobra, head.phase)
         if k % 2400 == 0:
             ctx.report_progress("simulate", k / n_steps)
     events = brain.finish(cfg.seconds)
@@ -142,7 +153,8 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
     # Legs, antennae and ultimate legs for all frames at once, from the placed spine.
     limbs = {}
     if rig.legs.enabled:
-        lf = leg_frames(bf, head_arc, frame_steps * dt, env.rays, rig, warning=rec.warning)
+        lf = leg_frames(bf, head_arc, frame_steps * dt, env.rays, rig, warning=rec.warning,
+                        chain_period=getattr(intent, "chain_period", None))
         limbs = dict(joint_names=lf.names, joint_positions=lf.positions,
                      joint_rotations=lf.rotations, foot_contacts=lf.contacts)
     prey_t = prey_frames(rec, preys, bf, env.rays, rig, probe) if preys else {}
@@ -156,6 +168,8 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context) 
         cobra_lift=bf.lift,
         warning=rec.warning,
         sun_directions=sun.at(frame_steps * dt),
+        head_arc=head_arc,
+        slither_phase=rec.slither,
         **limbs,
         **prey_t,
     )
@@ -184,9 +198,11 @@ class Recorder:
         self.warning = np.zeros(n_frames)
         self.prey_pos = np.zeros((n_frames, n_prey, 3))
         self.prey_mode = np.zeros((n_frames, n_prey), dtype=np.int8)
+        self.slither = np.zeros(n_frames)
 
-    def sample(self, f: int, brain, preys, cobra: float) -> None:
+    def sample(self, f: int, brain, preys, cobra: float, slither: float = 0.0) -> None:
         self.cobra[f] = cobra
+        self.slither[f] = slither
         self.warning[f] = brain.warning
         for j, p in enumerate(preys):
             self.prey_pos[f, j] = p.position

@@ -38,6 +38,11 @@ class Trajectory:
     prey_rotations  : (F, P, 4) float64 xyzw world; capsule long axis along local +Z
     prey_visible    : (F, P) bool, False once eaten
     prey_modes      : (F, P) int8, behaviour.prey FREE / CAPTURED / HELD / HIDDEN
+
+    Clocks (what the gait and the slither run on; for looping cycles, not exported):
+    head_arc        : (F,) float64 metres, the head's arc length along its trail (the gait
+                      clock's input), or None
+    slither_phase   : (F,) float64 radians, the head's slither phase (unwrapped), or None
     """
 
     times: np.ndarray
@@ -58,6 +63,8 @@ class Trajectory:
     prey_rotations: np.ndarray | None = None
     prey_visible: np.ndarray | None = None
     prey_modes: np.ndarray | None = None
+    head_arc: np.ndarray | None = None
+    slither_phase: np.ndarray | None = None
 
     @property
     def n_frames(self) -> int:
