@@ -111,11 +111,17 @@ def cli(verbose: int):
               help="Move the sun over the bake: azimuth,elevation keys in degrees, evenly spaced.")
 @click.option("--clips", is_flag=True,
               help="Also write one animation per behaviour segment (glTF animations, USD SkelAnimations).")
+@click.option("--root-motion", type=click.Choice(["world", "root", "in-place"]), default="world",
+              show_default=True,
+              help="world: joints in world space. root: add a `root` joint on the ground under the "
+                   "body that carries its horizontal motion and yaw, for engines' root motion. "
+                   "in-place: the same with the root held still; the removed motion is the "
+                   "`root_motion` animation.")
 @max_memory_option
 @rig_options
 def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_navmesh,
          cache_dir, no_cache, cache_max, nav_build, behaviour, prey, cobra, sun_path, clips,
-         max_memory,
+         root_motion, max_memory,
          **rig_overrides):
     """Bake a centipede on ENVIRONMENT (glTF/GLB, OBJ, PLY, STL or USD).
 
@@ -142,7 +148,7 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
         formats=formats, sun_direction=sun_direction, debug_navmesh=debug_navmesh,
         nav_cache_dir=None if no_cache else NavCache.of(cache_dir or default_cache_dir(), cache_max),
         nav_build=nav_build, behaviour=behaviour, prey=prey, cobra=cobra, sun_path=sun_path, clips=clips,
-        max_memory_mb=max_memory,
+        root_motion=root_motion, max_memory_mb=max_memory,
     )
     check_outputs(cfg.output_paths())
     progress = TerminalProgress()

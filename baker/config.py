@@ -188,6 +188,7 @@ class BakeConfig:
     prey: int = 0                # [0..16] prey capsules
     sun_path: str | None = None  # "AZ,EL;AZ,EL;..." degrees, evenly spaced over the bake
     clips: bool = False          # also write one animation per behaviour segment
+    root_motion: str = "world"   # world | root | in-place (see baker.rootmotion)
     start: tuple[float, float, float] | None = None  # [m, world] creature start (snapped to
                                  # the walkable surface); None: random near the scene centre
     start_heading: tuple[float, float, float] | None = None  # horizontal facing at the start
@@ -239,7 +240,8 @@ def validate_bake(cfg: BakeConfig) -> BakeConfig:
                           where="--format")
     for opt, value, allowed in (("--behaviour", cfg.behaviour, ("auto", "wander", "shade", "hunt")),
                                 ("--cobra", cfg.cobra, ("auto", "always", "never")),
-                                ("--nav-build", cfg.nav_build, ("auto", "full", "lazy"))):
+                                ("--nav-build", cfg.nav_build, ("auto", "full", "lazy")),
+                                ("--root-motion", cfg.root_motion, ("world", "root", "in-place"))):
         if value not in allowed:
             raise ConfigError(f"{opt} must be one of {', '.join(allowed)} (got {value})", where=opt)
     for what, p in [("start", cfg.start)] + [("prey position", q) for q in cfg.prey_positions]:

@@ -112,7 +112,6 @@ def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
 
 def _bake(cfg: BakeConfig, rng: np.random.Generator | None, ctx: Context | None) -> BakeResult:
     from baker import metrics
-    from baker.clip import build_clip
     from baker.environment import load_environment
     from baker.export import report as report_mod
     from baker.atomic import OutputSet, check_outputs
@@ -148,9 +147,10 @@ def _bake(cfg: BakeConfig, rng: np.random.Generator | None, ctx: Context | None)
     with ctx.stage("simulate"):
         traj = simulate(run_cfg, env, nav, rng, ctx)
 
-    # Step 5: joint-local transforms at the export fps, relative to a placement near the path.
+    # Step 5: joint-local transforms at the export fps, relative to a placement near the path,
+    # on a skeleton with a `root` joint when root motion is asked for.
     with ctx.stage("pose"):
-        clip = build_clip(traj, rig, name="bake", origin=env.origin)
+        clip, rig, root_motion = posed_clip(cfg, traj, rig, env)
 
     # Step 6: motion-quality metrics (independent ray casts against the environment).
     with ctx.stage("metrics"):
@@ -177,7 +177,8 @@ def _bake(cfg: BakeConfig, rng: np.random.Generator | None, ctx: Context | None)
         debug_meshes = (("navmesh", v, f, (0.1, 0.6, 1.0, 0.5)),)
     props = prey_props(cfg.rig, traj)
     segments = behaviour_clips(clip, traj.events, cfg.fps) if cfg.clips else ()
-    scene = dict(extras=extras, debug_meshes=debug_meshes, props=props, extra_clips=segments)
+    scene = dict(extras=extras, debug_meshes=debug_meshes, props=props, extra_clips=segments,
+                 root_motion=root_motion)
     with OutputSet(paths) as out:
         with ctx.stage("export"):
             if "glb" in paths:
@@ -192,6 +193,23 @@ def _bake(cfg: BakeConfig, rng: np.random.Generator | None, ctx: Context | None)
         out.write_bytes("json", report_mod.to_json_bytes(rep))
         out.commit()
     return BakeResult(outputs=written, report=rep, trajectory=traj, clip=clip, origin=env.origin)
+
+
+def posed_clip(cfg: BakeConfig, traj, rig, env):
+    """(clip, rig, root motion or None): the trajectory as a clip named `bake`, re-expressed
+    for cfg.root_motion (rootmotion.apply_root_motion) over the ground under the body."""
+    from baker.clip import build_clip
+    from baker.rootmotion import apply_root_motion
+
+    clip = build_clip(traj, rig, name="bake", origin=env.origin)
+    shift = clip.placement - np.asarray(env.origin, dtype=np.float64)
+    lift = float(cfg.rig.body.clearance)
+
+    def ground(points: np.ndarray) -> np.ndarray:
+        hits = env.rays.cast_down(points + shift, lift, max_distance=lift + cfg.rig.body.length)
+        return np.where(hits.hit, hits.points[:, 1] - shift[1], np.nan)
+
+    return apply_root_motion(clip, rig, cfg.root_motion, ground)
 
 
 def _import_stages() -> None:

@@ -28,7 +28,7 @@ import numpy as np
 import pygltflib as gl
 
 import baker
-from baker.clip import Clip
+from baker.clip import Clip, NodeTrack
 from baker.environment.model import Environment
 from baker.errors import ExportError
 from baker.export import checked_mesh, environment_parts, jsonable, safe_name
@@ -136,7 +136,7 @@ def _offset(v) -> dict:
 
 def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: dict,
               debug_meshes: Sequence[DebugMesh] = (), props: Sequence[DebugMesh] = (),
-              extra_clips: Sequence[Clip] = ()) -> bytes:
+              extra_clips: Sequence[Clip] = (), root_motion: NodeTrack | None = None) -> bytes:
     """The whole scene as GLB bytes. Same inputs give identical bytes.
 
     env          : environment meshes (each gets a node and a PBR material) and the sun; the
@@ -152,6 +152,9 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
                    under the Prey group, named exactly `name` so the clips' node tracks can
                    drive them
     extra_clips  : more animations over the same joints and nodes (per-behaviour clips)
+    root_motion  : the motion an in-place clip leaves out (a track on the `root` joint), written
+                   as one more animation named `root_motion`
+    Each clip's `events` go into its animation's `extras`.
     """
     if clip is not None and rig is None:
         raise ExportError("a clip needs a rig to drive")
@@ -211,11 +214,17 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
                                                    **_offset(placement))))
 
     # -- the creature and its animations
+    clips = (([clip] if clip is not None else []) + list(extra_clips)) if rig is not None else []
     if rig is not None:
         roots, node_of = _add_creature(gltf, b, names, rig, placement)
         scene_nodes.extend(roots)
-        for c in ([clip] if clip is not None else []) + list(extra_clips):
+        for c in clips:
             _add_animation(gltf, b, c, node_of, node_by_name)
+        if root_motion is not None:
+            if clip is None:
+                raise ExportError("root motion needs a clip")
+            joints = {n: int(node_of[j]) for j, n in enumerate(rig.skeleton.names)}
+            _add_animation(gltf, b, _track_clip(clip, root_motion), node_of[:0], joints)
 
     # -- debug overlays
     for name, verts, faces, rgba in debug_meshes:
@@ -238,6 +247,9 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
     ex = jsonable(dict(extras))
     doc["asset"]["extras"] = ex
     doc["scenes"][0]["extras"] = ex
+    for anim, c in zip(doc.get("animations", []), clips):
+        if c.events:
+            anim["extras"] = jsonable(dict(c.events))
     text = json.dumps(doc, separators=(",", ":"), allow_nan=False, ensure_ascii=True)
     return _glb_container(text.encode("utf-8"), blob)
 
@@ -299,6 +311,15 @@ def _add_creature(gltf: gl.GLTF2, b: _Builder, names: set[str], rig: Rig, placem
                                         mesh=len(gltf.meshes) - 1, skin=skin))
 
     return [top, mesh_node], node_of
+
+
+def _track_clip(clip: Clip, track: NodeTrack) -> Clip:
+    """A clip named `root_motion` over no joints that plays one node track along `clip`."""
+    f = clip.n_frames
+    empty = np.zeros((f, 0, 3), np.float32)
+    return Clip(name="root_motion", times=clip.times, translations=empty,
+                rotations=np.zeros((f, 0, 4), np.float32), scales=empty, fps=clip.fps,
+                tracks=(track,), placement=clip.placement)
 
 
 def _add_animation(gltf: gl.GLTF2, b: _Builder, clip: Clip, node_of: np.ndarray,

@@ -69,6 +69,7 @@ def extras(cfg, traj, origin=(0.0, 0.0, 0.0)) -> dict:
         "seed": int(cfg.seed),
         "fps": int(cfg.fps),
         "seconds": float(cfg.seconds),
+        "root_motion": str(cfg.root_motion),
         "rig": rig_summary(cfg.rig),
         "timeline": jsonable(world_events(traj.events, origin)),
         "foot_contacts": foot_contacts(traj, cfg.rig),

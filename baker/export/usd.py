@@ -139,6 +139,32 @@ def _skel_animation(stage, path, joints, clip: Clip):
     return anim
 
 
+def _events(anim, clip: Clip) -> None:
+    """The clip's events as the SkelAnimation prim's customData (one dictionary)."""
+    if clip.events:
+        anim.GetPrim().SetCustomData(_custom_data_value(jsonable(dict(clip.events))))
+
+
+def _root_motion(stage, path, skel, track: NodeTrack):
+    """A SkelAnimation over the `root` joint alone, with the track's translations/rotations."""
+    _, Sdf, Usd, _, _, _, UsdSkel, Vt = _pxr()
+    root = [p for p, n in zip(skel.joint_paths(), skel.names) if n == track.node]
+    if not root:
+        raise ExportError(f"root motion drives joint {track.node!r}, which the skeleton lacks")
+    anim = UsdSkel.Animation.Define(stage, path)
+    anim.CreateJointsAttr(Vt.TokenArray(root))
+    t_attr, r_attr = anim.CreateTranslationsAttr(), anim.CreateRotationsAttr()
+    anim.CreateScalesAttr().Set(Vt.Vec3hArray.FromNumpy(np.ones((1, 3), np.float16)))
+    tr = np.ascontiguousarray(track.translations, dtype=np.float32)
+    rot = np.ascontiguousarray(track.rotations, dtype=np.float32)
+    with Sdf.ChangeBlock():
+        for f in range(len(tr)):
+            tc = Usd.TimeCode(float(f))
+            t_attr.Set(Vt.Vec3fArray.FromNumpy(tr[f:f + 1]), tc)
+            r_attr.Set(Vt.QuatfArray.FromNumpy(rot[f:f + 1]), tc)
+    return anim
+
+
 def _animate_xform(xf, track) -> None:
     """translate / orient / scale ops on an Xformable, sampled per frame from a NodeTrack."""
     Gf, Sdf, Usd, UsdGeom, _, _, _, _ = _pxr()
@@ -162,7 +188,7 @@ def _animate_xform(xf, track) -> None:
 
 def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dict,
                 debug_meshes: Sequence = (), props: Sequence = (),
-                extra_clips: Sequence[Clip] = ()):
+                extra_clips: Sequence[Clip] = (), root_motion: NodeTrack | None = None):
     """The scene as an in-memory Usd.Stage (see the module docstring for its layout).
 
     props       : (name, vertices, faces, rgba) animated objects (prey) under /World/Prey,
@@ -170,6 +196,9 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
     debug_meshes: (name, vertices, faces, rgba) overlays in the environment's local frame
     extra_clips : per-behaviour clips, written as SkelAnimation prims under
                   /World/Centipede/Clips (not bound: the Skeleton plays the full clip)
+    root_motion : the motion an in-place clip leaves out (a track on the `root` joint), written
+                  as the SkelAnimation /World/Centipede/Clips/root_motion over that joint alone
+    Each clip's `events` go into its SkelAnimation's customData.
     """
     Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdSkel, Vt = _pxr()
     if fps <= 0:
@@ -232,8 +261,9 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
     sk.CreateRestTransformsAttr(_matrices(skel.local_rest_matrices()))
 
     anim = _skel_animation(stage, "/World/Centipede/Animation", joints, clip)
+    _events(anim, clip)
     UsdSkel.BindingAPI.Apply(sk.GetPrim()).CreateAnimationSourceRel().SetTargets([anim.GetPath()])
-    if extra_clips:
+    if extra_clips or root_motion is not None:
         clips_path = UsdGeom.Scope.Define(stage, "/World/Centipede/Clips").GetPath()
         for c in extra_clips:
             if c.translations.shape[1] != j_count:
@@ -241,7 +271,9 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
                                   f"the skeleton {j_count}")
             if np.any(c.placement != clip.placement):
                 raise ExportError(f"clip {c.name!r} does not share the main clip's placement")
-            _skel_animation(stage, clips_path.AppendChild(c.name), joints, c)
+            _events(_skel_animation(stage, clips_path.AppendChild(c.name), joints, c), c)
+        if root_motion is not None:
+            _root_motion(stage, clips_path.AppendChild("root_motion"), skel, root_motion)
 
     # -- props (prey), under a static Xform at the placement
     if props:

@@ -28,6 +28,7 @@ ALLOWED = {
     "sim": {"environment", "navmesh", "behaviour", "locomotion", "config", "context"},
     "metrics": {"sim"},
     "clip": {"rig", "sim"},
+    "rootmotion": {"clip", "rig"},
     "export": {"clip", "rig", "sim", "environment", "config", "navmesh", "atomic"},
     "inspect": {"environment", "metrics"},     # reads a bake's files back to judge them
 }

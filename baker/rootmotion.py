@@ -1,0 +1,150 @@
+"""Root motion: re-express a clip on a skeleton with a top `root` joint on the ground.
+
+    clip, rig, motion = apply_root_motion(clip, rig, "root", ground)
+
+Modes (`--root-motion`):
+- `world`    : the clip as baked; the skeleton's top joint is `head` (no root joint).
+- `root`     : a joint `root` is added above `head`. Each frame it sits on the ground under the
+               body's centre and turns with the body's heading (yaw only), and every other joint
+               is animated relative to it. This is the layout engines extract root motion from
+               (Unreal's root bone, Unity's Animator root motion, Godot's `root_motion_track`).
+- `in-place` : the same skeleton with the root held at the placement (identity) in the clip; the
+               removed motion is returned as a NodeTrack on the `root` joint, which the writers
+               store as a separate `root_motion` animation.
+
+The body's centre is the mean of the spine joints; its heading is the horizontal direction from
+the mean of the rear half of the spine to the mean of the front half (smooth through the slither,
+defined when the creature stands still). The ground height comes from `ground` and is smoothed
+over half a second, so a staircase gives the root a ramp, not steps. World joint positions are
+unchanged by construction (to float32 rounding).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from scipy.ndimage import uniform_filter1d
+
+from baker.clip import Clip, NodeTrack, normalize_quats_f32, sign_continuous
+from baker.errors import ExportError
+from baker.geometry.transforms import quat_conj, quat_mul, quat_rotate
+from baker.rig.build import Rig
+from baker.rig.mesh import SkinnedMesh
+
+MODES = ("world", "root", "in-place")
+ROOT = "root"
+#: [s] window of the centred moving average over the ground height under the body
+GROUND_SMOOTHING = 0.5
+
+
+def with_root(rig: Rig) -> Rig:
+    """`rig` with a joint `root` (at the skeleton origin, identity rest) above its top joint:
+    joint indices shift by one in the skeleton, the skin and the spine."""
+    skel = rig.skeleton
+    if ROOT in {n.lower() for n in skel.names}:
+        raise ExportError(f"the rig already has a joint named {ROOT!r}")
+    from baker.rig.skeleton import Skeleton
+
+    rooted = Skeleton(
+        names=(ROOT,) + skel.names,
+        parents=np.concatenate([[-1], skel.parents + 1]),
+        rest_translations=np.concatenate([np.zeros((1, 3)), skel.rest_translations]),
+        rest_rotations=np.concatenate([[[0.0, 0.0, 0.0, 1.0]], skel.rest_rotations]))
+    m = rig.mesh
+    mesh = SkinnedMesh(vertices=m.vertices, normals=m.normals, faces=m.faces,
+                       joints=np.where(m.weights > 0, m.joints.astype(np.int64) + 1, 0),
+                       weights=m.weights, face_material=m.face_material, materials=m.materials)
+    spine = np.asarray(rig.spine, dtype=np.int64) + 1
+    spine.setflags(write=False)
+    return Rig(config=rig.config, skeleton=rooted, mesh=mesh, spine=spine)
+
+
+def yaw_quaternions(forward: np.ndarray) -> np.ndarray:
+    """(F, 4) xyzw rotations about +Y turning +Z to the horizontal part of forward (F, 3).
+    Frames whose forward is (nearly) vertical hold the last defined heading (the first one
+    before any is defined)."""
+    fx, fz = forward[:, 0], forward[:, 2]
+    ok = np.hypot(fx, fz) > 1e-9
+    if not ok.any():
+        fx, fz, ok = np.zeros(len(forward)), np.ones(len(forward)), np.ones(len(forward), bool)
+    idx = np.arange(len(forward))
+    near = np.maximum.accumulate(np.where(ok, idx, -1))
+    near[near < 0] = idx[ok][0]
+    yaw = np.arctan2(fx[near], fz[near])
+    q = np.zeros((len(forward), 4))
+    q[:, 1] = np.sin(0.5 * yaw)
+    q[:, 3] = np.cos(0.5 * yaw)
+    return q
+
+
+def root_frames(spine_world: np.ndarray, fps: int, ground=None) -> tuple[np.ndarray, np.ndarray]:
+    """The root joint's translation (F, 3) float64 and yaw rotation (F, 4) xyzw for spine joint
+    positions spine_world (F, S, 3) float64 (head first) in the placement frame.
+
+    ground : callable (N, 3) points -> (N,) ground heights below them (NaN for none), in the
+             same frame; None: the plane y = 0."""
+    s = spine_world.shape[1]
+    centre = spine_world.mean(axis=1)
+    half = max(s // 2, 1)
+    forward = spine_world[:, :half].mean(axis=1) - spine_world[:, s - half:].mean(axis=1)
+    rot = yaw_quaternions(forward)
+    height = np.zeros(len(centre)) if ground is None else np.asarray(ground(centre), float)
+    miss = ~np.isfinite(height)
+    if miss.all():
+        height = centre[:, 1].copy()
+    elif miss.any():
+        idx = np.arange(len(height))
+        height = np.interp(idx, idx[~miss], height[~miss])
+    if ground is not None:
+        size = max(int(round(GROUND_SMOOTHING * fps)), 1)
+        height = uniform_filter1d(height, size=size, mode="nearest")
+    pos = np.stack([centre[:, 0], height, centre[:, 2]], axis=1)
+    return pos, rot
+
+
+def apply_root_motion(clip: Clip, rig: Rig, mode: str, ground=None
+                      ) -> tuple[Clip, Rig, NodeTrack | None]:
+    """(the clip on the rooted skeleton, the rooted rig, the removed root motion or None).
+
+    clip   : a clip over rig.skeleton (no root joint), e.g. from build_clip
+    mode   : "world" returns the inputs unchanged
+    ground : see root_frames; the placement frame of the clip
+    """
+    if mode not in MODES:
+        raise ExportError(f"unknown root-motion mode {mode!r}: use one of {', '.join(MODES)}")
+    if mode == "world":
+        return clip, rig, None
+    rooted = with_root(rig)
+    parents = rig.skeleton.parents
+    wt, wq = clip.world(parents)
+    wt = wt - clip.placement
+    root_t, root_q = root_frames(wt[:, rig.spine], clip.fps, ground)
+    return _rooted_clip(clip, rooted, root_t, root_q, mode)
+
+
+def _rooted_clip(clip: Clip, rooted: Rig, root_t, root_q, mode: str):
+    """Insert the root's track as joint 0 and make the old top joints relative to it."""
+    tops = np.nonzero(rooted.skeleton.parents == 0)[0] - 1      # old indices of the top joints
+    lt = clip.translations.astype(np.float64)
+    lq = clip.rotations.astype(np.float64)
+    inv = quat_conj(root_q)
+    new_t = np.concatenate([root_t[:, None], lt], axis=1)
+    new_q = np.concatenate([root_q[:, None], lq], axis=1)
+    for j in tops:
+        new_t[:, j + 1] = quat_rotate(inv, lt[:, j] - root_t)
+        new_q[:, j + 1] = quat_mul(inv, lq[:, j])
+    motion = None
+    if mode == "in-place":
+        motion = NodeTrack(node=ROOT, translations=root_t.astype(np.float32),
+                           rotations=sign_continuous(normalize_quats_f32(root_q)))
+        new_t[:, 0] = 0.0
+        new_q[:, 0] = [0.0, 0.0, 0.0, 1.0]
+    f = clip.n_frames
+    out = replace(clip, translations=new_t.astype(np.float32),
+                  rotations=sign_continuous(normalize_quats_f32(new_q)),
+                  scales=np.concatenate([np.ones((f, 1, 3), np.float32), clip.scales], axis=1),
+                  keys=None)
+    for arr in (out.translations, out.rotations, out.scales):
+        arr.setflags(write=False)
+    return out, rooted, motion
