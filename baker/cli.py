@@ -164,6 +164,68 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
 
 
 @cli.command()
+@click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
+              default=DEFAULT_RIG, show_default="rigs/scolopendra.toml", help="Rig definition (TOML).")
+@click.option("--out", type=click.Path(path_type=Path), default=Path("outputs"),
+              show_default=True,
+              help="Output folder (created if needed): writes cycles.glb, cycles.usd and "
+                   "cycles.json in it.")
+@click.option("--speeds", default=None, metavar="WALK,RUN",
+              help="Walk and run speeds in body lengths per second, each in [0.2, 4] "
+                   "[default: the rig's max speed and max speed x onslaught speed: 0.8,1.6]. "
+                   "The turns walk at the walk speed.")
+@click.option("--fps", type=int, default=30, show_default=True,
+              help="Export frame rate; must divide the 240 Hz simulation rate.")
+def cycles(rig_path, out, speeds, fps):
+    """Write a library of locomotion clips on flat ground, in root-motion layout.
+
+    Loops (each repeats exactly; names end in _loop, which Godot imports as looping):
+    walk_loop, run_loop, turn_left_walk_loop, turn_right_walk_loop, idle_loop. One-shots that
+    start and end in idle_loop's first pose: cobra_rear, warning, strike.
+
+    Root motion: every clip is in `root` mode. A top joint `root` on the ground under the
+    body's centre carries the horizontal motion and the yaw, starting at the origin facing +Z;
+    the rest of the skeleton moves relative to it (Unreal's root bone, Unity's Animator root
+    motion, Godot's root_motion_track = "Skeleton3D:root")."""
+    from baker.context import Context, TerminalProgress
+    from baker.cycles import CyclesConfig, bake_cycles, validate_cycles
+
+    t0 = time.perf_counter()
+    walk, run = parse_speeds(speeds)
+    validate_cycles(CyclesConfig(out=out, fps=fps, walk_speed=walk, run_speed=run))
+    if Path(out).exists() and not Path(out).is_dir():
+        raise ConfigError("--out must be a folder (it names a file)", where=str(out))
+    cfg = CyclesConfig(rig=load_rig_config(rig_path), out=out, fps=fps, walk_speed=walk,
+                       run_speed=run)
+    progress = TerminalProgress()
+    try:
+        result = bake_cycles(cfg, ctx=Context(progress=progress))
+    finally:
+        progress.close()
+    clips = result.summary["clips"]
+    loops = [c for c in clips if c["loop"]]
+    click.echo(f"wrote {len(clips)} clips ({len(loops)} loops, largest seam error "
+               f"{max(c['seam_error_m'] for c in loops):.1e} m, velocity mismatch "
+               f"{max(c['velocity_mismatch'] for c in loops):.1e}) -> "
+               f"{', '.join(str(p) for p in result.outputs.values())} in "
+               f"{time.perf_counter() - t0:.2f} s")
+
+
+def parse_speeds(text: str | None) -> tuple[float | None, float | None]:
+    """--speeds WALK,RUN (body lengths per second) -> (walk, run); None: the defaults."""
+    if text is None:
+        return None, None
+    form = "--speeds must be two numbers WALK,RUN in body lengths per second, e.g. 0.8,1.6"
+    try:
+        vals = tuple(float(x) for x in text.replace(" ", "").split(","))
+    except ValueError:
+        raise ConfigError(form, where="--speeds") from None
+    if len(vals) != 2:
+        raise ConfigError(form, where="--speeds")
+    return vals
+
+
+@cli.command()
 @click.argument("environment", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
               default=DEFAULT_RIG, show_default="rigs/scolopendra.toml",

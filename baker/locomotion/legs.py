@@ -122,6 +122,8 @@ MIN_REACH = 0.36
 SWING_CLEAR = 0.5
 #: planted feet of neighbouring legs keep at least this many segment spacings apart
 NEIGHBOUR_GAP = 0.3
+#: [Hz] the ultimate legs' slow sway: yaw and pitch frequencies
+ULTIMATE_SWAY_HZ = (0.35, 0.22)
 
 
 @dataclass(frozen=True)
@@ -1127,8 +1129,8 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
         pit2 = np.arcsin(np.clip(rest2[1], -1, 1))
         back = ch.kind == "ultimate"
         if back:                       # a slow sway, out of step with the other side
-            dyaw = np.radians(6.0) * np.sin(hz(0.35) * t + (0.0 if s > 0 else np.pi))
-            dpitch = np.radians(3.0) * np.sin(hz(0.22) * t + (0.5 if s > 0 else 2.0))
+            dyaw = np.radians(6.0) * np.sin(hz(ULTIMATE_SWAY_HZ[0]) * t + (0.0 if s > 0 else np.pi))
+            dpitch = np.radians(3.0) * np.sin(hz(ULTIMATE_SWAY_HZ[1]) * t + (0.5 if s > 0 else 2.0))
         else:                          # antennae sweep side to side and dip to grope the ground
             dyaw = lg.antenna_sweep * np.sin(hz(lg.antenna_rate) * t + (0.0 if s > 0 else 0.6 * np.pi))
             grope = 0.5 + 0.5 * np.sin(hz(0.5 * lg.antenna_rate) * t + (1.0 if s > 0 else 2.5))
