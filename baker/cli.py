@@ -171,7 +171,7 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
               help="Output folder (created if needed): writes cycles.glb, cycles.usd and "
                    "cycles.json in it.")
 @click.option("--speeds", default=None, metavar="WALK,RUN",
-              help="Walk and run speeds in body lengths per second, each in [0.2, 4] "
+              help="Walk and run speeds in body lengths per second (walk 0.2-2, run 0.2-3) "
                    "[default: the rig's max speed and max speed x onslaught speed: 0.8,1.6]. "
                    "The turns walk at the walk speed.")
 @click.option("--fps", type=int, default=30, show_default=True,

@@ -125,16 +125,29 @@ def seam_velocity(parents: np.ndarray, loop, ref, root: int = 0) -> dict:
     return {"velocity_mismatch": _relative_step(played, sim), "joint_velocity_mismatch": rel}
 
 
-def start_at_origin(clip: Clip, root: int = 0) -> Clip:
-    """The clip moved and turned (about +Y) so that its root joint starts at the origin facing
-    +Z, with a zero placement (only the root's track changes; yaw-only roots stay yaw-only)."""
+def root_yaw(clip: Clip, root: int = 0) -> np.ndarray:
+    """(F,) unwrapped yaw [rad] of the root joint (which turns about +Y only)."""
+    q = clip.rotations[:, root].astype(np.float64)
+    return np.unwrap(2.0 * np.arctan2(q[:, 1], q[:, 3]))
+
+
+def loop_heading(clip: Clip, root: int = 0) -> float:
+    """[rad] the root's heading at the first key with the slither's sway averaged out: its mean
+    yaw over the loop less half the loop's turn (whole slither periods average out)."""
+    yaw = root_yaw(clip, root)
+    return float(yaw[:-1].mean() - 0.5 * (yaw[-1] - yaw[0]) * (1.0 - 1.0 / (len(yaw) - 1)))
+
+
+def start_at_origin(clip: Clip, root: int = 0, heading: float | None = None) -> Clip:
+    """The clip moved and turned (about +Y) so that its root joint starts at the origin and
+    `heading` (default: the root's yaw at the first frame) faces +Z, with a zero placement (only
+    the root's track changes; yaw-only roots stay yaw-only)."""
     t = clip.translations.astype(np.float64)
     q = clip.rotations.astype(np.float64)
     t[:, root] += clip.placement
     start = t[0, root].copy()
     start[1] = 0.0                       # stays on the ground: only x and z move to the origin
-    q0 = q[0, root]
-    yaw = 2.0 * math.atan2(q0[1], q0[3])  # the root turns about +Y only
+    yaw = root_yaw(clip, root)[0] if heading is None else heading
     turn = np.broadcast_to([0.0, -math.sin(0.5 * yaw), 0.0, math.cos(0.5 * yaw)],
                            (clip.n_frames, 4))
     t[:, root] = quat_rotate(turn, t[:, root] - start)

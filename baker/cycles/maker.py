@@ -15,7 +15,7 @@ from baker.config import BakeConfig, RigConfig
 from baker.cycles import looping
 from baker.cycles.spec import (BLEND_MIN, BLEND_RATE, CHAIN_TOL, COOLDOWN, IDLE_WARMUP,
                                LOOP_MAX, LOOP_MIN, LOOP_SUFFIX, LUNGE, NUDGE_TOL, PROBE,
-                               TURN_RADIUS, LoopSpec, warmup, window_range)
+                               RESIDUAL_WARN, TURN_RADIUS, LoopSpec, warmup, window_range)
 from baker.locomotion.gait import gait_clock
 from baker.rootmotion import apply_root_motion
 
@@ -78,9 +78,11 @@ class ClipMaker:
         rooted, self.rooted_rig, _ = apply_root_motion(clip, self.rig, "root")
         return rooted
 
-    def cut(self, full: Clip, f0: int, count: int) -> Clip:
-        """Frames f0 .. f0 + count - 1, the root starting at the origin facing +Z."""
-        return looping.start_at_origin(full.segment(f0, f0 + count, full.name))
+    def cut(self, full: Clip, f0: int, count: int, loop: bool = False) -> Clip:
+        """Frames f0 .. f0 + count - 1, the root starting at the origin facing +Z (a loop: its
+        heading with the slither's sway averaged out, looping.loop_heading)."""
+        clip = full.segment(f0, f0 + count, full.name)
+        return looping.start_at_origin(clip, heading=looping.loop_heading(clip) if loop else None)
 
     # ------------------------------------------------------------------ loops
     def loop(self, spec: LoopSpec) -> tuple[Clip, dict]:
@@ -88,7 +90,7 @@ class ClipMaker:
         slither, then the full creature) and its measures."""
         rig0, fps = self.cfg.rig, self.fps
         bl, lg = rig0.body.length, rig0.legs
-        f0 = round(warmup(spec, bl) * fps)
+        f0 = round(warmup(spec, rig0) * fps)
         lo, hi = window_range(spec, rig0)
         longest = f0 / fps + hi + COOLDOWN
         drives = [Drive(0.0, spec.state, route=self.route(spec, longest),
@@ -128,7 +130,7 @@ class ClipMaker:
         """Frames f0..f0 + n of `full` as a loop: its seam closed, loop flag and events, and its
         measures (the velocities against the simulation's frames f0 - 1 .. f0 + n + 1)."""
         parents = self.rooted_rig.skeleton.parents
-        clip = self.cut(full, f0, n + 1)
+        clip = self.cut(full, f0, n + 1, loop=True)
         residual = looping.seam_error(parents, clip.translations, clip.rotations)
         ref = full.segment(f0 - 1, f0 + n + 2, full.name)
         raw_v = looping.seam_velocity(parents, (clip.translations, clip.rotations),
@@ -147,6 +149,9 @@ class ClipMaker:
                  residual_m=residual, residual_velocity_mismatch=raw_v["velocity_mismatch"],
                  max_joint_turn_deg=float(
                      looping.frame_turns(clip).max()), cycle=cycle)
+        if residual > RESIDUAL_WARN:
+            log.warning("%s: the simulation's seam residual is %.2g m (distributed over the "
+                        "clip)", clip.name, residual)
         log.info("%s: %d frames, residual %.2g m, seam %.2g m, velocity mismatch %.2g",
                  clip.name, clip.n_frames, residual, m["seam_error_m"],
                  m["velocity_mismatch"])

@@ -32,8 +32,12 @@ LUNGE = 0.3
 BLEND_RATE = 6.0
 #: [s] shortest blend ramp
 BLEND_MIN = 0.3
-#: speeds accepted by --speeds [BL/s]
-SPEED_RANGE = (0.2, 4.0)
+#: walk and run speeds accepted by --speeds [BL/s] (faster turns on the 1 BL circle and runs
+#: leave residuals of millimetres: the walk is not periodic enough any more)
+WALK_RANGE = (0.2, 2.0)
+RUN_RANGE = (0.2, 3.0)
+#: [m] a residual above this is logged as a warning (the seam is closed all the same)
+RESIDUAL_WARN = 1e-4
 #: clip names: loops end in `_loop` (Godot imports them as looping and strips the suffix)
 LOOP_SUFFIX = "_loop"
 
@@ -86,8 +90,8 @@ def validate_cycles(cfg: CyclesConfig) -> CyclesConfig:
     from baker.errors import ConfigError
 
     validate_bake(BakeConfig(fps=cfg.fps))
-    lo, hi = SPEED_RANGE
-    for what, v in (("walk", cfg.walk_speed), ("run", cfg.run_speed)):
+    for what, v, (lo, hi) in (("walk", cfg.walk_speed, WALK_RANGE),
+                              ("run", cfg.run_speed, RUN_RANGE)):
         if v is not None and not (math.isfinite(v) and lo <= v <= hi):
             raise ConfigError(f"--speeds: the {what} speed must be in [{lo}, {hi}] body lengths "
                               f"per second (got {v:g})", where="--speeds")
@@ -120,12 +124,14 @@ def flat_environment(extent, name: str = "flat_ground"):
 
 def sim_seconds(spec: LoopSpec, rig: RigConfig) -> float:
     """Longest a loop's simulation runs: warm-up, the longest window, cool-down."""
-    return warmup(spec, rig.body.length) + window_range(spec, rig)[1] + COOLDOWN
+    return warmup(spec, rig) + window_range(spec, rig)[1] + COOLDOWN
 
 
-def warmup(spec: LoopSpec, bl: float) -> float:
-    """[s] warm-up: WARMUP, or longer for a slow walk (the whole body on the walked trail)."""
-    return max(WARMUP, 3.0 * bl / spec.speed + 2.0)
+def warmup(spec: LoopSpec, rig: RigConfig) -> float:
+    """[s] warm-up: WARMUP, or longer for a slow walk (the whole body on the walked trail) or
+    a fast one (3 s after the agent has reached its speed)."""
+    return max(WARMUP, 3.0 * rig.body.length / spec.speed + 2.0,
+               spec.speed / rig.locomotion.acceleration + 3.0)
 
 
 def window_range(spec: LoopSpec, rig: RigConfig) -> tuple[float, float]:
