@@ -172,8 +172,9 @@ class ClipMaker:
         reps = {k: max(1, math.ceil((dur + BLEND_MIN) * fps / n)) for k, (_, dur) in shots.items()}
         seconds = f0 / fps + max(reps.values()) * period + COOLDOWN
         traj = self.run(rig0, [Drive(0.0, "idle")], seconds, chain_period=period)
-        idle, m = self.finish_loop(self.rooted(traj, "idle" + LOOP_SUFFIX), f0, n, {"frames": n, "seconds": period, "chain_period_s": period,
-                                          "chain_rates_hz": chain_rates(rig0, period)})
+        cycle = {"frames": n, "seconds": period, "chain_period_s": period,
+                 "chain_rates_hz": chain_rates(rig0, period)}
+        idle, m = self.finish_loop(self.rooted(traj, "idle" + LOOP_SUFFIX), f0, n, cycle)
         m["idle_foot_slide_m"] = foot_slide(self.rooted_rig, idle)
         out = [(idle, m)]
         for name, (drives, dur) in shots.items():
@@ -236,8 +237,8 @@ def one_shots(rig: RigConfig, t0: float) -> dict[str, tuple[list, float]]:
                      Drive(a + beh.warning_time, "idle")],
                     LEAD_IN + beh.warning_time + SETTLE),
         "strike": ([idle, Drive(a, "strike", cobra=1.0),
-                    Drive(a + rise, "strike", cobra=1.0, ahead=lunge, speed_scale=beh.onslaught_speed,
-                          turn_scale=beh.onslaught_turn_rate),
+                    Drive(a + rise, "strike", cobra=1.0, ahead=lunge,
+                          speed_scale=beh.onslaught_speed, turn_scale=beh.onslaught_turn_rate),
                     Drive(bite, "strike", halt=True),
                     Drive(bite + beh.strike_time, "idle")],
                    bite - t0 + beh.strike_time + rise + SETTLE),

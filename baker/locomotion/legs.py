@@ -1132,7 +1132,8 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
             dyaw = np.radians(6.0) * np.sin(hz(ULTIMATE_SWAY_HZ[0]) * t + (0.0 if s > 0 else np.pi))
             dpitch = np.radians(3.0) * np.sin(hz(ULTIMATE_SWAY_HZ[1]) * t + (0.5 if s > 0 else 2.0))
         else:                          # antennae sweep side to side and dip to grope the ground
-            dyaw = lg.antenna_sweep * np.sin(hz(lg.antenna_rate) * t + (0.0 if s > 0 else 0.6 * np.pi))
+            dyaw = lg.antenna_sweep * np.sin(hz(lg.antenna_rate) * t
+                                             + (0.0 if s > 0 else 0.6 * np.pi))
             grope = 0.5 + 0.5 * np.sin(hz(0.5 * lg.antenna_rate) * t + (1.0 if s > 0 else 2.5))
             dpitch = -np.radians(22.0) * grope ** 3
         base_pitch = pit1 + dpitch

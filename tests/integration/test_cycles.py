@@ -8,7 +8,6 @@ window, which no file holds) comes from the run."""
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest

@@ -88,7 +88,8 @@ def test_close_loop_distributes_a_residual_linearly():
     # the child loses f / N of the 1 mm drift; the root's motion is untouched
     assert np.allclose(d[:, 0], 0.0)
     n = loop.n_frames - 1
-    expected = -(loop.translations[-1, 1] - loop.translations[0, 1]) * (np.arange(n + 1) / n)[:, None]
+    ramp = (np.arange(n + 1) / n)[:, None]
+    expected = -(loop.translations[-1, 1] - loop.translations[0, 1]) * ramp
     assert np.allclose(d[:, 1], expected, atol=1e-6)
     assert np.array_equal(closed.rotations[-1, 1:], closed.rotations[0, 1:])
 
