@@ -139,6 +139,21 @@ def _reserved_names(names: Sequence[str]) -> set[str]:
     return taken | set(fixed)
 
 
+def _stage_names(rig: Rig, props: Sequence, debug_meshes: Sequence, extra_clips: Sequence):
+    """One name space for the stage's objects (Xforms, meshes, materials, clips), unique also
+    without regard to case, as in the GLB: Blender names its objects and materials by prim
+    name, and two prims named `mesh` would arrive as `mesh` and `mesh.001`. baker's own names
+    are reserved before the environment's.
+
+    returns (taken: for safe_name, updated as names are given out; the debug layers' names;
+    (mesh, material) names of each rig.mesh.materials entry)"""
+    taken = _reserved_names([p[0] for p in props] + [c.name for c in extra_clips])
+    debug_names = [safe_name(d[0], taken, "debug") for d in debug_meshes]
+    part_names = [(safe_name(m, taken, "part"), safe_name(f"centipede_{m}", taken))
+                  for m, _ in rig.mesh.materials]
+    return taken, debug_names, part_names
+
+
 def _skel_animation(stage, path, joints, clip: Clip):
     """A SkelAnimation prim with the clip's joint TRS, time samples keyed by frame number."""
     _, Sdf, Usd, _, _, _, UsdSkel, Vt = _pxr()
@@ -215,13 +230,7 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
     # set as one dictionary: SetCustomDataByKey would split keys containing ":" into levels
     world.GetPrim().SetCustomData(_custom_data_value(jsonable(dict(extras))))
     looks = UsdGeom.Scope.Define(stage, "/World/Looks").GetPath()
-    # one name space for the stage's objects (Xforms, meshes, materials, clips), unique also
-    # without regard to case, as in the GLB: Blender names its objects and materials by prim
-    # name, and two prims named `mesh` would arrive as `mesh` and `mesh.001`
-    taken = _reserved_names([p[0] for p in props] + [c.name for c in extra_clips])
-    debug_names = [safe_name(d[0], taken, "debug") for d in debug_meshes]
-    part_names = [(safe_name(m, taken, "part"), safe_name(f"centipede_{m}", taken))
-                  for m, _ in rig.mesh.materials]
+    taken, debug_names, part_names = _stage_names(rig, props, debug_meshes, extra_clips)
 
     # -- environment
     env_xf = UsdGeom.Xform.Define(stage, "/World/Environment")
