@@ -265,6 +265,26 @@ def navmesh(environment, rig_path, png, path_from, path_to, cache_dir, no_cache,
     click.echo(format_report(report))
 
 
+@cli.command()
+@click.argument("file", type=click.Path(path_type=Path))
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
+@click.option("--no-validate", is_flag=True,
+              help="Skip the validator (Khronos glTF-Validator for a GLB, UsdValidation for a USD).")
+def inspect(file, as_json, no_validate):
+    """Summarize a file baker wrote: a GLB or USD (skeleton, clips with durations, key counts
+    and loop flags, size breakdown, validator result, embedded metadata) or a bake's JSON report.
+
+    The Khronos glTF-Validator runs when node and the gltf-validator npm package are installed
+    (npm install -g gltf-validator, or BAKER_GLTF_VALIDATOR=<its folder>)."""
+    import json
+
+    from baker.inspect_file import format_report, inspect_file
+
+    report = inspect_file(file, validate=not no_validate)
+    click.echo(json.dumps(report, indent=2, allow_nan=False, default=str) if as_json
+               else format_report(report))
+
+
 def check_rig_overrides(rig_overrides: dict) -> None:
     """The rig options' values (schema.Options), checked before the rig file is read."""
     override_rig(RigConfig(), **rig_overrides)

@@ -66,7 +66,7 @@ class BakedScene:
     rest_translations : (J, 3) float64, local rest translations (bone vectors)
     fps       : frames per second of the frame grid the joints are sampled on
     env_vertices : (n, 3) float64 world; env_faces : (m, 3) int64 (empty for a USD read)
-    extras    : the file's custom data (glTF asset.extras)
+    extras    : the file's custom data (glTF scene extras, see glb_extras)
     """
 
     names: tuple[str, ...]
@@ -111,6 +111,19 @@ class _Glb:
         if acc.get("normalized"):
             a = np.maximum(a / np.iinfo(dt).max, -1.0)
         return a.reshape(acc["count"], width) if width > 1 else a
+
+
+def glb_extras(doc: dict) -> dict:
+    """The bake's metadata in a glTF document: the default scene's `extras` (where baker stores
+    it), or `asset.extras` in files written before it moved there; {} when neither is a dict."""
+    scenes = doc.get("scenes") or []
+    i = doc.get("scene", 0)
+    scene = scenes[i] if isinstance(i, int) and 0 <= i < len(scenes) else {}
+    for ex in (scene.get("extras") if isinstance(scene, dict) else None,
+               (doc.get("asset") or {}).get("extras")):
+        if isinstance(ex, dict) and ex:
+            return ex
+    return {}
 
 
 def _node_matrix(node: dict) -> np.ndarray:
@@ -191,7 +204,7 @@ def read_glb(path: str | Path, animation: str | int = 0) -> BakedScene:
         animation, str) else anims[animation]
     if anim is None:
         raise InspectError(f"{path}: no animation named {animation!r}")
-    extras = doc.get("asset", {}).get("extras", {}) or {}
+    extras = glb_extras(doc)
     parent = {c: i for i, n in enumerate(nodes) for c in n.get("children", [])}
     # static world matrices of every node in the default scene
     world: dict[int, np.ndarray] = {}

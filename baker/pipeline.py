@@ -176,7 +176,9 @@ def _bake(cfg: BakeConfig, rng: np.random.Generator | None, ctx: Context | None)
         v, f = nav_debug.walkable_mesh(nav)
         debug_meshes = (("navmesh", v, f, (0.1, 0.6, 1.0, 0.5)),)
     props = prey_props(cfg.rig, traj)
-    segments = behaviour_clips(clip, traj.events, cfg.fps) if cfg.clips else ()
+    events = events_of(cfg, traj, env.origin)
+    clip = replace(clip, events=events(0, clip.n_frames))
+    segments = behaviour_clips(clip, traj.events, cfg.fps, events) if cfg.clips else ()
     scene = dict(extras=extras, debug_meshes=debug_meshes, props=props, extra_clips=segments,
                  root_motion=root_motion)
     with OutputSet(paths) as out:
@@ -230,13 +232,29 @@ def prey_props(rig_cfg, traj) -> tuple:
     return tuple((name, v, f, rgba) for name in traj.prey_names)
 
 
-def behaviour_clips(clip, events, fps: int) -> tuple:
+def behaviour_clips(clip, timeline, fps: int, events=None) -> tuple:
     """One clip per timeline segment, named state_NN, each starting at time 0 and including
-    the frame at its end time (so consecutive clips share their boundary pose)."""
+    the frame at its end time (so consecutive clips share their boundary pose).
+    events : callable (first frame, frames) -> the segment's events dict (see events_of)"""
     out = []
-    for i, e in enumerate(events):
+    for i, e in enumerate(timeline):
         f0 = int(round(e["start"] * fps))
         f1 = min(int(round(e["end"] * fps)) + 1, clip.n_frames)
         if f1 - f0 >= 2:
-            out.append(clip.segment(f0, f1, f"{e['state']}_{i:02d}"))
+            seg = clip.segment(f0, f1, f"{e['state']}_{i:02d}")
+            out.append(seg if events is None else replace(seg, events=events(f0, f1 - f0)))
     return tuple(out)
+
+
+def events_of(cfg: BakeConfig, traj, origin):
+    """A function (first frame, frames) -> the events dict (export.events.clip_events) of
+    that part of the bake: foot contacts of the walking legs and behaviour changes."""
+    from baker.export.events import clip_events
+    from baker.export.report import world_events
+    from baker.rig.limbs import leg_layout
+
+    contacts = traj.foot_contacts
+    feet = leg_layout(cfg.rig).foot_names if contacts is not None else ()
+    timeline = world_events(traj.events, origin)
+    return lambda f0, frames: clip_events(cfg.fps, frames, contacts=contacts, feet=feet,
+                                          timeline=timeline, f0=f0)

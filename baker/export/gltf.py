@@ -9,8 +9,14 @@ deterministic and both chunks are padded to 4 bytes. Node layout of the scene:
     Prey                   group, translation = clip.placement -> one animated node per prey
     Centipede              non-joint placement node, translation = clip.placement
                            -> head -> trunk_01 -> ... (the root joint's keys are relative to it)
-    centipede_mesh         skinned mesh, at the scene root with no transform
+    centipede_mesh         skinned mesh `centipede_skinned`, at the scene root with no transform
     <debug layers>         optional overlays, one node each, translation = env.origin
+
+Names: every node, mesh and material name is unique, also without regard to case (engines key
+objects by name and some ignore case). A static part keeps its name on its node; its mesh and
+material add `_mesh` and `_mat` (`ground`, `ground_mesh`, `ground_mat`). Joint names are the
+skeleton's own. The bake's metadata is stored once, in the scene's `extras` (three.js:
+`gltf.scene.userData`; Blender: the scene's custom properties).
 
 Positions far from the world origin stay precise: float32 data (vertices, animation keys) holds
 small numbers relative to a node whose translation, a JSON number, is double precision. A zero
@@ -36,6 +42,7 @@ from baker.geometry.transforms import light_rotation
 from baker.rig.build import Rig
 
 ANIM_LINEAR = "LINEAR"   # animation interpolation (NOT pygltflib.LINEAR, the texture filter 9729)
+SKINNED_MESH = "centipede_skinned"   # the skinned mesh's name (its node is `centipede_mesh`)
 
 FLOAT, UINT16, UINT32 = gl.FLOAT, gl.UNSIGNED_SHORT, gl.UNSIGNED_INT
 ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = gl.ARRAY_BUFFER, gl.ELEMENT_ARRAY_BUFFER
@@ -119,6 +126,16 @@ def _static_mesh(gltf: gl.GLTF2, b: _Builder, name: str, vertices, faces, normal
     return len(gltf.meshes) - 1
 
 
+def _part_names(name: str, taken: set[str], fallback: str,
+                node_reserved: bool = False) -> tuple[str, str, str]:
+    """(node, mesh, material) names of one static part: the node keeps the part's name (made
+    safe and unique), the mesh and the material add `_mesh` and `_mat`; all three unique against
+    `taken` (updated), also without regard to case. node_reserved: `name` is already in `taken`
+    (a prey node, which the clips' tracks drive by that exact name)."""
+    node = name if node_reserved else safe_name(name, taken, fallback)
+    return node, safe_name(f"{node}_mesh", taken), safe_name(f"{node}_mat", taken)
+
+
 def _add_node(gltf: gl.GLTF2, node: gl.Node) -> int:
     gltf.nodes.append(node)
     return len(gltf.nodes) - 1
@@ -145,7 +162,7 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
     clip         : animation over rig.skeleton's joints (and its node tracks: prey, sun), or
                    None for the rest pose only; clip.placement translates the Centipede and
                    Prey nodes
-    extras       : custom data, stored in the scene's and the asset's `extras` (made JSON-safe)
+    extras       : custom data, stored once, in the scene's `extras` (made JSON-safe)
     debug_meshes : (name, vertices (n, 3), faces (m, 3), rgba) extra layers in the
                    environment's local frame, one node each (translated by env.origin)
     props        : (name, vertices, faces, rgba) animated scene objects (prey), one node each
@@ -163,23 +180,16 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
     gltf = gl.GLTF2(asset=gl.Asset(version="2.0", generator=f"baker {baker.__version__}"))
     gltf.buffers = []
     b = _Builder(gltf)
-    # fixed node names and joint names are reserved first; other names are made unique around them
-    fixed = ["Environment", "Sun", "Centipede", "centipede_mesh"] + (["Prey"] if props else [])
-    reserved = fixed + [p[0] for p in props] + (list(rig.skeleton.names) if rig else [])
-    names: set[str] = {n.lower() for n in reserved}
-    if len(names) != len(reserved):
-        raise ExportError("joint or prey names clash with the scene's node names "
-                          f"({', '.join(fixed)}), also when case is ignored")
-    names.update(reserved)
+    names, debug_names, creature_mats = _reserve_names(rig, props, debug_meshes)
     placement = clip.placement if clip is not None else np.zeros(3)
     scene_nodes: list[int] = []
 
     # -- environment
     env_children = []
     for m, rgba in environment_parts(env):
-        nm = safe_name(m.name, names, "env_mesh")
-        mat = _material(gltf, nm, rgba, m.metallic, m.roughness, double_sided=True)
-        mesh = _static_mesh(gltf, b, nm, m.vertices, m.faces, m.normals, mat)
+        nm, mesh_nm, mat_nm = _part_names(m.name, names, "env_mesh")
+        mat = _material(gltf, mat_nm, rgba, m.metallic, m.roughness, double_sided=True)
+        mesh = _static_mesh(gltf, b, mesh_nm, m.vertices, m.faces, m.normals, mat)
         env_children.append(_add_node(gltf, gl.Node(name=nm, mesh=mesh)))
     if env_children:
         scene_nodes.append(_add_node(gltf, gl.Node(name="Environment", children=env_children,
@@ -202,8 +212,10 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
     prey_nodes = []
     for name, verts, faces, rgba in props:
         rgba = tuple(float(c) for c in rgba)
-        mat = _material(gltf, name, rgba + (1.0,) * (4 - len(rgba)), 0.0, 0.7, double_sided=False)
-        mesh = _static_mesh(gltf, b, name, verts, faces, None, mat)
+        _, mesh_nm, mat_nm = _part_names(name, names, "prey", node_reserved=True)
+        mat = _material(gltf, mat_nm, rgba + (1.0,) * (4 - len(rgba)), 0.0, 0.7,
+                        double_sided=False)
+        mesh = _static_mesh(gltf, b, mesh_nm, verts, faces, None, mat)
         first = next((t for t in (clip.tracks if clip is not None else ()) if t.node == name), None)
         rest = {} if first is None or first.translations is None else dict(
             translation=_rounded(first.translations[0]), rotation=_rounded(first.rotations[0]))
@@ -216,7 +228,7 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
     # -- the creature and its animations
     clips = (([clip] if clip is not None else []) + list(extra_clips)) if rig is not None else []
     if rig is not None:
-        roots, node_of = _add_creature(gltf, b, names, rig, placement)
+        roots, node_of = _add_creature(gltf, b, creature_mats, rig, placement)
         scene_nodes.extend(roots)
         for c in clips:
             _add_animation(gltf, b, c, node_of, node_by_name)
@@ -227,14 +239,15 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
             _add_animation(gltf, b, _track_clip(clip, root_motion), node_of[:0], joints)
 
     # -- debug overlays
-    for name, verts, faces, rgba in debug_meshes:
+    for (name, verts, faces, rgba), nm in zip(debug_meshes, debug_names):
         if len(verts) == 0 or len(faces) == 0:
             log.warning("skipping empty debug layer %r", name)
             continue
-        nm = safe_name(name, names, "debug")
+        _, mesh_nm, mat_nm = _part_names(nm, names, "debug", node_reserved=True)
         rgba = tuple(float(c) for c in rgba)
-        mat = _material(gltf, nm, rgba + (1.0,) * (4 - len(rgba)), 0.0, 1.0, double_sided=True)
-        mesh = _static_mesh(gltf, b, nm, verts, faces, None, mat)
+        mat = _material(gltf, mat_nm, rgba + (1.0,) * (4 - len(rgba)), 0.0, 1.0,
+                        double_sided=True)
+        mesh = _static_mesh(gltf, b, mesh_nm, verts, faces, None, mat)
         scene_nodes.append(_add_node(gltf, gl.Node(name=nm, mesh=mesh, **_offset(env.origin))))
 
     gltf.scenes = [gl.Scene(name="Scene", nodes=scene_nodes)]
@@ -243,10 +256,10 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
     gltf.buffers = [gl.Buffer(byteLength=len(blob))]
 
     doc = json.loads(gltf.gltf_to_json(separators=(",", ":"), indent=None))
-    # extras are inserted after pygltflib's JSON pass, which would drop None/empty values
-    ex = jsonable(dict(extras))
-    doc["asset"]["extras"] = ex
-    doc["scenes"][0]["extras"] = ex
+    # extras are inserted after pygltflib's JSON pass, which would drop None/empty values;
+    # stored once, on the scene: three.js (scene.userData) and Blender (the scene's custom
+    # properties) surface scene extras, neither surfaces asset.extras
+    doc["scenes"][0]["extras"] = jsonable(dict(extras))
     for anim, c in zip(doc.get("animations", []), clips):
         if c.events:
             anim["extras"] = jsonable(dict(c.events))
@@ -265,10 +278,33 @@ def _glb_container(json_bytes: bytes, blob: bytes) -> bytes:
     return b"".join(out)
 
 
-def _add_creature(gltf: gl.GLTF2, b: _Builder, names: set[str], rig: Rig, placement):
+def _reserve_names(rig: Rig | None, props: Sequence[DebugMesh],
+                   debug_meshes: Sequence[DebugMesh]) -> tuple[set[str], list[str], list[str]]:
+    """The names baker itself writes, reserved before the environment's: the fixed nodes and
+    the skinned mesh, the joints and prey (exactly as given), then the debug layers' nodes and
+    the creature's materials (made safe and unique). Every other node, mesh and material name
+    is made unique around them, also without regard to case.
+
+    returns (taken: names and their lower-case forms, for safe_name; debug layer node names;
+    the creature's material names, one per rig.mesh.materials entry)"""
+    fixed = ["Environment", "Sun", "Centipede", "centipede_mesh", SKINNED_MESH] + (
+        ["Prey"] if props else [])
+    reserved = fixed + [p[0] for p in props] + (list(rig.skeleton.names) if rig else [])
+    names: set[str] = {n.lower() for n in reserved}
+    if len(names) != len(reserved):
+        raise ExportError("joint or prey names clash with the scene's node names "
+                          f"({', '.join(fixed)}), also when case is ignored")
+    names.update(reserved)
+    debug = [safe_name(d[0], names, "debug") for d in debug_meshes]
+    mats = [safe_name(f"centipede_{m}", names) for m, _ in (rig.mesh.materials if rig else ())]
+    return names, debug, mats
+
+
+def _add_creature(gltf: gl.GLTF2, b: _Builder, mat_names: Sequence[str], rig: Rig, placement):
     """Joint nodes under a non-joint `Centipede` node (translated by placement (3,) float64,
     metres, world) and the skinned mesh node (scene root, no transform; its inverse bind
     matrices are in the skeleton's own frame, so the placement moves the skin with the joints).
+    mat_names: the material name of each rig.mesh.materials entry.
     Returns (the scene-root node indices it added, the node index of every joint)."""
     skel = rig.skeleton
     j_count = skel.n_joints
@@ -297,8 +333,7 @@ def _add_creature(gltf: gl.GLTF2, b: _Builder, names: set[str], rig: Rig, placem
         used, faces = mesh.submesh(mi)
         if not len(faces):
             continue
-        mat = _material(gltf, safe_name(f"centipede_{mname}", names), tuple(rgb) + (1.0,),
-                        0.0, 0.6, double_sided=False)
+        mat = _material(gltf, mat_names[mi], tuple(rgb) + (1.0,), 0.0, 0.6, double_sided=False)
         prims.append(gl.Primitive(
             attributes=gl.Attributes(
                 POSITION=b.accessor(mesh.vertices[used], FLOAT, target=ARRAY_BUFFER, minmax=True),
@@ -306,7 +341,7 @@ def _add_creature(gltf: gl.GLTF2, b: _Builder, names: set[str], rig: Rig, placem
                 JOINTS_0=b.accessor(mesh.joints[used], UINT16, target=ARRAY_BUFFER),
                 WEIGHTS_0=b.accessor(mesh.weights[used], FLOAT, target=ARRAY_BUFFER)),
             indices=b.indices(faces, len(used)), material=mat, mode=gl.TRIANGLES))
-    gltf.meshes.append(gl.Mesh(name="centipede", primitives=prims))
+    gltf.meshes.append(gl.Mesh(name=SKINNED_MESH, primitives=prims))
     mesh_node = _add_node(gltf, gl.Node(name="centipede_mesh",
                                         mesh=len(gltf.meshes) - 1, skin=skin))
 

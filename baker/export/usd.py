@@ -13,9 +13,12 @@ Stage layout (defaultPrim /World):
         Clips/<name>               optional per-behaviour SkelAnimations (not bound)
         body, legs                 skinned Meshes (one per material)
       Prey/<name>                  Xform translated by clip.placement; animated Xforms
-                                   (translate, orient, scale, visibility) + mesh
+                                   (translate, orient, scale, visibility) + mesh <name>_mesh
       Debug/<name>                 Xform translated by env.origin; optional overlay meshes
-      Looks/<material>             Materials
+      Looks/<material>             Materials (<mesh>_mat, centipede_<part>)
+
+Object prim names (Xforms, meshes, materials, clips) are unique across the stage, also without
+regard to case, as the GLB's node, mesh and material names are.
 
 The translations that carry positions far from the world origin are double3 translate ops
 (`UsdGeom.XformOp.PrecisionDouble`), so float32 points and keys stay small; a zero offset
@@ -117,6 +120,38 @@ def _offset(xformable, v) -> None:
     v = np.asarray(v, dtype=np.float64).reshape(3)
     if np.any(v != 0):
         xformable.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble).Set(Gf.Vec3d(*map(float, v)))
+
+
+#: prim names the stage's layout uses (see the module docstring)
+_FIXED_PRIMS = ("World", "Looks", "Environment", "Sun", "Centipede", "Skeleton", "Animation",
+                "Clips", "Prey", "Debug")
+
+
+def _reserved_names(names: Sequence[str]) -> set[str]:
+    """The fixed prim names and `names` (prey Xforms, clips: prims that keep their exact
+    names), each with its lower-case form, as a `taken` set for safe_name. ExportError when
+    two of them are equal without regard to case."""
+    fixed = list(_FIXED_PRIMS) + list(names)
+    taken = {n.lower() for n in fixed}
+    if len(taken) != len(fixed):
+        raise ExportError("prey or clip names clash with each other or with the stage's prim "
+                          f"names ({', '.join(_FIXED_PRIMS)}), also when case is ignored")
+    return taken | set(fixed)
+
+
+def _stage_names(rig: Rig, props: Sequence, debug_meshes: Sequence, extra_clips: Sequence):
+    """One name space for the stage's objects (Xforms, meshes, materials, clips), unique also
+    without regard to case, as in the GLB: Blender names its objects and materials by prim
+    name, and two prims named `mesh` would arrive as `mesh` and `mesh.001`. baker's own names
+    are reserved before the environment's.
+
+    returns (taken: for safe_name, updated as names are given out; the debug layers' names;
+    (mesh, material) names of each rig.mesh.materials entry)"""
+    taken = _reserved_names([p[0] for p in props] + [c.name for c in extra_clips])
+    debug_names = [safe_name(d[0], taken, "debug") for d in debug_meshes]
+    part_names = [(safe_name(m, taken, "part"), safe_name(f"centipede_{m}", taken))
+                  for m, _ in rig.mesh.materials]
+    return taken, debug_names, part_names
 
 
 def _skel_animation(stage, path, joints, clip: Clip):
@@ -224,16 +259,16 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
     # set as one dictionary: SetCustomDataByKey would split keys containing ":" into levels
     world.GetPrim().SetCustomData(_custom_data_value(jsonable(dict(extras))))
     looks = UsdGeom.Scope.Define(stage, "/World/Looks").GetPath()
-    mat_names: set[str] = set()
+    taken, debug_names, part_names = _stage_names(rig, props, debug_meshes, extra_clips)
 
     # -- environment
     env_xf = UsdGeom.Xform.Define(stage, "/World/Environment")
     _offset(env_xf, env.origin)
     env_path = env_xf.GetPath()
-    taken: set[str] = set()
     for m, rgba in environment_parts(env):
         nm = safe_name(m.name, taken, "env_mesh")
-        mat = _material(stage, looks, safe_name(nm, mat_names), rgba, 1.0, m.metallic, m.roughness)
+        mat = _material(stage, looks, safe_name(f"{nm}_mat", taken), rgba, 1.0, m.metallic,
+                        m.roughness)
         _mesh(stage, env_path.AppendChild(nm), m.vertices, m.faces, m.normals, rgba, mat,
               double_sided=True)
 
@@ -277,7 +312,7 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
 
     # -- props (prey), under a static Xform at the placement
     if props:
-        _props(stage, looks, mat_names, props, tracks, clip.placement)
+        _props(stage, looks, taken, props, tracks, clip.placement)
 
     mesh = rig.mesh
     identity = Gf.Matrix4d(1.0)
@@ -285,9 +320,8 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
         used, faces = mesh.submesh(mi)
         if not len(faces):
             continue
-        nm = safe_name(mname, taken | {"Skeleton", "Animation"}, "part")
-        mat = _material(stage, looks, safe_name(f"centipede_{mname}", mat_names), rgb, 1.0,
-                        0.0, 0.6)
+        nm, mat_nm = part_names[mi]
+        mat = _material(stage, looks, mat_nm, rgb, 1.0, 0.0, 0.6)
         m = _mesh(stage, root.GetPath().AppendChild(nm), mesh.vertices[used], faces,
                   mesh.normals[used], tuple(rgb), mat, double_sided=False)
         binding = UsdSkel.BindingAPI.Apply(m.GetPrim())
@@ -300,13 +334,14 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
 
     # -- debug overlays, in the environment's frame
     if debug_meshes:
-        _debug_layers(stage, looks, mat_names, debug_meshes, env.origin)
+        _debug_layers(stage, looks, taken, debug_meshes, debug_names, env.origin)
     return stage
 
 
-def _props(stage, looks, mat_names: set[str], props: Sequence, tracks: dict, placement) -> None:
+def _props(stage, looks, taken: set[str], props: Sequence, tracks: dict, placement) -> None:
     """/World/Prey (translated by placement (3,) float64 metres, world) with one animated Xform
-    and mesh per prop (name, vertices, faces, rgba), driven by tracks[name]."""
+    per prop (name, vertices, faces, rgba), named `name` and driven by tracks[name], holding
+    its mesh `<name>_mesh`; materials `<name>_mat` (names made unique against `taken`)."""
     _, _, _, UsdGeom, _, _, _, _ = _pxr()
     prey_xf = UsdGeom.Xform.Define(stage, "/World/Prey")
     _offset(prey_xf, placement)
@@ -315,26 +350,25 @@ def _props(stage, looks, mat_names: set[str], props: Sequence, tracks: dict, pla
         if name in tracks:
             _animate_xform(xf, tracks[name])
         rgba = tuple(float(c) for c in rgba) + (1.0,) * (4 - len(rgba))
-        mat = _material(stage, looks, safe_name(f"prey_{name}", mat_names), rgba, 1.0, 0.0, 0.7)
-        _mesh(stage, xf.GetPath().AppendChild("mesh"), verts, faces, None, rgba, mat,
-              double_sided=False)
+        mat = _material(stage, looks, safe_name(f"{name}_mat", taken), rgba, 1.0, 0.0, 0.7)
+        _mesh(stage, xf.GetPath().AppendChild(safe_name(f"{name}_mesh", taken)), verts, faces,
+              None, rgba, mat, double_sided=False)
 
 
-def _debug_layers(stage, looks, mat_names: set[str], debug_meshes: Sequence, origin) -> None:
+def _debug_layers(stage, looks, taken: set[str], debug_meshes: Sequence, names: Sequence[str],
+                  origin) -> None:
     """/World/Debug (translated by origin (3,) float64 metres, world: the meshes are in the
-    environment's local frame) with one mesh per non-empty (name, vertices, faces, rgba)."""
+    environment's local frame) with one mesh per non-empty (name, vertices, faces, rgba), named
+    by `names` (reserved in `taken`); materials `<name>_mat`."""
     _, _, _, UsdGeom, _, _, _, _ = _pxr()
     dbg_xf = UsdGeom.Xform.Define(stage, "/World/Debug")
     _offset(dbg_xf, origin)
-    dtaken: set[str] = set()
-    for name, verts, faces, rgba in debug_meshes:
+    for (name, verts, faces, rgba), nm in zip(debug_meshes, names):
         if len(verts) == 0 or len(faces) == 0:
             log.warning("skipping empty debug layer %r", name)
             continue
-        nm = safe_name(name, dtaken, "debug")
         rgba = tuple(float(c) for c in rgba) + (1.0,) * (4 - len(rgba))
-        mat = _material(stage, looks, safe_name(f"debug_{nm}", mat_names), rgba, rgba[3],
-                        0.0, 1.0)
+        mat = _material(stage, looks, safe_name(f"{nm}_mat", taken), rgba, rgba[3], 0.0, 1.0)
         _mesh(stage, dbg_xf.GetPath().AppendChild(nm), verts, faces, None, rgba, mat,
               double_sided=True)
 

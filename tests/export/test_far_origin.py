@@ -221,7 +221,7 @@ def test_report_positions_are_world(bakes):
                 targets += 1
     assert targets > 0
     doc = Glb(bakes["far"].outputs["glb"].read_bytes()).doc
-    assert doc["asset"]["extras"]["timeline"] == far["timeline"]
+    assert doc["scenes"][0]["extras"]["timeline"] == far["timeline"]
 
 
 @pytest.mark.slow
@@ -238,7 +238,7 @@ def test_foot_joints_sit_at_the_tip_bone_ends_in_the_files(files, rig):
             length = skel.rest_translations[j, 1]
             want = tip[:, :3, 3] + length * tip[:, :3, 1]
             assert np.abs(m[:, j, :3, 3] - want).max() < 1e-5
-    contacts = files["far"]["doc"]["asset"]["extras"]["foot_contacts"]
+    contacts = files["far"]["doc"]["scenes"][0]["extras"]["foot_contacts"]
     assert set(contacts) == {n for n in skel.names if n.startswith("leg_") and n.endswith("_foot")}
     cd = files["far"]["stage"].GetPrimAtPath("/World").GetCustomData()
     assert {k: json.loads(v) for k, v in cd["foot_contacts"].items()} == contacts

@@ -149,17 +149,17 @@ def test_sun_points_along_the_light(glb, small_env):
 
 def test_materials(glb, small_env, rig):
     mats = {m["name"]: m for m in glb.doc["materials"]}
-    g = mats["ground"]["pbrMetallicRoughness"]
+    g = mats["ground_mat"]["pbrMetallicRoughness"]
     assert g["baseColorFactor"] == list(small_env.meshes[0].color)
     assert g["metallicFactor"] == 0.0 and g["roughnessFactor"] == 1.0
     body = mats["centipede_body"]["pbrMetallicRoughness"]["baseColorFactor"]
     np.testing.assert_allclose(body[:3], rig.config.colors.body)
-    assert mats["navmesh"]["alphaMode"] == "BLEND"
+    assert mats["navmesh_mat"]["alphaMode"] == "BLEND"
 
 
 def test_extras_are_plain_json(glb):
     ex = glb.doc["scenes"][0]["extras"]
-    assert ex == glb.doc["asset"]["extras"]
+    assert "extras" not in glb.doc["asset"]                  # stored once, on the scene
     assert ex["seed"] == 7 and ex["events"] == [] and ex["note"] is None
     assert ex["timeline"][0]["state"] == "wander"
     assert isinstance(ex["spacing"], float)

@@ -120,10 +120,10 @@ def test_report_contents(baked):
     assert tl and tl[0]["start"] == 0.0 and tl[-1]["end"] == 60.0
     assert all(a["end"] == b["start"] for a, b in zip(tl, tl[1:]))
     doc = Glb(baked.outputs["glb"].read_bytes()).doc
-    assert doc["asset"]["extras"]["seed"] == 0
-    assert doc["asset"]["extras"]["timeline"] == tl
+    assert doc["scenes"][0]["extras"]["seed"] == 0
+    assert doc["scenes"][0]["extras"]["timeline"] == tl
     # planted intervals per leg agree with the trajectory's contact flags
-    contacts = doc["asset"]["extras"]["foot_contacts"]
+    contacts = doc["scenes"][0]["extras"]["foot_contacts"]
     assert len(contacts) == 40
     flags = np.zeros(baked.trajectory.n_frames, dtype=bool)
     for a, b in contacts["leg_R_07_foot"]:

@@ -275,7 +275,7 @@ def test_auto_bake_default_scene_with_prey_and_clips(tmp_path, nav_cache_dir):
     doc = Glb(r.outputs["glb"].read_bytes()).doc
     names = [a["name"] for a in doc["animations"]]
     assert names[0] == "bake" and len(names) >= 1 + len([e for e in tl if e["end"] - e["start"] >= 1 / 30])
-    assert doc["asset"]["extras"]["timeline"] == tl
+    assert doc["scenes"][0]["extras"]["timeline"] == tl
     from pxr import Usd
 
     stage = Usd.Stage.Open(str(r.outputs["usd"]))

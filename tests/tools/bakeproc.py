@@ -116,7 +116,7 @@ def seeds_of(out: Path) -> dict[str, int]:
     data = out.with_suffix(".glb").read_bytes()
     n = int.from_bytes(data[12:16], "little")
     gl = json.loads(data[20:20 + n])
-    seeds["glb"] = gl["asset"]["extras"]["seed"]
+    seeds["glb"] = gl["scenes"][0]["extras"]["seed"]
     stage = Usd.Stage.Open(str(out.with_suffix(".usd")))
     seeds["usd"] = stage.GetPrimAtPath("/World").GetCustomData()["seed"]
     return seeds

@@ -2,7 +2,7 @@
 
 - `gltf_validate(path)`: the Khronos glTF-Validator (npm `gltf-validator`, pinned in
   tests/tools/package-lock.json), run through tests/tools/gltf_validate.mjs. `npm ci` installs it
-  into tests/tools/node_modules on first use. Tests skip (with the reason) when node/npm are not on
+  (and `three`, for tests/tools/three_probe.mjs) into tests/tools/node_modules on first use. Tests skip (with the reason) when node/npm are not on
   PATH; CI has them.
 - `usd_validate(stage)`: pxr.UsdValidation with every registered validator; returns the errors.
 """
@@ -43,21 +43,34 @@ def _file_lock():
                 fcntl.flock(fh, fcntl.LOCK_UN)
 
 
-def _ensure_validator() -> str:
+def node_packages() -> list[str]:
+    """The npm packages tests/tools/package.json pins (gltf-validator, three)."""
+    return sorted(json.loads((TOOLS / "package.json").read_text())["dependencies"])
+
+
+def ensure_node(what: str = "glTF validation") -> str:
+    """The `node` executable, with every package of tests/tools/package.json installed in
+    tests/tools/node_modules (`npm ci` from the pinned package-lock.json when one is missing).
+    Skips the test (fails it in CI) when node or npm is not on PATH."""
     node = shutil.which("node")
     npm = shutil.which("npm")
     if node is None or npm is None:
-        msg = "glTF validation needs node and npm on PATH"
+        msg = f"{what} needs node and npm on PATH"
         if os.environ.get("CI"):
             pytest.fail(f"{msg}; CI must provide them")
         pytest.skip(f"{msg} (CI has them)")
     with _file_lock():
-        if not (TOOLS / "node_modules" / "gltf-validator" / "package.json").is_file():
+        if not all((TOOLS / "node_modules" / p / "package.json").is_file()
+                   for p in node_packages()):
             r = subprocess.run([npm, "ci", "--no-audit", "--no-fund", "--loglevel=error"],
                                cwd=TOOLS, capture_output=True, text=True, timeout=600)
             if r.returncode != 0:
                 raise RuntimeError(f"npm ci failed in {TOOLS}:\n{r.stdout}\n{r.stderr}")
     return node
+
+
+def _ensure_validator() -> str:
+    return ensure_node("glTF validation")
 
 
 def gltf_validate(path: Path | str) -> dict:

@@ -31,6 +31,7 @@ ALLOWED = {
     "rootmotion": {"clip", "rig"},
     "export": {"clip", "rig", "sim", "environment", "config", "navmesh", "atomic"},
     "inspect": {"environment", "metrics"},     # reads a bake's files back to judge them
+    "inspect_file": {"inspect"},               # `baker inspect`: a file's summary
 }
 TOP = {"pipeline", "cycles", "cli", "entry", "__init__", "__main__"}   # cycles: a pipeline too
 
