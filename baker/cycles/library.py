@@ -78,8 +78,14 @@ def bake_cycles(cfg: CyclesConfig, ctx: Context | None = None) -> CyclesResult:
     # Step 5: every clip in one GLB and one USD (a small ground plane under them), all or
     # nothing.
     ground = flat_environment(ground_extent(clips), name="ground")
-    extras = {"baker_cycles": {"rig": cfg.rig.name, "fps": cfg.fps, "root_motion": "root",
-                               "clips": [c.name for c in clips]}}
+    import baker
+
+    walk, run = cfg.speeds()
+    extras = {"generator": f"baker {baker.__version__} cycles", "fps": cfg.fps,
+              "root_motion": "root", "rig": cfg.rig.name,
+              "cycles": {"clips": [c.name for c in clips],
+                         "speeds_bl_per_s": {"walk": walk, "run": run},
+                         "turn_radius_bl": TURN_RADIUS}}
     with OutputSet(paths) as out:
         with ctx.stage("export"):
             out.write_bytes("glb", build_glb(ground, rooted, clips[0], extras=extras,

@@ -124,9 +124,23 @@ class ClipMaker:
                  "speed_bl_per_s": spec.speed / bl}
         if spec.turn:
             cycle["turn_radius_bl"] = TURN_RADIUS
-        return self.finish_loop(full, f0, n, cycle)
+        return self.finish_loop(full, traj, f0, n, cycle)
 
-    def finish_loop(self, full: Clip, f0: int, n: int, cycle: dict) -> tuple[Clip, dict]:
+    def events(self, traj, f0: int, frames: int, markers, loop: bool, details: dict) -> dict:
+        """The clip's events (export.events schema): the walking feet's contacts and the
+        scripted states of frames f0 .. f0 + frames - 1, `details` added to every state, and
+        `markers` ((name, frame), clip frames)."""
+        from baker.export.events import clip_events, marker
+        from baker.rig.limbs import leg_layout
+
+        contacts = traj.foot_contacts
+        feet = leg_layout(self.cfg.rig).foot_names if contacts is not None else ()
+        timeline = [dict(e, details={**e["details"], **details}) for e in traj.events]
+        return clip_events(self.fps, frames, contacts=contacts, feet=feet, timeline=timeline,
+                           f0=f0, markers=[marker(nm, f, self.fps) for nm, f in markers],
+                           loop=loop)
+
+    def finish_loop(self, full: Clip, traj, f0: int, n: int, cycle: dict) -> tuple[Clip, dict]:
         """Frames f0..f0 + n of `full` as a loop: its seam closed, loop flag and events, and its
         measures (the velocities against the simulation's frames f0 - 1 .. f0 + n + 1)."""
         parents = self.rooted_rig.skeleton.parents
@@ -141,9 +155,8 @@ class ClipMaker:
         m["seam_error_m"] = looping.seam_error(parents, clip.translations, clip.rotations)
         self.references[clip.name] = ref
         t_end = float(clip.times[-1])
-        events = {"loop": True, "cycle": cycle,
-                  "markers": [{"name": "loop_start", "time": 0.0},
-                              {"name": "loop_end", "time": t_end}]}
+        events = self.events(traj, f0, n + 1, [("loop_start", 0), ("loop_end", n)], True,
+                             {"cycle": cycle})
         clip = replace(clip, loop=True, events=events)
         m.update(name=clip.name, loop=True, keys=clip.n_frames, duration_s=t_end,
                  residual_m=residual, residual_velocity_mismatch=raw_v["velocity_mismatch"],
@@ -174,16 +187,17 @@ class ClipMaker:
         traj = self.run(rig0, [Drive(0.0, "idle")], seconds, chain_period=period)
         cycle = {"frames": n, "seconds": period, "chain_period_s": period,
                  "chain_rates_hz": chain_rates(rig0, period)}
-        idle, m = self.finish_loop(self.rooted(traj, "idle" + LOOP_SUFFIX), f0, n, cycle)
+        idle, m = self.finish_loop(self.rooted(traj, "idle" + LOOP_SUFFIX), traj, f0, n, cycle)
         m["idle_foot_slide_m"] = foot_slide(self.rooted_rig, idle)
         out = [(idle, m)]
         for name, (drives, dur) in shots.items():
             traj = self.run(rig0, drives, seconds, chain_period=period)
             action = self.cut(self.rooted(traj, name), f0, reps[name] * n + 1)
-            out.append(self.one_shot(idle, action, dur))
+            out.append(self.one_shot(idle, action, dur, traj, f0))
         return out
 
-    def one_shot(self, idle: Clip, action: Clip, duration: float) -> tuple[Clip, dict]:
+    def one_shot(self, idle: Clip, action: Clip, duration: float, traj, f0: int
+                 ) -> tuple[Clip, dict]:
         """`action` blended in joint space from the idle loop (tiled) at its first frame and
         back to it at its last, with a ramp long enough that the blend turns no joint more than
         BLEND_RATE degrees a frame."""
@@ -198,11 +212,11 @@ class ClipMaker:
         p = looping.root_relative(parents, shot.translations, shot.rotations)
         p_idle = looping.root_relative(parents, idle.translations[:1], idle.rotations[:1])[0]
         t_end = float(shot.times[-1])
-        events = {"loop": False, "starts_and_ends_in": idle.name,
-                  "markers": [{"name": "start", "time": 0.0},
-                              {"name": "action", "time": LEAD_IN},
-                              {"name": "end", "time": t_end}],
-                  "blend_frames": ramp}
+        last = shot.n_frames - 1
+        events = self.events(traj, f0, shot.n_frames,
+                             [("start", 0), ("action", round(LEAD_IN * self.fps)), ("end", last)],
+                             False, {"one_shot": {"starts_and_ends_in": idle.name,
+                                                  "blend_frames": ramp}})
         shot = replace(shot, loop=False, events=events)
         root = shot.translations[:, 0].astype(np.float64)
         m = {"name": shot.name, "loop": False, "keys": shot.n_frames, "duration_s": t_end,

@@ -64,14 +64,25 @@ def test_clip_list_and_loop_names(cycles):
                    for s in ("loop_mode", "loop", "cycle") for sep in "_-")
 
     assert [n for n in names if godot_loops(n)] == list(LOOPS)
+    from baker.export.events import ClipEvents
+
     for a in glb.doc["animations"]:
         ev = a["extras"]
+        ClipEvents.model_validate(ev)                    # the project's clip events schema
         t = glb.accessor(a["samplers"][0]["input"])
         assert ev["loop"] is (a["name"] in LOOPS)
-        assert ev["markers"][0] == {"name": "loop_start" if ev["loop"] else "start", "time": 0.0}
-        assert ev["markers"][-1]["time"] == pytest.approx(float(t[-1]))
+        assert ev["frames"] == len(t)
+        marks = {e["name"]: e["frame"] for e in ev["events"] if e["type"] == "marker"}
+        first = next(e for e in ev["events"] if e["type"] == "behaviour")
+        assert first["frame"] == 0
         if ev["loop"]:
-            assert ev["cycle"]["frames"] == len(t) - 1
+            assert marks == {"loop_start": 0, "loop_end": len(t) - 1}
+            assert first["details"]["cycle"]["frames"] == len(t) - 1
+        else:
+            assert marks["start"] == 0 and marks["end"] == len(t) - 1
+            assert first["details"]["one_shot"]["starts_and_ends_in"] == "idle_loop"
+        if a["name"] != "idle_loop":
+            assert len(ev["contacts"]) == 40
 
 
 def test_loops_close_in_the_glb(cycles):
