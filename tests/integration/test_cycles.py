@@ -237,3 +237,21 @@ def test_out_naming_a_file_is_an_error(tmp_path, capsys):
     assert main(["cycles", "--out", str(f)]) == 2
     assert "--out" in capsys.readouterr().err
     assert f.read_text() == "x"
+
+
+def test_the_seam_is_as_smooth_as_the_loop_from_the_file_alone(cycles):
+    """Read from the GLB only: played in a loop, the step into the seam and the step out of it
+    (key N-1 -> N == 0 and key 0 -> 1, seen from the root) change about as much as consecutive
+    steps inside the loop: the seam has no velocity jump of its own. (A touch-down or lift-off
+    can fall on the seam, and the gait's period is not a whole number of frames, so the seam's
+    change may be up to 10% over the largest inside the loop; a jump would be far larger.)"""
+    result, glb = cycles
+    joints = result.rig.skeleton.names
+    for name in LOOPS:
+        pos, rot = clip_world(glb, name, joints)
+        n = len(pos) - 1
+        steps = ground_steps(pos, rot, range(n))                  # (N, J, 3), step f -> f + 1
+        change = np.linalg.norm(np.diff(steps, axis=0), axis=-1)  # inside: step f+1 vs step f
+        seam = np.linalg.norm(steps[0] - steps[-1], axis=-1)      # out of the seam vs into it
+        assert np.all(seam <= 1.1 * change.max(axis=0) + 1e-7), (
+            name, float((seam - change.max(axis=0)).max()))
