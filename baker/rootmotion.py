@@ -13,8 +13,9 @@ Modes (`--root-motion`):
                store as a separate `root_motion` animation.
 
 The body's centre is the mean of the spine joints; its heading is the horizontal direction from
-the mean of the rear half of the spine to the mean of the front half (smooth through the slither,
-defined when the creature stands still). The ground height comes from `ground` and is smoothed
+the mean of the rear half of the spine to the mean of the front half (defined when the creature
+stands still), averaged over time by a centred Gaussian (sigma 0.5 s) so the root does not sway
+with the slither. The ground height comes from `ground` and is smoothed
 over half a second, so a staircase gives the root a ramp, not steps. World joint positions are
 unchanged by construction (to float32 rounding).
 """
@@ -24,7 +25,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
+from scipy.ndimage import gaussian_filter1d, uniform_filter1d
 
 from baker.clip import Clip, NodeTrack, normalize_quats_f32, sign_continuous
 from baker.errors import ExportError
@@ -36,6 +37,9 @@ MODES = ("world", "root", "in-place")
 ROOT = "root"
 #: [s] window of the centred moving average over the ground height under the body
 GROUND_SMOOTHING = 0.5
+#: [s] sigma of the centred Gaussian over the body's heading: it takes the slither's sway
+#: (periods of 0.5-2 s) out of the root's yaw and keeps a steady turn's rate
+HEADING_SMOOTHING = 0.5
 
 
 def with_root(rig: Rig) -> Rig:
@@ -88,6 +92,10 @@ def root_frames(spine_world: np.ndarray, fps: int, ground=None) -> tuple[np.ndar
     centre = spine_world.mean(axis=1)
     half = max(s // 2, 1)
     forward = spine_world[:, :half].mean(axis=1) - spine_world[:, s - half:].mean(axis=1)
+    forward[:, 1] = 0.0
+    norm = np.linalg.norm(forward, axis=1, keepdims=True)
+    forward = np.divide(forward, norm, out=np.zeros_like(forward), where=norm > 1e-9)
+    forward = gaussian_filter1d(forward, HEADING_SMOOTHING * fps, axis=0, mode="nearest")
     rot = yaw_quaternions(forward)
     height = np.zeros(len(centre)) if ground is None else np.asarray(ground(centre), float)
     miss = ~np.isfinite(height)
