@@ -32,7 +32,7 @@ ALLOWED = {
     "export": {"clip", "rig", "sim", "environment", "config", "navmesh", "atomic"},
     "inspect": {"environment", "metrics"},     # reads a bake's files back to judge them
 }
-TOP = {"pipeline", "cli", "entry", "__init__", "__main__"}
+TOP = {"pipeline", "batch", "cli", "entry", "__init__", "__main__"}
 
 
 def part_of(path: Path) -> str:
