@@ -697,6 +697,9 @@ def _worker_main(conn) -> None:
     running bake (its temporaries deleted, baker/signals.py) and end the process."""
     signals.install()
     try:
+        from baker.pipeline import warm_up
+
+        warm_up()       # while the first task is on its way
         while True:
             task = conn.recv()
             if task is None:
@@ -717,8 +720,9 @@ class _Proc:
 
 
 class LocalPool:
-    """`workers` processes on this machine (started on demand, spawned: a fresh interpreter
-    each), one task at a time each. A process that dies is replaced."""
+    """`workers` processes on this machine (spawned: a fresh interpreter each, all started
+    with the first task, each importing the bake's modules at once), one task at a time each.
+    A process that dies is replaced."""
 
     kind = "local"
 
@@ -739,6 +743,8 @@ class LocalPool:
     def submit(self, task) -> int:
         for p in [p for p in self.procs if p.handle is None and not p.proc.is_alive()]:
             self._drop(p)
+        while len(self.procs) < self.size:     # all at once: they warm up side by side
+            self.procs.append(_Proc(self._ctx))
         proc = next((p for p in self.procs if p.handle is None), None)
         for _ in range(2):
             if proc is None:

@@ -356,15 +356,17 @@ class _Exit:
 def test_local_pool_reports_a_dead_worker_and_replaces_it():
     pool = batch.LocalPool(1)
     try:
-        for _ in range(2):
-            h = pool.submit(_Exit())
-            done = []
-            while not done:
-                done = pool.wait(1.0)
-            (handle, out), = done
-            assert handle == h and out.infra and not out.ok
-            assert "died (exit code 3)" in out.error
-            assert pool.slots() == 1
+        h = pool.submit(_Exit())
+        first = pool.procs[0].proc.pid
+        done = []
+        while not done:
+            done = pool.wait(1.0)
+        (handle, out), = done
+        assert handle == h and out.infra and not out.ok
+        assert out.error == f"worker process {first} died (exit code 3)"
+        assert pool.slots() == 1 and pool.procs == []
+        pool.submit(_Exit())                    # a fresh process takes the next task
+        assert [p.proc.pid != first for p in pool.procs] == [True]
     finally:
         pool.close()
 
