@@ -722,7 +722,11 @@ class _Proc:
 class LocalPool:
     """`workers` processes on this machine (spawned: a fresh interpreter each, all started
     with the first task, each importing the bake's modules at once), one task at a time each.
-    A process that dies is replaced."""
+    A process that dies is replaced; its task alone is reported lost.
+
+    Not concurrent.futures.ProcessPoolExecutor: there a dead worker breaks the whole pool (every
+    pending task fails), and one worker can be neither stopped (a task past its timeout) nor sent
+    SIGTERM (a clean stop) without its private attributes."""
 
     kind = "local"
 
@@ -936,18 +940,21 @@ class Manifest:
         prev = self.previous.get(job.name)
         if not isinstance(prev, dict) or prev.get("key") != job.key or prev.get("status") not in _DONE:
             return None
-        outputs = prev.get("outputs") or {}
-        if set(outputs) != set(job.cfg.output_paths()):
+        outputs = prev.get("outputs")
+        paths = job.cfg.output_paths()
+        if not isinstance(outputs, dict) or set(outputs) != set(paths):
             return None
-        for rec in outputs.values():
-            p = self.plan.out / str(rec.get("path", ""))
+        for fmt, p in paths.items():
+            rec = outputs[fmt]
+            if not isinstance(rec, dict) or rec.get("path") != p.name:
+                return None
             try:
                 st = os.stat(p)
+                if st.st_size != rec.get("bytes") or (
+                        st.st_mtime_ns != rec.get("mtime_ns")
+                        and file_record(p)["sha256"] != rec.get("sha256")):
+                    return None
             except OSError:
-                return None
-            if st.st_size != rec.get("bytes"):
-                return None
-            if st.st_mtime_ns != rec.get("mtime_ns") and file_record(p)["sha256"] != rec.get("sha256"):
                 return None
         return prev
 

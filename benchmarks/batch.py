@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import io
+import json
 import statistics
 import tempfile
 import time
@@ -41,7 +42,7 @@ def one_batch(path: Path, out: Path, workers: int, cache: Path) -> tuple[float, 
     wall = time.perf_counter() - t0
     if s.failed or s.baked != s.jobs:
         raise SystemExit(f"batch failed: {s.line}")
-    doc = batch.json.loads((out / "manifest.json").read_text())
+    doc = json.loads((out / "manifest.json").read_text())
     return wall, statistics.mean(e["wall_s"] for e in doc["jobs"].values())
 
 

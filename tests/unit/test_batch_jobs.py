@@ -5,6 +5,7 @@ local pool process that dies."""
 from __future__ import annotations
 
 import io
+import json
 import os
 from dataclasses import replace
 from pathlib import Path
@@ -301,7 +302,7 @@ def test_failures_stay_with_their_job_and_only_lost_workers_are_retried(tmp_path
         assert name not in pool.submitted
     assert manifest.summary() == {"jobs": 6, "baked": 2, "skipped": 0, "failed": 4, "pending": 0}
     assert manifest.navigation[1]["status"] == "failed"
-    on_disk = batch.json.loads(manifest.path.read_text())
+    on_disk = json.loads(manifest.path.read_text())
     assert on_disk["summary"]["failed"] == 4
     assert "retrying a-seed0" in text and "[6/6] " in text
 
@@ -315,6 +316,33 @@ def test_a_task_past_its_timeout_is_stopped(tmp_path, monkeypatch):
     e = manifest.jobs["a-seed2"]
     assert e["status"] == "failed" and "timed out after 0.2 s" in e["error"]
     assert manifest.summary()["baked"] == 5
+
+
+def test_up_to_date_needs_the_same_key_and_unchanged_outputs(tmp_path):
+    plan = _plan(tmp_path)
+    job = plan.jobs[0]
+    paths = job.cfg.output_paths()
+    for path in paths.values():
+        path.write_bytes(b"x" * 10)
+    entry = {"key": job.key, "status": "baked",
+             "outputs": {f: batch.file_record(path) for f, path in paths.items()}}
+    (plan.out / "manifest.json").write_text(json.dumps({"jobs": {job.name: entry}}))
+    m = batch.Manifest(plan)
+    assert m.up_to_date(job) == entry
+    os.utime(paths["glb"], ns=(1, 1))          # touched, same bytes: the sha256 says so
+    assert m.up_to_date(job) == entry
+    paths["glb"].write_bytes(b"y" * 10)         # same size, other bytes
+    assert m.up_to_date(job) is None
+    paths["glb"].write_bytes(b"x" * 10)
+    assert m.up_to_date(job) == entry
+    paths["usd"].unlink()
+    assert m.up_to_date(job) is None
+    paths["usd"].write_bytes(b"x" * 10)
+    for changed in ({"key": "0" * 64}, {"status": "failed"}):
+        m.previous = {job.name: {**entry, **changed}}
+        assert m.up_to_date(job) is None
+    m.previous = {}
+    assert m.up_to_date(job) is None
 
 
 def test_deadline_check():
