@@ -217,7 +217,8 @@ def navmesh(environment, rig_path, png, path_from, path_to, cache_dir, no_cache,
 @click.option("--job-timeout", type=click.FloatRange(min=0, min_open=True), default=None,
               metavar="S", help="Fail a job that runs longer than S seconds [default: no limit].")
 @click.option("--retries", type=click.IntRange(0, 100), default=1, show_default=True,
-              help="Runs again of a task whose worker died (not of a job that failed).")
+              metavar="N", help="Run a task again, up to N times, when its worker died (a crash, "
+                                "a lost Dask worker); a job that fails is not run again.")
 @click.option("--cache-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Navigation cache folder, shared by every job and worker "
                    "[default: ~/.cache/baker/navmesh].")
