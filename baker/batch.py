@@ -166,7 +166,8 @@ def _read_toml(path: Path) -> dict:
     except OSError as e:
         raise ConfigError(f"cannot read jobs file: {e.strerror or e}", where=str(path)) from None
     except UnicodeDecodeError as e:
-        raise ConfigError(f"jobs file is not UTF-8 text (byte {e.start})", where=str(path)) from None
+        raise ConfigError(f"jobs file is not UTF-8 text (byte {e.start})",
+                          where=str(path)) from None
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"jobs file is not valid TOML: {e}", where=str(path)) from None
 
@@ -366,8 +367,9 @@ def _rig_config(path: Path):
 def _entries(doc: dict, problems: _Problems) -> list:
     for key in doc:
         if key not in ("defaults", "job"):
-            problems.add("jobs file", f"unknown table '{key}'{_did_you_mean(key, ['defaults', 'job'])}"
-                         "; expected [defaults] and [[job]] entries")
+            hint = _did_you_mean(key, ["defaults", "job"])
+            problems.add("jobs file", f"unknown table '{key}'{hint}; expected [defaults] and "
+                                      "[[job]] entries")
     jobs = doc.get("job")
     if jobs is None:
         problems.add("jobs file", "no [[job]] entries")
@@ -551,6 +553,10 @@ class NavTask:
     def label(self) -> str:
         return f"navigation {Path(self.cfg.environment).name}"
 
+    @property
+    def ident(self) -> str:
+        return f"navigation:{self.group}"
+
 
 @dataclass(frozen=True)
 class JobTask:
@@ -562,6 +568,10 @@ class JobTask:
 
     @property
     def label(self) -> str:
+        return self.name
+
+    @property
+    def ident(self) -> str:
         return self.name
 
 
@@ -583,11 +593,11 @@ class Outcome:
 
 
 def _worker_name() -> str:
+    """The Dask worker's address inside a Dask worker, else host:pid."""
+    dist = sys.modules.get("distributed")       # imported in a Dask worker, not in a pool's
     try:
-        from distributed import get_worker
-
-        return get_worker().address
-    except (ImportError, ValueError, AttributeError):
+        return dist.get_worker().address
+    except (AttributeError, ValueError):
         return f"{socket.gethostname()}:{os.getpid()}"
 
 
@@ -938,7 +948,8 @@ class Manifest:
         """The previous entry when the job's outputs are there with the same key, unchanged
         (same size, and the same modification time or sha256)."""
         prev = self.previous.get(job.name)
-        if not isinstance(prev, dict) or prev.get("key") != job.key or prev.get("status") not in _DONE:
+        if not isinstance(prev, dict) or prev.get("key") != job.key \
+                or prev.get("status") not in _DONE:
             return None
         outputs = prev.get("outputs")
         paths = job.cfg.output_paths()
@@ -1067,7 +1078,7 @@ class _Run:
         while self.queue or self.running:
             while self.queue and self.pool.slots() > 0:
                 task = self.queue.popleft()
-                self.attempts[task.label] = self.attempts.get(task.label, 0) + 1
+                self.attempts[task.ident] = self.attempts.get(task.ident, 0) + 1
                 self.running[self.pool.submit(task)] = (task, time.monotonic())
             for handle, outcome in self.pool.wait(self._wait_s()):
                 task, _ = self.running.pop(handle)
@@ -1095,7 +1106,7 @@ class _Run:
                     f"timed out after {self.timeout:g} s (--job-timeout); stopped")))
 
     def _finish(self, task, out: Outcome) -> None:
-        n = self.attempts.get(task.label, 1)
+        n = self.attempts.get(task.ident, 1)
         if out.infra and n <= self.retries:
             self.progress.line(f"retrying {task.label} ({out.error})")
             self.queue.appendleft(task)
@@ -1117,7 +1128,7 @@ class _Run:
                                f"({'from the cache' if out.cache_hit else 'built'}, "
                                f"{out.wall_s:.2f} s)")
             return
-        failed = Outcome(ok=False, wall_s=out.wall_s, worker=out.worker, traceback=out.traceback,
+        failed = Outcome(ok=False, worker=out.worker, traceback=out.traceback,
                          error=f"navigation surface: {out.error}")
         for j in jobs:
             self._job_done(j.name, failed, 0)

@@ -213,7 +213,8 @@ def navmesh(environment, rig_path, png, path_from, path_to, cache_dir, no_cache,
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="Run the jobs on this Dask scheduler (tcp://host:8786) instead of a local "
                    "pool; needs baker[dask] and paths shared by every worker.")
-@click.option("--force", is_flag=True, help="Bake every job, even those whose outputs are up to date.")
+@click.option("--force", is_flag=True,
+              help="Bake every job, even those whose outputs are up to date.")
 @click.option("--job-timeout", type=click.FloatRange(min=0, min_open=True), default=None,
               metavar="S", help="Fail a job that runs longer than S seconds [default: no limit].")
 @click.option("--retries", type=click.IntRange(0, 100), default=1, show_default=True,
