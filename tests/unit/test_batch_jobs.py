@@ -185,6 +185,9 @@ def test_job_options_are_bakes_options():
     names = {"environment": "environment", "rig_path": "rig", "fmt": "format",
              "max_slope_deg": "max_slope"}
     params = {names.get(p.name, p.name): p for p in bake.params}
+    missing = set(params) - set(batch.OPTIONS) - set(batch.BATCH_LEVEL)
+    assert not missing, (f"`bake` options {sorted(missing)} are not job keys: add them to "
+                         "baker.batch.OPTIONS and job_config")
     assert set(params) == set(batch.OPTIONS) | set(batch.BATCH_LEVEL)
     for key, kind in batch.OPTIONS.items():
         p = params[key]
