@@ -33,7 +33,6 @@ ALLOWED = {
     "inspect": {"environment", "metrics"},     # reads a bake's files back to judge them
 }
 TOP = {"pipeline", "cli", "entry", "__init__", "__main__"}
-TOP |= {"batch"}     # `baker batch`: runs the pipeline once per job
 
 
 def part_of(path: Path) -> str:
@@ -52,6 +51,7 @@ def baker_imports(path: Path):
                     yield a.name
 
 
+TOP |= {"batch"}     # `baker batch`: runs the pipeline once per job
 MODULES = sorted(p for p in PKG.rglob("*.py"))
 
 
