@@ -203,6 +203,18 @@ def navmesh(environment, rig_path, png, path_from, path_to, cache_dir, no_cache,
     click.echo(format_report(report))
 
 
+def check_rig_overrides(rig_overrides: dict) -> None:
+    """The rig options' values (schema.Options), checked before the rig file is read."""
+    override_rig(RigConfig(), **rig_overrides)
+
+
+def validate_memory(max_memory, cache_max=None) -> None:
+    """--max-memory and --cache-max (schema.Options), checked before anything is read."""
+    from baker.schema import validate_options
+
+    validate_options(max_memory=max_memory, cache_max=cache_max)
+
+
 @cli.command()
 @click.argument("jobs_file", metavar="JOBS.toml", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
@@ -241,18 +253,6 @@ def batch(ctx, jobs_file, out_dir, workers, scheduler, force, job_timeout, retri
     click.echo(summary.line)
     if summary.failed:
         ctx.exit(1)
-
-
-def check_rig_overrides(rig_overrides: dict) -> None:
-    """The rig options' values (schema.Options), checked before the rig file is read."""
-    override_rig(RigConfig(), **rig_overrides)
-
-
-def validate_memory(max_memory, cache_max=None) -> None:
-    """--max-memory and --cache-max (schema.Options), checked before anything is read."""
-    from baker.schema import validate_options
-
-    validate_options(max_memory=max_memory, cache_max=cache_max)
 
 
 class _HeldLog(logging.Handler):
