@@ -297,6 +297,46 @@ def validate_memory(max_memory, cache_max=None) -> None:
     validate_options(max_memory=max_memory, cache_max=cache_max)
 
 
+@cli.command()
+@click.argument("jobs_file", metavar="JOBS.toml", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Output folder: <job name>.glb/.usd/.json per job and manifest.json "
+                   "[default: outputs/<jobs file name>].")
+@click.option("--workers", type=click.IntRange(1, 1024), default=None, metavar="N",
+              help="Local worker processes [default: the core count].")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Run the jobs on this Dask scheduler (tcp://host:8786) instead of a local "
+                   "pool; needs baker[dask] and paths shared by every worker.")
+@click.option("--force", is_flag=True,
+              help="Bake every job, even those whose outputs are up to date.")
+@click.option("--job-timeout", type=click.FloatRange(min=0, min_open=True), default=None,
+              metavar="S", help="Fail a job that runs longer than S seconds [default: no limit].")
+@click.option("--retries", type=click.IntRange(0, 100), default=1, show_default=True,
+              metavar="N", help="Run a task again, up to N times, when its worker died (a crash, "
+                                "a lost Dask worker); a job that fails is not run again.")
+@click.option("--cache-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Navigation cache folder, shared by every job and worker "
+                   "[default: ~/.cache/baker/navmesh].")
+@click.option("--cache-max", type=float, default=None, metavar="MB",
+              help="Bound of the navigation cache folder in MB [default: 1024].")
+@click.pass_context
+def batch(ctx, jobs_file, out_dir, workers, scheduler, force, job_timeout, retries, cache_dir,
+          cache_max):
+    """Bake every job of JOBS.toml: [defaults] and [[job]] entries with `bake`'s options, lists
+    expanded by [job.matrix]. Up-to-date outputs are skipped; a failing job does not stop the
+    others (exit code 1 when any failed). See DIR/manifest.json."""
+    from baker import batch as batch_mod
+    from baker.navmesh.cache import NavCache
+
+    validate_memory(None, cache_max)
+    summary = batch_mod.run(jobs_file, out=out_dir, workers=workers, scheduler=scheduler,
+                            force=force, job_timeout=job_timeout, retries=retries,
+                            cache=NavCache.of(cache_dir or default_cache_dir(), cache_max))
+    click.echo(summary.line)
+    if summary.failed:
+        ctx.exit(1)
+
+
 class _HeldLog(logging.Handler):
     """Holds log records and Python warnings while a command runs: on success they are printed
     (in order) when it ends; a rejected input prints only its one error line."""
@@ -338,10 +378,11 @@ def run_command(argv=None) -> int:
     root.addHandler(_HELD)
     held_warnings = []
     error = None
+    code = 0
     try:
         with warnings.catch_warnings(record=True) as held_warnings:
             try:
-                cli.main(args=argv, prog_name="baker", standalone_mode=False)
+                code = cli.main(args=argv, prog_name="baker", standalone_mode=False)
             except click.exceptions.Exit as e:
                 return int(e.exit_code or 0)
             except click.exceptions.NoArgsIsHelpError as e:  # bare `baker`: the help, as click
@@ -368,7 +409,7 @@ def run_command(argv=None) -> int:
         sys.stderr.write(error + "\n")
         sys.stderr.flush()
         return EXIT_USAGE
-    return 0
+    return code if isinstance(code, int) and not isinstance(code, bool) else 0  # ctx.exit(n)
 
 
 def main(argv=None) -> int:

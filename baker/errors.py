@@ -54,16 +54,23 @@ class ExportError(BakerError):
     """An output file cannot be written."""
 
 
-def one_line(text: str) -> str:
-    """Whitespace (newlines included) collapsed to single spaces, cut at a readable length."""
+class JobsFileError(ConfigError):
+    """A batch jobs file with one or more errors (baker/batch.py). Every error is listed, in
+    the one line, which is therefore not cut at the usual length."""
+
+    max_line = 20_000
+
+
+def one_line(text: str, limit: int = _MAX_LINE) -> str:
+    """Whitespace (newlines included) collapsed to single spaces, cut at `limit` characters."""
     s = " ".join(str(text).split())
-    return s if len(s) <= _MAX_LINE else s[: _MAX_LINE - 3] + "..."
+    return s if len(s) <= limit else s[: limit - 3] + "..."
 
 
 def format_error(exc: BaseException, where: str | None = None) -> str:
     """The single stderr line for a user error: `Error: <what> (<where>)`."""
     what = exc.what if isinstance(exc, BakerError) else str(exc)
-    what = one_line(what) or type(exc).__name__
+    what = one_line(what, getattr(exc, "max_line", _MAX_LINE)) or type(exc).__name__
     where = where if where is not None else getattr(exc, "where", None)
     if where:
         w = one_line(where)

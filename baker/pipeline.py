@@ -214,6 +214,15 @@ def posed_clip(cfg: BakeConfig, traj, rig, env):
     return apply_root_motion(clip, rig, cfg.root_motion, ground)
 
 
+def warm_up() -> None:
+    """Import every stage's modules now (numpy, scipy, trimesh, embree, pygltflib, pxr: a
+    second or two), so that a worker process is ready before its first bake."""
+    from baker.signals import deferred
+
+    with deferred():
+        _import_stages()
+
+
 def _import_stages() -> None:
     """Import every stage's modules (and so numpy, scipy, trimesh, embree, pygltflib, pxr)."""
     import baker.clip, baker.environment, baker.export.gltf, baker.export.report  # noqa: F401

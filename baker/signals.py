@@ -23,7 +23,8 @@ Test hook (harmless when unset; read at every checkpoint):
     BAKER_TEST_MARKS=1            print "baker-test: at <phase>" at every checkpoint, no sleep.
 Phases: "start" (handlers installed, nothing heavy imported), every pipeline stage as it starts
 ("load", "navmesh", "rig", "simulate", "pose", "metrics", "export"), "write:<format>" before each
-file is written to its temporary, and "commit" (every temporary written, nothing renamed yet).
+file is written to its temporary, and "commit" (every temporary written, nothing renamed yet);
+"batch" once `baker batch` has checked its jobs file and starts its workers.
 """
 
 from __future__ import annotations

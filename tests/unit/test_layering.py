@@ -52,6 +52,7 @@ def baker_imports(path: Path):
                     yield a.name
 
 
+TOP |= {"batch"}     # `baker batch`: runs the pipeline once per job
 MODULES = sorted(p for p in PKG.rglob("*.py"))
 
 
