@@ -44,6 +44,7 @@ dies (a crash, a lost Dask worker) is an infrastructure failure: its task runs a
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import itertools
 import json
@@ -507,12 +508,24 @@ def environment_digest(path) -> str:
     return h.hexdigest()
 
 
+@functools.lru_cache(maxsize=1)
+def code_digest() -> str:
+    """Hex sha256 of the baker package's own source files (their paths and bytes): a change to
+    the code, released or not, makes every job's key new."""
+    h = hashlib.sha256()
+    root = Path(baker.__file__).resolve().parent
+    for path in sorted(root.rglob("*.py")):
+        h.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
 def job_key(cfg: BakeConfig, env_digest: str) -> str:
     """Hex sha256 of what a job's outputs depend on: the environment's bytes (env_digest),
-    the resolved rig, every option that changes an output byte, and the baker version."""
+    the resolved rig, every option that changes an output byte, the baker version and the
+    digest of its source code (code_digest)."""
     options = {f.name: getattr(cfg, f.name) for f in fields(cfg) if f.name not in _NOT_IN_KEY}
-    doc = {"baker": baker.__version__, "environment": env_digest, "rig": _plain(cfg.rig),
-           "options": _plain(options)}
+    doc = {"baker": baker.__version__, "code": code_digest(), "environment": env_digest,
+           "rig": _plain(cfg.rig), "options": _plain(options)}
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 

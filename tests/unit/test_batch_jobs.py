@@ -178,6 +178,17 @@ def test_key_covers_environment_bytes_rig_and_options(tmp_path):
     assert batch.environment_digest(level) != d1
 
 
+def test_key_covers_the_code(tmp_path, monkeypatch):
+    """A change to baker's source (released or not) gives every job a new key."""
+    level = write_small_level(tmp_path / "small.obj")
+    cfg = batch.job_config({"environment": level, "seed": 1}, tmp_path / "a")
+    d = batch.environment_digest(level)
+    key = batch.job_key(cfg, d)
+    assert len(batch.code_digest()) == 64
+    monkeypatch.setattr(batch, "code_digest", lambda: "0" * 64)
+    assert batch.job_key(cfg, d) != key
+
+
 def test_job_options_are_bakes_options():
     """Every `bake` option is a job key (or one per batch), with the same choices and defaults."""
     from baker.cli import bake
