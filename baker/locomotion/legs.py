@@ -1017,7 +1017,7 @@ def _swivel(p, origin, axis, angle):
 
 def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, contact: np.ndarray,
                        gap: float, rays, up: np.ndarray, probe: float,
-                       iterations: int = 12) -> np.ndarray:
+                       iterations: int = 32) -> np.ndarray:
     """Legs that know where their neighbours are: when two planted feet of neighbouring legs on
     one side come closer than `gap`, the one that landed later steps away from the other (its
     foothold moves along the line between them and is dropped back onto the surface); where
@@ -1030,7 +1030,7 @@ def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, cont
     holds = holds.copy()
     F, L = cidx.shape
     legs = np.arange(L)
-    for _ in range(iterations):
+    for it in range(iterations):
         pos = holds[cidx, legs[None, :]]                                  # (F, L, 3)
         d = pos[:, 2:] - pos[:, :-2]                                      # rear - front
         dist = np.linalg.norm(d, axis=-1)
@@ -1044,13 +1044,35 @@ def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, cont
         unit = d[f, k] / np.maximum(dist[f, k], 1e-12)[:, None]
         need = gap - dist[f, k]
         vec = np.where(later_rear[:, None], unit, -unit) * (need * 1.3 + 0.02 * gap)[:, None]
-        moved = _push(holds, np.where(later_rear, cr, cf), np.where(later_rear, rear, front),
-                      vec, need, Ts, rays, up, probe)
-        # the pairs whose later foot could not step away: the other one steps away instead
-        other = ~moved
-        _push(holds, np.where(later_rear, cf, cr)[other], np.where(later_rear, front, rear)[other],
-              -vec[other], need[other], Ts, rays, up, probe)
+        late = (np.where(later_rear, cr, cf), np.where(later_rear, rear, front))
+        early = (np.where(later_rear, cf, cr), np.where(later_rear, front, rear))
+        # first along the line between them: the later foot, else the other one; then (or,
+        # in the second half of the passes, first: a push along a crowded side only hands the
+        # crowding on) the later foot steps aside, turned about its up axis
+        along = [(late, 0.0), (early, np.pi)]
+        aside = [(late, a) for a in SIDESTEP_ANGLES]
+        moved = np.zeros(len(f), bool)
+        for (h_all, l_all), angle in (along + aside if it < iterations // 2 else aside + along):
+            left = ~moved
+            if not left.any():
+                break
+            h, leg = h_all[left], l_all[left]
+            u = up[np.minimum(Ts[h, leg], F - 1), leg]
+            moved[left] = _push(holds, h, leg, _turned(vec[left], u, angle), need[left], Ts,
+                                rays, up, probe)
     return holds
+
+
+#: [rad] directions, from the line between two crowded feet, in which the later one tries to
+#: step aside when neither can step along that line
+SIDESTEP_ANGLES = np.radians([90.0, -90.0, 45.0, -45.0, 135.0, -135.0])
+
+
+def _turned(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
+    """(n, 3) vectors v turned by `angle` about the unit axes (n, 3) (Rodrigues)."""
+    c, s = np.cos(angle), np.sin(angle)
+    dot = np.sum(v * axis, axis=-1, keepdims=True)
+    return v * c + np.cross(axis, v) * s + axis * dot * (1.0 - c)
 
 
 def _push(holds, hold, leg, vec, need, Ts, rays, up, probe) -> np.ndarray:
@@ -1065,10 +1087,25 @@ def _push(holds, hold, leg, vec, need, Ts, rays, up, probe) -> np.ndarray:
     new = holds[moved] + disp[moved]
     frame = np.minimum(Ts[moved], F - 1)
     u = up[frame, np.nonzero(moved)[1]]
-    h = rays.first_hit(new + probe * u, -u, max_distance=2.0 * probe)
-    ok = (h.hit & (np.abs(np.sum((h.points - holds[moved]) * u, -1)) < 0.5 * probe)
-          & _faces_up(h.normals, u))
-    new[ok] = h.points[ok]
+    ok = np.zeros(len(new), bool)
+    found = new.copy()
+    # along the segment's up first; where the body leans (climbing a log's side) that ray can
+    # pass the edge the foot stands on, so then along the world's up
+    for axis in (u, np.broadcast_to(UP, u.shape)):
+        h = rays.first_hit(new + probe * axis, -axis, max_distance=2.0 * probe)
+        good = (~ok & h.hit & (np.abs(np.sum((h.points - holds[moved]) * u, -1)) < 0.5 * probe)
+                & _faces_up(h.normals, u))
+        found[good] = h.points[good]
+        ok |= good
+    # a hold that is on no surface the foot can stand on (a fallback next to a log's side)
+    # moves as it is, unless that puts it inside a solid
+    loose = ~ok
+    if loose.any():
+        h = rays.first_hit(holds[moved][loose] + probe * u[loose], -u[loose],
+                           max_distance=2.0 * probe)
+        free = ~(h.hit & _faces_up(h.normals, u[loose])) & ~rays.inside(new[loose])
+        ok[np.nonzero(loose)[0][free]] = True
+    new = found
     sel = np.nonzero(moved)
     keep = ok | ~moved[sel]
     holds[sel[0][keep], sel[1][keep]] = new[keep]
