@@ -10,7 +10,11 @@ Every step:
   instead);
 - the head's height continues the layer it is on (never a floor above or below it);
 - when the head has been held back for REPLAN_AFTER seconds (blocked, or off the agent's
-  corridor), the path is planned again from the head.
+  corridor), the path is planned again from the head;
+- while a sharp bend of the trail lies under the body (a hook the head made in a dead end),
+  the whole creature slows so that no segment turns more than BEND_TURN in an exported frame
+  as it rounds the bend: the body moves at the head's speed along the trail, and a segment
+  turns at speed / radius.
 """
 
 from __future__ import annotations
@@ -35,6 +39,11 @@ SLITHER_OFFSET = 0.032
 ROUGH_RISER = 0.5
 #: [s] how long the agent waits for the head before the path is planned again from the head
 REPLAN_AFTER = 1.5
+#: [rad] the most a segment may turn in an exported frame while it rounds a bend of the trail
+#: (the limit on a joint's per-frame rotation is 30 degrees)
+BEND_TURN = math.radians(20.0)
+#: [spacings] the trail under the body is kept at this spacing to measure its bends
+BEND_SAMPLE = 0.25
 
 
 class Follower:
@@ -45,7 +54,8 @@ class Follower:
     position : (3,) the head (slither included), height on its layer
     """
 
-    def __init__(self, nav, rays, start: np.ndarray, heading: np.ndarray, rig: RigConfig):
+    def __init__(self, nav, rays, start: np.ndarray, heading: np.ndarray, rig: RigConfig,
+                 fps: int = 30):
         body, loco, navc = rig.body, rig.locomotion, rig.navigation
         self.nav, self.rays = nav, rays
         self.max_speed = loco.max_speed
@@ -64,6 +74,10 @@ class Follower:
         self.riser = ROUGH_RISER * navc.step_height   # a height jump this big is a riser
         self.gait_scale = 1.0       # the brain's speed factor
         self.terrain_scale = 1.0    # rough_speed on risers, else 1
+        self.bend_scale = 1.0       # < 1 while a sharp bend of the trail is under the body
+        self.bend_speed = BEND_TURN * fps    # [rad/s] a segment's largest turn rate
+        self.spacing = body.spacing
+        self._trail = [(0.0, float(start[0]), float(start[2]))]   # (walked, x, z) under the body
         self._walked = 0.0          # horizontal metres the head has walked
         self._riser_at = -np.inf    # ... when it last went up or down a riser
         self._steps = 0
@@ -115,7 +129,7 @@ class Follower:
         self._apply_speed()
 
     def _apply_speed(self) -> None:
-        scale = self.gait_scale * self.terrain_scale
+        scale = self.gait_scale * self.terrain_scale * self.bend_scale
         self.agent.speed_scale = scale
         self.head.max_speed = self.max_speed * scale
 
@@ -131,6 +145,7 @@ class Follower:
         if self._steps % AIM_EVERY == 0:
             self._back = self._aim_back()
             self._terrain(gap)
+            self._bends()
         aim = agent.point_behind(self._back) if self._back > 0.0 else None
         base = head.base.copy()
         head.step(dt, agent.position, agent.speed, allowed=self._on_layer, aim=aim)
@@ -152,6 +167,20 @@ class Follower:
             self._apply_speed()
         if self.pending is not None and (not rough or self.agent.arrived):
             self.go(self.pending)
+
+    def _bends(self) -> None:
+        """Keep the trail under the body (every BEND_SAMPLE spacings of walked distance) and
+        slow while its sharpest bend there would turn a segment faster than bend_speed."""
+        p = self.head.position
+        if self._walked - self._trail[-1][0] >= BEND_SAMPLE * self.spacing:
+            self._trail.append((self._walked, float(p[0]), float(p[2])))
+            while self._walked - self._trail[0][0] > self.body_length + self.spacing:
+                self._trail.pop(0)
+        radius = bend_radius(np.array(self._trail)[:, 1:], int(round(0.5 / BEND_SAMPLE)))
+        scale = min(1.0, self.bend_speed * radius / self.max_speed)
+        if scale != self.bend_scale:
+            self.bend_scale = scale
+            self._apply_speed()
 
     def _on_layer(self, x: float, z: float) -> bool:
         """True when the column of (x, z) has a walkable sample on the head's layer."""
@@ -224,3 +253,21 @@ class Follower:
             return y
         g, _, hit = project_to_surface(self.rays, np.array([[p[0], self.height, p[2]]]), self.probe)
         return float(g[0, 1]) if hit[0] else self.height
+
+
+def bend_radius(points: np.ndarray, k: int) -> float:
+    """The smallest radius of the bends of a polyline of evenly spaced points (n, 2): over
+    each pair of chords k points long, the chord length over the angle between them (inf for a
+    straight or too short line)."""
+    if len(points) < 2 * k + 1:
+        return math.inf
+    a = points[k:-k] - points[:-2 * k]
+    b = points[2 * k:] - points[k:-k]
+    la, lb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
+    ok = (la > 1e-9) & (lb > 1e-9)
+    if not ok.any():
+        return math.inf
+    cos = np.sum(a[ok] * b[ok], axis=1) / (la[ok] * lb[ok])
+    ang = np.arccos(np.clip(cos, -1.0, 1.0))
+    r = 0.5 * (la[ok] + lb[ok]) / np.maximum(ang, 1e-12)
+    return float(r.min())

@@ -86,7 +86,7 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context,
 
     start, heading = choose_start(nav, env, body.length, rng, cfg.start, cfg.start_heading,
                                    spread=rig.wander.radius)
-    follow = Follower(nav, env.rays, start, heading, rig)
+    follow = Follower(nav, env.rays, start, heading, rig, fps=cfg.fps)
     head = follow.head
     sun = sun_path(parse_sun_path(cfg.sun_path) if cfg.sun_path else None, env.sun.direction,
                    cfg.seconds)
