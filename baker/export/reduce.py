@@ -85,6 +85,9 @@ BLAME_SHARE = 0.8
 #: planted joints: largest change of the reduced joint's error between two planted frames, as a
 #: fraction of the tolerance
 PLANTED_SLIDE = 0.5
+#: the players (three.js/UsdSkel, a renormalizing slerp, Blender's nlerp) may disagree by at most
+#: this [m] at any joint and frame: half the 1e-4 m the project holds its players to
+PLAYER_SPREAD_M = 5e-5
 #: safety stop of the world refinement (each round adds at least one key)
 MAX_ROUNDS = 10_000
 #: normalized SHORT: stored code c decodes to c / SHORT_MAX
@@ -158,11 +161,14 @@ class ClipKeys:
     translations, rotations, scales : Keys over the clip's J joints
     tracks          : one TrackKeys per clip.tracks entry, in order
     tolerance_m     : [m] the world-space bound the keys were chosen for
-    max_error_m     : [m] the largest world-space joint position error of the reduced clip,
-                      measured by playing it as engines do (<= tolerance_m)
+    max_error_m     : [m] the largest world-space joint position error of the reduced clip over
+                      every joint and frame, the worst of the three players the refinement
+                      plays it as (<= tolerance_m)
     max_slide_m     : [m] the largest change of a planted joint's error between two planted
                       frames (0 without contacts)
     short_rotations : animated rotations are stored as normalized SHORT (Keys.codes)
+    max_spread_m    : [m] the largest distance between the players' poses of a joint (<=
+                      PLAYER_SPREAD_M)
     """
 
     translations: Keys
@@ -173,6 +179,7 @@ class ClipKeys:
     max_error_m: float
     max_slide_m: float = 0.0
     short_rotations: bool = False
+    max_spread_m: float = 0.0
 
     def count(self) -> int:
         """Keys kept over every channel of the clip (joints and tracks)."""
@@ -457,6 +464,7 @@ class _Pose(NamedTuple):
     diff: np.ndarray
     err: np.ndarray
     slide: np.ndarray
+    spread: np.ndarray
     viol: np.ndarray
 
 
@@ -493,7 +501,7 @@ def _play(x: _Target, keep_t: np.ndarray, keep_r: np.ndarray, static_t: np.ndarr
         prev = _Pose(*(np.empty((j_count, f_count) + s, dt) for s, dt in (
             ((3,), np.float32), ((4,), np.float32), ((4,), np.int16), ((3,), float),
             ((4,), float), ((3,), float), ((4,), float), ((3,), float), ((4,), float),
-            ((3, 3), float))), None, None, None, None)
+            ((3, 3), float))), None, None, None, None, None)
         dirty = np.ones(j_count, dtype=bool)
     vt, vq, codes, tt, tq, tr, rr, pos, wq, mat = (a.copy() for a in prev[:10])
     if x.short and cache is None:
@@ -526,14 +534,13 @@ def _play(x: _Target, keep_t: np.ndarray, keep_r: np.ndarray, static_t: np.ndarr
             pos[js] = pos[p] + np.einsum("nfij,nfj->nfi", mat[p], tr[js])
             mat[js] = mat[p] @ m
             wq[js] = quat_mul(wq[p], unit)
-    diff, err, slide = _off(x, pos, wq, tr, vq, keep_r, static_r)
-    viol = err > x.tol
+    diff, err, slide, spread = _off(x, pos, wq, tr, vq, keep_r, static_r)
+    viol = (err > x.tol) | (spread > PLAYER_SPREAD_M)
     if x.planted is not None and f_count > 1:
         bad = slide > PLANTED_SLIDE * x.tol
         viol[:, 1:] |= bad
         viol[:, :-1] |= bad
-    return _Pose(vt, vq, codes, tt, tq, tr, rr, pos, wq, mat, diff, err,
-                 slide, viol)
+    return _Pose(vt, vq, codes, tt, tq, tr, rr, pos, wq, mat, diff, err, slide, spread, viol)
 
 
 def _off(x: _Target, pos: np.ndarray, wq: np.ndarray, tr: np.ndarray, vq: np.ndarray,
@@ -543,7 +550,7 @@ def _off(x: _Target, pos: np.ndarray, wq: np.ndarray, tr: np.ndarray, vq: np.nda
     frames), each the worst of three players: pos (J, F, 3), as three.js and UsdSkel play the
     keys; one that normalizes the slerped quaternions (wq (J, F, 4): unit world rotations); and
     Blender's, which interpolates the stored quaternions component by component and normalizes
-    (nlerp)."""
+    (nlerp); and spread (J, F), how far the other two are from the first."""
     nlerp = _sample_cf(vq, keep_r, static_r, x.times, False)
     nlerp /= np.linalg.norm(nlerp, axis=-1, keepdims=True)
     unit, blender, wn = np.empty_like(pos), np.empty_like(pos), np.empty_like(nlerp)
@@ -555,6 +562,7 @@ def _off(x: _Target, pos: np.ndarray, wq: np.ndarray, tr: np.ndarray, vq: np.nda
             unit[js] = unit[p] + quat_rotate(wq[p], tr[js])
             blender[js] = blender[p] + quat_rotate(wn[p], tr[js])
             wn[js] = quat_mul(wn[p], nlerp[js])
+    spread = np.maximum(np.linalg.norm(unit - pos, axis=-1), np.linalg.norm(blender - pos, axis=-1))
     diff, err, slide = None, None, None
     for world in (pos, unit, blender):
         d = world - x.pos0
@@ -568,7 +576,7 @@ def _off(x: _Target, pos: np.ndarray, wq: np.ndarray, tr: np.ndarray, vq: np.nda
         else:
             diff = np.where((e > err)[..., None], d, diff)
             err, slide = np.maximum(err, e), np.maximum(slide, s)
-    return diff, err, slide
+    return diff, err, slide, spread
 
 
 def _blame(x: _Target, chains: np.ndarray, p: _Pose):
@@ -724,7 +732,7 @@ def reduce_clip(clip: Clip, parents, tolerance_m: float, *, contacts=None,
         scales=Keys(keep_s, np.asarray(clip.scales, np.float32), static_s),
         tracks=_track_keys(clip, tol, float(lever.max()), x.short), tolerance_m=tol,
         max_error_m=float(p.err.max(initial=0.0)), max_slide_m=float(p.slide.max(initial=0.0)),
-        short_rotations=x.short)
+        short_rotations=x.short, max_spread_m=float(p.spread.max(initial=0.0)))
     return dataclasses.replace(clip, keys=keys)
 
 
@@ -733,14 +741,17 @@ def _frames_first(a: np.ndarray) -> np.ndarray:
 
 
 def _short_fits(x: _Target) -> bool:
-    """Whether 16-bit rotations, every frame keyed, stay within half the tolerance."""
+    """Whether 16-bit rotations, every frame keyed, stay within half the tolerance, and the
+    players (which do or do not renormalize the stored quaternions) within half of
+    PLAYER_SPREAD_M of each other."""
     j_count, f_count = x.t0.shape[:2]
     some = np.arange(0, f_count, 8)         # every frame a key: frames are independent
     sub = dataclasses.replace(x, t0=x.t0[:, some], q0=x.q0[:, some], pos0=x.pos0[:, some],
                               wq0=x.wq0[:, some], times=x.times[some], planted=None)
     every = np.ones((j_count, len(some)), dtype=bool)
     p = _play(sub, every, every, np.zeros((j_count, 3)), np.zeros((j_count, 4)))
-    return bool(p.err.max(initial=0.0) <= 0.5 * x.tol)
+    return bool(p.err.max(initial=0.0) <= 0.5 * x.tol
+                and p.spread.max(initial=0.0) <= 0.5 * PLAYER_SPREAD_M)
 
 
 # ------------------------------------------------------------------------------- accounting
@@ -797,6 +808,7 @@ def reduction_stats(before: Clip, after: Clip) -> dict:
         "ratio": round(b0 / b1, 3) if b1 else None,
         "max_error_m": 0.0 if k is None else k.max_error_m,
         "planted_slide_max_m": 0.0 if k is None else k.max_slide_m,
+        "players_max_spread_m": 0.0 if k is None else k.max_spread_m,
         "rotations": "short" if k is not None and k.short_rotations else "float",
     }
 
