@@ -354,6 +354,8 @@ def _clip_channels(clip: Clip, node_of: np.ndarray, node_by_name: dict[str, int]
                            ("scale", k.scales)):
             yield int(node_of[j]), path, keys, j
     for tr, tk in zip(clip.tracks, k.tracks):
+        if tr.node not in node_by_name:
+            raise ExportError(f"clip {clip.name!r} animates node {tr.node!r}, which is not in the scene")
         for path, keys in tk.parts():
             yield node_by_name[tr.node], path, keys, 0
 
