@@ -117,11 +117,19 @@ def cli(verbose: int):
                    "body that carries its horizontal motion and yaw, for engines' root motion. "
                    "in-place: the same with the root held still; the removed motion is the "
                    "`root_motion` animation.")
+@click.option("--tolerance", type=float, default=0.001, show_default=True, metavar="BL",
+              help="Keyframe reduction: drop the keys that interpolation reproduces, keeping "
+                   "every joint within this world-space distance of the unreduced pose, in body "
+                   "lengths (0.001 = 0.1% of the body length); 0 keeps every key.")
+@click.option("--rotations", type=click.Choice(["short", "float"]), default="short",
+              show_default=True,
+              help="Rotation keys of a reduced clip: 16-bit normalized integers (half the size; "
+                   "the rounding counts toward --tolerance) or 32-bit floats.")
 @max_memory_option
 @rig_options
 def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_navmesh,
          cache_dir, no_cache, cache_max, nav_build, behaviour, prey, cobra, sun_path, clips,
-         root_motion, max_memory,
+         root_motion, tolerance, rotations, max_memory,
          **rig_overrides):
     """Bake a centipede on ENVIRONMENT (glTF/GLB, OBJ, PLY, STL or USD).
 
@@ -139,7 +147,8 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
     sun_direction = parse_vec3(sun, "--sun")
     validate_bake(BakeConfig(seconds=seconds, fps=fps, seed=seed, formats=formats,
                              sun_direction=sun_direction, behaviour=behaviour,
-                             prey=prey, cobra=cobra, sun_path=sun_path, nav_build=nav_build))
+                             prey=prey, cobra=cobra, sun_path=sun_path, nav_build=nav_build,
+                             tolerance=tolerance, rotations=rotations))
     check_rig_overrides(rig_overrides)
     cfg = BakeConfig(
         environment=environment or DEFAULT_ENVIRONMENT,
@@ -148,7 +157,8 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
         formats=formats, sun_direction=sun_direction, debug_navmesh=debug_navmesh,
         nav_cache_dir=None if no_cache else NavCache.of(cache_dir or default_cache_dir(), cache_max),
         nav_build=nav_build, behaviour=behaviour, prey=prey, cobra=cobra, sun_path=sun_path, clips=clips,
-        root_motion=root_motion, max_memory_mb=max_memory,
+        root_motion=root_motion, max_memory_mb=max_memory, tolerance=tolerance,
+        rotations=rotations,
     )
     check_outputs(cfg.output_paths())
     progress = TerminalProgress()

@@ -59,8 +59,9 @@ class Clip:
     loop         : the clip repeats seamlessly (locomotion cycles); importers see it by name
     events       : JSON-safe animation events (foot contacts, behaviour changes, loop markers),
                    written to the glTF animation's extras and the USD SkelAnimation's customData
-    keys         : the frames each channel keeps after keyframe reduction (set by
-                   baker.export.reduce), or None: every frame is a key
+    keys         : the frames each channel keeps after keyframe reduction and the values
+                   stored there (a baker.export.reduce.ClipKeys, set by reduce_clip), or None:
+                   every frame is a key
     """
 
     name: str

@@ -201,6 +201,11 @@ class BakeConfig:
                                  # around where the creatures go (auto: lazy on big levels)
     max_memory_mb: float | None = None  # [>0] [MB] largest navigation build allowed;
                                  # None: half of the machine's RAM (navmesh.budget)
+    tolerance: float = 0.001     # [0..0.1] [BL] keyframe reduction: largest world-space
+                                 # position error of any joint at any frame, in body lengths
+                                 # (0.001 = 0.1% BL); 0 keeps every frame as a key
+    rotations: str = "short"     # short | float: reduced rotation keys stored as 16-bit
+                                 # normalized integers (checked within the tolerance) or float
 
     @property
     def sim_rate(self) -> int:
@@ -228,7 +233,7 @@ def validate_bake(cfg: BakeConfig) -> BakeConfig:
         except (TypeError, ValueError):
             raise ConfigError("--sun must be three numbers x,y,z", where="command line") from None
     schema.validate_options(seconds=cfg.seconds, fps=cfg.fps, seed=cfg.seed, prey=cfg.prey,
-                            sun=sun)
+                            sun=sun, tolerance=cfg.tolerance)
     if SIM_RATE_HZ % cfg.fps:
         divisors = [d for d in range(1, MAX_FPS + 1) if SIM_RATE_HZ % d == 0]
         raise ConfigError(
@@ -241,7 +246,8 @@ def validate_bake(cfg: BakeConfig) -> BakeConfig:
     for opt, value, allowed in (("--behaviour", cfg.behaviour, ("auto", "wander", "shade", "hunt")),
                                 ("--cobra", cfg.cobra, ("auto", "always", "never")),
                                 ("--nav-build", cfg.nav_build, ("auto", "full", "lazy")),
-                                ("--root-motion", cfg.root_motion, ("world", "root", "in-place"))):
+                                ("--root-motion", cfg.root_motion, ("world", "root", "in-place")),
+                                ("--rotations", cfg.rotations, ("short", "float"))):
         if value not in allowed:
             raise ConfigError(f"{opt} must be one of {', '.join(allowed)} (got {value})", where=opt)
     for what, p in [("start", cfg.start)] + [("prey position", q) for q in cfg.prey_positions]:

@@ -437,6 +437,8 @@ def judge(scene: BakedScene, usd: BakedScene | None = None,
                       for n in keys], axis=1)
         worst["sim_max_m"] = _worst(d, keys)
         m["sim_max_m"] = worst["sim_max_m"]["value"]
+        # a reduced bake's keys are within its tolerance of the simulation, by design
+        m["sim_tolerance_m"] = float((scene.extras.get("animation") or {}).get("tolerance_m", 0.0))
     return {"metrics": m, "worst": worst}
 
 
@@ -504,5 +506,7 @@ def _judge_bones(scene: BakedScene, rays, bl: float, m: dict, worst: dict) -> No
 def failures(metrics: dict) -> list[str]:
     """The LIMITS that `metrics` breaks (a metric that is absent or None is not judged)."""
     ops = {"<=": np.less_equal, "<": np.less, ">=": np.greater_equal, "==": np.equal}
+    slack = {"sim_max_m": metrics.get("sim_tolerance_m") or 0.0}
     return [name for name, op, bound in LIMITS
-            if metrics.get(name) is not None and not ops[op](metrics[name], bound)]
+            if metrics.get(name) is not None
+            and not ops[op](metrics[name], bound + slack.get(name, 0.0))]

@@ -6,7 +6,8 @@
     Step 4  simulate                       sim.loop.simulate -> Trajectory
     Step 5  pose                           clip.build_clip   -> Clip
     Step 6  measure                        metrics.spine_metrics, surface_metrics, leg_metrics
-    Step 7  export                         export.gltf / export.usd / export.report
+    Step 7  reduce keys                    export.reduce.reduce_clip (world-space tolerance)
+    Step 8  export                         export.gltf / export.usd / export.report
 
 Frames: the environment is loaded into a local frame (world = env.origin + local, see
 environment.load.choose_origin), and everything from step 2 to step 6 works in it. User inputs
@@ -167,18 +168,25 @@ def _bake(cfg: BakeConfig, rng: np.random.Generator | None, ctx: Context | None)
         motion["behaviour"] = metrics.behaviour_metrics(traj, env.rays, fps=cfg.fps,
                                                         clearance=cfg.rig.body.clearance)
 
-    # Step 7: files, all or nothing: each is written to a temporary beside its target and
+    # Step 7: keyframe reduction: each channel keeps the keys that hold every joint within
+    # cfg.tolerance body lengths of its unreduced world position (planted feet do not slide).
+    events = events_of(cfg, traj, env.origin)
+    clip = replace(clip, events=events(0, clip.n_frames))
+    segments = behaviour_clips(clip, traj.events, cfg.fps, events) if cfg.clips else ()
+    with ctx.stage("reduce"):
+        clip, segments, animation = reduce_clips(cfg, rig, traj, clip, segments)
+
+    # Step 8: files, all or nothing: each is written to a temporary beside its target and
     # they are renamed together at the end (atomic.OutputSet); a failure or a signal before
     # that leaves the previous outputs as they were.
     extras = report_mod.extras(cfg, traj, env.origin)
+    if clip.keys is not None:        # --tolerance 0 writes the files exactly as before
+        extras["animation"] = animation
     debug_meshes = ()
     if cfg.debug_navmesh:
         v, f = nav_debug.walkable_mesh(nav)
         debug_meshes = (("navmesh", v, f, (0.1, 0.6, 1.0, 0.5)),)
     props = prey_props(cfg.rig, traj)
-    events = events_of(cfg, traj, env.origin)
-    clip = replace(clip, events=events(0, clip.n_frames))
-    segments = behaviour_clips(clip, traj.events, cfg.fps, events) if cfg.clips else ()
     scene = dict(extras=extras, debug_meshes=debug_meshes, props=props, extra_clips=segments,
                  root_motion=root_motion)
     with OutputSet(paths) as out:
@@ -192,6 +200,7 @@ def _bake(cfg: BakeConfig, rng: np.random.Generator | None, ctx: Context | None)
         written = {k: p for k, p in paths.items() if k != "json"}
         written["json"] = paths["json"]
         rep = report_mod.build_report(cfg, env, nav, traj, motion, ctx, written)
+        rep["animation"] = animation
         out.write_bytes("json", report_mod.to_json_bytes(rep))
         out.commit()
     return BakeResult(outputs=written, report=rep, trajectory=traj, clip=clip, origin=env.origin)
@@ -230,6 +239,37 @@ def _import_stages() -> None:
     import baker.navmesh.lazy, baker.rig, baker.sim.loop  # noqa: F401
 
 
+def reduce_clips(cfg: BakeConfig, rig, traj, clip, segments: tuple):
+    """Keyframe reduction of the bake's clip and its per-behaviour segments (export.reduce),
+    within cfg.tolerance body lengths, the walking feet held planted where the gait plants them.
+    Returns (clip, segments, the report's `animation` section)."""
+    from baker.export.reduce import reduce_clip, reduction_stats
+    from baker.rig.limbs import leg_layout
+
+    skel = rig.skeleton
+    tol = cfg.tolerance * cfg.rig.body.length
+    planted = None
+    if traj.foot_contacts is not None and cfg.rig.legs.enabled:
+        planted = np.zeros((clip.n_frames, skel.n_joints), dtype=bool)
+        feet = [skel.index(n) for n in leg_layout(cfg.rig).foot_names]
+        planted[:, feet] = np.asarray(traj.foot_contacts, dtype=bool)
+    kw = dict(rest=(skel.rest_translations, skel.rest_rotations),
+              short_rotations=cfg.rotations == "short")
+    reduced = reduce_clip(clip, skel.parents, tol, contacts=planted, **kw)
+    animation = {"tolerance_bl": cfg.tolerance, **reduction_stats(clip, reduced)}
+    ranges = {name: (f0, f1) for f0, f1, name in behaviour_ranges(clip.n_frames, traj.events,
+                                                                   cfg.fps)}
+    out = []
+    for seg in segments:
+        f0, f1 = ranges[seg.name]
+        out.append(reduce_clip(seg, skel.parents, tol, **kw,
+                               contacts=None if planted is None else planted[f0:f1]))
+    if segments:
+        animation["segment_clips"] = [{"name": a.name, **reduction_stats(b, a)}
+                                      for b, a in zip(segments, out)]
+    return reduced, tuple(out), animation
+
+
 def prey_props(rig_cfg, traj) -> tuple:
     """(name, vertices, faces, rgba) of every prey capsule in the trajectory."""
     from baker.rig.props import capsule_mesh
@@ -246,13 +286,21 @@ def behaviour_clips(clip, timeline, fps: int, events=None) -> tuple:
     the frame at its end time (so consecutive clips share their boundary pose).
     events : callable (first frame, frames) -> the segment's events dict (see events_of)"""
     out = []
+    for f0, f1, name in behaviour_ranges(clip.n_frames, timeline, fps):
+        seg = clip.segment(f0, f1, name)
+        out.append(seg if events is None else replace(seg, events=events(f0, f1 - f0)))
+    return tuple(out)
+
+
+def behaviour_ranges(n_frames: int, timeline, fps: int) -> list[tuple[int, int, str]]:
+    """(first frame, end frame (exclusive), name) of each behaviour_clips segment."""
+    out = []
     for i, e in enumerate(timeline):
         f0 = int(round(e["start"] * fps))
-        f1 = min(int(round(e["end"] * fps)) + 1, clip.n_frames)
+        f1 = min(int(round(e["end"] * fps)) + 1, n_frames)
         if f1 - f0 >= 2:
-            seg = clip.segment(f0, f1, f"{e['state']}_{i:02d}")
-            out.append(seg if events is None else replace(seg, events=events(f0, f1 - f0)))
-    return tuple(out)
+            out.append((f0, f1, f"{e['state']}_{i:02d}"))
+    return out
 
 
 def events_of(cfg: BakeConfig, traj, origin):

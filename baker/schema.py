@@ -195,6 +195,9 @@ class Options(_Table):
     cell_size: Num | None = key("m", "navigation grid cell size", gt=0, le=1e3)
     max_memory: Num | None = key("MB", "largest navigation build allowed", gt=0, le=1e9)
     cache_max: Num | None = key("MB", "bound of the navigation cache folder", ge=0, le=1e9)
+    tolerance: Num | None = key("BL", "keyframe reduction: largest joint position error "
+                                "(0.001 = 0.1% of the body length; 0 keeps every key)",
+                                ge=0, le=0.1)
     sun: tuple[Num, Num, Num] | None = key(
         "", "direction toward the sun, y > 0, each component within +-1e6")
     coordinate: tuple[Num, Num, Num] | None = key(

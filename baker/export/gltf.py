@@ -44,10 +44,10 @@ from baker.rig.build import Rig
 ANIM_LINEAR = "LINEAR"   # animation interpolation (NOT pygltflib.LINEAR, the texture filter 9729)
 SKINNED_MESH = "centipede_skinned"   # the skinned mesh's name (its node is `centipede_mesh`)
 
-FLOAT, UINT16, UINT32 = gl.FLOAT, gl.UNSIGNED_SHORT, gl.UNSIGNED_INT
+FLOAT, SHORT, UINT16, UINT32 = gl.FLOAT, gl.SHORT, gl.UNSIGNED_SHORT, gl.UNSIGNED_INT
 ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = gl.ARRAY_BUFFER, gl.ELEMENT_ARRAY_BUFFER
 _TYPES = {1: gl.SCALAR, 2: gl.VEC2, 3: gl.VEC3, 4: gl.VEC4, 16: gl.MAT4}
-_NP = {FLOAT: np.float32, UINT16: np.uint16, UINT32: np.uint32}
+_NP = {FLOAT: np.float32, SHORT: np.int16, UINT16: np.uint16, UINT32: np.uint32}
 
 log = logging.getLogger(__name__)
 
@@ -230,8 +230,9 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
     if rig is not None:
         roots, node_of = _add_creature(gltf, b, creature_mats, rig, placement)
         scene_nodes.extend(roots)
+        dropped = _drop_static_channels(gltf, clips, node_of, node_by_name)
         for c in clips:
-            _add_animation(gltf, b, c, node_of, node_by_name)
+            _add_animation(gltf, b, c, node_of, node_by_name, dropped)
         if root_motion is not None:
             if clip is None:
                 raise ExportError("root motion needs a clip")
@@ -358,13 +359,21 @@ def _track_clip(clip: Clip, track: NodeTrack) -> Clip:
 
 
 def _add_animation(gltf: gl.GLTF2, b: _Builder, clip: Clip, node_of: np.ndarray,
-                   node_by_name: dict[str, int]) -> None:
+                   node_by_name: dict[str, int], dropped: frozenset = frozenset()) -> None:
+    """One glTF animation for `clip`: every frame of every channel, or, for a reduced clip
+    (clip.keys), each channel's kept keys (see _add_reduced_channels)."""
     f_count, j_count = clip.translations.shape[:2]
     if j_count != len(node_of):
         raise ExportError(f"clip has {j_count} joints, the skeleton {len(node_of)}")
     times = np.asarray(clip.times, dtype=np.float32)
     if f_count == 0 or times[0] < 0 or np.any(np.diff(times) <= 0):
         raise ExportError("clip times must start at >= 0 and strictly increase")
+    for tr in clip.tracks:
+        if tr.node not in node_by_name:
+            raise ExportError(f"clip {clip.name!r} animates node {tr.node!r}, which is not in the scene")
+    if clip.keys is not None:
+        _add_reduced_channels(gltf, b, clip, node_of, node_by_name, dropped)
+        return
     t_acc = b.accessor(times, FLOAT, minmax=True)
     samplers, channels = [], []
 
@@ -383,11 +392,75 @@ def _add_animation(gltf: gl.GLTF2, b: _Builder, clip: Clip, node_of: np.ndarray,
         if animate_scale:
             channel(node_of[j], "scale", scl[:, j])
     for tr in clip.tracks:
-        node = node_by_name.get(tr.node)
-        if node is None:
-            raise ExportError(f"clip {clip.name!r} animates node {tr.node!r}, which is not in the scene")
+        node = node_by_name[tr.node]
         for path, values in (("translation", tr.translations), ("rotation", tr.rotations),
                              ("scale", tr.scales)):
             if values is not None:
                 channel(node, path, np.asarray(values, dtype=np.float32))
+    gltf.animations.append(gl.Animation(name=clip.name, samplers=samplers, channels=channels))
+
+
+def _clip_channels(clip: Clip, node_of: np.ndarray, node_by_name: dict[str, int]):
+    """(node, path, Keys, channel index) of every channel of a reduced clip, in writing order:
+    per joint translation, rotation, scale; then each node track's paths."""
+    k = clip.keys
+    for j in range(len(node_of)):
+        for path, keys in (("translation", k.translations), ("rotation", k.rotations),
+                           ("scale", k.scales)):
+            yield int(node_of[j]), path, keys, j
+    for tr, tk in zip(clip.tracks, k.tracks):
+        if tr.node not in node_by_name:
+            raise ExportError(f"clip {clip.name!r} animates node {tr.node!r}, which is not in the scene")
+        for path, keys in tk.parts():
+            yield node_by_name[tr.node], path, keys, 0
+
+
+def _drop_static_channels(gltf: gl.GLTF2, clips, node_of: np.ndarray,
+                          node_by_name: dict[str, int]) -> frozenset:
+    """The (node, path) channels that are static with the same value in every animation of the
+    file (all reduced): they are written as the node's TRS and get no channel. Returns them."""
+    if not clips or any(c.keys is None for c in clips):
+        return frozenset()
+    value: dict = {}
+    for c in clips:
+        for node, path, keys, i in _clip_channels(c, node_of, node_by_name):
+            v = None if not keys.is_static[i] else tuple(float(x) for x in keys.static[i])
+            if value.get((node, path), v) != v:
+                v = None
+            value[(node, path)] = v
+    dropped = {key: v for key, v in value.items() if v is not None}
+    for (node, path), v in sorted(dropped.items()):
+        n = gltf.nodes[node]
+        if path == "scale":
+            n.scale = None if v == (1.0, 1.0, 1.0) else list(v)
+        else:
+            setattr(n, path, list(v))
+    return frozenset(dropped)
+
+
+def _add_reduced_channels(gltf: gl.GLTF2, b: _Builder, clip: Clip, node_of: np.ndarray,
+                          node_by_name: dict[str, int], dropped: frozenset) -> None:
+    """A reduced clip's animation: each channel's kept frames (clip.keys), the key sets sharing
+    their time accessors; rotations as normalized SHORT when the keys say so. A static channel
+    is left out when it is in `dropped` (its value is the node's TRS), else written as one key."""
+    times = np.asarray(clip.times, dtype=np.float32)
+    time_of: dict[bytes, int] = {}
+    samplers, channels = [], []
+    for node, path, keys, i in _clip_channels(clip, node_of, node_by_name):
+        frames = keys.frames(i)
+        if frames is None and (node, path) in dropped:
+            continue
+        if frames is None:                           # static, but not in every animation
+            frames, out = np.zeros(1, np.int64), b.accessor(keys.static[i][None], FLOAT)
+        elif keys.codes is not None:
+            out = b.accessor(keys.codes[frames, i], SHORT, normalized=True)
+        else:
+            out = b.accessor(keys.values[frames, i], FLOAT)
+        key = frames.tobytes()
+        if key not in time_of:
+            time_of[key] = b.accessor(times[frames], FLOAT, minmax=True)
+        samplers.append(gl.AnimationSampler(input=time_of[key], output=out,
+                                            interpolation=ANIM_LINEAR))
+        channels.append(gl.AnimationChannel(
+            sampler=len(samplers) - 1, target=gl.AnimationChannelTarget(node=node, path=path)))
     gltf.animations.append(gl.Animation(name=clip.name, samplers=samplers, channels=channels))

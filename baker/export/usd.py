@@ -155,13 +155,21 @@ def _stage_names(rig: Rig, props: Sequence, debug_meshes: Sequence, extra_clips:
 
 
 def _skel_animation(stage, path, joints, clip: Clip):
-    """A SkelAnimation prim with the clip's joint TRS, time samples keyed by frame number."""
+    """A SkelAnimation prim with the clip's joint TRS, time samples keyed by frame number. A
+    reduced clip (clip.keys) is written at the frames its joints keep (the played values, see
+    _reduced_samples; USD interpolates quatf with GfSlerp and vectors with GfLerp, like glTF
+    LINEAR); an attribute whose joints are all static is one default value."""
     _, Sdf, Usd, _, _, _, UsdSkel, Vt = _pxr()
     anim = UsdSkel.Animation.Define(stage, path)
     anim.CreateJointsAttr(joints)
     t_attr = anim.CreateTranslationsAttr()
     r_attr = anim.CreateRotationsAttr()
     s_attr = anim.CreateScalesAttr()
+    if clip.keys is not None:
+        _reduced_samples(clip, ((t_attr, Vt.Vec3fArray, np.float32),
+                                (r_attr, Vt.QuatfArray, np.float32),
+                                (s_attr, Vt.Vec3hArray, np.float16)))
+        return anim
     tr = np.ascontiguousarray(clip.translations, dtype=np.float32)
     rot = np.ascontiguousarray(clip.rotations, dtype=np.float32)      # xyzw == GfQuatf memory
     sc = np.ascontiguousarray(clip.scales, dtype=np.float16)
@@ -200,24 +208,59 @@ def _root_motion(stage, path, skel, track: NodeTrack):
     return anim
 
 
-def _animate_xform(xf, track) -> None:
-    """translate / orient / scale ops on an Xformable, sampled per frame from a NodeTrack."""
+def _reduced_samples(clip: Clip, attrs) -> None:
+    """Time samples of a reduced clip's translations, rotations and scales: attrs are
+    (attribute, Vt array type, numpy dtype) in that order. An attribute whose joints are all
+    static gets one default value; the others get the played values at every frame that any of
+    their joints keeps (one set of time codes for all of them: Blender's USD importer does not
+    interpolate an attribute at a time code where only another one has a sample)."""
+    _, Sdf, Usd, _, _, _, _, _ = _pxr()
+    k = clip.keys
+    parts = list(zip(attrs, (k.translations, k.rotations, k.scales), (False, True, False)))
+    frames = np.flatnonzero(np.any([keys.keep.any(axis=0) for _, keys, _ in parts], axis=0))
+    with Sdf.ChangeBlock():
+        for (attr, vt_type, dtype), keys, rot in parts:
+            if keys.is_static.all():
+                attr.Set(vt_type.FromNumpy(np.ascontiguousarray(keys.static, dtype=dtype)))
+                continue
+            played = np.ascontiguousarray(keys.play(clip.times, rot), dtype=dtype)
+            for f in frames:
+                attr.Set(vt_type.FromNumpy(played[f]), Usd.TimeCode(float(f)))
+
+
+def _animate_xform(xf, track, keys=None) -> None:
+    """translate / orient / scale ops on an Xformable, sampled per frame from a NodeTrack, or,
+    with its TrackKeys (a reduced clip), at its kept frames (a static path: one default value),
+    with the visibility authored where it changes (visibility is held, not interpolated)."""
     Gf, Sdf, Usd, UsdGeom, _, _, _, _ = _pxr()
+    vec3d = (lambda v: Gf.Vec3d(*map(float, v)))
+    quatf = (lambda q: Gf.Quatf(float(q[3]), float(q[0]), float(q[1]), float(q[2])))
+    vec3f = (lambda v: Gf.Vec3f(*map(float, v)))
     ops = []
-    if track.translations is not None:
-        ops.append((xf.AddTranslateOp(), [Gf.Vec3d(*map(float, v)) for v in track.translations]))
-    if track.rotations is not None:
-        ops.append((xf.AddOrientOp(),
-                    [Gf.Quatf(float(q[3]), float(q[0]), float(q[1]), float(q[2])) for q in track.rotations]))
+    for path, values, add, conv in (("translation", track.translations, xf.AddTranslateOp, vec3d),
+                                    ("rotation", track.rotations, xf.AddOrientOp, quatf),
+                                    ("scale", track.scales, xf.AddScaleOp, vec3f)):
+        if values is None:
+            continue
+        part = None if keys is None else dict(keys.parts())[path]
+        op = add()
+        if part is None:
+            ops.append((op, [(f, conv(v)) for f, v in enumerate(values)]))
+        elif part.is_static[0]:
+            op.Set(conv(part.static[0]))
+        else:
+            ops.append((op, [(f, conv(part.values[f, 0])) for f in part.frames(0)]))
     if track.scales is not None:
-        ops.append((xf.AddScaleOp(), [Gf.Vec3f(*map(float, v)) for v in track.scales]))
         vis = xf.CreateVisibilityAttr()
-        for f, v in enumerate(track.scales):
-            vis.Set(UsdGeom.Tokens.inherited if v[0] > 0 else UsdGeom.Tokens.invisible,
+        shown = np.asarray(track.scales)[:, 0] > 0
+        frames = (range(len(shown)) if keys is None
+                  else np.flatnonzero(np.r_[True, shown[1:] != shown[:-1]]))
+        for f in frames:
+            vis.Set(UsdGeom.Tokens.inherited if shown[f] else UsdGeom.Tokens.invisible,
                     Usd.TimeCode(float(f)))
     with Sdf.ChangeBlock():
-        for op, values in ops:
-            for f, v in enumerate(values):
+        for op, samples in ops:
+            for f, v in samples:
                 op.Set(v, Usd.TimeCode(float(f)))
 
 
@@ -276,8 +319,9 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
     sun = env.sun
     light = UsdLux.DistantLight.Define(stage, "/World/Sun")
     tracks = {t.node: t for t in clip.tracks}
+    track_keys = {} if clip.keys is None else dict(zip(tracks, clip.keys.tracks))
     if "Sun" in tracks:
-        _animate_xform(light, tracks["Sun"])
+        _animate_xform(light, tracks["Sun"], track_keys.get("Sun"))
     else:
         q = light_rotation(sun.direction)
         light.AddOrientOp().Set(Gf.Quatf(float(q[3]), float(q[0]), float(q[1]), float(q[2])))
@@ -312,7 +356,7 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
 
     # -- props (prey), under a static Xform at the placement
     if props:
-        _props(stage, looks, taken, props, tracks, clip.placement)
+        _props(stage, looks, taken, props, tracks, clip.placement, track_keys)
 
     mesh = rig.mesh
     identity = Gf.Matrix4d(1.0)
@@ -338,17 +382,19 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
     return stage
 
 
-def _props(stage, looks, taken: set[str], props: Sequence, tracks: dict, placement) -> None:
+def _props(stage, looks, taken: set[str], props: Sequence, tracks: dict, placement,
+           track_keys: dict | None = None) -> None:
     """/World/Prey (translated by placement (3,) float64 metres, world) with one animated Xform
-    per prop (name, vertices, faces, rgba), named `name` and driven by tracks[name], holding
-    its mesh `<name>_mesh`; materials `<name>_mat` (names made unique against `taken`)."""
+    per prop (name, vertices, faces, rgba), named `name` and driven by tracks[name] (at the kept
+    frames track_keys[name] of a reduced clip), holding its mesh `<name>_mesh`; materials
+    `<name>_mat` (names made unique against `taken`)."""
     _, _, _, UsdGeom, _, _, _, _ = _pxr()
     prey_xf = UsdGeom.Xform.Define(stage, "/World/Prey")
     _offset(prey_xf, placement)
     for name, verts, faces, rgba in props:
         xf = UsdGeom.Xform.Define(stage, prey_xf.GetPath().AppendChild(name))
         if name in tracks:
-            _animate_xform(xf, tracks[name])
+            _animate_xform(xf, tracks[name], (track_keys or {}).get(name))
         rgba = tuple(float(c) for c in rgba) + (1.0,) * (4 - len(rgba))
         mat = _material(stage, looks, safe_name(f"{name}_mat", taken), rgba, 1.0, 0.0, 0.7)
         _mesh(stage, xf.GetPath().AppendChild(safe_name(f"{name}_mesh", taken)), verts, faces,

@@ -96,7 +96,8 @@ def bakes(tmp_path_factory, nav_cache_dir):
     for name, env, o in (("near", DEFAULT_ENVIRONMENT, np.zeros(3)), ("far", far_env, OFFSET)):
         out[name] = bake(BakeConfig(environment=env, seconds=SECONDS, seed=1, rig=rig,
                                     out=tmp / name, nav_cache_dir=nav_cache_dir,
-                                    start=tuple(START + o), prey_positions=(tuple(PREY + o),)))
+                                    start=tuple(START + o), prey_positions=(tuple(PREY + o),),
+                                    tolerance=0.0))        # every key: exact to the simulation
     return out
 
 

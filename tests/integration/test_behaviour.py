@@ -143,7 +143,7 @@ def test_moving_sun_moves_the_shade_and_the_centipede_follows(tmp_path, nav_cach
 
             stage = Usd.Stage.Open(str(r.outputs["usd"]))
             orient = stage.GetPrimAtPath("/World/Sun").GetAttribute("xformOp:orient")
-            assert orient.GetNumTimeSamples() == traj.n_frames
+            assert orient.GetNumTimeSamples() > 1              # (reduced keys: not every frame)
             assert usd_validate(stage) == []
     t, x = np.concatenate(times), np.concatenate(xs_rest)
     assert len(t) > 30 * 30

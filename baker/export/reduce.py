@@ -1,0 +1,824 @@
+"""Error-bounded keyframe reduction: drop the keys that interpolation reproduces.
+
+A clip keys every joint at every frame. Players interpolate glTF LINEAR samplers (and USD time
+samples) between keys: lerp for translations and scales, slerp for rotations. `reduce_clip`
+keeps, per joint and channel, only the frames needed so that the played-back pose stays within a
+**world-space** tolerance of the unreduced pose, at every joint (feet and antenna tips included)
+and every original frame:
+
+    clip = reduce_clip(clip, skeleton.parents, 0.00025, contacts=planted, rest=rest)
+    clip.keys.rotations.frames(j)      # kept frame indices of joint j's rotation, or None (static)
+    clip.keys.rotations.values         # (F, J, 4) the values the files store at those frames
+
+Per-channel tolerances do not bound the world error: a spine joint's rotation error moves every
+joint below it, and the errors of the 20 spine joints add up at the tail and the feet. So:
+
+- **Compensated keys.** A joint's key values are not its own unreduced local TRS but the local
+  TRS that puts it exactly on its unreduced world pose *given its reduced parent* (computed level
+  by level down the skeleton). A parent's interpolation error then stops at the child's keys
+  instead of travelling down the chain.
+- **Local pass** (top-down Douglas-Peucker, all channels at once). A channel within its local
+  tolerance of one constant value is **static**: no keys; the exporters write its value as the
+  node's TRS (or a 1-key channel). The rest get keys at the worst frame of every segment until
+  each is within its local tolerance: `LOCAL_SHARE * tol` metres for a translation,
+  `LOCAL_SHARE * tol / lever` radians for a rotation (lever: the farthest a joint below it gets
+  from it, at least its own bone).
+- **World refinement.** The reduced clip is played as three players would: three.js and UsdSkel
+  (float32 key values and times; three.js's slerp, which normalizes only between nearly equal
+  keys; matrices built from the stored quaternion without normalizing it), a player that
+  normalizes the slerped quaternion (scipy's Slerp, baker.inspect), and Blender (component-wise
+  lerp, normalized). Each is posed and compared with the unreduced world positions. For each
+  joint off by more than the tolerance in any of them, the channels on its chain are blamed by
+  their linearized share of its error vector (a translation's world offset, or a rotation's
+  world error x the arm to that joint, projected on the error's direction); those with at least
+  `BLAME_SHARE` of the largest share get a key at their worst blamed frame of each segment.
+  Repeat until no joint is off. Every round adds a key, so it ends (at worst with every frame a
+  key, which reproduces the clip).
+- **Bytes.** A channel keeping so many keys that a time accessor of its own would cost more than
+  keying every frame (which shares the clip's full time accessor) is keyed at every frame (before
+  and after the refinement, which then checks again).
+
+Planted feet: with `contacts` (frames where a joint is planted), a foot that does not move in the
+original may not slide in the reduced clip: between two planted frames its error may change by at
+most `PLANTED_SLIDE * tol` (the refinement treats a larger change like an error over the bound).
+
+16-bit rotations (`short_rotations=True`): glTF core allows rotation sampler outputs as normalized
+SHORT (code / 32767), half the bytes of float. The codes (`quantize_rotations`: rounded so the
+stored quaternion, used unnormalized by three.js and UsdSkel, still gives a rotation matrix) are
+what the reduction plays, so the world bound includes the rounding, and compensation keeps it from
+adding up down the chain. The USD stores the same played values. When the rounding alone (every
+frame keyed) would use more than half the tolerance, rotations stay float.
+
+Node tracks (prey, sun) are not part of the skeleton: each channel is held to the tolerance on its
+own (rotations and scales times the skeleton's extent as the lever); so are joint scales (a bake's
+are ones: static).
+
+What the players do (checked in their sources): glTF 2.0 LINEAR is lerp, and slerp for
+rotations. three.js (QuaternionLinearInterpolant -> Quaternion.slerpFlat) slerps the short way
+round without normalizing, lerps and normalizes when dot >= 0.9995, evaluates a key time on the
+segment that starts there and returns the last key as stored; Matrix4.compose uses the quaternion
+as stored. USD interpolates time samples linearly (`Usd_Interpolate`, pxr/usd/usd/
+interpolators.cpp): `GfLerp` for vectors (float3 translations, half3 scales), `GfSlerp` for quatf
+(short way round; a plain lerp when 1 - dot <= 1e-5), element by element for arrays of equal
+size; UsdSkel.MakeTransform does not normalize. The USD writer stores the played value of every
+joint at every frame any joint keeps, so USD plays what three.js plays.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from baker.clip import Clip
+from baker.errors import ExportError
+from baker.geometry.transforms import quat_conj, quat_mul, quat_rotate
+from baker.rig.skeleton import forward_kinematics
+
+#: local pass: the share of the tolerance each channel gets on its own
+LOCAL_SHARE = 0.5
+#: world refinement: channels contributing at least this share of the largest contribution to
+#: an offending joint's error get a key
+BLAME_SHARE = 0.8
+#: planted joints: largest change of the reduced joint's error between two planted frames, as a
+#: fraction of the tolerance
+PLANTED_SLIDE = 0.5
+#: the players (three.js/UsdSkel, a renormalizing slerp, Blender's nlerp) may disagree by at most
+#: this [m] at any joint and frame: half the 1e-4 m the project holds its players to
+PLAYER_SPREAD_M = 5e-5
+#: safety stop of the world refinement (each round adds at least one key)
+MAX_ROUNDS = 10_000
+#: normalized SHORT: stored code c decodes to c / SHORT_MAX
+SHORT_MAX = 32767
+#: bytes of one value in the GLB: translation/scale VEC3 float, rotation VEC4 float or SHORT
+VALUE_BYTES = {"translation": 12, "rotation": 16, "rotation_short": 8, "scale": 12}
+TIME_BYTES = 4
+
+
+@dataclass(frozen=True)
+class Keys:
+    """The kept keys of C channels of one kind (translation, rotation or scale).
+
+    keep   : (C, F) bool, frame f is a key of channel c. A channel with no key is **static**:
+             its value is `static[c]` at every frame. An animated channel keeps its first and
+             last frame.
+    values : (F, C, W) float32, the value channel c stores at frame f (only key frames are
+             written). For joints these are *compensated*: computed against the reduced parent
+             (see the module docstring), not the clip's own local values.
+    static : (C, W) float32, the value of each static channel (W = 3, or 4 for xyzw rotations);
+             rows of animated channels are unused
+    codes  : (F, C, 4) int16 normalized-SHORT codes of rotation values (values ==
+             dequantize_rotations(codes)), or None for float storage
+    """
+
+    keep: np.ndarray
+    values: np.ndarray
+    static: np.ndarray
+    codes: np.ndarray | None = None
+
+    @property
+    def is_static(self) -> np.ndarray:
+        """(C,) bool, the channels with no key."""
+        return ~self.keep.any(axis=1)
+
+    @property
+    def count(self) -> int:
+        """Keys kept over all channels (a static channel counts none)."""
+        return int(self.keep.sum())
+
+    def frames(self, c: int) -> np.ndarray | None:
+        """(K,) int64 kept frame indices of channel c, ascending, or None when it is static."""
+        f = np.flatnonzero(self.keep[c])
+        return f if len(f) else None
+
+    def play(self, times: np.ndarray, rotation: bool) -> np.ndarray:
+        """(F, C, W) float32: every channel as a player evaluates it at every frame."""
+        return sample(self.values, self.keep, self.static, times, rotation).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class TrackKeys:
+    """Kept keys of one NodeTrack: a one-channel Keys per path the track animates (None where
+    the track has no such path). The values are the track's own."""
+
+    translations: Keys | None = None
+    rotations: Keys | None = None
+    scales: Keys | None = None
+
+    def parts(self) -> list[tuple[str, Keys]]:
+        """(path, Keys) of the animated paths: "translation", "rotation", "scale"."""
+        return [(p, k) for p, k in (("translation", self.translations),
+                                    ("rotation", self.rotations), ("scale", self.scales))
+                if k is not None]
+
+
+@dataclass(frozen=True)
+class ClipKeys:
+    """The result of keyframe reduction, stored on `Clip.keys`.
+
+    translations, rotations, scales : Keys over the clip's J joints
+    tracks          : one TrackKeys per clip.tracks entry, in order
+    tolerance_m     : [m] the world-space bound the keys were chosen for
+    max_error_m     : [m] the largest world-space joint position error of the reduced clip over
+                      every joint and frame, the worst of the three players the refinement
+                      plays it as (<= tolerance_m)
+    max_slide_m     : [m] the largest change of a planted joint's error between two planted
+                      frames (0 without contacts)
+    short_rotations : animated rotations are stored as normalized SHORT (Keys.codes)
+    max_spread_m    : [m] the largest distance between the players' poses of a joint (<=
+                      PLAYER_SPREAD_M)
+    """
+
+    translations: Keys
+    rotations: Keys
+    scales: Keys
+    tracks: tuple[TrackKeys, ...]
+    tolerance_m: float
+    max_error_m: float
+    max_slide_m: float = 0.0
+    short_rotations: bool = False
+    max_spread_m: float = 0.0
+
+    def count(self) -> int:
+        """Keys kept over every channel of the clip (joints and tracks)."""
+        n = self.translations.count + self.rotations.count + self.scales.count
+        return n + sum(k.count for t in self.tracks for _, k in t.parts())
+
+
+# ------------------------------------------------------------------------------- values
+
+
+_BITS = ((np.arange(16)[None, :] >> np.arange(4)[:, None]) & 1).astype(np.float64)   # (4, 16)
+
+
+def quantize_rotations(q: np.ndarray) -> np.ndarray:
+    """(..., 4) int16 normalized-SHORT codes of xyzw unit quaternions q (..., 4). Of the 16 codes
+    that round each component down or up, the one that best keeps q's rotation *and* its matrix:
+    three.js and UsdSkel build the rotation matrix from the stored quaternion without
+    normalizing it, so a code of length s gives s^2 R + (1 - s^2) I, off by |s^2 - 1| |R - I|."""
+    q = np.asarray(q, dtype=np.float64)
+    u = q.reshape(-1, 4) / np.linalg.norm(q.reshape(-1, 4), axis=1, keepdims=True)
+    s = u * SHORT_MAX
+    c = np.floor(s)
+    n2 = (np.sum(c * c, axis=1)[:, None] + 2.0 * (c @ _BITS)
+          + np.sum(_BITS, axis=0)[None, :]) / SHORT_MAX ** 2             # |code|^2 / 32767^2
+    dot = (np.sum(s * c, axis=1)[:, None] + s @ _BITS) / SHORT_MAX ** 2
+    sin2 = np.maximum(n2 - dot * dot, 0.0) / n2                          # sin^2(half angle)
+    lever = 1.0 - u[:, 3:4] ** 2                                         # |R - I|^2 / 4
+    cost = sin2 + np.abs(n2 - 1.0) ** 2 * lever
+    out = np.clip(c + _BITS.T[np.argmin(cost, axis=1)], -SHORT_MAX, SHORT_MAX)
+    return out.astype(np.int16).reshape(q.shape)
+
+
+def dequantize_rotations(codes: np.ndarray) -> np.ndarray:
+    """(..., 4) float32 quaternions decoded from normalized SHORT codes, as glTF specifies:
+    max(c / 32767, -1)."""
+    return np.maximum(np.asarray(codes, dtype=np.float64) / SHORT_MAX, -1.0).astype(np.float32)
+
+
+def _unit_f32(q: np.ndarray) -> np.ndarray:
+    return (q / np.linalg.norm(q, axis=-1, keepdims=True)).astype(np.float32)
+
+
+def sample(values: np.ndarray, keep: np.ndarray, static: np.ndarray, times: np.ndarray,
+           rotation: bool) -> np.ndarray:
+    """Reduced curves at every frame, as a player evaluates them.
+
+    values   : (F, C, W) float32, the stored values (key values are values[key frame])
+    keep     : (C, F) bool key frames; a channel with none is static
+    static   : (C, W) the static channels' values
+    times    : (F,) float32 seconds, the key times
+    rotation : slerp (xyzw, the short way round) instead of lerp
+    returns  : (F, C, W) float64
+    """
+    return _sample_cf(np.swapaxes(values, 0, 1), keep, static, times, rotation).swapaxes(0, 1)
+
+
+def _sample_cf(values: np.ndarray, keep: np.ndarray, static: np.ndarray, times: np.ndarray,
+               rotation: bool) -> np.ndarray:
+    """`sample` with channels first: values (C, F, W) -> (C, F, W) float64. Like three.js's
+    interpolants, a frame on a key is evaluated on the segment that starts there (alpha 0; the
+    rotation is normalized there when the next key is nearly equal), and the last key is
+    returned as stored."""
+    c_count, f_count = keep.shape
+    idx = np.arange(f_count)
+    prev = np.maximum.accumulate(np.where(keep, idx, -1), axis=1)             # (C, F)
+    nxt = np.minimum.accumulate(np.where(keep, idx, f_count)[:, ::-1], axis=1)[:, ::-1]
+    nxt = np.concatenate([nxt[:, 1:], np.full((c_count, 1), f_count)], axis=1)  # after f
+    fixed = prev < 0
+    last = nxt >= f_count
+    prev = np.clip(prev, 0, f_count - 1)
+    nxt = np.where(last, prev, nxt)
+    t = np.asarray(times, dtype=np.float32).astype(np.float64)
+    span = t[nxt] - t[prev]
+    a = np.where(span > 0, (t[None, :] - t[prev]) / np.where(span > 0, span, 1.0), 0.0)
+    rows = np.arange(c_count)[:, None]
+    v0 = values[rows, prev].astype(np.float64)
+    v1 = values[rows, nxt].astype(np.float64)
+    out = slerp(v0, v1, a) if rotation else v0 + a[..., None] * (v1 - v0)
+    out = np.where(last[..., None], v0, out)
+    return np.where(fixed[..., None], np.asarray(static, np.float64)[:, None, :], out)
+
+
+def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Quaternion slerp as three.js plays glTF (Quaternion.slerpFlat): the short way round,
+    weights from the stored keys as they are (not renormalized), the result not normalized;
+    for nearly equal keys (dot >= 0.9995) a lerp, normalized; equal keys give a as stored.
+    a, b (..., 4), t (...)."""
+    d = np.sum(a * b, axis=-1)
+    b = np.where((d < 0.0)[..., None], -b, b)
+    d = np.abs(d)
+    t = np.asarray(t, dtype=np.float64)
+    near = d >= 0.9995
+    theta = np.arccos(np.minimum(d, 1.0))
+    s = np.where(near, 1.0, np.sin(theta))
+    wa = np.where(near, 1.0 - t, np.sin((1.0 - t) * theta) / s)
+    wb = np.where(near, t, np.sin(t * theta) / s)
+    out = wa[..., None] * a + wb[..., None] * b
+    norm = np.where(near, np.linalg.norm(out, axis=-1), 1.0)
+    same = np.all(a == b, axis=-1, keepdims=True)                    # three.js: a, as stored
+    return np.where(same, a, out / norm[..., None])
+
+
+def raw_matrix(q: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotation matrices of xyzw quaternions (..., 4) by the unit-quaternion formula
+    applied to q as stored, without normalizing (as three.js and UsdSkel do)."""
+    x, y, z, w = np.moveaxis(np.asarray(q, dtype=np.float64), -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], -2)
+
+
+def _rotation_error(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(...) radians between xyzw rotations a and b (..., 4)."""
+    d = np.abs(np.sum(a * b, axis=-1)) / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
+    return 2.0 * np.arccos(np.clip(d, 0.0, 1.0))
+
+
+def _errors(values: np.ndarray, reduced: np.ndarray, rotation: bool) -> np.ndarray:
+    """(C, F) error of each channel: metres (translations, scales) or radians (rotations)."""
+    v = values.astype(np.float64)
+    e = _rotation_error(v, reduced) if rotation else np.linalg.norm(reduced - v, axis=-1)
+    return e.T
+
+
+# ------------------------------------------------------------------------------- local pass
+
+
+def _add_worst(keep: np.ndarray, score: np.ndarray, candidate: np.ndarray) -> int:
+    """Add, in every segment between consecutive keys of every channel, a key at the candidate
+    frame of the highest score (ties: the earliest). keep (C, F) is updated in place; a static
+    channel (no key) that gets a key also gets its first and last frame. Returns the number of
+    keys added."""
+    f_count = keep.shape[1]
+    cand = candidate & ~keep
+    if not cand.any():
+        return 0
+    before = int(keep.sum())
+    prev = np.maximum.accumulate(np.where(keep, np.arange(f_count), -1), axis=1)
+    ci, fi = np.nonzero(cand)
+    group = ci * (f_count + 1) + prev[ci, fi] + 1
+    order = np.lexsort((fi, -score[ci, fi], group))
+    first = order[np.r_[True, group[order][1:] != group[order][:-1]]]
+    keep[ci[first], fi[first]] = True
+    _close(keep)
+    return int(keep.sum()) - before
+
+
+def _close(keep: np.ndarray) -> None:
+    """Animated channels keep their first and last frame (in place)."""
+    animated = keep.any(axis=1)
+    keep[animated, 0] = True
+    keep[animated, -1] = True
+
+
+def _local_keys(values: np.ndarray, stored: np.ndarray, times: np.ndarray, rotation: bool,
+                tol: np.ndarray, preferred: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Top-down Douglas-Peucker over all channels at once, each within its own tolerance tol (C,)
+    (metres or radians) of `values` (F, C, W), interpolating `stored` (the values the file
+    holds). A channel within tol of one value is static: `preferred` (C, W) (the rest pose) when
+    that is close enough, else its frame-0 value. Returns (keep (C, F), static (C, W))."""
+    f_count, c_count, _ = values.shape
+    first = np.asarray(values[0], dtype=np.float32)
+    static = first.copy()
+    empty = np.zeros((c_count, f_count), dtype=bool)
+    is_static = np.zeros(c_count, dtype=bool)
+    for value in ([first] if preferred is None else [np.asarray(preferred, np.float32), first]):
+        err = _errors(values, sample(values, empty, value, times, rotation), rotation)
+        ok = ~is_static & (err.max(axis=1) <= tol)
+        static[ok] = value[ok]
+        is_static |= ok
+    keep = np.zeros((c_count, f_count), dtype=bool)
+    keep[~is_static, 0] = True
+    keep[~is_static, -1] = True
+    active = np.flatnonzero(~is_static)
+    while len(active):
+        sub = keep[active]
+        err = _errors(values[:, active],
+                      sample(stored[:, active], sub, static[active], times, rotation), rotation)
+        bad = (err > tol[active, None]) & ~sub
+        _add_worst(sub, err, bad)
+        keep[active] = sub
+        active = active[bad.any(axis=1)]
+    return keep, static
+
+
+# ------------------------------------------------------------------------------- hierarchy
+
+
+def ancestors(parents) -> np.ndarray:
+    """(J, D) int64: row k lists joint k, its parent, its grandparent ... up to the root, padded
+    with -1 (D: the longest chain)."""
+    parents = np.asarray(parents)
+    chains = []
+    for k in range(len(parents)):
+        c = [k]
+        while parents[c[-1]] >= 0:
+            c.append(int(parents[c[-1]]))
+        chains.append(c)
+    out = np.full((len(parents), max(map(len, chains))), -1, dtype=np.int64)
+    for k, c in enumerate(chains):
+        out[k, :len(c)] = c
+    return out
+
+
+def levers(parents, world: np.ndarray, local_t: np.ndarray) -> np.ndarray:
+    """(J,) metres: how far a rotation of each joint can move a joint below it (the largest
+    distance from it to any of its descendants over all frames), at least its own bone length
+    (the geometry it carries). world (F, J, 3) positions, local_t (F, J, 3) local translations."""
+    parents = np.asarray(parents)
+    out = np.linalg.norm(local_t, axis=-1).max(axis=0) * (parents >= 0)
+    chains = ancestors(parents)
+    for j in range(1, len(parents)):                # each joint's reach to its ancestors
+        up = chains[j, 1:][chains[j, 1:] >= 0]
+        d = np.linalg.norm(world[:, j, None] - world[:, up], axis=-1).max(axis=0)
+        out[up] = np.maximum(out[up], d)
+    return out
+
+
+def _rotvec(q: np.ndarray) -> np.ndarray:
+    """(..., 3) rotation vectors (axis x angle, radians) of xyzw quaternions (..., 4)."""
+    q = np.where(q[..., 3:4] < 0, -q, q)
+    s = np.linalg.norm(q[..., :3], axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(s, q[..., 3:4])
+    return q[..., :3] * np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 2.0)
+
+
+# ------------------------------------------------------------------------------- world pass
+# Arrays here are joints first, (J, F, ...), so a level of the skeleton is a block of rows.
+
+
+@dataclass(frozen=True)
+class _Target:
+    """The unreduced clip, joints first: local t0 (J, F, 3), q0 (J, F, 4) float64, world pos0
+    (J, F, 3), wq0 (J, F, 4); times (F,); parents (J,); levels: the skeleton's depth levels
+    (joint index arrays, parents in earlier levels); planted (J, F) bool or None; the tolerance
+    [m]; whether rotations are stored as SHORT."""
+
+    t0: np.ndarray
+    q0: np.ndarray
+    pos0: np.ndarray
+    wq0: np.ndarray
+    times: np.ndarray
+    parents: np.ndarray
+    levels: tuple
+    planted: np.ndarray | None
+    tol: float
+    short: bool
+
+
+def _target(clip: Clip, parents, planted, tol: float, short: bool) -> _Target:
+    parents = np.asarray(parents)
+    depth = (ancestors(parents) >= 0).sum(axis=1)
+    levels = tuple(np.flatnonzero(depth == d) for d in range(1, depth.max() + 1))
+    t0 = clip.translations.astype(np.float64)
+    q0 = clip.rotations.astype(np.float64)
+    pos0, wq0 = forward_kinematics(parents, t0, q0)
+    first = (lambda a: np.ascontiguousarray(np.swapaxes(a, 0, 1)))
+    return _Target(first(t0), first(q0), first(pos0), first(wq0), clip.times, parents, levels,
+                   None if planted is None else first(planted), tol, short)
+
+
+class _Pose(NamedTuple):
+    """A reduced clip played back, joints first. Stored key values vt (J, F, 3), vq (J, F, 4)
+    float32 and codes (J, F, 4) int16 (used with SHORT rotations); their targets tt, tq (float64: the local values
+    that would put each joint exactly on its unreduced world pose, given its reduced parent);
+    the played local tr, rr (float32 values as float64), world positions pos and rotations wq
+    (the matrices' rotation part) and matrices mat (J, F, 3, 3); error vectors diff (J, F, 3) and lengths err (J, F) metres;
+    slide (J, F-1) metres (the change of a planted joint's error between planted frames); viol
+    (J, F) bool, over a bound."""
+
+    vt: np.ndarray
+    vq: np.ndarray
+    codes: np.ndarray | None
+    tt: np.ndarray
+    tq: np.ndarray
+    tr: np.ndarray
+    rr: np.ndarray
+    pos: np.ndarray
+    wq: np.ndarray
+    mat: np.ndarray
+    diff: np.ndarray
+    err: np.ndarray
+    slide: np.ndarray
+    spread: np.ndarray
+    viol: np.ndarray
+
+
+class _Codes:
+    """Quantization cache of a reduction: the SHORT codes of the last rotation targets, so a
+    playback requantizes only the targets that changed."""
+
+    def __init__(self, shape):
+        self.targets = np.full(shape, np.nan)
+        self.codes = np.zeros(shape, dtype=np.int16)
+
+    def get(self, js: np.ndarray, tq: np.ndarray) -> np.ndarray:
+        old = self.targets[js]
+        changed = np.any(old != tq, axis=-1)
+        if changed.any():
+            codes = self.codes[js]
+            codes[changed] = quantize_rotations(tq[changed])
+            old[changed] = tq[changed]
+            self.codes[js], self.targets[js] = codes, old
+        return self.codes[js]
+
+
+def _play(x: _Target, keep_t: np.ndarray, keep_r: np.ndarray, static_t: np.ndarray,
+          static_r: np.ndarray, cache: _Codes | None = None, prev: _Pose | None = None,
+          dirty: np.ndarray | None = None) -> _Pose:
+    """Compensated playback: level by level down the skeleton, each joint's key values are the
+    local transforms that put it exactly on its unreduced world pose relative to its *reduced*
+    parent (so a parent's interpolation error is not passed on at the child's keys); then its
+    curves are sampled between the keys as players do and posed with the players' matrices
+    (raw_matrix: stored quaternions are not renormalized). With `prev` and `dirty` (J,) bool,
+    only the dirty joints (whose keys or ancestors' keys changed) are played again."""
+    j_count, f_count = x.t0.shape[:2]
+    if prev is None:
+        prev = _Pose(*(np.empty((j_count, f_count) + s, dt) for s, dt in (
+            ((3,), np.float32), ((4,), np.float32), ((4,), np.int16), ((3,), float),
+            ((4,), float), ((3,), float), ((4,), float), ((3,), float), ((4,), float),
+            ((3, 3), float))), None, None, None, None, None)
+        dirty = np.ones(j_count, dtype=bool)
+    vt, vq, codes, tt, tq, tr, rr, pos, wq, mat = (a.copy() for a in prev[:10])
+    if x.short and cache is None:
+        cache = _Codes(x.q0.shape)
+    for level in x.levels:
+        js = level[dirty[level]]
+        if not len(js):
+            continue
+        p = x.parents[js]
+        if p[0] < 0:
+            tt[js], tq[js] = x.t0[js], x.q0[js]
+        else:
+            tt[js] = np.linalg.solve(mat[p], (x.pos0[js] - pos[p])[..., None])[..., 0]
+            q = quat_mul(quat_conj(wq[p]), x.wq0[js])
+            q = np.where((np.sum(q * x.q0[js], axis=-1) < 0)[..., None], -q, q)
+            tq[js] = q / np.linalg.norm(q, axis=-1, keepdims=True)
+        vt[js] = tt[js]
+        if x.short:
+            codes[js] = cache.get(js, tq[js])
+            vq[js] = dequantize_rotations(codes[js])
+        else:
+            vq[js] = _unit_f32(tq[js])
+        tr[js] = _sample_cf(vt[js], keep_t[js], static_t[js], x.times, False).astype(np.float32)
+        rr[js] = _sample_cf(vq[js], keep_r[js], static_r[js], x.times, True).astype(np.float32)
+        m = raw_matrix(rr[js])
+        unit = rr[js] / np.linalg.norm(rr[js], axis=-1, keepdims=True)
+        if p[0] < 0:
+            pos[js], mat[js], wq[js] = tr[js], m, unit
+        else:
+            pos[js] = pos[p] + np.einsum("nfij,nfj->nfi", mat[p], tr[js])
+            mat[js] = mat[p] @ m
+            wq[js] = quat_mul(wq[p], unit)
+    diff, err, slide, spread = _off(x, pos, wq, tr, vq, keep_r, static_r)
+    viol = (err > x.tol) | (spread > PLAYER_SPREAD_M)
+    if x.planted is not None and f_count > 1:
+        bad = slide > PLANTED_SLIDE * x.tol
+        viol[:, 1:] |= bad
+        viol[:, :-1] |= bad
+    return _Pose(vt, vq, codes, tt, tq, tr, rr, pos, wq, mat, diff, err, slide, spread, viol)
+
+
+def _off(x: _Target, pos: np.ndarray, wq: np.ndarray, tr: np.ndarray, vq: np.ndarray,
+         keep_r: np.ndarray, static_r: np.ndarray):
+    """How far the played joints are from the unreduced ones: (error vectors (J, F, 3), their
+    lengths (J, F), slide (J, F-1): the change of a planted joint's error between planted
+    frames), each the worst of three players: pos (J, F, 3), as three.js and UsdSkel play the
+    keys; one that normalizes the slerped quaternions (wq (J, F, 4): unit world rotations); and
+    Blender's, which interpolates the stored quaternions component by component and normalizes
+    (nlerp); and spread (J, F), how far the other two are from the first."""
+    nlerp = _sample_cf(vq, keep_r, static_r, x.times, False)
+    nlerp /= np.linalg.norm(nlerp, axis=-1, keepdims=True)
+    unit, blender, wn = np.empty_like(pos), np.empty_like(pos), np.empty_like(nlerp)
+    for js in x.levels:
+        p = x.parents[js]
+        if p[0] < 0:
+            unit[js], blender[js], wn[js] = tr[js], tr[js], nlerp[js]
+        else:
+            unit[js] = unit[p] + quat_rotate(wq[p], tr[js])
+            blender[js] = blender[p] + quat_rotate(wn[p], tr[js])
+            wn[js] = quat_mul(wn[p], nlerp[js])
+    spread = np.maximum(np.linalg.norm(unit - pos, axis=-1), np.linalg.norm(blender - pos, axis=-1))
+    diff, err, slide = None, None, None
+    for world in (pos, unit, blender):
+        d = world - x.pos0
+        e = np.linalg.norm(d, axis=-1)
+        s = np.zeros((len(pos), max(pos.shape[1] - 1, 0)))
+        if x.planted is not None and pos.shape[1] > 1:
+            both = x.planted[:, 1:] & x.planted[:, :-1]
+            s = np.where(both, np.linalg.norm(np.diff(d, axis=1), axis=-1), 0.0)
+        if diff is None:
+            diff, err, slide = d, e, s
+        else:
+            diff = np.where((e > err)[..., None], d, diff)
+            err, slide = np.maximum(err, e), np.maximum(slide, s)
+    return diff, err, slide, spread
+
+
+def _blame(x: _Target, chains: np.ndarray, p: _Pose):
+    """Which channels to key where (see the module docstring). Returns (candidates, scores) for
+    the translation channels and for the rotation channels, each (J, F); scores in metres."""
+    j_count, f_count = p.viol.shape
+    parents = x.parents
+    wp = np.where((parents >= 0)[:, None, None], p.wq[np.maximum(parents, 0)],
+                  [0.0, 0.0, 0.0, 1.0])
+    c_t = quat_rotate(wp, p.tr - p.tt)                                     # (J, F, 3)
+    omega = quat_rotate(wp, _rotvec(quat_mul(p.rr, quat_conj(p.tq))))      # (J, F, 3)
+    ki, fi = np.nonzero(p.viol)
+    e = p.diff[ki, fi]
+    e = e / np.maximum(np.linalg.norm(e, axis=-1, keepdims=True), 1e-300)
+    chain = chains[ki]                                                     # (V, D)
+    a = np.maximum(chain, 0)
+    ft = fi[:, None]
+    ct = np.where(chain >= 0, np.einsum("vdk,vk->vd", c_t[a, ft], e), -np.inf)
+    arm = np.cross(p.pos[ki, fi][:, None, :] - p.pos[a, ft], e[:, None, :])
+    strict = (chain >= 0) & (np.arange(chain.shape[1]) > 0)[None, :]       # ancestors of k
+    cr = np.where(strict, np.einsum("vdk,vdk->vd", omega[a, ft], arm), -np.inf)
+    top = np.maximum(ct.max(axis=1), cr.max(axis=1))[:, None]
+    out = []
+    for c in (ct, cr):
+        v, d = np.nonzero((c > 0) & (c >= BLAME_SHARE * top))
+        cand = np.zeros((j_count, f_count), dtype=bool)
+        score = np.zeros((j_count, f_count))
+        cand[a[v, d], fi[v]] = True
+        np.maximum.at(score, (a[v, d], fi[v]), c[v, d])
+        out += [cand, score]
+    return out
+
+
+def _refine(x: _Target, keep_t: np.ndarray, keep_r: np.ndarray, static_t: np.ndarray,
+            static_r: np.ndarray) -> _Pose:
+    """World refinement (see the module docstring): adds keys to keep_t, keep_r (J, F) in place
+    until no joint is off. Returns the final _Pose."""
+    chains = ancestors(x.parents)
+    cache = _Codes(x.q0.shape) if x.short else None
+    p, dirty = None, None
+    for _ in range(MAX_ROUNDS):
+        p = _play(x, keep_t, keep_r, static_t, static_r, cache, p, dirty)
+        if not p.viol.any():
+            return p
+        before_t, before_r = keep_t.copy(), keep_r.copy()
+        cand_t, score_t, cand_r, score_r = _blame(x, chains, p)
+        added = _add_worst(keep_t, score_t, cand_t) + _add_worst(keep_r, score_r, cand_r)
+        if added == 0:          # only rounding is left: key the offending chains there
+            ki, fi = np.nonzero(p.viol)
+            ch = chains[ki]
+            v, d = np.nonzero(ch >= 0)
+            for keep in (keep_t, keep_r):
+                before = int(keep.sum())
+                keep[ch[v, d], fi[v]] = True
+                _close(keep)
+                added += int(keep.sum()) - before
+            if added == 0:
+                raise ExportError(f"keyframe reduction cannot reach {x.tol:g} m: the stored "
+                                  f"values alone are off by {p.err.max():.3g} m")
+        changed = np.any(keep_t != before_t, axis=1) | np.any(keep_r != before_r, axis=1)
+        dirty = np.any(np.where(chains >= 0, changed[np.maximum(chains, 0)], False), axis=1)
+    raise ExportError("keyframe reduction did not converge")
+
+
+def _promote(keep: np.ndarray, value_bytes: int) -> None:
+    """Key every frame of the channels whose own key set (values + a time accessor of their
+    own) would cost more bytes than every frame (values only: the full time accessor is
+    shared). In place."""
+    n = keep.sum(axis=1)
+    f_count = keep.shape[1]
+    keep[(n > 0) & ((value_bytes + TIME_BYTES) * n > value_bytes * f_count)] = True
+
+
+# ------------------------------------------------------------------------------- entry points
+
+
+def _track_keys(clip: Clip, tol: float, lever: float, short: bool) -> tuple[TrackKeys, ...]:
+    """Each node track's channels reduced on their own (see the module docstring)."""
+    out = []
+    for tr in clip.tracks:
+        parts = {}
+        for path, values, rot, scale in (("translations", tr.translations, False, 1.0),
+                                         ("rotations", tr.rotations, True, lever),
+                                         ("scales", tr.scales, False, lever)):
+            if values is None:
+                continue
+            v = np.asarray(values, dtype=np.float32)[:, None, :]
+            codes = quantize_rotations(v) if rot and short else None
+            stored = v if codes is None else dequantize_rotations(codes)
+            keep, static = _local_keys(v, stored, clip.times, rot,
+                                       np.array([tol / max(scale, 1e-9)]), None)
+            _promote(keep, VALUE_BYTES["rotation_short" if codes is not None else
+                                       "rotation" if rot else "scale"])
+            parts[path] = Keys(keep, stored, static, codes)
+        out.append(TrackKeys(**parts))
+    return tuple(out)
+
+
+def reduce_clip(clip: Clip, parents, tolerance_m: float, *, contacts=None,
+                rest: tuple[np.ndarray, np.ndarray] | None = None,
+                short_rotations: bool = False) -> Clip:
+    """`clip` with `keys` set (a ClipKeys): keys whose playback keeps every joint within
+    `tolerance_m` of its unreduced world position at every frame (the two passes of the module
+    docstring).
+
+    parents         : (J,) int, the skeleton's parents array (parents first)
+    tolerance_m     : [m] >= 0; 0 returns the clip with keys None (every frame is a key)
+    contacts        : (F, J) bool, frames at which a joint is planted (feet in stance), or None
+    rest            : ((J, 3) translations, (J, 4) xyzw rotations): the values static channels
+                      take when they are within tolerance (so the nodes keep their rest TRS)
+    short_rotations : store animated rotations as normalized SHORT (see the module docstring),
+                      unless the quantization alone would use more than half the tolerance
+    """
+    tol = float(tolerance_m)
+    if not np.isfinite(tol) or tol < 0:
+        raise ExportError(f"reduction tolerance must be a finite number >= 0 (got {tolerance_m})")
+    if tol == 0:
+        return dataclasses.replace(clip, keys=None)
+    parents = np.asarray(parents)
+    f_count, j_count = clip.translations.shape[:2]
+    if len(parents) != j_count:
+        raise ExportError(f"clip has {j_count} joints, the parents array {len(parents)}")
+    planted = None
+    if contacts is not None:
+        planted = np.asarray(contacts, dtype=bool)
+        if planted.shape != (f_count, j_count):
+            raise ExportError(f"contacts have shape {planted.shape}, expected "
+                              f"({f_count}, {j_count})")
+    x = _target(clip, parents, planted, tol, short_rotations)
+    if short_rotations and not _short_fits(x):
+        x = dataclasses.replace(x, short=False)
+    lever = np.maximum(levers(parents, np.swapaxes(x.pos0, 0, 1), clip.translations), 1e-9)
+    r_t, r_q = (None, None) if rest is None else rest
+    share = LOCAL_SHARE * tol
+    keep_t, static_t = _local_keys(clip.translations, clip.translations, clip.times, False,
+                                   np.full(j_count, share), r_t)
+    keep_r, static_r = _local_keys(clip.rotations, clip.rotations, clip.times, True,
+                                   share / lever, r_q)
+    keep_s, static_s = _local_keys(clip.scales, clip.scales, clip.times, False, tol / lever,
+                                   np.ones((j_count, 3), np.float32))
+    rot_bytes = VALUE_BYTES["rotation_short" if x.short else "rotation"]
+    _promote(keep_t, VALUE_BYTES["translation"])
+    _promote(keep_r, rot_bytes)
+    _refine(x, keep_t, keep_r, static_t, static_r)
+    _promote(keep_t, VALUE_BYTES["translation"])
+    _promote(keep_r, VALUE_BYTES["rotation_short" if x.short else "rotation"])
+    _promote(keep_s, VALUE_BYTES["scale"])
+    p = _refine(x, keep_t, keep_r, static_t, static_r)
+    keys = ClipKeys(
+        translations=Keys(keep_t, _frames_first(p.vt), static_t),
+        rotations=Keys(keep_r, _frames_first(p.vq), static_r,
+                       _frames_first(p.codes) if x.short else None),
+        scales=Keys(keep_s, np.asarray(clip.scales, np.float32), static_s),
+        tracks=_track_keys(clip, tol, float(lever.max()), x.short), tolerance_m=tol,
+        max_error_m=float(p.err.max(initial=0.0)), max_slide_m=float(p.slide.max(initial=0.0)),
+        short_rotations=x.short, max_spread_m=float(p.spread.max(initial=0.0)))
+    return dataclasses.replace(clip, keys=keys)
+
+
+def _frames_first(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(np.swapaxes(a, 0, 1))
+
+
+def _short_fits(x: _Target) -> bool:
+    """Whether 16-bit rotations, every frame keyed, stay within half the tolerance, and the
+    players (which do or do not renormalize the stored quaternions) within half of
+    PLAYER_SPREAD_M of each other."""
+    j_count, f_count = x.t0.shape[:2]
+    some = np.arange(0, f_count, 8)         # every frame a key: frames are independent
+    sub = dataclasses.replace(x, t0=x.t0[:, some], q0=x.q0[:, some], pos0=x.pos0[:, some],
+                              wq0=x.wq0[:, some], times=x.times[some], planted=None)
+    every = np.ones((j_count, len(some)), dtype=bool)
+    p = _play(sub, every, every, np.zeros((j_count, 3)), np.zeros((j_count, 4)))
+    return bool(p.err.max(initial=0.0) <= 0.5 * x.tol
+                and p.spread.max(initial=0.0) <= 0.5 * PLAYER_SPREAD_M)
+
+
+# ------------------------------------------------------------------------------- accounting
+
+
+def clip_key_count(clip: Clip) -> int:
+    """Keys the clip's animation holds: every channel's kept keys, or, without keys, every
+    frame of the channels an unreduced export writes (joint translations and rotations, joint
+    scales when they are not all ones, and each track path)."""
+    if clip.keys is not None:
+        return clip.keys.count()
+    f_count, j_count = clip.translations.shape[:2]
+    per_joint = 2 + (0 if np.all(clip.scales == 1.0) else 1)
+    paths = sum(v is not None for t in clip.tracks for v in (t.translations, t.rotations,
+                                                             t.scales))
+    return f_count * (j_count * per_joint + paths)
+
+
+def glb_animation_bytes(clip: Clip) -> int:
+    """Bytes of the clip's glTF animation data as build_glb writes it alone in a file: every
+    sampler output, plus one time accessor per distinct key set (static channels write nothing:
+    their value is the node's TRS). Without keys, every frame of every channel."""
+    f_count = clip.n_frames
+    k = clip.keys
+    if k is None:
+        per_frame = clip.n_joints * (12 + 16 + (0 if np.all(clip.scales == 1.0) else 12))
+        per_frame += sum(b for t in clip.tracks for v, b in ((t.translations, 12),
+                                                              (t.rotations, 16),
+                                                              (t.scales, 12)) if v is not None)
+        return f_count * (TIME_BYTES + per_frame)
+    rot = "rotation_short" if k.short_rotations else "rotation"
+    total, sets = 0, set()
+    groups = [(k.translations, "translation"), (k.rotations, rot), (k.scales, "scale")]
+    groups += [(keys, rot if path == "rotation" else path) for t in k.tracks
+               for path, keys in t.parts()]
+    for keys, kind in groups:
+        n = keys.keep.sum(axis=1)
+        total += VALUE_BYTES[kind] * int(n.sum())
+        sets.update(row.tobytes() for row in keys.keep[n > 0])
+    return total + TIME_BYTES * sum(int(np.frombuffer(s, dtype=bool).sum()) for s in sets)
+
+
+def reduction_stats(before: Clip, after: Clip) -> dict:
+    """The report's `animation` numbers for one clip: keys and GLB animation bytes before and
+    after reduction, the tolerance and the measured errors (metres)."""
+    k = after.keys
+    b0, b1 = glb_animation_bytes(before), glb_animation_bytes(after)
+    return {
+        "tolerance_m": 0.0 if k is None else k.tolerance_m,
+        "keys_before": clip_key_count(before),
+        "keys_after": clip_key_count(after),
+        "bytes_before": b0,
+        "bytes_after": b1,
+        "ratio": round(b0 / b1, 3) if b1 else None,
+        "max_error_m": 0.0 if k is None else k.max_error_m,
+        "planted_slide_max_m": 0.0 if k is None else k.max_slide_m,
+        "players_max_spread_m": 0.0 if k is None else k.max_spread_m,
+        "rotations": "short" if k is not None and k.short_rotations else "float",
+    }
+
+
+def played_joints(clip: Clip) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The clip's joint channels as a player evaluates them from its keys at every frame:
+    (F, J, 3) translations, (F, J, 4) xyzw rotations, (F, J, 3) scales, float32. Without keys,
+    the clip's own arrays."""
+    k = clip.keys
+    if k is None:
+        return clip.translations, clip.rotations, clip.scales
+    return (k.translations.play(clip.times, False), k.rotations.play(clip.times, True),
+            k.scales.play(clip.times, False))
