@@ -305,14 +305,14 @@ def test_bake_stays_within_tolerance_and_feet_stay_planted(bakes):
 def test_bake_reports_the_reduction(bakes):
     rep = bakes["reduced"].report["animation"]
     glb = Glb(bakes["reduced"].outputs["glb"].read_bytes())
-    assert glb.doc["asset"]["extras"]["animation"] == rep
+    assert glb.doc["scenes"][0]["extras"]["animation"] == rep
     assert rep["bytes_after"] == _anim_bytes(glb, 0) and rep["bytes_before"] > 3 * rep["bytes_after"]
     assert rep["keys_after"] < rep["keys_before"] and rep["max_error_m"] <= rep["tolerance_m"]
     assert rep["rotations"] == "short" and rep["tolerance_bl"] == 0.001
     assert len(rep["segment_clips"]) == len(glb.doc["animations"]) - 1 >= 1
     assert "reduce" in bakes["reduced"].report["timings_s"]
     full = Glb(bakes["full"].outputs["glb"].read_bytes())
-    assert "animation" not in full.doc["asset"]["extras"]           # --tolerance 0: as before
+    assert "animation" not in full.doc["scenes"][0]["extras"]           # --tolerance 0: as before
     assert bakes["full"].report["animation"]["ratio"] == 1.0
 
 
