@@ -172,6 +172,10 @@ class RigConfig:
 
 
 # --------------------------------------------------------------------------- bake run
+#: the pictures of a bake (export.preview), named after the output path: PATH_map.png, ...
+PREVIEW_SUFFIXES = {"map": "_map.png", "sheet": "_sheet.png", "gif": ".gif"}
+
+
 @dataclass(frozen=True)
 class BakeConfig:
     environment: Path = DEFAULT_ENVIRONMENT  # file to load
@@ -201,6 +205,8 @@ class BakeConfig:
                                  # around where the creatures go (auto: lazy on big levels)
     max_memory_mb: float | None = None  # [>0] [MB] largest navigation build allowed;
                                  # None: half of the machine's RAM (navmesh.budget)
+    preview: bool = False        # also draw the bake's map and contact sheet (PNG) from its
+                                 # GLB (export.preview; needs "glb" in formats and matplotlib)
 
     @property
     def sim_rate(self) -> int:
@@ -215,6 +221,9 @@ class BakeConfig:
         ext = {"glb": ".glb", "usd": ".usd", "usda": ".usda"}
         paths = {f: self.out.with_name(self.out.name + ext[f]) for f in self.formats}
         paths["json"] = self.out.with_name(self.out.name + ".json")
+        if self.preview:
+            for key in ("map", "sheet"):
+                paths[key] = self.out.with_name(self.out.name + PREVIEW_SUFFIXES[key])
         return paths
 
 
@@ -238,6 +247,9 @@ def validate_bake(cfg: BakeConfig) -> BakeConfig:
     if bad or not cfg.formats:
         raise ConfigError(f"unknown output format(s): {', '.join(sorted(bad)) or 'none given'}",
                           where="--format")
+    if cfg.preview and "glb" not in cfg.formats:
+        raise ConfigError("--preview draws the pictures from the GLB: use --format glb or both",
+                          where="--preview")
     for opt, value, allowed in (("--behaviour", cfg.behaviour, ("auto", "wander", "shade", "hunt")),
                                 ("--cobra", cfg.cobra, ("auto", "always", "never")),
                                 ("--nav-build", cfg.nav_build, ("auto", "full", "lazy")),
