@@ -125,11 +125,14 @@ def cli(verbose: int):
               show_default=True,
               help="Rotation keys of a reduced clip: 16-bit normalized integers (half the size; "
                    "the rounding counts toward --tolerance) or 32-bit floats.")
+@click.option("--preview", is_flag=True,
+              help="Also draw the bake's pictures from its GLB: <out>_map.png (top-down map) and "
+                   "<out>_sheet.png (contact sheet); needs baker[preview] (matplotlib).")
 @max_memory_option
 @rig_options
 def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_navmesh,
          cache_dir, no_cache, cache_max, nav_build, behaviour, prey, cobra, sun_path, clips,
-         root_motion, tolerance, rotations, max_memory,
+         root_motion, tolerance, rotations, preview, max_memory,
          **rig_overrides):
     """Bake a centipede on ENVIRONMENT (glTF/GLB, OBJ, PLY, STL or USD).
 
@@ -148,7 +151,11 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
     validate_bake(BakeConfig(seconds=seconds, fps=fps, seed=seed, formats=formats,
                              sun_direction=sun_direction, behaviour=behaviour,
                              prey=prey, cobra=cobra, sun_path=sun_path, nav_build=nav_build,
-                             tolerance=tolerance, rotations=rotations))
+                             tolerance=tolerance, rotations=rotations, preview=preview))
+    if preview:
+        from baker.export.preview import check_dependencies
+
+        check_dependencies("--preview")
     check_rig_overrides(rig_overrides)
     cfg = BakeConfig(
         environment=environment or DEFAULT_ENVIRONMENT,
@@ -158,7 +165,7 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
         nav_cache_dir=None if no_cache else NavCache.of(cache_dir or default_cache_dir(), cache_max),
         nav_build=nav_build, behaviour=behaviour, prey=prey, cobra=cobra, sun_path=sun_path, clips=clips,
         root_motion=root_motion, max_memory_mb=max_memory, tolerance=tolerance,
-        rotations=rotations,
+        rotations=rotations, preview=preview,
     )
     check_outputs(cfg.output_paths())
     progress = TerminalProgress()
@@ -345,6 +352,30 @@ def batch(ctx, jobs_file, out_dir, workers, scheduler, force, job_timeout, retri
     click.echo(summary.line)
     if summary.failed:
         ctx.exit(1)
+
+
+@cli.command()
+@click.argument("file", metavar="FILE.glb", type=click.Path(path_type=Path))
+@click.option("--out", type=click.Path(), default=None, metavar="PNG_PREFIX",
+              help="Path prefix of the pictures: PREFIX_map.png, PREFIX_sheet.png (and "
+                   "PREFIX.gif); a folder writes <folder>/<FILE's stem>_map.png, ... "
+                   "[default: beside FILE].")
+@click.option("--gif", is_flag=True,
+              help="Also write an animated GIF of the whole bake (320x180, twice real time).")
+@click.option("--frames", type=int, default=9, show_default=True,
+              help="Frames on the contact sheet, 6 to 12.")
+def preview(file, out, gif, frames):
+    """Draw the pictures of a bake from its GLB: a top-down map (walkable area, shade at the
+    start and at the end, the trail coloured by behaviour, foot contacts, prey paths, the
+    behaviour timeline) and a contact sheet of frames ray-cast on the CPU (Embree) from a
+    three-quarter view following the creature, with the sun's shadows; --gif adds an
+    animation. Needs baker[preview] (matplotlib)."""
+    from baker.export.preview import write_preview
+
+    t0 = time.perf_counter()
+    written = write_preview(file, out, frames=frames, gif=gif)
+    click.echo(f"wrote {', '.join(str(p) for p in written.values())} in "
+               f"{time.perf_counter() - t0:.2f} s")
 
 
 class _HeldLog(logging.Handler):

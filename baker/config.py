@@ -172,6 +172,10 @@ class RigConfig:
 
 
 # --------------------------------------------------------------------------- bake run
+#: the pictures of a bake (export.preview), named after the output path: PATH_map.png, ...
+PREVIEW_SUFFIXES = {"map": "_map.png", "sheet": "_sheet.png", "gif": ".gif"}
+
+
 @dataclass(frozen=True)
 class BakeConfig:
     environment: Path = DEFAULT_ENVIRONMENT  # file to load
@@ -206,6 +210,8 @@ class BakeConfig:
                                  # (0.001 = 0.1% BL); 0 keeps every frame as a key
     rotations: str = "short"     # short | float: reduced rotation keys stored as 16-bit
                                  # normalized integers (checked within the tolerance) or float
+    preview: bool = False        # also draw the bake's map and contact sheet (PNG) from its
+                                 # GLB (export.preview; needs "glb" in formats and matplotlib)
 
     @property
     def sim_rate(self) -> int:
@@ -220,6 +226,9 @@ class BakeConfig:
         ext = {"glb": ".glb", "usd": ".usd", "usda": ".usda"}
         paths = {f: self.out.with_name(self.out.name + ext[f]) for f in self.formats}
         paths["json"] = self.out.with_name(self.out.name + ".json")
+        if self.preview:
+            for key in ("map", "sheet"):
+                paths[key] = self.out.with_name(self.out.name + PREVIEW_SUFFIXES[key])
         return paths
 
 
@@ -243,6 +252,9 @@ def validate_bake(cfg: BakeConfig) -> BakeConfig:
     if bad or not cfg.formats:
         raise ConfigError(f"unknown output format(s): {', '.join(sorted(bad)) or 'none given'}",
                           where="--format")
+    if cfg.preview and "glb" not in cfg.formats:
+        raise ConfigError("--preview draws the pictures from the GLB: use --format glb or both",
+                          where="--preview")
     for opt, value, allowed in (("--behaviour", cfg.behaviour, ("auto", "wander", "shade", "hunt")),
                                 ("--cobra", cfg.cobra, ("auto", "always", "never")),
                                 ("--nav-build", cfg.nav_build, ("auto", "full", "lazy")),

@@ -91,7 +91,9 @@ class BakedScene:
 # ---------------------------------------------------------------- glTF
 
 
-class _Glb:
+class GlbFile:
+    """A GLB container parsed: `doc` (the JSON document) and `accessor(i)` (float64 arrays)."""
+
     def __init__(self, data: bytes):
         if len(data) < 20 or data[:4] != b"glTF":
             raise InspectError("not a GLB file")
@@ -126,7 +128,7 @@ def glb_extras(doc: dict) -> dict:
     return {}
 
 
-def _node_matrix(node: dict) -> np.ndarray:
+def node_matrix(node: dict) -> np.ndarray:
     if "matrix" in node:
         return np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4).T
     m = np.eye(4)
@@ -145,17 +147,20 @@ def _trs_matrices(t: np.ndarray, q: np.ndarray, s: np.ndarray) -> np.ndarray:
     return m
 
 
-def _sample(times: np.ndarray, keys: np.ndarray, values: np.ndarray, rotation: bool) -> np.ndarray:
+def sample_track(times: np.ndarray, keys: np.ndarray, values: np.ndarray,
+                 rotation: bool) -> np.ndarray:
     """LINEAR sampling of a glTF channel at `times` (clamped at both ends); rotations slerp."""
     t = np.clip(times, keys[0], keys[-1])
     if len(keys) == 1:
         return np.repeat(values[:1], len(times), axis=0)
+    if len(keys) == len(t) and np.array_equal(keys, t):      # a key on every frame (a bake)
+        return Rotation.from_quat(values).as_quat() if rotation else values.copy()
     if rotation:
         return Slerp(keys, Rotation.from_quat(values))(t).as_quat()
     return np.stack([np.interp(t, keys, values[:, c]) for c in range(values.shape[1])], 1)
 
 
-def _environment_nodes(doc: dict, world: dict[int, np.ndarray]) -> list[int]:
+def environment_nodes(doc: dict, world: dict[int, np.ndarray]) -> list[int]:
     """Mesh nodes of the environment: under the `Environment` node when there is one, else every
     static mesh node that is not skinned."""
     nodes = doc.get("nodes", [])
@@ -172,9 +177,9 @@ def _environment_nodes(doc: dict, world: dict[int, np.ndarray]) -> list[int]:
     return [i for i in world if "mesh" in nodes[i] and "skin" not in nodes[i] and i not in animated]
 
 
-def _environment(g: _Glb, world: dict[int, np.ndarray]):
+def _environment(g: GlbFile, world: dict[int, np.ndarray]):
     vs, fs, off = [], [], 0
-    for i in _environment_nodes(g.doc, world):
+    for i in environment_nodes(g.doc, world):
         m = world[i]
         for prim in g.doc["meshes"][g.doc["nodes"][i]["mesh"]]["primitives"]:
             if prim.get("mode", 4) != 4:
@@ -190,11 +195,31 @@ def _environment(g: _Glb, world: dict[int, np.ndarray]):
     return np.concatenate(vs), np.concatenate(fs)
 
 
-def read_glb(path: str | Path, animation: str | int = 0) -> BakedScene:
+def static_world(doc: dict) -> dict[int, np.ndarray]:
+    """{node index: (4, 4) float64 world matrix} of every node in the default scene, from the
+    nodes' own (unanimated) transforms."""
+    nodes = doc.get("nodes", [])
+    world: dict[int, np.ndarray] = {}
+    stack = [(i, np.eye(4)) for i in doc["scenes"][doc.get("scene", 0)]["nodes"]]
+    while stack:
+        i, pm = stack.pop()
+        world[i] = pm @ node_matrix(nodes[i])
+        stack.extend((c, world[i]) for c in nodes[i].get("children", []))
+    return world
+
+
+def frame_times(n_frames: int, fps: int) -> np.ndarray:
+    """(n_frames,) float64 seconds: frame f at float32(f / fps), as glTF stores key times."""
+    return (np.arange(n_frames) / fps).astype(np.float32).astype(np.float64)
+
+
+def read_glb(path: str | Path, animation: str | int = 0,
+             glb: GlbFile | None = None) -> BakedScene:
     """Read a bake's GLB: the skin's joints posed by `animation` (name or index) at every frame
     of the bake's fps grid, composed with their non-joint ancestors in float64, and the
-    environment's triangles in world coordinates."""
-    g = _Glb(Path(path).read_bytes())
+    environment's triangles in world coordinates. glb: the file already parsed (then `path`
+    only names it in messages)."""
+    g = glb if glb is not None else GlbFile(Path(path).read_bytes())
     doc = g.doc
     nodes = doc.get("nodes", [])
     if not doc.get("skins") or not doc.get("animations"):
@@ -206,20 +231,14 @@ def read_glb(path: str | Path, animation: str | int = 0) -> BakedScene:
         raise InspectError(f"{path}: no animation named {animation!r}")
     extras = glb_extras(doc)
     parent = {c: i for i, n in enumerate(nodes) for c in n.get("children", [])}
-    # static world matrices of every node in the default scene
-    world: dict[int, np.ndarray] = {}
-    stack = [(i, np.eye(4)) for i in doc["scenes"][doc.get("scene", 0)]["nodes"]]
-    while stack:
-        i, pm = stack.pop()
-        world[i] = pm @ _node_matrix(nodes[i])
-        stack.extend((c, world[i]) for c in nodes[i].get("children", []))
+    world = static_world(doc)
     chans = {(ch["target"]["node"], ch["target"]["path"]): anim["samplers"][ch["sampler"]]
              for ch in anim["channels"]}
     keys = np.concatenate([g.accessor(s["input"]) for s in anim["samplers"]])
     fps = int(extras.get("fps") or round((len(np.unique(keys)) - 1) / max(keys.max(), 1e-9)))
     n_frames = int(round(float(keys.max()) * fps)) + 1
     # frame f is keyed at float32(f / fps), as glTF stores times: sample exactly there
-    times = (np.arange(n_frames) / fps).astype(np.float32).astype(np.float64)
+    times = frame_times(n_frames, fps)
 
     def local_tracks(i: int):
         n = nodes[i]
@@ -231,7 +250,8 @@ def read_glb(path: str | Path, animation: str | int = 0) -> BakedScene:
             if s is None:
                 out.append(np.tile(np.asarray(n.get(p, default), float), (n_frames, 1)))
             else:
-                out.append(_sample(times, g.accessor(s["input"]), g.accessor(s["output"]), rot))
+                out.append(sample_track(times, g.accessor(s["input"]), g.accessor(s["output"]),
+                                        rot))
         return out
 
     joints = list(doc["skins"][0]["joints"])

@@ -8,6 +8,7 @@
     Step 6  measure                        metrics.spine_metrics, surface_metrics, leg_metrics
     Step 7  reduce keys                    export.reduce.reduce_clip (world-space tolerance)
     Step 8  export                         export.gltf / export.usd / export.report
+                                           (/ export.preview with --preview)
 
 Frames: the environment is loaded into a local frame (world = env.origin + local, see
 environment.load.choose_origin), and everything from step 2 to step 6 works in it. User inputs
@@ -123,6 +124,10 @@ def _bake(cfg: BakeConfig, rng: np.random.Generator | None, ctx: Context | None)
     from baker.sim.loop import simulate
 
     cfg = validate_bake(cfg)
+    if cfg.preview:
+        from baker.export.preview import check_dependencies
+
+        check_dependencies("--preview")
     ctx = ctx or Context()
     rng = rng if rng is not None else make_rng(cfg.seed)
     paths = cfg.output_paths()
@@ -192,11 +197,20 @@ def _bake(cfg: BakeConfig, rng: np.random.Generator | None, ctx: Context | None)
     with OutputSet(paths) as out:
         with ctx.stage("export"):
             if "glb" in paths:
-                out.write_bytes("glb", build_glb(env, rig, clip, **scene))
+                glb = build_glb(env, rig, clip, **scene)
+                out.write_bytes("glb", glb)
             for fmt in ("usd", "usda"):
                 if fmt in paths:
                     stage = build_stage(env, rig, clip, fps=cfg.fps, **scene)
                     save_stage(stage, out.temp(fmt), paths[fmt])
+        # --preview: the map and the contact sheet, drawn from the GLB's bytes, committed with
+        # the other files
+        if cfg.preview:
+            from baker.export.preview import preview_images
+
+            with ctx.stage("preview"):
+                for key, data in preview_images(glb, name=paths["glb"].stem).items():
+                    out.write_bytes(key, data)
         written = {k: p for k, p in paths.items() if k != "json"}
         written["json"] = paths["json"]
         rep = report_mod.build_report(cfg, env, nav, traj, motion, ctx, written)

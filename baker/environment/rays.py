@@ -80,6 +80,16 @@ class RayCaster:
         max_distance        : scalar, (n,) or None (unbounded)
         returns (t (n,) float64 with inf on a miss, prim (n,) int32 with -1 on a miss)
         """
+        return self._run(origins, directions, max_distance, None)
+
+    def cast_uv(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, ...]:
+        """cast() (unbounded) with the hits' barycentric coordinates: (t, prim, uv (n, 2)
+        float64), the hit point being (1 - u - v) v0 + u v1 + v v2 of face prim (0 on a miss)."""
+        uv = np.zeros((len(np.asarray(origins).reshape(-1, 3)), 2))
+        t, prim = self._run(origins, directions, None, uv)
+        return t, prim, uv
+
+    def _run(self, origins, directions, max_distance, uv):
         origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
         directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
         n = len(origins)
@@ -88,7 +98,13 @@ class RayCaster:
         if n == 0 or len(self.faces) == 0:
             return t, prim
         if self._scene is None:  # pragma: no cover
-            return self._cast_fallback(origins, directions, max_distance)
+            t, prim = self._cast_fallback(origins, directions, max_distance)
+            if uv is not None and np.any(prim >= 0):
+                h = prim >= 0
+                bary = trimesh.triangles.points_to_barycentric(
+                    self.vertices[self.faces[prim[h]]], origins[h] + t[h, None] * directions[h])
+                uv[h] = bary[:, 1:]
+            return t, prim
         dist = None if max_distance is None else np.broadcast_to(
             np.asarray(max_distance, dtype=np.float64), (n,))
         for a in range(0, n, CHUNK_RAYS):
@@ -105,6 +121,9 @@ class RayCaster:
             hit = p >= 0
             prim[a:b] = p
             t[a:b][hit] = r["tfar"][hit]
+            if uv is not None:
+                uv[a:b, 0] = np.where(hit, r["u"], 0.0)
+                uv[a:b, 1] = np.where(hit, r["v"], 0.0)
         return t, prim
 
     def _cast_fallback(self, origins, directions, max_distance):  # pragma: no cover

@@ -29,7 +29,8 @@ ALLOWED = {
     "metrics": {"sim"},
     "clip": {"rig", "sim"},
     "rootmotion": {"clip", "rig"},
-    "export": {"clip", "rig", "sim", "environment", "config", "navmesh", "atomic"},
+    "export": {"clip", "rig", "sim", "environment", "config", "navmesh", "atomic",
+               "inspect"},                 # export/preview.py draws a bake read back from its GLB
     "inspect": {"environment", "metrics"},     # reads a bake's files back to judge them
     "inspect_file": {"inspect"},               # `baker inspect`: a file's summary
 }
