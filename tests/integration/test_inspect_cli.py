@@ -21,11 +21,13 @@ SECONDS = 3
 
 @pytest.fixture(scope="module")
 def bakes(tmp_path_factory, nav_cache_dir):
-    """A bake with prey and per-behaviour clips (GLB + USD + JSON) and one written as USDA."""
+    """A bake with prey and per-behaviour clips (GLB + USD + JSON) and one written as USDA,
+    every frame keyed (--tolerance 0: the tests below edit and count keys; reduced files are
+    inspected in test_a_reduced_bake_is_inspected)."""
     d = tmp_path_factory.mktemp("inspect_cli")
     for name, extra in (("c", ["--prey", "1", "--clips"]), ("t", ["--usda", "--format", "usd"])):
         code = main(["bake", "--seconds", str(SECONDS), "--seed", "2", "--out", str(d / name),
-                     "--cache-dir", str(nav_cache_dir), *extra])
+                     "--cache-dir", str(nav_cache_dir), "--tolerance", "0", *extra])
         assert code == 0
     return d
 
@@ -60,9 +62,15 @@ def test_glb_report_matches_the_file(bakes, capsys, rig):
     frames = SECONDS * 30 + 1
     bake = r["clips"][0]
     assert bake["duration_s"] == pytest.approx(SECONDS) and bake["frames"] == frames
-    assert bake["keys"] == frames * len(doc["animations"][0]["channels"])
-    assert bake["joint_channels"] == {"translation": sk["joints"], "rotation": sk["joints"],
-                                      "scale": 0}
+    anim = doc["animations"][0]
+    # a reduced bake (the default): each channel has its own key count, static ones are gone
+    assert bake["keys"] == sum(doc["accessors"][anim["samplers"][c["sampler"]]["input"]]["count"]
+                               for c in anim["channels"])
+    joints = set(doc["skins"][0]["joints"])
+    for p in ("translation", "rotation"):
+        assert bake["joint_channels"][p] == sum(
+            c["target"]["node"] in joints and c["target"]["path"] == p for c in anim["channels"])
+    assert 0 < bake["joint_channels"]["rotation"] <= sk["joints"]
     prey = doc["nodes"].index(next(n for n in doc["nodes"] if n["name"] == "prey_01"))
     assert bake["node_channels"] == sum(c["target"]["node"] == prey           # the prey's
                                         for c in doc["animations"][0]["channels"]) >= 2
@@ -98,6 +106,22 @@ def test_glb_text_report(bakes, capsys):
     assert any(ln.startswith("validator: Khronos glTF-Validator") and "0 errors, 0 warnings" in ln
                for ln in lines) or "not available" in out
     assert any(ln.startswith("metadata: generator baker") and "seed 2" in ln for ln in lines)
+
+
+def test_a_reduced_bake_is_inspected(tmp_path, nav_cache_dir, capsys):
+    """The default (reduced) bake: per-channel key counts and dropped static channels."""
+    assert main(["bake", "--seconds", "2", "--seed", "3", "--out", str(tmp_path / "r"),
+                 "--cache-dir", str(nav_cache_dir)]) == 0
+    capsys.readouterr()
+    for name in ("r.glb", "r.usd"):
+        r = as_json(tmp_path / name, capsys)
+        assert r["clips"] and r["clips"][0]["duration_s"] == pytest.approx(2.0)
+    doc = Glb((tmp_path / "r.glb").read_bytes()).doc
+    anim = doc["animations"][0]
+    r = as_json(tmp_path / "r.glb", capsys)
+    assert r["clips"][0]["keys"] == sum(
+        doc["accessors"][anim["samplers"][c["sampler"]]["input"]]["count"]
+        for c in anim["channels"]) < 61 * len(anim["channels"])
 
 
 @pytest.mark.parametrize("name", ["c.usd", "t.usda"])
