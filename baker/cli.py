@@ -138,7 +138,6 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
 
     With no ENVIRONMENT, the bundled rainforest floor is used."""
     from baker.atomic import check_outputs, resolve_out
-    from baker.context import Context, TerminalProgress
     from baker.navmesh.cache import NavCache
     from baker.pipeline import bake as run_bake
 
@@ -168,11 +167,7 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
         rotations=rotations, preview=preview,
     )
     check_outputs(cfg.output_paths())
-    progress = TerminalProgress()
-    try:
-        result = run_bake(cfg, ctx=Context(progress=progress))
-    finally:
-        progress.close()
+    result = with_progress(run_bake, cfg)
     m = result.report["metrics"]
     files = ", ".join(str(p) for p in result.outputs.values())
     click.echo(f"baked {m['frames']} frames, walked {m['distance_walked_m']:.2f} m "
@@ -204,7 +199,6 @@ def cycles(rig_path, out, speeds, fps):
     body's centre carries the horizontal motion and the yaw, starting at the origin facing +Z;
     the rest of the skeleton moves relative to it (Unreal's root bone, Unity's Animator root
     motion, Godot's root_motion_track = "Skeleton3D:root")."""
-    from baker.context import Context, TerminalProgress
     from baker.cycles import CyclesConfig, bake_cycles, validate_cycles
 
     t0 = time.perf_counter()
@@ -214,11 +208,7 @@ def cycles(rig_path, out, speeds, fps):
         raise ConfigError("--out must be a folder (it names a file)", where=str(out))
     cfg = CyclesConfig(rig=load_rig_config(rig_path), out=out, fps=fps, walk_speed=walk,
                        run_speed=run)
-    progress = TerminalProgress()
-    try:
-        result = bake_cycles(cfg, ctx=Context(progress=progress))
-    finally:
-        progress.close()
+    result = with_progress(bake_cycles, cfg)
     clips = result.summary["clips"]
     loops = [c for c in clips if c["loop"]]
     click.echo(f"wrote {len(clips)} clips ({len(loops)} loops, largest seam error "
@@ -300,6 +290,17 @@ def inspect(file, as_json, no_validate):
     report = inspect_file(file, validate=not no_validate)
     click.echo(json.dumps(report, indent=2, allow_nan=False, default=str) if as_json
                else format_report(report))
+
+
+def with_progress(run, cfg):
+    """run(cfg, ctx=...) with a terminal progress display, closed whatever happens."""
+    from baker.context import Context, TerminalProgress
+
+    progress = TerminalProgress()
+    try:
+        return run(cfg, ctx=Context(progress=progress))
+    finally:
+        progress.close()
 
 
 def check_rig_overrides(rig_overrides: dict) -> None:

@@ -32,6 +32,7 @@ from baker.errors import ExportError
 from baker.geometry.transforms import quat_conj, quat_mul, quat_rotate
 from baker.rig.build import Rig
 from baker.rig.mesh import SkinnedMesh
+from baker.rig.skeleton import Skeleton
 
 MODES = ("world", "root", "in-place")
 ROOT = "root"
@@ -48,8 +49,6 @@ def with_root(rig: Rig) -> Rig:
     skel = rig.skeleton
     if ROOT in {n.lower() for n in skel.names}:
         raise ExportError(f"the rig already has a joint named {ROOT!r}")
-    from baker.rig.skeleton import Skeleton
-
     rooted = Skeleton(
         names=(ROOT,) + skel.names,
         parents=np.concatenate([[-1], skel.parents + 1]),
