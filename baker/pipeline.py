@@ -27,6 +27,7 @@ import numpy as np
 
 from baker.config import BakeConfig, validate_bake
 from baker.context import Context
+from baker.streams import Streams
 
 log = logging.getLogger(__name__)
 
@@ -50,9 +51,6 @@ class BakeResult:
     origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
 
-def make_rng(seed: int) -> np.random.Generator:
-    """The one generator of a bake. Everything stochastic draws from it, in a fixed order."""
-    return np.random.default_rng(np.random.SeedSequence(int(seed)))
 
 
 def in_local_frame(cfg: BakeConfig, origin: np.ndarray) -> BakeConfig:
@@ -96,8 +94,7 @@ def navigation_surface(cfg: BakeConfig, env):
     return nav, nav.cache_hits == 1
 
 
-def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
-         ctx: Context | None = None) -> BakeResult:
+def bake(cfg: BakeConfig, ctx: Context | None = None) -> BakeResult:
     """Run steps 1-7 on `cfg`. Every navigation build (the whole level, or each lazy window) is
     refused before it starts when its estimated memory is over cfg.max_memory_mb
     (navmesh.budget)."""
@@ -109,10 +106,10 @@ def bake(cfg: BakeConfig, rng: np.random.Generator | None = None,
     with deferred():
         _import_stages()
     with memory_limit(cfg.max_memory_mb):
-        return _bake(cfg, rng, ctx)
+        return _bake(cfg, ctx)
 
 
-def _bake(cfg: BakeConfig, rng: np.random.Generator | None, ctx: Context | None) -> BakeResult:
+def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
     from baker import metrics
     from baker.environment import load_environment
     from baker.export import report as report_mod
@@ -129,7 +126,6 @@ def _bake(cfg: BakeConfig, rng: np.random.Generator | None, ctx: Context | None)
 
         check_dependencies("--preview")
     ctx = ctx or Context()
-    rng = rng if rng is not None else make_rng(cfg.seed)
     paths = cfg.output_paths()
     check_outputs(paths)
 
@@ -151,7 +147,7 @@ def _bake(cfg: BakeConfig, rng: np.random.Generator | None, ctx: Context | None)
 
     # Step 4: behaviour, agent, head and body, at the fixed simulation rate.
     with ctx.stage("simulate"):
-        traj = simulate(run_cfg, env, nav, rng, ctx)
+        traj = simulate(run_cfg, env, nav, Streams(cfg.seed), ctx)
 
     # Step 5: joint-local transforms at the export fps, relative to a placement near the path,
     # on a skeleton with a `root` joint when root motion is asked for.

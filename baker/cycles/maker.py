@@ -18,6 +18,7 @@ from baker.cycles.spec import (BLEND_MIN, BLEND_RATE, CHAIN_TOL, COOLDOWN, IDLE_
                                RESIDUAL_WARN, TURN_RADIUS, LoopSpec, warmup, window_range)
 from baker.locomotion.gait import gait_clock
 from baker.rootmotion import apply_root_motion
+from baker.streams import Streams
 
 log = logging.getLogger(__name__)
 
@@ -41,12 +42,11 @@ class ClipMaker:
     # ------------------------------------------------------------------ simulation
     def run(self, rig: RigConfig, drives, seconds: float, chain_period: float | None = None):
         """The Trajectory of `drives` (from the start point, facing +Z) for `seconds`."""
-        from baker.pipeline import make_rng
         from baker.sim.loop import simulate
 
         cfg = BakeConfig(seconds=round(seconds * self.fps) / self.fps, fps=self.fps, rig=rig,
                          start=tuple(float(x) for x in self.start), start_heading=(0.0, 0.0, 1.0))
-        return simulate(cfg, self.env, self.nav, make_rng(0), self.ctx,
+        return simulate(cfg, self.env, self.nav, Streams(0), self.ctx,
                         intent=ScriptedIntent(drives, chain_period=chain_period))
 
     def route(self, spec: LoopSpec, seconds: float) -> np.ndarray:

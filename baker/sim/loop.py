@@ -30,6 +30,7 @@ from baker.locomotion.cobra import lift_profile
 from baker.locomotion.legs import hip_extent, leg_frames
 from baker.sim.follow import Follower
 from baker.sim.trajectory import Trajectory
+from baker.streams import Streams
 
 log = logging.getLogger(__name__)
 
@@ -68,9 +69,12 @@ def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None
     return start, dirs[int(np.argmax(ok))]
 
 
-def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context,
+def simulate(cfg: BakeConfig, env, nav, streams: Streams, ctx: Context,
              intent=None) -> Trajectory:
     """Run the bake's simulation and return the creature's world frames at the export fps.
+
+    streams : the bake's random streams (baker.streams): the start, the brain and each prey
+              draw from their own, so one subsystem's draws never shift another's.
 
     intent : None lets the brain decide (behaviour.brain.Brain); otherwise a scripted source of
              the same drives (behaviour.script.ScriptedIntent: target or route, halt, speed and
@@ -84,17 +88,17 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context,
     per_frame = cfg.sim_rate // cfg.fps
     n_frames = n_steps // per_frame + 1
 
-    start, heading = choose_start(nav, env, body.length, rng, cfg.start, cfg.start_heading,
+    start, heading = choose_start(nav, env, body.length, streams.get("start"), cfg.start, cfg.start_heading,
                                    spread=rig.wander.radius)
     follow = Follower(nav, env.rays, start, heading, rig, fps=cfg.fps)
     head = follow.head
     sun = sun_path(parse_sun_path(cfg.sun_path) if cfg.sun_path else None, env.sun.direction,
                    cfg.seconds)
     if intent is None:
-        preys = ([Prey(i, nav.nearest(p, np.inf), rig.prey, nav, rng)
+        preys = ([Prey(i, nav.nearest(p, np.inf), rig.prey, nav, streams.get("prey", i))
                   for i, p in enumerate(cfg.prey_positions)]
-                 if cfg.prey_positions else spawn_prey(cfg.prey, start, nav, rig, rng))
-        brain = Brain(rig, nav, env.rays, sun, rng, preys, mode=cfg.behaviour,
+                 if cfg.prey_positions else spawn_prey(cfg.prey, start, nav, rig, streams))
+        brain = Brain(rig, nav, env.rays, sun, streams.get("brain"), preys, mode=cfg.behaviour,
                       cobra_mode=cfg.cobra)
     else:
         preys, brain = [], intent
@@ -175,11 +179,13 @@ def simulate(cfg: BakeConfig, env, nav, rng: np.random.Generator, ctx: Context,
     )
 
 
-def spawn_prey(count: int, start: np.ndarray, nav, rig, rng: np.random.Generator) -> list[Prey]:
-    """`count` prey at reachable points between 1.2 and 2 detection ranges from the start."""
+def spawn_prey(count: int, start: np.ndarray, nav, rig, streams: Streams) -> list[Prey]:
+    """`count` prey at reachable points between 1.2 and 2 detection ranges from the start, each
+    placed and later fleeing with its own stream."""
     preys = []
     r = rig.behaviour.detection_range
     for i in range(count):
+        rng = streams.get("prey", i)
         p = None
         for _ in range(32):
             q = nav.random_point_near(start, 2.0 * r, rng)
