@@ -11,9 +11,16 @@ from pathlib import Path
 
 import click
 
-from baker.config import (DEFAULT_ENVIRONMENT, DEFAULT_RIG, BakeConfig, RigConfig,
-                          load_rig_config, override_rig, validate_bake)
 from baker.errors import EXIT_USAGE, BakerError, ConfigError, format_error
+
+# The heavy modules (baker.config and with it numpy and pydantic; scipy, trimesh, pxr) are
+# imported inside the commands, so `--help` and option errors come before them (issue 15).
+
+
+def _default_rig() -> Path:
+    from baker.config import DEFAULT_RIG
+
+    return DEFAULT_RIG
 
 
 def default_cache_dir() -> Path:
@@ -82,7 +89,7 @@ def cli(verbose: int):
               help="Export frame rate; must divide the 240 Hz simulation rate.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
-              default=DEFAULT_RIG, show_default="rigs/scolopendra.toml", help="Rig definition (TOML).")
+              default=_default_rig, show_default="rigs/scolopendra.toml", help="Rig definition (TOML).")
 @click.option("--out", type=click.Path(), default="outputs/centipede", show_default=True,
               help="Output path without extension; a folder (or a path ending in /) writes "
                    "<folder>/centipede.*.")
@@ -137,9 +144,7 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
     """Bake a centipede on ENVIRONMENT (glTF/GLB, OBJ, PLY, STL or USD).
 
     With no ENVIRONMENT, the bundled rainforest floor is used."""
-    from baker.atomic import check_outputs, resolve_out
-    from baker.navmesh.cache import NavCache
-    from baker.pipeline import bake as run_bake
+    from baker.config import BakeConfig, validate_bake
 
     t0 = time.perf_counter()
     usd_fmt = "usda" if usda else "usd"
@@ -156,6 +161,11 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
 
         check_dependencies("--preview")
     check_rig_overrides(rig_overrides)
+    from baker.atomic import check_outputs, resolve_out
+    from baker.config import DEFAULT_ENVIRONMENT, load_rig_config, override_rig
+    from baker.navmesh.cache import NavCache
+    from baker.pipeline import bake as run_bake
+
     cfg = BakeConfig(
         environment=environment or DEFAULT_ENVIRONMENT,
         seconds=seconds, fps=fps, seed=seed,
@@ -177,7 +187,7 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
 
 @cli.command()
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
-              default=DEFAULT_RIG, show_default="rigs/scolopendra.toml", help="Rig definition (TOML).")
+              default=_default_rig, show_default="rigs/scolopendra.toml", help="Rig definition (TOML).")
 @click.option("--out", type=click.Path(path_type=Path), default=Path("outputs"),
               show_default=True,
               help="Output folder (created if needed): writes cycles.glb, cycles.usd and "
@@ -199,6 +209,7 @@ def cycles(rig_path, out, speeds, fps):
     body's centre carries the horizontal motion and the yaw, starting at the origin facing +Z;
     the rest of the skeleton moves relative to it (Unreal's root bone, Unity's Animator root
     motion, Godot's root_motion_track = "Skeleton3D:root")."""
+    from baker.config import load_rig_config
     from baker.cycles import CyclesConfig, bake_cycles, validate_cycles
 
     t0 = time.perf_counter()
@@ -235,7 +246,7 @@ def parse_speeds(text: str | None) -> tuple[float | None, float | None]:
 @cli.command()
 @click.argument("environment", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
-              default=DEFAULT_RIG, show_default="rigs/scolopendra.toml",
+              default=_default_rig, show_default="rigs/scolopendra.toml",
               help="Rig whose navigation agent sizes are used.")
 @click.option("--png", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Draw a top-down map of the walkable area (coloured by component) to this PNG.")
@@ -256,8 +267,7 @@ def navmesh(environment, rig_path, png, path_from, path_to, cache_dir, no_cache,
     """Build (or load from the cache) the navigation surface of ENVIRONMENT and report on it.
 
     The surface is cached where `baker bake` looks for it, so a later bake skips the build."""
-    from baker.navmesh.cache import NavCache
-    from baker.navmesh.report import format_report, run
+    from baker.config import load_rig_config, override_rig
     from baker.schema import check_point
 
     validate_memory(max_memory, cache_max)
@@ -265,6 +275,9 @@ def navmesh(environment, rig_path, png, path_from, path_to, cache_dir, no_cache,
     check_point(p_from, "--from")
     check_point(p_to, "--to")
     check_rig_overrides(rig_overrides)
+    from baker.navmesh.cache import NavCache
+    from baker.navmesh.report import format_report, run
+
     rig = override_rig(load_rig_config(rig_path), **rig_overrides)
     report = run(environment, rig.navigation,
                  None if no_cache else NavCache.of(cache_dir or default_cache_dir(), cache_max),
@@ -305,6 +318,8 @@ def with_progress(run, cfg):
 
 def check_rig_overrides(rig_overrides: dict) -> None:
     """The rig options' values (schema.Options), checked before the rig file is read."""
+    from baker.config import RigConfig, override_rig
+
     override_rig(RigConfig(), **rig_overrides)
 
 

@@ -1,7 +1,9 @@
-"""Quaternion (xyzw) and frame helpers, vectorized over leading axes."""
+"""Quaternion (xyzw) and frame helpers, vectorized over leading axes.
+
+scipy's Rotation is imported where it is used: baker.config imports this module, and the CLI's
+option errors come before scipy is imported (issue 15)."""
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 
 def normalize(v: np.ndarray, eps: float = 1e-12) -> np.ndarray:
@@ -25,6 +27,8 @@ def frames_to_quat(forward: np.ndarray, up: np.ndarray) -> np.ndarray:
     u = np.cross(f, left)
     m = np.stack([left, u, f], axis=-1)  # columns: images of X, Y, Z
     shape = m.shape[:-2]
+    from scipy.spatial.transform import Rotation
+
     q = Rotation.from_matrix(m.reshape(-1, 3, 3)).as_quat()
     return q.reshape(*shape, 4)
 
@@ -102,6 +106,8 @@ def trs_to_matrix(t: np.ndarray, q: np.ndarray, s: np.ndarray | None = None) -> 
     t : (..., 3), q : (..., 4), s : (..., 3) or None -> (..., 4, 4)
     """
     shape = t.shape[:-1]
+    from scipy.spatial.transform import Rotation
+
     r = Rotation.from_quat(q.reshape(-1, 4)).as_matrix().reshape(*shape, 3, 3)
     if s is not None:
         r = r * s[..., None, :]
