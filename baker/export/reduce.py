@@ -68,7 +68,6 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 
@@ -202,14 +201,21 @@ def quantize_rotations(q: np.ndarray) -> np.ndarray:
     u = q.reshape(-1, 4) / np.linalg.norm(q.reshape(-1, 4), axis=1, keepdims=True)
     s = u * SHORT_MAX
     c = np.floor(s)
-    n2 = (np.sum(c * c, axis=1)[:, None] + 2.0 * (c @ _BITS)
+    n2 = (np.sum(c * c, axis=1)[:, None] + 2.0 * _bit_sums(c)
           + np.sum(_BITS, axis=0)[None, :]) / SHORT_MAX ** 2             # |code|^2 / 32767^2
-    dot = (np.sum(s * c, axis=1)[:, None] + s @ _BITS) / SHORT_MAX ** 2
+    dot = (np.sum(s * c, axis=1)[:, None] + _bit_sums(s)) / SHORT_MAX ** 2
     sin2 = np.maximum(n2 - dot * dot, 0.0) / n2                          # sin^2(half angle)
     lever = 1.0 - u[:, 3:4] ** 2                                         # |R - I|^2 / 4
     cost = sin2 + np.abs(n2 - 1.0) ** 2 * lever
     out = np.clip(c + _BITS.T[np.argmin(cost, axis=1)], -SHORT_MAX, SHORT_MAX)
     return out.astype(np.int16).reshape(q.shape)
+
+
+def _bit_sums(a: np.ndarray) -> np.ndarray:
+    """(N, 16): for each of the 16 codes k, the sum of the components of a (N, 4) whose bit is
+    set in k (element by element, so a row's result does not depend on the batch)."""
+    return (a[:, 0:1] * _BITS[0] + a[:, 1:2] * _BITS[1] + a[:, 2:3] * _BITS[2]
+            + a[:, 3:4] * _BITS[3])
 
 
 def dequantize_rotations(codes: np.ndarray) -> np.ndarray:
@@ -236,6 +242,18 @@ def sample(values: np.ndarray, keep: np.ndarray, static: np.ndarray, times: np.n
     return _sample_cf(np.swapaxes(values, 0, 1), keep, static, times, rotation).swapaxes(0, 1)
 
 
+def _segments(keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(prev, nxt), each (C, F) int64, of key frames keep (C, F): the last key at or before
+    each frame (-1: none) and the first key after it (F: none). A frame's played value depends
+    on these two keys only."""
+    c_count, f_count = keep.shape
+    idx = np.arange(f_count)
+    prev = np.maximum.accumulate(np.where(keep, idx, -1), axis=1)             # (C, F)
+    nxt = np.minimum.accumulate(np.where(keep, idx, f_count)[:, ::-1], axis=1)[:, ::-1]
+    nxt = np.concatenate([nxt[:, 1:], np.full((c_count, 1), f_count)], axis=1)  # after f
+    return prev, nxt
+
+
 def _sample_cf(values: np.ndarray, keep: np.ndarray, static: np.ndarray, times: np.ndarray,
                rotation: bool) -> np.ndarray:
     """`sample` with channels first: values (C, F, W) -> (C, F, W) float64. Like three.js's
@@ -243,23 +261,30 @@ def _sample_cf(values: np.ndarray, keep: np.ndarray, static: np.ndarray, times: 
     rotation is normalized there when the next key is nearly equal), and the last key is
     returned as stored."""
     c_count, f_count = keep.shape
-    idx = np.arange(f_count)
-    prev = np.maximum.accumulate(np.where(keep, idx, -1), axis=1)             # (C, F)
-    nxt = np.minimum.accumulate(np.where(keep, idx, f_count)[:, ::-1], axis=1)[:, ::-1]
-    nxt = np.concatenate([nxt[:, 1:], np.full((c_count, 1), f_count)], axis=1)  # after f
+    rows, frames = np.divmod(np.arange(c_count * f_count), f_count)
+    out = _sample_at(values, static, times, _segments(keep), rows, frames, rotation)
+    return out.reshape(c_count, f_count, -1)
+
+
+def _sample_at(values: np.ndarray, static: np.ndarray, times: np.ndarray, segments,
+               rows: np.ndarray, frames: np.ndarray, rotation: bool) -> np.ndarray:
+    """`_sample_cf` at the pairs (rows[i], frames[i]) only: values (C, F, W), static (C, W),
+    segments: `_segments` of the keys. Returns (N, W) float64, element for element what
+    `_sample_cf` gives there."""
+    f_count = segments[0].shape[1]
+    prev, nxt = segments[0][rows, frames], segments[1][rows, frames]
     fixed = prev < 0
     last = nxt >= f_count
     prev = np.clip(prev, 0, f_count - 1)
     nxt = np.where(last, prev, nxt)
     t = np.asarray(times, dtype=np.float32).astype(np.float64)
     span = t[nxt] - t[prev]
-    a = np.where(span > 0, (t[None, :] - t[prev]) / np.where(span > 0, span, 1.0), 0.0)
-    rows = np.arange(c_count)[:, None]
+    a = np.where(span > 0, (t[frames] - t[prev]) / np.where(span > 0, span, 1.0), 0.0)
     v0 = values[rows, prev].astype(np.float64)
     v1 = values[rows, nxt].astype(np.float64)
-    out = slerp(v0, v1, a) if rotation else v0 + a[..., None] * (v1 - v0)
-    out = np.where(last[..., None], v0, out)
-    return np.where(fixed[..., None], np.asarray(static, np.float64)[:, None, :], out)
+    out = slerp(v0, v1, a) if rotation else v0 + a[:, None] * (v1 - v0)
+    out = np.where(last[:, None], v0, out)
+    return np.where(fixed[:, None], np.asarray(static, np.float64)[rows], out)
 
 
 def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -320,12 +345,23 @@ def _add_worst(keep: np.ndarray, score: np.ndarray, candidate: np.ndarray) -> in
     before = int(keep.sum())
     prev = np.maximum.accumulate(np.where(keep, np.arange(f_count), -1), axis=1)
     ci, fi = np.nonzero(cand)
-    group = ci * (f_count + 1) + prev[ci, fi] + 1
-    order = np.lexsort((fi, -score[ci, fi], group))
-    first = order[np.r_[True, group[order][1:] != group[order][:-1]]]
-    keep[ci[first], fi[first]] = True
+    _key_worst(keep, ci, fi, ci * (f_count + 1) + prev[ci, fi] + 1, score[ci, fi])
     _close(keep)
     return int(keep.sum()) - before
+
+
+def _key_worst(keep: np.ndarray, ci: np.ndarray, fi: np.ndarray, group: np.ndarray,
+               score: np.ndarray) -> None:
+    """Key, in each group (segment) of the candidate pairs (ci, fi), the pair of the highest
+    score (ties: the earliest frame). The pairs come in np.nonzero's order, so each group is a
+    run of consecutive pairs, frames ascending. In place."""
+    if not len(ci):
+        return
+    starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
+    top = np.maximum.reduceat(score, starts)
+    best = np.flatnonzero(score == np.repeat(top, np.diff(np.r_[starts, len(score)])))
+    first = best[np.r_[True, group[best][1:] != group[best][:-1]]]
+    keep[ci[first], fi[first]] = True
 
 
 def _close(keep: np.ndarray) -> None:
@@ -336,34 +372,80 @@ def _close(keep: np.ndarray) -> None:
 
 
 def _local_keys(values: np.ndarray, stored: np.ndarray, times: np.ndarray, rotation: bool,
-                tol: np.ndarray, preferred: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+                tol: np.ndarray, preferred: np.ndarray | None,
+                value_bytes: int) -> tuple[np.ndarray, np.ndarray]:
     """Top-down Douglas-Peucker over all channels at once, each within its own tolerance tol (C,)
     (metres or radians) of `values` (F, C, W), interpolating `stored` (the values the file
     holds). A channel within tol of one value is static: `preferred` (C, W) (the rest pose) when
-    that is close enough, else its frame-0 value. Returns (keep (C, F), static (C, W))."""
+    that is close enough, else its frame-0 value. Returns (keep (C, F), static (C, W)).
+
+    Each round evaluates only the frames of the segments the previous round split (a segment
+    within tolerance stays so), as (channel, frame) pairs. A channel that ends with more keys
+    than `_promote(keep, value_bytes)` keeps as they are is keyed at every frame: at once when
+    more frames than that are off even between their two neighbours (`_tight_misses`, a
+    channel that cannot do without most of its frames), else as soon as its keys pass the
+    bound (keys only grow)."""
     f_count, c_count, _ = values.shape
     first = np.asarray(values[0], dtype=np.float32)
     static = first.copy()
-    empty = np.zeros((c_count, f_count), dtype=bool)
     is_static = np.zeros(c_count, dtype=bool)
     for value in ([first] if preferred is None else [np.asarray(preferred, np.float32), first]):
-        err = _errors(values, sample(values, empty, value, times, rotation), rotation)
-        ok = ~is_static & (err.max(axis=1) <= tol)
+        held = np.broadcast_to(np.asarray(value, np.float64)[None], values.shape)
+        ok = ~is_static & (_errors(values, held, rotation).max(axis=1) <= tol)
         static[ok] = value[ok]
         is_static |= ok
     keep = np.zeros((c_count, f_count), dtype=bool)
     keep[~is_static, 0] = True
     keep[~is_static, -1] = True
+    vals, kept = np.swapaxes(values, 0, 1), np.swapaxes(stored, 0, 1)          # (C, F, W)
+    bound = value_bytes * f_count / (value_bytes + TIME_BYTES)      # _promote's key count
     active = np.flatnonzero(~is_static)
-    while len(active):
-        sub = keep[active]
-        err = _errors(values[:, active],
-                      sample(stored[:, active], sub, static[active], times, rotation), rotation)
-        bad = (err > tol[active, None]) & ~sub
-        _add_worst(sub, err, bad)
-        keep[active] = sub
-        active = active[bad.any(axis=1)]
+    dense = active[_tight_misses(vals[active], kept[active], times, rotation,
+                                 tol[active]) > bound]
+    keep[dense] = True
+    pending = np.zeros((c_count, f_count), dtype=bool)
+    pending[~is_static] = True
+    pending[dense] = False
+    while True:
+        rows = np.flatnonzero(pending.any(axis=1))
+        if not len(rows):
+            break
+        ri, fi = np.nonzero(pending[rows])              # ri: index into rows
+        segments = _segments(keep[rows])
+        est = _sample_at(kept[rows], static[rows], times, segments, ri, fi, rotation)
+        v = vals[rows[ri], fi].astype(np.float64)
+        err = _rotation_error(v, est) if rotation else np.linalg.norm(est - v, axis=-1)
+        bad = np.flatnonzero((err > tol[rows[ri]]) & ~keep[rows[ri], fi])
+        group = ri * (f_count + 1) + segments[0][ri, fi] + 1
+        _key_worst(keep, rows[ri[bad]], fi[bad], group[bad], err[bad])
+        split = np.zeros(len(rows) * (f_count + 1), dtype=bool)
+        split[group[bad]] = True
+        again = split[group]
+        pending[rows] = False
+        pending[rows[ri[again]], fi[again]] = True
+        full = keep[rows].sum(axis=1) > bound
+        keep[rows[full]] = True              # promoted in the end anyway (keys only grow)
+        pending[rows[full]] = False
     return keep, static
+
+
+def _tight_misses(vals: np.ndarray, kept: np.ndarray, times: np.ndarray, rotation: bool,
+                  tol: np.ndarray) -> np.ndarray:
+    """(C,) how many frames of each channel are off by more than tol (C,) even when played
+    between the stored values of the frames on either side (the tightest segment that skips
+    them): vals, kept (C, F, W) the values and the stored values."""
+    c_count, f_count, _ = vals.shape
+    if f_count < 3 or not c_count:
+        return np.zeros(c_count, dtype=np.int64)
+    t = np.asarray(times, dtype=np.float32).astype(np.float64)
+    a = (t[1:-1] - t[:-2]) / (t[2:] - t[:-2])
+    v0, v1 = kept[:, :-2].astype(np.float64), kept[:, 2:].astype(np.float64)
+    if rotation:
+        est = slerp(v0, v1, np.broadcast_to(a, v0.shape[:2]))
+        err = _rotation_error(vals[:, 1:-1].astype(np.float64), est)
+    else:
+        err = np.linalg.norm(v0 + a[:, None] * (v1 - v0) - vals[:, 1:-1], axis=-1)
+    return (err > tol[:, None]).sum(axis=1)
 
 
 # ------------------------------------------------------------------------------- hierarchy
@@ -442,162 +524,221 @@ def _target(clip: Clip, parents, planted, tol: float, short: bool) -> _Target:
                    None if planted is None else first(planted), tol, short)
 
 
-class _Pose(NamedTuple):
-    """A reduced clip played back, joints first. Stored key values vt (J, F, 3), vq (J, F, 4)
-    float32 and codes (J, F, 4) int16 (used with SHORT rotations); their targets tt, tq (float64: the local values
-    that would put each joint exactly on its unreduced world pose, given its reduced parent);
-    the played local tr, rr (float32 values as float64), world positions pos and rotations wq
-    (the matrices' rotation part) and matrices mat (J, F, 3, 3); error vectors diff (J, F, 3) and lengths err (J, F) metres;
-    slide (J, F-1) metres (the change of a planted joint's error between planted frames); viol
-    (J, F) bool, over a bound."""
-
-    vt: np.ndarray
-    vq: np.ndarray
-    codes: np.ndarray | None
-    tt: np.ndarray
-    tq: np.ndarray
-    tr: np.ndarray
-    rr: np.ndarray
-    pos: np.ndarray
-    wq: np.ndarray
-    mat: np.ndarray
-    diff: np.ndarray
-    err: np.ndarray
-    slide: np.ndarray
-    spread: np.ndarray
-    viol: np.ndarray
+def _solve3(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """x with m x = v, for (N, 3, 3) matrices m and (N, 3) vectors v (LAPACK, each matrix on
+    its own, so a pair's result does not depend on the batch it is solved in)."""
+    return np.linalg.solve(m, v[..., None])[..., 0]
 
 
-class _Codes:
-    """Quantization cache of a reduction: the SHORT codes of the last rotation targets, so a
-    playback requantizes only the targets that changed."""
-
-    def __init__(self, shape):
-        self.targets = np.full(shape, np.nan)
-        self.codes = np.zeros(shape, dtype=np.int16)
-
-    def get(self, js: np.ndarray, tq: np.ndarray) -> np.ndarray:
-        old = self.targets[js]
-        changed = np.any(old != tq, axis=-1)
-        if changed.any():
-            codes = self.codes[js]
-            codes[changed] = quantize_rotations(tq[changed])
-            old[changed] = tq[changed]
-            self.codes[js], self.targets[js] = codes, old
-        return self.codes[js]
+def _mat_vec(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(N, 3) m v for (N, 3, 3) m and (N, 3) v, element by element."""
+    return m[:, :, 0] * v[:, 0:1] + m[:, :, 1] * v[:, 1:2] + m[:, :, 2] * v[:, 2:3]
 
 
-def _play(x: _Target, keep_t: np.ndarray, keep_r: np.ndarray, static_t: np.ndarray,
-          static_r: np.ndarray, cache: _Codes | None = None, prev: _Pose | None = None,
-          dirty: np.ndarray | None = None) -> _Pose:
-    """Compensated playback: level by level down the skeleton, each joint's key values are the
-    local transforms that put it exactly on its unreduced world pose relative to its *reduced*
-    parent (so a parent's interpolation error is not passed on at the child's keys); then its
-    curves are sampled between the keys as players do and posed with the players' matrices
-    (raw_matrix: stored quaternions are not renormalized). With `prev` and `dirty` (J,) bool,
-    only the dirty joints (whose keys or ancestors' keys changed) are played again."""
-    j_count, f_count = x.t0.shape[:2]
-    if prev is None:
-        prev = _Pose(*(np.empty((j_count, f_count) + s, dt) for s, dt in (
-            ((3,), np.float32), ((4,), np.float32), ((4,), np.int16), ((3,), float),
-            ((4,), float), ((3,), float), ((4,), float), ((3,), float), ((4,), float),
-            ((3, 3), float))), None, None, None, None, None)
-        dirty = np.ones(j_count, dtype=bool)
-    vt, vq, codes, tt, tq, tr, rr, pos, wq, mat = (a.copy() for a in prev[:10])
-    if x.short and cache is None:
-        cache = _Codes(x.q0.shape)
-    for level in x.levels:
-        js = level[dirty[level]]
-        if not len(js):
-            continue
-        p = x.parents[js]
-        if p[0] < 0:
-            tt[js], tq[js] = x.t0[js], x.q0[js]
+def _mat_mat(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) a b, element by element."""
+    return (a[:, :, 0:1] * b[:, 0:1, :] + a[:, :, 1:2] * b[:, 1:2, :]
+            + a[:, :, 2:3] * b[:, 2:3, :])
+
+
+def _unit(q: np.ndarray) -> np.ndarray:
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+class _Player:
+    """Compensated playback of a reduction, kept from one round to the next (all arrays joints
+    first, (J, F, ...)): level by level down the skeleton, each joint's key values are the local
+    transforms that put it exactly on its unreduced world pose relative to its *reduced* parent
+    (so a parent's interpolation error is not passed on at the child's keys); its curves are
+    sampled between the keys as players do and posed with the players' matrices (raw_matrix:
+    stored quaternions are not renormalized), and as the two other players pose them (see
+    `_errors_at`).
+
+    `play` recomputes only the (joint, frame) pairs whose result can change since the last play:
+    frames whose segment (the keys around them) changed, frames whose segment's key values
+    changed, and frames whose parent moved. The arrays then hold exactly what a first play of
+    the same keys gives.
+
+    Stored key values vt (J, F, 3), vq (J, F, 4) float32 and codes (J, F, 4) int16 (SHORT
+    rotations); their targets tt, tq (float64); the played local tr, rr (float32 values as
+    float64); world positions pos, rotations wq (the matrices' rotation part) and matrices mat
+    (J, F, 3, 3); the other players' poses (unit: renormalized slerp; blender, wn: nlerp);
+    error vectors diff (J, F, 3) and lengths err (J, F) [m], the worst of the three players;
+    slide (J, F-1) [m]: the change of a planted joint's error between planted frames; spread
+    (J, F) [m]: how far the other two players are from the first; viol (J, F) bool: over a
+    bound."""
+
+    def __init__(self, x: _Target, static_t: np.ndarray, static_r: np.ndarray):
+        j_count, f_count = x.t0.shape[:2]
+        self.x, self.static_t, self.static_r = x, static_t, static_r
+
+        def empty(*shape, dtype=np.float64):
+            return np.zeros((j_count, f_count) + shape, dtype)
+
+        self.vt, self.vq = empty(3, dtype=np.float32), empty(4, dtype=np.float32)
+        self.codes = empty(4, dtype=np.int16)
+        self.quantized = np.full((j_count, f_count, 4), np.nan)     # the targets of `codes`
+        self.tt, self.tq, self.tr, self.rr = empty(3), empty(4), empty(3), empty(4)
+        self.pos, self.wq, self.mat = empty(3), empty(4), empty(3, 3)
+        self.nlerp, self.unit, self.blender, self.wn = empty(4), empty(3), empty(3), empty(4)
+        self.diff, self.err, self.spread = empty(3), empty(), empty()
+        self.slide = np.zeros((j_count, max(f_count - 1, 0)))
+        self.viol = np.zeros((j_count, f_count), dtype=bool)
+        self.segments = None                           # (seg_t, seg_r) of the last play
+
+    def play(self, keep_t: np.ndarray, keep_r: np.ndarray) -> np.ndarray:
+        """Play the keys keep_t, keep_r (J, F) bool; returns viol."""
+        x = self.x
+        j_count, f_count = x.t0.shape[:2]
+        seg_t, seg_r = _segments(keep_t), _segments(keep_r)
+        first = self.segments is None
+        if first:
+            dirty_t = dirty_r = np.ones((j_count, f_count), dtype=bool)
         else:
-            tt[js] = np.linalg.solve(mat[p], (x.pos0[js] - pos[p])[..., None])[..., 0]
-            q = quat_mul(quat_conj(wq[p]), x.wq0[js])
-            q = np.where((np.sum(q * x.q0[js], axis=-1) < 0)[..., None], -q, q)
-            tq[js] = q / np.linalg.norm(q, axis=-1, keepdims=True)
-        vt[js] = tt[js]
+            (pt, nt), (pr, nr) = self.segments
+            dirty_t = (seg_t[0] != pt) | (seg_t[1] != nt)
+            dirty_r = (seg_r[0] != pr) | (seg_r[1] != nr)
+        moved = np.zeros((j_count, f_count), dtype=bool)
+        for level in x.levels:
+            parents = x.parents[level]
+            root = parents[0] < 0
+            target = np.full((len(level), f_count), first) if root else moved[parents]
+            self._targets(level, target, root)
+            st = dirty_t[level] | _touches(target & keep_t[level], seg_t, level)
+            sr = dirty_r[level] | _touches(target & keep_r[level], seg_r, level)
+            self._sample(level, st, sr, seg_t, seg_r)
+            moved[level] = st | sr | target
+            self._pose(level, moved[level], root)
+        self._errors_at(*np.nonzero(moved))
+        self._slide_at(moved)
+        self.segments = (seg_t, seg_r)
+        viol = (self.err > x.tol) | (self.spread > PLAYER_SPREAD_M)
+        if x.planted is not None and f_count > 1:
+            bad = self.slide > PLANTED_SLIDE * x.tol
+            viol[:, 1:] |= bad
+            viol[:, :-1] |= bad
+        self.viol = viol
+        return viol
+
+    def _targets(self, level: np.ndarray, target: np.ndarray, root: bool) -> None:
+        """The key values of the joints `level` at the frames `target` (L, F) bool."""
+        x = self.x
+        li, fi = np.nonzero(target)
+        if not len(li):
+            return
+        j = level[li]
+        if root:
+            tt, tq = x.t0[j, fi], x.q0[j, fi]
+        else:
+            p = x.parents[j]
+            tt = _solve3(self.mat[p, fi], x.pos0[j, fi] - self.pos[p, fi])
+            q = quat_mul(quat_conj(self.wq[p, fi]), x.wq0[j, fi])
+            q = np.where((np.sum(q * x.q0[j, fi], axis=-1) < 0)[..., None], -q, q)
+            tq = _unit(q)
+        self.tt[j, fi], self.tq[j, fi] = tt, tq
+        self.vt[j, fi] = tt
         if x.short:
-            codes[js] = cache.get(js, tq[js])
-            vq[js] = dequantize_rotations(codes[js])
+            changed = np.any(self.quantized[j, fi] != tq, axis=-1)
+            jc, fc = j[changed], fi[changed]
+            self.codes[jc, fc] = quantize_rotations(tq[changed])
+            self.quantized[jc, fc] = tq[changed]
+            self.vq[j, fi] = dequantize_rotations(self.codes[j, fi])
         else:
-            vq[js] = _unit_f32(tq[js])
-        tr[js] = _sample_cf(vt[js], keep_t[js], static_t[js], x.times, False).astype(np.float32)
-        rr[js] = _sample_cf(vq[js], keep_r[js], static_r[js], x.times, True).astype(np.float32)
-        m = raw_matrix(rr[js])
-        unit = rr[js] / np.linalg.norm(rr[js], axis=-1, keepdims=True)
-        if p[0] < 0:
-            pos[js], mat[js], wq[js] = tr[js], m, unit
-        else:
-            pos[js] = pos[p] + np.einsum("nfij,nfj->nfi", mat[p], tr[js])
-            mat[js] = mat[p] @ m
-            wq[js] = quat_mul(wq[p], unit)
-    diff, err, slide, spread = _off(x, pos, wq, tr, vq, keep_r, static_r)
-    viol = (err > x.tol) | (spread > PLAYER_SPREAD_M)
-    if x.planted is not None and f_count > 1:
-        bad = slide > PLANTED_SLIDE * x.tol
-        viol[:, 1:] |= bad
-        viol[:, :-1] |= bad
-    return _Pose(vt, vq, codes, tt, tq, tr, rr, pos, wq, mat, diff, err, slide, spread, viol)
+            self.vq[j, fi] = _unit_f32(tq)
+
+    def _sample(self, level, st, sr, seg_t, seg_r) -> None:
+        """Played local values of the joints `level` at the frames st (translations) and sr
+        (rotations) (L, F) bool; and Blender's nlerp of the rotations."""
+        x = self.x
+        li, fi = np.nonzero(st)
+        j = level[li]
+        self.tr[j, fi] = _sample_at(self.vt, self.static_t, x.times, seg_t, j, fi,
+                                    False).astype(np.float32)
+        li, fi = np.nonzero(sr)
+        j = level[li]
+        self.rr[j, fi] = _sample_at(self.vq, self.static_r, x.times, seg_r, j, fi,
+                                    True).astype(np.float32)
+        self.nlerp[j, fi] = _unit(_sample_at(self.vq, self.static_r, x.times, seg_r, j, fi,
+                                             False))
+
+    def _pose(self, level: np.ndarray, moved: np.ndarray, root: bool) -> None:
+        """World poses of the joints `level` at the frames `moved` (L, F) bool, as the three
+        players pose them."""
+        li, fi = np.nonzero(moved)
+        j = level[li]
+        tr, rr = self.tr[j, fi], self.rr[j, fi]
+        m = raw_matrix(rr)
+        unit = _unit(rr)
+        if root:
+            self.pos[j, fi], self.mat[j, fi], self.wq[j, fi] = tr, m, unit
+            self.unit[j, fi], self.blender[j, fi] = tr, tr
+            self.wn[j, fi] = self.nlerp[j, fi]
+            return
+        p = self.x.parents[j]
+        self.pos[j, fi] = self.pos[p, fi] + _mat_vec(self.mat[p, fi], tr)
+        self.mat[j, fi] = _mat_mat(self.mat[p, fi], m)
+        self.wq[j, fi] = quat_mul(self.wq[p, fi], unit)
+        self.unit[j, fi] = self.unit[p, fi] + quat_rotate(self.wq[p, fi], tr)
+        self.blender[j, fi] = self.blender[p, fi] + quat_rotate(self.wn[p, fi], tr)
+        self.wn[j, fi] = quat_mul(self.wn[p, fi], self.nlerp[j, fi])
+
+    def _errors_at(self, j: np.ndarray, f: np.ndarray) -> None:
+        """Errors of the pairs (j, f): each the worst of three players: pos, as three.js and
+        UsdSkel play the keys; unit, a player that normalizes the slerped quaternions; and
+        Blender's (blender), which interpolates the stored quaternions component by component
+        and normalizes (nlerp); and the spread of the other two around the first."""
+        pos = self.pos[j, f]
+        self.spread[j, f] = np.maximum(np.linalg.norm(self.unit[j, f] - pos, axis=-1),
+                                       np.linalg.norm(self.blender[j, f] - pos, axis=-1))
+        diff, err = None, None
+        for world in (pos, self.unit[j, f], self.blender[j, f]):
+            d = world - self.x.pos0[j, f]
+            e = np.linalg.norm(d, axis=-1)
+            if diff is None:
+                diff, err = d, e
+            else:
+                diff = np.where((e > err)[..., None], d, diff)
+                err = np.maximum(err, e)
+        self.diff[j, f], self.err[j, f] = diff, err
+
+    def _slide_at(self, moved: np.ndarray) -> None:
+        """slide at the planted frame pairs (f, f + 1) with a moved frame."""
+        x = self.x
+        if x.planted is None or moved.shape[1] < 2:
+            return
+        j, f = np.nonzero(x.planted[:, 1:] & x.planted[:, :-1] & (moved[:, 1:] | moved[:, :-1]))
+        slide = np.zeros(len(j))
+        for world in (self.pos, self.unit, self.blender):
+            d = (world[j, f + 1] - x.pos0[j, f + 1]) - (world[j, f] - x.pos0[j, f])
+            slide = np.maximum(slide, np.linalg.norm(d, axis=-1))
+        self.slide[j, f] = slide
 
 
-def _off(x: _Target, pos: np.ndarray, wq: np.ndarray, tr: np.ndarray, vq: np.ndarray,
-         keep_r: np.ndarray, static_r: np.ndarray):
-    """How far the played joints are from the unreduced ones: (error vectors (J, F, 3), their
-    lengths (J, F), slide (J, F-1): the change of a planted joint's error between planted
-    frames), each the worst of three players: pos (J, F, 3), as three.js and UsdSkel play the
-    keys; one that normalizes the slerped quaternions (wq (J, F, 4): unit world rotations); and
-    Blender's, which interpolates the stored quaternions component by component and normalizes
-    (nlerp); and spread (J, F), how far the other two are from the first."""
-    nlerp = _sample_cf(vq, keep_r, static_r, x.times, False)
-    nlerp /= np.linalg.norm(nlerp, axis=-1, keepdims=True)
-    unit, blender, wn = np.empty_like(pos), np.empty_like(pos), np.empty_like(nlerp)
-    for js in x.levels:
-        p = x.parents[js]
-        if p[0] < 0:
-            unit[js], blender[js], wn[js] = tr[js], tr[js], nlerp[js]
-        else:
-            unit[js] = unit[p] + quat_rotate(wq[p], tr[js])
-            blender[js] = blender[p] + quat_rotate(wn[p], tr[js])
-            wn[js] = quat_mul(wn[p], nlerp[js])
-    spread = np.maximum(np.linalg.norm(unit - pos, axis=-1), np.linalg.norm(blender - pos, axis=-1))
-    diff, err, slide = None, None, None
-    for world in (pos, unit, blender):
-        d = world - x.pos0
-        e = np.linalg.norm(d, axis=-1)
-        s = np.zeros((len(pos), max(pos.shape[1] - 1, 0)))
-        if x.planted is not None and pos.shape[1] > 1:
-            both = x.planted[:, 1:] & x.planted[:, :-1]
-            s = np.where(both, np.linalg.norm(np.diff(d, axis=1), axis=-1), 0.0)
-        if diff is None:
-            diff, err, slide = d, e, s
-        else:
-            diff = np.where((e > err)[..., None], d, diff)
-            err, slide = np.maximum(err, e), np.maximum(slide, s)
-    return diff, err, slide, spread
+def _touches(changed: np.ndarray, segments, level: np.ndarray) -> np.ndarray:
+    """(L, F) bool: frames of the joints `level` whose segment starts or ends on a key whose
+    value changed (changed (L, F) bool)."""
+    f_count = changed.shape[1]
+    rows = np.arange(len(level))[:, None]
+    prev = np.clip(segments[0][level], 0, f_count - 1)
+    nxt = np.clip(segments[1][level], 0, f_count - 1)
+    return changed[rows, prev] | changed[rows, nxt]
 
 
-def _blame(x: _Target, chains: np.ndarray, p: _Pose):
+def _blame(x: _Target, chains: np.ndarray, p: _Player):
     """Which channels to key where (see the module docstring). Returns (candidates, scores) for
     the translation channels and for the rotation channels, each (J, F); scores in metres."""
     j_count, f_count = p.viol.shape
-    parents = x.parents
-    wp = np.where((parents >= 0)[:, None, None], p.wq[np.maximum(parents, 0)],
-                  [0.0, 0.0, 0.0, 1.0])
-    c_t = quat_rotate(wp, p.tr - p.tt)                                     # (J, F, 3)
-    omega = quat_rotate(wp, _rotvec(quat_mul(p.rr, quat_conj(p.tq))))      # (J, F, 3)
     ki, fi = np.nonzero(p.viol)
     e = p.diff[ki, fi]
     e = e / np.maximum(np.linalg.norm(e, axis=-1, keepdims=True), 1e-300)
     chain = chains[ki]                                                     # (V, D)
     a = np.maximum(chain, 0)
-    ft = fi[:, None]
-    ct = np.where(chain >= 0, np.einsum("vdk,vk->vd", c_t[a, ft], e), -np.inf)
+    ft = np.broadcast_to(fi[:, None], a.shape)
+    c_t, omega = _channel_moves(x, p, a, ft)
+    ct = np.where(chain >= 0, np.einsum("vdk,vk->vd", c_t, e), -np.inf)
     arm = np.cross(p.pos[ki, fi][:, None, :] - p.pos[a, ft], e[:, None, :])
     strict = (chain >= 0) & (np.arange(chain.shape[1]) > 0)[None, :]       # ancestors of k
-    cr = np.where(strict, np.einsum("vdk,vdk->vd", omega[a, ft], arm), -np.inf)
+    cr = np.where(strict, np.einsum("vdk,vdk->vd", omega, arm), -np.inf)
     top = np.maximum(ct.max(axis=1), cr.max(axis=1))[:, None]
     out = []
     for c in (ct, cr):
@@ -610,22 +751,35 @@ def _blame(x: _Target, chains: np.ndarray, p: _Pose):
     return out
 
 
-def _refine(x: _Target, keep_t: np.ndarray, keep_r: np.ndarray, static_t: np.ndarray,
-            static_r: np.ndarray) -> _Pose:
+def _channel_moves(x: _Target, p: _Player, a: np.ndarray, ft: np.ndarray):
+    """The world offset of each translation channel's error (the played minus the target local
+    translation, in its parent's world frame) and the world rotation vector of each rotation
+    channel's error, at the pairs (a, ft) (V, D): ((V, D, 3), (V, D, 3)). Each distinct pair is
+    computed once."""
+    need = np.zeros(x.t0.shape[:2], dtype=bool)
+    need[a, ft] = True
+    j, f = np.nonzero(need)
+    parent = x.parents[j]
+    wp = np.where((parent >= 0)[:, None], p.wq[np.maximum(parent, 0), f], [0.0, 0.0, 0.0, 1.0])
+    c_t = np.empty(x.t0.shape)
+    omega = np.empty(x.t0.shape)
+    c_t[j, f] = quat_rotate(wp, p.tr[j, f] - p.tt[j, f])
+    omega[j, f] = quat_rotate(wp, _rotvec(quat_mul(p.rr[j, f], quat_conj(p.tq[j, f]))))
+    return c_t[a, ft], omega[a, ft]
+
+
+def _refine(x: _Target, keep_t: np.ndarray, keep_r: np.ndarray, player: _Player) -> _Player:
     """World refinement (see the module docstring): adds keys to keep_t, keep_r (J, F) in place
-    until no joint is off. Returns the final _Pose."""
+    until no joint is off. Returns the player, holding the final playback."""
     chains = ancestors(x.parents)
-    cache = _Codes(x.q0.shape) if x.short else None
-    p, dirty = None, None
     for _ in range(MAX_ROUNDS):
-        p = _play(x, keep_t, keep_r, static_t, static_r, cache, p, dirty)
-        if not p.viol.any():
-            return p
-        before_t, before_r = keep_t.copy(), keep_r.copy()
-        cand_t, score_t, cand_r, score_r = _blame(x, chains, p)
+        viol = player.play(keep_t, keep_r)
+        if not viol.any():
+            return player
+        cand_t, score_t, cand_r, score_r = _blame(x, chains, player)
         added = _add_worst(keep_t, score_t, cand_t) + _add_worst(keep_r, score_r, cand_r)
         if added == 0:          # only rounding is left: key the offending chains there
-            ki, fi = np.nonzero(p.viol)
+            ki, fi = np.nonzero(viol)
             ch = chains[ki]
             v, d = np.nonzero(ch >= 0)
             for keep in (keep_t, keep_r):
@@ -635,9 +789,7 @@ def _refine(x: _Target, keep_t: np.ndarray, keep_r: np.ndarray, static_t: np.nda
                 added += int(keep.sum()) - before
             if added == 0:
                 raise ExportError(f"keyframe reduction cannot reach {x.tol:g} m: the stored "
-                                  f"values alone are off by {p.err.max():.3g} m")
-        changed = np.any(keep_t != before_t, axis=1) | np.any(keep_r != before_r, axis=1)
-        dirty = np.any(np.where(chains >= 0, changed[np.maximum(chains, 0)], False), axis=1)
+                                  f"values alone are off by {player.err.max():.3g} m")
     raise ExportError("keyframe reduction did not converge")
 
 
@@ -666,10 +818,11 @@ def _track_keys(clip: Clip, tol: float, lever: float, short: bool) -> tuple[Trac
             v = np.asarray(values, dtype=np.float32)[:, None, :]
             codes = quantize_rotations(v) if rot and short else None
             stored = v if codes is None else dequantize_rotations(codes)
+            value_bytes = VALUE_BYTES["rotation_short" if codes is not None else
+                                      "rotation" if rot else "scale"]
             keep, static = _local_keys(v, stored, clip.times, rot,
-                                       np.array([tol / max(scale, 1e-9)]), None)
-            _promote(keep, VALUE_BYTES["rotation_short" if codes is not None else
-                                       "rotation" if rot else "scale"])
+                                       np.array([tol / max(scale, 1e-9)]), None, value_bytes)
+            _promote(keep, value_bytes)
             parts[path] = Keys(keep, stored, static, codes)
         out.append(TrackKeys(**parts))
     return tuple(out)
@@ -711,20 +864,21 @@ def reduce_clip(clip: Clip, parents, tolerance_m: float, *, contacts=None,
     lever = np.maximum(levers(parents, np.swapaxes(x.pos0, 0, 1), clip.translations), 1e-9)
     r_t, r_q = (None, None) if rest is None else rest
     share = LOCAL_SHARE * tol
-    keep_t, static_t = _local_keys(clip.translations, clip.translations, clip.times, False,
-                                   np.full(j_count, share), r_t)
-    keep_r, static_r = _local_keys(clip.rotations, clip.rotations, clip.times, True,
-                                   share / lever, r_q)
-    keep_s, static_s = _local_keys(clip.scales, clip.scales, clip.times, False, tol / lever,
-                                   np.ones((j_count, 3), np.float32))
     rot_bytes = VALUE_BYTES["rotation_short" if x.short else "rotation"]
+    keep_t, static_t = _local_keys(clip.translations, clip.translations, clip.times, False,
+                                   np.full(j_count, share), r_t, VALUE_BYTES["translation"])
+    keep_r, static_r = _local_keys(clip.rotations, clip.rotations, clip.times, True,
+                                   share / lever, r_q, rot_bytes)
+    keep_s, static_s = _local_keys(clip.scales, clip.scales, clip.times, False, tol / lever,
+                                   np.ones((j_count, 3), np.float32), VALUE_BYTES["scale"])
     _promote(keep_t, VALUE_BYTES["translation"])
     _promote(keep_r, rot_bytes)
-    _refine(x, keep_t, keep_r, static_t, static_r)
+    player = _Player(x, static_t, static_r)
+    _refine(x, keep_t, keep_r, player)
     _promote(keep_t, VALUE_BYTES["translation"])
     _promote(keep_r, VALUE_BYTES["rotation_short" if x.short else "rotation"])
     _promote(keep_s, VALUE_BYTES["scale"])
-    p = _refine(x, keep_t, keep_r, static_t, static_r)
+    p = _refine(x, keep_t, keep_r, player)
     keys = ClipKeys(
         translations=Keys(keep_t, _frames_first(p.vt), static_t),
         rotations=Keys(keep_r, _frames_first(p.vq), static_r,
@@ -749,7 +903,8 @@ def _short_fits(x: _Target) -> bool:
     sub = dataclasses.replace(x, t0=x.t0[:, some], q0=x.q0[:, some], pos0=x.pos0[:, some],
                               wq0=x.wq0[:, some], times=x.times[some], planted=None)
     every = np.ones((j_count, len(some)), dtype=bool)
-    p = _play(sub, every, every, np.zeros((j_count, 3)), np.zeros((j_count, 4)))
+    p = _Player(sub, np.zeros((j_count, 3)), np.zeros((j_count, 4)))
+    p.play(every, every)
     return bool(p.err.max(initial=0.0) <= 0.5 * x.tol
                 and p.spread.max(initial=0.0) <= 0.5 * PLAYER_SPREAD_M)
 
