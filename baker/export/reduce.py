@@ -262,17 +262,26 @@ def _sample_cf(values: np.ndarray, keep: np.ndarray, static: np.ndarray, times: 
     returned as stored."""
     c_count, f_count = keep.shape
     rows, frames = np.divmod(np.arange(c_count * f_count), f_count)
-    out = _sample_at(values, static, times, _segments(keep), rows, frames, rotation)
+    span = _spans(_segments(keep), rows, frames, times)
+    out = _interp(_flat(np.ascontiguousarray(values)), static, rows, span, rotation)
     return out.reshape(c_count, f_count, -1)
 
 
-def _sample_at(values: np.ndarray, static: np.ndarray, times: np.ndarray, segments,
-               rows: np.ndarray, frames: np.ndarray, rotation: bool) -> np.ndarray:
-    """`_sample_cf` at the pairs (rows[i], frames[i]) only: values (C, F, W), static (C, W),
-    segments: `_segments` of the keys. Returns (N, W) float64, element for element what
-    `_sample_cf` gives there."""
-    f_count = segments[0].shape[1]
-    prev, nxt = segments[0][rows, frames], segments[1][rows, frames]
+def _flat(a: np.ndarray) -> np.ndarray:
+    """(C * F, ...) view of a contiguous (C, F, ...) array: row c * F + f is (c, f)."""
+    return a.reshape((-1,) + a.shape[2:])
+
+
+def _spans(segments, rows: np.ndarray, frames: np.ndarray, times: np.ndarray,
+           seg_rows: np.ndarray | None = None) -> tuple:
+    """Where the pairs (rows[i], frames[i]) are played from: (i0, i1) the flat indices (row
+    * F + key frame) of the keys around them, alpha, and whether each is past the last key
+    (`last`) or on a channel with no key (`fixed`). segments: `_segments` of the keys, read at
+    seg_rows (default: rows)."""
+    prev, nxt = segments
+    f_count = prev.shape[1]
+    sr = rows if seg_rows is None else seg_rows
+    prev, nxt = prev[sr, frames], nxt[sr, frames]
     fixed = prev < 0
     last = nxt >= f_count
     prev = np.clip(prev, 0, f_count - 1)
@@ -280,11 +289,25 @@ def _sample_at(values: np.ndarray, static: np.ndarray, times: np.ndarray, segmen
     t = np.asarray(times, dtype=np.float32).astype(np.float64)
     span = t[nxt] - t[prev]
     a = np.where(span > 0, (t[frames] - t[prev]) / np.where(span > 0, span, 1.0), 0.0)
-    v0 = values[rows, prev].astype(np.float64)
-    v1 = values[rows, nxt].astype(np.float64)
-    out = slerp(v0, v1, a) if rotation else v0 + a[:, None] * (v1 - v0)
-    out = np.where(last[:, None], v0, out)
-    return np.where(fixed[:, None], np.asarray(static, np.float64)[rows], out)
+    base = rows * f_count
+    return base + prev, base + nxt, a, fixed, last
+
+
+def _interp(flat_values: np.ndarray, static: np.ndarray, rows: np.ndarray, span: tuple,
+            rotation: bool, both: bool = False):
+    """(N, W) float64: the values (C * F, W) played at the pairs of `span` (`_spans`), slerped
+    or lerped; element for element what `_sample_cf` gives there. static (C, W). With `both`,
+    (slerped, lerped)."""
+    i0, i1, a, fixed, last = span
+    v0 = flat_values[i0].astype(np.float64)
+    v1 = flat_values[i1].astype(np.float64)
+    held = np.asarray(static, np.float64)[rows]
+    outs = []
+    for slerped in ((True, False) if both else (rotation,)):
+        out = slerp(v0, v1, a) if slerped else v0 + a[:, None] * (v1 - v0)
+        out = np.where(last[:, None], v0, out)
+        outs.append(np.where(fixed[:, None], held, out))
+    return tuple(outs) if both else outs[0]
 
 
 def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -310,11 +333,21 @@ def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
 def raw_matrix(q: np.ndarray) -> np.ndarray:
     """(..., 3, 3) rotation matrices of xyzw quaternions (..., 4) by the unit-quaternion formula
     applied to q as stored, without normalizing (as three.js and UsdSkel do)."""
-    x, y, z, w = np.moveaxis(np.asarray(q, dtype=np.float64), -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], -2)
+    q = np.asarray(q, dtype=np.float64)
+    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    m = np.empty(q.shape[:-1] + (3, 3))
+    xx, yy, zz = x * x, y * y, z * z
+    xy, xz, yz, xw, yw, zw = x * y, x * z, y * z, x * w, y * w, z * w
+    m[..., 0, 0] = 1 - 2 * (yy + zz)
+    m[..., 0, 1] = 2 * (xy - zw)
+    m[..., 0, 2] = 2 * (xz + yw)
+    m[..., 1, 0] = 2 * (xy + zw)
+    m[..., 1, 1] = 1 - 2 * (xx + zz)
+    m[..., 1, 2] = 2 * (yz - xw)
+    m[..., 2, 0] = 2 * (xz - yw)
+    m[..., 2, 1] = 2 * (yz + xw)
+    m[..., 2, 2] = 1 - 2 * (xx + yy)
+    return m
 
 
 def _rotation_error(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -397,7 +430,9 @@ def _local_keys(values: np.ndarray, stored: np.ndarray, times: np.ndarray, rotat
     keep = np.zeros((c_count, f_count), dtype=bool)
     keep[~is_static, 0] = True
     keep[~is_static, -1] = True
-    vals, kept = np.swapaxes(values, 0, 1), np.swapaxes(stored, 0, 1)          # (C, F, W)
+    vals = np.ascontiguousarray(np.swapaxes(values, 0, 1))                   # (C, F, W)
+    kept = np.ascontiguousarray(np.swapaxes(stored, 0, 1))
+    flat_vals, flat_kept = _flat(vals), _flat(kept)
     bound = value_bytes * f_count / (value_bytes + TIME_BYTES)      # _promote's key count
     active = np.flatnonzero(~is_static)
     dense = active[_tight_misses(vals[active], kept[active], times, rotation,
@@ -412,8 +447,9 @@ def _local_keys(values: np.ndarray, stored: np.ndarray, times: np.ndarray, rotat
             break
         ri, fi = np.nonzero(pending[rows])              # ri: index into rows
         segments = _segments(keep[rows])
-        est = _sample_at(kept[rows], static[rows], times, segments, ri, fi, rotation)
-        v = vals[rows[ri], fi].astype(np.float64)
+        est = _interp(flat_kept, static, rows[ri],
+                      _spans(segments, rows[ri], fi, times, seg_rows=ri), rotation)
+        v = flat_vals[rows[ri] * f_count + fi].astype(np.float64)
         err = _rotation_error(v, est) if rotation else np.linalg.norm(est - v, axis=-1)
         bad = np.flatnonzero((err > tol[rows[ri]]) & ~keep[rows[ri], fi])
         group = ri * (f_count + 1) + segments[0][ri, fi] + 1
@@ -525,9 +561,14 @@ def _target(clip: Clip, parents, planted, tol: float, short: bool) -> _Target:
 
 
 def _solve3(m: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """x with m x = v, for (N, 3, 3) matrices m and (N, 3) vectors v (LAPACK, each matrix on
-    its own, so a pair's result does not depend on the batch it is solved in)."""
-    return np.linalg.solve(m, v[..., None])[..., 0]
+    """x with m x = v, for (N, 3, 3) matrices m and (N, 3) vectors v, by Cramer's rule (the
+    matrices are near rotations, well conditioned), element by element."""
+    c0 = np.cross(m[:, :, 1], m[:, :, 2])                    # rows of adj(m) / columns' crosses
+    c1 = np.cross(m[:, :, 2], m[:, :, 0])
+    c2 = np.cross(m[:, :, 0], m[:, :, 1])
+    det = np.sum(m[:, :, 0] * c0, axis=-1)
+    return np.stack([np.sum(c0 * v, axis=-1), np.sum(c1 * v, axis=-1),
+                     np.sum(c2 * v, axis=-1)], axis=-1) / det[:, None]
 
 
 def _mat_vec(m: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -609,7 +650,7 @@ class _Player:
             self._sample(level, st, sr, seg_t, seg_r)
             moved[level] = st | sr | target
             self._pose(level, moved[level], root)
-        self._errors_at(*np.nonzero(moved))
+        self._errors_at(np.flatnonzero(moved))
         self._slide_at(moved)
         self.segments = (seg_t, seg_r)
         viol = (self.err > x.tol) | (self.spread > PLAYER_SPREAD_M)
@@ -622,94 +663,108 @@ class _Player:
 
     def _targets(self, level: np.ndarray, target: np.ndarray, root: bool) -> None:
         """The key values of the joints `level` at the frames `target` (L, F) bool."""
-        x = self.x
+        x, f_count = self.x, self.x.t0.shape[1]
         li, fi = np.nonzero(target)
         if not len(li):
             return
         j = level[li]
+        i = j * f_count + fi
         if root:
-            tt, tq = x.t0[j, fi], x.q0[j, fi]
+            tt, tq = _flat(x.t0)[i], _flat(x.q0)[i]
         else:
-            p = x.parents[j]
-            tt = _solve3(self.mat[p, fi], x.pos0[j, fi] - self.pos[p, fi])
-            q = quat_mul(quat_conj(self.wq[p, fi]), x.wq0[j, fi])
-            q = np.where((np.sum(q * x.q0[j, fi], axis=-1) < 0)[..., None], -q, q)
+            ip = x.parents[j] * f_count + fi
+            tt = _solve3(_flat(self.mat)[ip], _flat(x.pos0)[i] - _flat(self.pos)[ip])
+            q = quat_mul(quat_conj(_flat(self.wq)[ip]), _flat(x.wq0)[i])
+            q = np.where((np.sum(q * _flat(x.q0)[i], axis=-1) < 0)[..., None], -q, q)
             tq = _unit(q)
-        self.tt[j, fi], self.tq[j, fi] = tt, tq
-        self.vt[j, fi] = tt
+        _flat(self.tt)[i], _flat(self.tq)[i] = tt, tq
+        _flat(self.vt)[i] = tt
         if x.short:
-            changed = np.any(self.quantized[j, fi] != tq, axis=-1)
-            jc, fc = j[changed], fi[changed]
-            self.codes[jc, fc] = quantize_rotations(tq[changed])
-            self.quantized[jc, fc] = tq[changed]
-            self.vq[j, fi] = dequantize_rotations(self.codes[j, fi])
+            codes, quantized = _flat(self.codes), _flat(self.quantized)
+            changed = np.any(quantized[i] != tq, axis=-1)
+            codes[i[changed]] = quantize_rotations(tq[changed])
+            quantized[i[changed]] = tq[changed]
+            _flat(self.vq)[i] = dequantize_rotations(codes[i])
         else:
-            self.vq[j, fi] = _unit_f32(tq)
+            _flat(self.vq)[i] = _unit_f32(tq)
 
     def _sample(self, level, st, sr, seg_t, seg_r) -> None:
         """Played local values of the joints `level` at the frames st (translations) and sr
         (rotations) (L, F) bool; and Blender's nlerp of the rotations."""
-        x = self.x
+        x, f_count = self.x, self.x.t0.shape[1]
         li, fi = np.nonzero(st)
         j = level[li]
-        self.tr[j, fi] = _sample_at(self.vt, self.static_t, x.times, seg_t, j, fi,
-                                    False).astype(np.float32)
+        _flat(self.tr)[j * f_count + fi] = _interp(
+            _flat(self.vt), self.static_t, j, _spans(seg_t, j, fi, x.times), False
+        ).astype(np.float32)
         li, fi = np.nonzero(sr)
         j = level[li]
-        self.rr[j, fi] = _sample_at(self.vq, self.static_r, x.times, seg_r, j, fi,
-                                    True).astype(np.float32)
-        self.nlerp[j, fi] = _unit(_sample_at(self.vq, self.static_r, x.times, seg_r, j, fi,
-                                             False))
+        span = _spans(seg_r, j, fi, x.times)
+        i = j * f_count + fi
+        slerped, lerped = _interp(_flat(self.vq), self.static_r, j, span, True, both=True)
+        _flat(self.rr)[i] = slerped.astype(np.float32)
+        _flat(self.nlerp)[i] = _unit(lerped)
 
     def _pose(self, level: np.ndarray, moved: np.ndarray, root: bool) -> None:
         """World poses of the joints `level` at the frames `moved` (L, F) bool, as the three
         players pose them."""
+        f_count = self.x.t0.shape[1]
         li, fi = np.nonzero(moved)
         j = level[li]
-        tr, rr = self.tr[j, fi], self.rr[j, fi]
+        i = j * f_count + fi
+        pos, mat, wq = _flat(self.pos), _flat(self.mat), _flat(self.wq)
+        unit_w, blender, wn, nlerp = (_flat(self.unit), _flat(self.blender), _flat(self.wn),
+                                      _flat(self.nlerp))
+        tr, rr = _flat(self.tr)[i], _flat(self.rr)[i]
         m = raw_matrix(rr)
         unit = _unit(rr)
         if root:
-            self.pos[j, fi], self.mat[j, fi], self.wq[j, fi] = tr, m, unit
-            self.unit[j, fi], self.blender[j, fi] = tr, tr
-            self.wn[j, fi] = self.nlerp[j, fi]
+            pos[i], mat[i], wq[i] = tr, m, unit
+            unit_w[i], blender[i], wn[i] = tr, tr, nlerp[i]
             return
-        p = self.x.parents[j]
-        self.pos[j, fi] = self.pos[p, fi] + _mat_vec(self.mat[p, fi], tr)
-        self.mat[j, fi] = _mat_mat(self.mat[p, fi], m)
-        self.wq[j, fi] = quat_mul(self.wq[p, fi], unit)
-        self.unit[j, fi] = self.unit[p, fi] + quat_rotate(self.wq[p, fi], tr)
-        self.blender[j, fi] = self.blender[p, fi] + quat_rotate(self.wn[p, fi], tr)
-        self.wn[j, fi] = quat_mul(self.wn[p, fi], self.nlerp[j, fi])
+        ip = self.x.parents[j] * f_count + fi
+        mp, wp, wnp = mat[ip], wq[ip], wn[ip]
+        pos[i] = pos[ip] + _mat_vec(mp, tr)
+        mat[i] = _mat_mat(mp, m)
+        wq[i] = quat_mul(wp, unit)
+        unit_w[i] = unit_w[ip] + quat_rotate(wp, tr)
+        blender[i] = blender[ip] + quat_rotate(wnp, tr)
+        wn[i] = quat_mul(wnp, nlerp[i])
 
-    def _errors_at(self, j: np.ndarray, f: np.ndarray) -> None:
-        """Errors of the pairs (j, f): each the worst of three players: pos, as three.js and
-        UsdSkel play the keys; unit, a player that normalizes the slerped quaternions; and
-        Blender's (blender), which interpolates the stored quaternions component by component
-        and normalizes (nlerp); and the spread of the other two around the first."""
-        pos = self.pos[j, f]
-        self.spread[j, f] = np.maximum(np.linalg.norm(self.unit[j, f] - pos, axis=-1),
-                                       np.linalg.norm(self.blender[j, f] - pos, axis=-1))
+    def _errors_at(self, i: np.ndarray) -> None:
+        """Errors of the pairs of flat indices i (j * F + f): each the worst of three players:
+        pos, as three.js and UsdSkel play the keys; unit, a player that normalizes the slerped
+        quaternions; and Blender's (blender), which interpolates the stored quaternions
+        component by component and normalizes (nlerp); and the spread of the other two around
+        the first."""
+        pos, unit, blender = _flat(self.pos)[i], _flat(self.unit)[i], _flat(self.blender)[i]
+        _flat(self.spread)[i] = np.maximum(np.linalg.norm(unit - pos, axis=-1),
+                                           np.linalg.norm(blender - pos, axis=-1))
+        pos0 = _flat(self.x.pos0)[i]
         diff, err = None, None
-        for world in (pos, self.unit[j, f], self.blender[j, f]):
-            d = world - self.x.pos0[j, f]
+        for world in (pos, unit, blender):
+            d = world - pos0
             e = np.linalg.norm(d, axis=-1)
             if diff is None:
                 diff, err = d, e
             else:
                 diff = np.where((e > err)[..., None], d, diff)
                 err = np.maximum(err, e)
-        self.diff[j, f], self.err[j, f] = diff, err
+        _flat(self.diff)[i], _flat(self.err)[i] = diff, err
 
     def _slide_at(self, moved: np.ndarray) -> None:
         """slide at the planted frame pairs (f, f + 1) with a moved frame."""
         x = self.x
-        if x.planted is None or moved.shape[1] < 2:
+        f_count = moved.shape[1]
+        if x.planted is None or f_count < 2:
             return
         j, f = np.nonzero(x.planted[:, 1:] & x.planted[:, :-1] & (moved[:, 1:] | moved[:, :-1]))
+        i = j * f_count + f
+        pos0 = _flat(x.pos0)
         slide = np.zeros(len(j))
         for world in (self.pos, self.unit, self.blender):
-            d = (world[j, f + 1] - x.pos0[j, f + 1]) - (world[j, f] - x.pos0[j, f])
+            w = _flat(world)
+            d = (w[i + 1] - pos0[i + 1]) - (w[i] - pos0[i])
             slide = np.maximum(slide, np.linalg.norm(d, axis=-1))
         self.slide[j, f] = slide
 
@@ -717,11 +772,16 @@ class _Player:
 def _touches(changed: np.ndarray, segments, level: np.ndarray) -> np.ndarray:
     """(L, F) bool: frames of the joints `level` whose segment starts or ends on a key whose
     value changed (changed (L, F) bool)."""
-    f_count = changed.shape[1]
-    rows = np.arange(len(level))[:, None]
-    prev = np.clip(segments[0][level], 0, f_count - 1)
-    nxt = np.clip(segments[1][level], 0, f_count - 1)
-    return changed[rows, prev] | changed[rows, nxt]
+    out = np.zeros(changed.shape, dtype=bool)
+    rows = np.flatnonzero(changed.any(axis=1))
+    if len(rows):
+        last = changed.shape[1] - 1
+        prev = np.clip(segments[0][level[rows]], 0, last)
+        nxt = np.minimum(segments[1][level[rows]], last)
+        sub = changed[rows]
+        r = np.arange(len(rows))[:, None]
+        out[rows] = sub[r, prev] | sub[r, nxt]
+    return out
 
 
 def _blame(x: _Target, chains: np.ndarray, p: _Player):
@@ -756,16 +816,20 @@ def _channel_moves(x: _Target, p: _Player, a: np.ndarray, ft: np.ndarray):
     translation, in its parent's world frame) and the world rotation vector of each rotation
     channel's error, at the pairs (a, ft) (V, D): ((V, D, 3), (V, D, 3)). Each distinct pair is
     computed once."""
-    need = np.zeros(x.t0.shape[:2], dtype=bool)
-    need[a, ft] = True
-    j, f = np.nonzero(need)
+    j_count, f_count = x.t0.shape[:2]
+    need = np.zeros(j_count * f_count, dtype=bool)
+    flat = a * f_count + ft
+    need[flat] = True
+    i = np.flatnonzero(need)
+    j, f = np.divmod(i, f_count)
     parent = x.parents[j]
-    wp = np.where((parent >= 0)[:, None], p.wq[np.maximum(parent, 0), f], [0.0, 0.0, 0.0, 1.0])
-    c_t = np.empty(x.t0.shape)
-    omega = np.empty(x.t0.shape)
-    c_t[j, f] = quat_rotate(wp, p.tr[j, f] - p.tt[j, f])
-    omega[j, f] = quat_rotate(wp, _rotvec(quat_mul(p.rr[j, f], quat_conj(p.tq[j, f]))))
-    return c_t[a, ft], omega[a, ft]
+    wp = np.where((parent >= 0)[:, None], _flat(p.wq)[np.maximum(parent, 0) * f_count + f],
+                  [0.0, 0.0, 0.0, 1.0])
+    c_t = np.empty((j_count * f_count, 3))
+    omega = np.empty((j_count * f_count, 3))
+    c_t[i] = quat_rotate(wp, _flat(p.tr)[i] - _flat(p.tt)[i])
+    omega[i] = quat_rotate(wp, _rotvec(quat_mul(_flat(p.rr)[i], quat_conj(_flat(p.tq)[i]))))
+    return c_t[flat], omega[flat]
 
 
 def _refine(x: _Target, keep_t: np.ndarray, keep_r: np.ndarray, player: _Player) -> _Player:

@@ -187,6 +187,46 @@ def test_reduction_is_deterministic(tmp_path, small_env, rig, clip, files):
     assert (tmp_path / "again.usd").read_bytes() == files["usd"].read_bytes()
 
 
+def test_incremental_playback_is_a_fresh_playback(clip, rig):
+    """The refinement replays only the (joint, frame) pairs that can change: after keys are
+    added its arrays are exactly (bit for bit) those of a first playback of the same keys."""
+    skel = rig.skeleton
+    x = red._target(clip, skel.parents, None, TOL, True)
+    j_count, f_count = x.t0.shape[:2]
+    keep_t = np.zeros((j_count, f_count), dtype=bool)
+    keep_r = np.zeros((j_count, f_count), dtype=bool)
+    keep_t[:, [0, -1]] = keep_r[:, [0, -1]] = True
+    static_t, static_r = np.zeros((j_count, 3)), np.tile([0.0, 0, 0, 1], (j_count, 1))
+    player = red._Player(x, static_t, static_r)
+    player.play(keep_t, keep_r)
+    rng = np.random.default_rng(0)
+    for _ in range(3):                 # keys added on a few joints, some near the root
+        js = rng.choice(j_count, 4, replace=False)
+        keep_t[js, rng.integers(1, f_count - 1, 4)] = True
+        keep_r[js[::-1], rng.integers(1, f_count - 1, 4)] = True
+        player.play(keep_t, keep_r)
+    fresh = red._Player(x, static_t, static_r)
+    fresh.play(keep_t, keep_r)
+    for name in ("vt", "vq", "codes", "tr", "rr", "pos", "wq", "mat", "unit", "blender", "wn",
+                 "diff", "err", "spread", "slide", "viol"):
+        assert np.array_equal(getattr(player, name), getattr(fresh, name)), name
+
+
+def test_local_pass_keeps_dense_channels_whole(clip, rig):
+    """A channel whose frames mostly miss even between their neighbours is keyed at every
+    frame; the others keep what top-down splitting keeps (each segment within tolerance)."""
+    f_count = clip.n_frames
+    t = np.linspace(0.0, 1.0, f_count)
+    smooth = np.stack([t, 0.01 * t * t, np.zeros_like(t)], -1)
+    noisy = smooth + np.random.default_rng(1).normal(0, 1e-3, smooth.shape)
+    values = np.stack([smooth, noisy], 1).astype(np.float32)             # (F, 2, 3)
+    keep, _ = red._local_keys(values, values, clip.times, False, np.full(2, 1e-4), None, 12)
+    assert keep[1].all()
+    assert 2 <= keep[0].sum() < f_count / 4
+    played = red.sample(values, keep, values[0], clip.times, False)
+    assert np.linalg.norm(played[:, 0] - values[:, 0], axis=-1).max() <= 1e-4
+
+
 def test_bad_tolerance_is_an_export_error(clip, rig):
     for bad in (-1e-3, float("nan"), float("inf")):
         with pytest.raises(ExportError):
