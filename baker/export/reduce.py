@@ -73,7 +73,7 @@ import numpy as np
 
 from baker.clip import Clip
 from baker.errors import ExportError
-from baker.geometry.transforms import quat_conj, quat_mul, quat_rotate
+from baker.geometry.transforms import quat_conj
 from baker.rig.skeleton import forward_kinematics
 
 #: local pass: the share of the tolerance each channel gets on its own
@@ -261,10 +261,20 @@ def _sample_cf(values: np.ndarray, keep: np.ndarray, static: np.ndarray, times: 
     rotation is normalized there when the next key is nearly equal), and the last key is
     returned as stored."""
     c_count, f_count = keep.shape
-    rows, frames = np.divmod(np.arange(c_count * f_count), f_count)
-    span = _spans(_segments(keep), rows, frames, times)
-    out = _interp(_flat(np.ascontiguousarray(values)), static, rows, span, rotation)
-    return out.reshape(c_count, f_count, -1)
+    prev, nxt = _segments(keep)
+    fixed = prev < 0
+    last = nxt >= f_count
+    prev = np.clip(prev, 0, f_count - 1)
+    nxt = np.where(last, prev, nxt)
+    t = np.asarray(times, dtype=np.float32).astype(np.float64)
+    span = t[nxt] - t[prev]
+    a = np.where(span > 0, (t[None, :] - t[prev]) / np.where(span > 0, span, 1.0), 0.0)
+    rows = np.arange(c_count)[:, None]
+    v0 = values[rows, prev].astype(np.float64)
+    v1 = values[rows, nxt].astype(np.float64)
+    out = slerp(v0, v1, a) if rotation else v0 + a[..., None] * (v1 - v0)
+    out = np.where(last[..., None], v0, out)
+    return np.where(fixed[..., None], np.asarray(static, np.float64)[:, None, :], out)
 
 
 def _flat(a: np.ndarray) -> np.ndarray:
@@ -560,15 +570,51 @@ def _target(clip: Clip, parents, planted, tol: float, short: bool) -> _Target:
                    None if planted is None else first(planted), tol, short)
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N, 3) a x b of (N, 3) vectors, component by component (np.cross's arithmetic, without
+    its overhead)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+def _qrot(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """geometry.transforms.quat_rotate (v rotated by the xyzw quaternions q) with `_cross`."""
+    qv = q[..., :3]
+    t = 2.0 * _cross(qv, v)
+    return v + q[..., 3:4] * t + _cross(qv, t)
+
+
+def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """geometry.transforms.quat_mul (Hamilton product a b, xyzw) into one array."""
+    ax, ay, az, aw = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+    bx, by, bz, bw = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = aw * bx + ax * bw + ay * bz - az * by
+    out[..., 1] = aw * by - ax * bz + ay * bw + az * bx
+    out[..., 2] = aw * bz + ax * by - ay * bx + az * bw
+    out[..., 3] = aw * bw - ax * bx - ay * by - az * bz
+    return out
+
+
+def _norm3(d: np.ndarray) -> np.ndarray:
+    """(N,) lengths of (N, 3) vectors."""
+    return np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2])
+
+
 def _solve3(m: np.ndarray, v: np.ndarray) -> np.ndarray:
     """x with m x = v, for (N, 3, 3) matrices m and (N, 3) vectors v, by Cramer's rule (the
     matrices are near rotations, well conditioned), element by element."""
-    c0 = np.cross(m[:, :, 1], m[:, :, 2])                    # rows of adj(m) / columns' crosses
-    c1 = np.cross(m[:, :, 2], m[:, :, 0])
-    c2 = np.cross(m[:, :, 0], m[:, :, 1])
-    det = np.sum(m[:, :, 0] * c0, axis=-1)
-    return np.stack([np.sum(c0 * v, axis=-1), np.sum(c1 * v, axis=-1),
-                     np.sum(c2 * v, axis=-1)], axis=-1) / det[:, None]
+    c0 = _cross(m[:, :, 1], m[:, :, 2])                      # rows of adj(m)
+    c1 = _cross(m[:, :, 2], m[:, :, 0])
+    c2 = _cross(m[:, :, 0], m[:, :, 1])
+    out = np.empty(v.shape)
+    for k, c in enumerate((c0, c1, c2)):
+        out[:, k] = c[:, 0] * v[:, 0] + c[:, 1] * v[:, 1] + c[:, 2] * v[:, 2]
+    det = c0[:, 0] * m[:, 0, 0] + c0[:, 1] * m[:, 1, 0] + c0[:, 2] * m[:, 2, 0]
+    return out / det[:, None]
 
 
 def _mat_vec(m: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -639,17 +685,24 @@ class _Player:
             (pt, nt), (pr, nr) = self.segments
             dirty_t = (seg_t[0] != pt) | (seg_t[1] != nt)
             dirty_r = (seg_r[0] != pr) | (seg_r[1] != nr)
-        moved = np.zeros((j_count, f_count), dtype=bool)
+        moved = np.zeros((j_count, f_count), dtype=bool)       # world position changed
+        turned = np.zeros((j_count, f_count), dtype=bool)      # world rotation changed
         for level in x.levels:
             parents = x.parents[level]
             root = parents[0] < 0
-            target = np.full((len(level), f_count), first) if root else moved[parents]
-            self._targets(level, target, root)
-            st = dirty_t[level] | _touches(target & keep_t[level], seg_t, level)
-            sr = dirty_r[level] | _touches(target & keep_r[level], seg_r, level)
+            # a child's translation targets follow its parent's world position and
+            # rotation, its rotation targets the parent's world rotation alone
+            if root:
+                target_t = target_r = np.full((len(level), f_count), first)
+            else:
+                target_t, target_r = moved[parents], turned[parents]
+            self._targets(level, target_t, target_r, root)
+            st = dirty_t[level] | _touches(target_t & keep_t[level], seg_t, level)
+            sr = dirty_r[level] | _touches(target_r & keep_r[level], seg_r, level)
             self._sample(level, st, sr, seg_t, seg_r)
-            moved[level] = st | sr | target
-            self._pose(level, moved[level], root)
+            turned[level] = sr | target_r
+            moved[level] = st | turned[level] | target_t
+            self._pose(level, turned[level], moved[level], root)
         self._errors_at(np.flatnonzero(moved))
         self._slide_at(moved)
         self.segments = (seg_t, seg_r)
@@ -661,30 +714,40 @@ class _Player:
         self.viol = viol
         return viol
 
-    def _targets(self, level: np.ndarray, target: np.ndarray, root: bool) -> None:
-        """The key values of the joints `level` at the frames `target` (L, F) bool."""
+    def _targets(self, level: np.ndarray, target_t: np.ndarray, target_r: np.ndarray,
+                 root: bool) -> None:
+        """The key values of the joints `level`: translations at the frames target_t, rotations
+        at the frames target_r (L, F) bool (where the parent's pose, or only its rotation,
+        moved)."""
         x, f_count = self.x, self.x.t0.shape[1]
-        li, fi = np.nonzero(target)
-        if not len(li):
-            return
+        li, fi = np.nonzero(target_t)
         j = level[li]
         i = j * f_count + fi
         if root:
-            tt, tq = _flat(x.t0)[i], _flat(x.q0)[i]
+            tt = _flat(x.t0)[i]
         else:
             ip = x.parents[j] * f_count + fi
             tt = _solve3(_flat(self.mat)[ip], _flat(x.pos0)[i] - _flat(self.pos)[ip])
-            q = quat_mul(quat_conj(_flat(self.wq)[ip]), _flat(x.wq0)[i])
+        _flat(self.tt)[i] = tt
+        _flat(self.vt)[i] = tt
+        li, fi = np.nonzero(target_r)
+        j = level[li]
+        i = j * f_count + fi
+        if root:
+            tq = _flat(x.q0)[i]
+        else:
+            ip = x.parents[j] * f_count + fi
+            q = _qmul(quat_conj(_flat(self.wq)[ip]), _flat(x.wq0)[i])
             q = np.where((np.sum(q * _flat(x.q0)[i], axis=-1) < 0)[..., None], -q, q)
             tq = _unit(q)
-        _flat(self.tt)[i], _flat(self.tq)[i] = tt, tq
-        _flat(self.vt)[i] = tt
+        _flat(self.tq)[i] = tq
         if x.short:
             codes, quantized = _flat(self.codes), _flat(self.quantized)
             changed = np.any(quantized[i] != tq, axis=-1)
-            codes[i[changed]] = quantize_rotations(tq[changed])
-            quantized[i[changed]] = tq[changed]
-            _flat(self.vq)[i] = dequantize_rotations(codes[i])
+            ic = i[changed]
+            codes[ic] = quantize_rotations(tq[changed])
+            quantized[ic] = tq[changed]
+            _flat(self.vq)[ic] = dequantize_rotations(codes[ic])
         else:
             _flat(self.vq)[i] = _unit_f32(tq)
 
@@ -705,31 +768,36 @@ class _Player:
         _flat(self.rr)[i] = slerped.astype(np.float32)
         _flat(self.nlerp)[i] = _unit(lerped)
 
-    def _pose(self, level: np.ndarray, moved: np.ndarray, root: bool) -> None:
-        """World poses of the joints `level` at the frames `moved` (L, F) bool, as the three
-        players pose them."""
+    def _pose(self, level: np.ndarray, turned: np.ndarray, moved: np.ndarray,
+              root: bool) -> None:
+        """World poses of the joints `level`, as the three players pose them: rotations at the
+        frames `turned`, positions at the frames `moved` (L, F) bool."""
         f_count = self.x.t0.shape[1]
-        li, fi = np.nonzero(moved)
-        j = level[li]
-        i = j * f_count + fi
         pos, mat, wq = _flat(self.pos), _flat(self.mat), _flat(self.wq)
         unit_w, blender, wn, nlerp = (_flat(self.unit), _flat(self.blender), _flat(self.wn),
                                       _flat(self.nlerp))
-        tr, rr = _flat(self.tr)[i], _flat(self.rr)[i]
-        m = raw_matrix(rr)
-        unit = _unit(rr)
+        li, fi = np.nonzero(turned)
+        j = level[li]
+        i = j * f_count + fi
+        rr = _flat(self.rr)[i]
         if root:
-            pos[i], mat[i], wq[i] = tr, m, unit
-            unit_w[i], blender[i], wn[i] = tr, tr, nlerp[i]
+            mat[i], wq[i], wn[i] = raw_matrix(rr), _unit(rr), nlerp[i]
+        else:
+            ip = self.x.parents[j] * f_count + fi
+            mat[i] = _mat_mat(mat[ip], raw_matrix(rr))
+            wq[i] = _qmul(wq[ip], _unit(rr))
+            wn[i] = _qmul(wn[ip], nlerp[i])
+        li, fi = np.nonzero(moved)
+        j = level[li]
+        i = j * f_count + fi
+        tr = _flat(self.tr)[i]
+        if root:
+            pos[i], unit_w[i], blender[i] = tr, tr, tr
             return
         ip = self.x.parents[j] * f_count + fi
-        mp, wp, wnp = mat[ip], wq[ip], wn[ip]
-        pos[i] = pos[ip] + _mat_vec(mp, tr)
-        mat[i] = _mat_mat(mp, m)
-        wq[i] = quat_mul(wp, unit)
-        unit_w[i] = unit_w[ip] + quat_rotate(wp, tr)
-        blender[i] = blender[ip] + quat_rotate(wnp, tr)
-        wn[i] = quat_mul(wnp, nlerp[i])
+        pos[i] = pos[ip] + _mat_vec(mat[ip], tr)
+        unit_w[i] = unit_w[ip] + _qrot(wq[ip], tr)
+        blender[i] = blender[ip] + _qrot(wn[ip], tr)
 
     def _errors_at(self, i: np.ndarray) -> None:
         """Errors of the pairs of flat indices i (j * F + f): each the worst of three players:
@@ -738,13 +806,12 @@ class _Player:
         component by component and normalizes (nlerp); and the spread of the other two around
         the first."""
         pos, unit, blender = _flat(self.pos)[i], _flat(self.unit)[i], _flat(self.blender)[i]
-        _flat(self.spread)[i] = np.maximum(np.linalg.norm(unit - pos, axis=-1),
-                                           np.linalg.norm(blender - pos, axis=-1))
+        _flat(self.spread)[i] = np.maximum(_norm3(unit - pos), _norm3(blender - pos))
         pos0 = _flat(self.x.pos0)[i]
         diff, err = None, None
         for world in (pos, unit, blender):
             d = world - pos0
-            e = np.linalg.norm(d, axis=-1)
+            e = _norm3(d)
             if diff is None:
                 diff, err = d, e
             else:
@@ -765,7 +832,7 @@ class _Player:
         for world in (self.pos, self.unit, self.blender):
             w = _flat(world)
             d = (w[i + 1] - pos0[i + 1]) - (w[i] - pos0[i])
-            slide = np.maximum(slide, np.linalg.norm(d, axis=-1))
+            slide = np.maximum(slide, _norm3(d))
         self.slide[j, f] = slide
 
 
@@ -796,7 +863,7 @@ def _blame(x: _Target, chains: np.ndarray, p: _Player):
     ft = np.broadcast_to(fi[:, None], a.shape)
     c_t, omega = _channel_moves(x, p, a, ft)
     ct = np.where(chain >= 0, np.einsum("vdk,vk->vd", c_t, e), -np.inf)
-    arm = np.cross(p.pos[ki, fi][:, None, :] - p.pos[a, ft], e[:, None, :])
+    arm = _cross(p.pos[ki, fi][:, None, :] - p.pos[a, ft], e[:, None, :])
     strict = (chain >= 0) & (np.arange(chain.shape[1]) > 0)[None, :]       # ancestors of k
     cr = np.where(strict, np.einsum("vdk,vdk->vd", omega, arm), -np.inf)
     top = np.maximum(ct.max(axis=1), cr.max(axis=1))[:, None]
@@ -827,8 +894,8 @@ def _channel_moves(x: _Target, p: _Player, a: np.ndarray, ft: np.ndarray):
                   [0.0, 0.0, 0.0, 1.0])
     c_t = np.empty((j_count * f_count, 3))
     omega = np.empty((j_count * f_count, 3))
-    c_t[i] = quat_rotate(wp, _flat(p.tr)[i] - _flat(p.tt)[i])
-    omega[i] = quat_rotate(wp, _rotvec(quat_mul(_flat(p.rr)[i], quat_conj(_flat(p.tq)[i]))))
+    c_t[i] = _qrot(wp, _flat(p.tr)[i] - _flat(p.tt)[i])
+    omega[i] = _qrot(wp, _rotvec(_qmul(_flat(p.rr)[i], quat_conj(_flat(p.tq)[i]))))
     return c_t[flat], omega[flat]
 
 
