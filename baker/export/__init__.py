@@ -15,11 +15,20 @@ import numpy as np
 
 
 
+#: types jsonable returns as they are
+_PLAIN = frozenset({str, int, bool, type(None)})
+
+
 def jsonable(obj):
     """Plain-Python copy of `obj` for JSON: numpy scalars/arrays, tuples, paths, dataclasses.
 
     Non-finite floats become None (JSON has no NaN). Dict keys become strings.
     """
+    kind = type(obj)
+    if kind in _PLAIN:                      # fast paths: a report's long lists of ints
+        return obj
+    if kind is list:
+        return [v if type(v) in _PLAIN else jsonable(v) for v in obj]
     if obj is None or isinstance(obj, (bool, str)):
         return obj
     if isinstance(obj, (np.bool_,)):
