@@ -671,20 +671,21 @@ class _Player:
         self.diff, self.err, self.spread = empty(3), empty(), empty()
         self.slide = np.zeros((j_count, max(f_count - 1, 0)))
         self.viol = np.zeros((j_count, f_count), dtype=bool)
-        self.segments = None                           # (seg_t, seg_r) of the last play
+        self.segments = None        # ((segments, keys) of translations, of rotations) last played
 
     def play(self, keep_t: np.ndarray, keep_r: np.ndarray) -> np.ndarray:
         """Play the keys keep_t, keep_r (J, F) bool; returns viol."""
         x = self.x
         j_count, f_count = x.t0.shape[:2]
-        seg_t, seg_r = _segments(keep_t), _segments(keep_r)
         first = self.segments is None
         if first:
+            self.segments = ((_segments(keep_t), keep_t.copy()),
+                             (_segments(keep_r), keep_r.copy()))
             dirty_t = dirty_r = np.ones((j_count, f_count), dtype=bool)
         else:
-            (pt, nt), (pr, nr) = self.segments
-            dirty_t = (seg_t[0] != pt) | (seg_t[1] != nt)
-            dirty_r = (seg_r[0] != pr) | (seg_r[1] != nr)
+            dirty_t = _resegment(*self.segments[0], keep_t)
+            dirty_r = _resegment(*self.segments[1], keep_r)
+        seg_t, seg_r = self.segments[0][0], self.segments[1][0]
         moved = np.zeros((j_count, f_count), dtype=bool)       # world position changed
         turned = np.zeros((j_count, f_count), dtype=bool)      # world rotation changed
         for level in x.levels:
@@ -696,6 +697,8 @@ class _Player:
                 target_t = target_r = np.full((len(level), f_count), first)
             else:
                 target_t, target_r = moved[parents], turned[parents]
+            if not (target_t.any() or dirty_t[level].any() or dirty_r[level].any()):
+                continue                                    # nothing below moves either
             self._targets(level, target_t, target_r, root)
             st = dirty_t[level] | _touches(target_t & keep_t[level], seg_t, level)
             sr = dirty_r[level] | _touches(target_r & keep_r[level], seg_r, level)
@@ -705,7 +708,6 @@ class _Player:
             self._pose(level, turned[level], moved[level], root)
         self._errors_at(np.flatnonzero(moved))
         self._slide_at(moved)
-        self.segments = (seg_t, seg_r)
         viol = (self.err > x.tol) | (self.spread > PLAYER_SPREAD_M)
         if x.planted is not None and f_count > 1:
             bad = self.slide > PLANTED_SLIDE * x.tol
@@ -834,6 +836,20 @@ class _Player:
             d = (w[i + 1] - pos0[i + 1]) - (w[i] - pos0[i])
             slide = np.maximum(slide, _norm3(d))
         self.slide[j, f] = slide
+
+
+def _resegment(segments: tuple, played: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """Bring `segments` (`_segments` of the keys `played`, (C, F)) and `played` up to `keep`,
+    in place, recomputing only the channels whose keys changed. Returns (C, F) bool: the frames
+    whose segment changed."""
+    rows = np.flatnonzero(np.any(keep != played, axis=1))
+    dirty = np.zeros(keep.shape, dtype=bool)
+    if len(rows):
+        prev, nxt = _segments(keep[rows])
+        dirty[rows] = (prev != segments[0][rows]) | (nxt != segments[1][rows])
+        segments[0][rows], segments[1][rows] = prev, nxt
+        played[rows] = keep[rows]
+    return dirty
 
 
 def _touches(changed: np.ndarray, segments, level: np.ndarray) -> np.ndarray:
