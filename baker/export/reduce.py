@@ -198,7 +198,20 @@ def quantize_rotations(q: np.ndarray) -> np.ndarray:
     three.js and UsdSkel build the rotation matrix from the stored quaternion without
     normalizing it, so a code of length s gives s^2 R + (1 - s^2) I, off by |s^2 - 1| |R - I|."""
     q = np.asarray(q, dtype=np.float64)
-    u = q.reshape(-1, 4) / np.linalg.norm(q.reshape(-1, 4), axis=1, keepdims=True)
+    flat = q.reshape(-1, 4)
+    if len(flat) > _CHUNK:          # row by row: blocks keep the (N, 16) temporaries in cache
+        return np.concatenate([_quantize(flat[i:i + _CHUNK]) for i in
+                               range(0, len(flat), _CHUNK)]).reshape(q.shape)
+    return _quantize(flat).reshape(q.shape)
+
+
+#: rows per block of quantize_rotations
+_CHUNK = 8192
+
+
+def _quantize(q: np.ndarray) -> np.ndarray:
+    """quantize_rotations of (N, 4) quaternions."""
+    u = q / np.linalg.norm(q, axis=1, keepdims=True)
     s = u * SHORT_MAX
     c = np.floor(s)
     n2 = (np.sum(c * c, axis=1)[:, None] + 2.0 * _bit_sums(c)
@@ -208,14 +221,16 @@ def quantize_rotations(q: np.ndarray) -> np.ndarray:
     lever = 1.0 - u[:, 3:4] ** 2                                         # |R - I|^2 / 4
     cost = sin2 + np.abs(n2 - 1.0) ** 2 * lever
     out = np.clip(c + _BITS.T[np.argmin(cost, axis=1)], -SHORT_MAX, SHORT_MAX)
-    return out.astype(np.int16).reshape(q.shape)
+    return out.astype(np.int16)
 
 
 def _bit_sums(a: np.ndarray) -> np.ndarray:
     """(N, 16): for each of the 16 codes k, the sum of the components of a (N, 4) whose bit is
     set in k (element by element, so a row's result does not depend on the batch)."""
-    return (a[:, 0:1] * _BITS[0] + a[:, 1:2] * _BITS[1] + a[:, 2:3] * _BITS[2]
-            + a[:, 3:4] * _BITS[3])
+    out = np.zeros((len(a), 16))
+    for i in range(4):              # codes with bit i: the codes below 2^i, plus a[:, i]
+        out[:, 1 << i:2 << i] = out[:, :1 << i] + a[:, i:i + 1]
+    return out
 
 
 def dequantize_rotations(codes: np.ndarray) -> np.ndarray:
