@@ -721,7 +721,7 @@ class _Player:
             turned[level] = sr | target_r
             moved[level] = st | turned[level] | target_t
             self._pose(level, turned[level], moved[level], root)
-        self._errors_at(np.flatnonzero(moved))
+        self._errors_at(moved)
         self._slide_at(moved)
         viol = (self.err > x.tol) | (self.spread > PLAYER_SPREAD_M)
         if x.planted is not None and f_count > 1:
@@ -737,53 +737,45 @@ class _Player:
         at the frames target_r (L, F) bool (where the parent's pose, or only its rotation,
         moved)."""
         x, f_count = self.x, self.x.t0.shape[1]
-        li, fi = np.nonzero(target_t)
-        j = level[li]
-        i = j * f_count + fi
-        if root:
-            tt = _flat(x.t0)[i]
-        else:
-            ip = x.parents[j] * f_count + fi
-            tt = _solve3(_flat(self.mat)[ip], _flat(x.pos0)[i] - _flat(self.pos)[ip])
-        _flat(self.tt)[i] = tt
-        _flat(self.vt)[i] = tt
-        li, fi = np.nonzero(target_r)
-        j = level[li]
-        i = j * f_count + fi
-        if root:
-            tq = _flat(x.q0)[i]
-        else:
-            ip = x.parents[j] * f_count + fi
-            q = _qmul(quat_conj(_flat(self.wq)[ip]), _flat(x.wq0)[i])
-            q = np.where((np.sum(q * _flat(x.q0)[i], axis=-1) < 0)[..., None], -q, q)
-            tq = _unit(q)
-        _flat(self.tq)[i] = tq
-        if x.short:
-            codes, quantized = _flat(self.codes), _flat(self.quantized)
-            changed = np.any(quantized[i] != tq, axis=-1)
-            ic = i[changed]
-            codes[ic] = quantize_rotations(tq[changed])
-            quantized[ic] = tq[changed]
-            _flat(self.vq)[ic] = dequantize_rotations(codes[ic])
-        else:
-            _flat(self.vq)[i] = _unit_f32(tq)
+        for j, f, i in _pair_blocks(target_t, level, f_count):
+            if root:
+                tt = _flat(x.t0)[i]
+            else:
+                ip = x.parents[j] * f_count + f
+                tt = _solve3(_flat(self.mat)[ip], _flat(x.pos0)[i] - _flat(self.pos)[ip])
+            _flat(self.tt)[i] = tt
+            _flat(self.vt)[i] = tt
+        for j, f, i in _pair_blocks(target_r, level, f_count):
+            if root:
+                tq = _flat(x.q0)[i]
+            else:
+                ip = x.parents[j] * f_count + f
+                q = _qmul(quat_conj(_flat(self.wq)[ip]), _flat(x.wq0)[i])
+                q = np.where((np.sum(q * _flat(x.q0)[i], axis=-1) < 0)[..., None], -q, q)
+                tq = _unit(q)
+            _flat(self.tq)[i] = tq
+            if x.short:
+                codes, quantized = _flat(self.codes), _flat(self.quantized)
+                changed = np.any(quantized[i] != tq, axis=-1)
+                ic = i[changed]
+                codes[ic] = quantize_rotations(tq[changed])
+                quantized[ic] = tq[changed]
+                _flat(self.vq)[ic] = dequantize_rotations(codes[ic])
+            else:
+                _flat(self.vq)[i] = _unit_f32(tq)
 
     def _sample(self, level, st, sr, seg_t, seg_r) -> None:
         """Played local values of the joints `level` at the frames st (translations) and sr
         (rotations) (L, F) bool; and Blender's nlerp of the rotations."""
         x, f_count = self.x, self.x.t0.shape[1]
-        li, fi = np.nonzero(st)
-        j = level[li]
-        _flat(self.tr)[j * f_count + fi] = _interp(
-            _flat(self.vt), self.static_t, j, _spans(seg_t, j, fi, x.times), False
-        ).astype(np.float32)
-        li, fi = np.nonzero(sr)
-        j = level[li]
-        span = _spans(seg_r, j, fi, x.times)
-        i = j * f_count + fi
-        slerped, lerped = _interp(_flat(self.vq), self.static_r, j, span, True, both=True)
-        _flat(self.rr)[i] = slerped.astype(np.float32)
-        _flat(self.nlerp)[i] = _unit(lerped)
+        for j, f, i in _pair_blocks(st, level, f_count):
+            _flat(self.tr)[i] = _interp(_flat(self.vt), self.static_t, j,
+                                        _spans(seg_t, j, f, x.times), False).astype(np.float32)
+        for j, f, i in _pair_blocks(sr, level, f_count):
+            slerped, lerped = _interp(_flat(self.vq), self.static_r, j,
+                                      _spans(seg_r, j, f, x.times), True, both=True)
+            _flat(self.rr)[i] = slerped.astype(np.float32)
+            _flat(self.nlerp)[i] = _unit(lerped)
 
     def _pose(self, level: np.ndarray, turned: np.ndarray, moved: np.ndarray,
               root: bool) -> None:
@@ -793,48 +785,46 @@ class _Player:
         pos, mat, wq = _flat(self.pos), _flat(self.mat), _flat(self.wq)
         unit_w, blender, wn, nlerp = (_flat(self.unit), _flat(self.blender), _flat(self.wn),
                                       _flat(self.nlerp))
-        li, fi = np.nonzero(turned)
-        j = level[li]
-        i = j * f_count + fi
-        rr = _flat(self.rr)[i]
-        if root:
-            mat[i], wq[i], wn[i] = raw_matrix(rr), _unit(rr), nlerp[i]
-        else:
-            ip = self.x.parents[j] * f_count + fi
-            mat[i] = _mat_mat(mat[ip], raw_matrix(rr))
-            wq[i] = _qmul(wq[ip], _unit(rr))
-            wn[i] = _qmul(wn[ip], nlerp[i])
-        li, fi = np.nonzero(moved)
-        j = level[li]
-        i = j * f_count + fi
-        tr = _flat(self.tr)[i]
-        if root:
-            pos[i], unit_w[i], blender[i] = tr, tr, tr
-            return
-        ip = self.x.parents[j] * f_count + fi
-        pos[i] = pos[ip] + _mat_vec(mat[ip], tr)
-        unit_w[i] = unit_w[ip] + _qrot(wq[ip], tr)
-        blender[i] = blender[ip] + _qrot(wn[ip], tr)
+        for j, f, i in _pair_blocks(turned, level, f_count):
+            rr = _flat(self.rr)[i]
+            if root:
+                mat[i], wq[i], wn[i] = raw_matrix(rr), _unit(rr), nlerp[i]
+            else:
+                ip = self.x.parents[j] * f_count + f
+                mat[i] = _mat_mat(mat[ip], raw_matrix(rr))
+                wq[i] = _qmul(wq[ip], _unit(rr))
+                wn[i] = _qmul(wn[ip], nlerp[i])
+        for j, f, i in _pair_blocks(moved, level, f_count):
+            tr = _flat(self.tr)[i]
+            if root:
+                pos[i], unit_w[i], blender[i] = tr, tr, tr
+                continue
+            ip = self.x.parents[j] * f_count + f
+            pos[i] = pos[ip] + _mat_vec(mat[ip], tr)
+            unit_w[i] = unit_w[ip] + _qrot(wq[ip], tr)
+            blender[i] = blender[ip] + _qrot(wn[ip], tr)
 
-    def _errors_at(self, i: np.ndarray) -> None:
-        """Errors of the pairs of flat indices i (j * F + f): each the worst of three players:
-        pos, as three.js and UsdSkel play the keys; unit, a player that normalizes the slerped
+    def _errors_at(self, moved: np.ndarray) -> None:
+        """Errors of the pairs `moved` (J, F) bool: each the worst of three players: pos, as
+        three.js and UsdSkel play the keys; unit, a player that normalizes the slerped
         quaternions; and Blender's (blender), which interpolates the stored quaternions
         component by component and normalizes (nlerp); and the spread of the other two around
         the first."""
-        pos, unit, blender = _flat(self.pos)[i], _flat(self.unit)[i], _flat(self.blender)[i]
-        _flat(self.spread)[i] = np.maximum(_norm3(unit - pos), _norm3(blender - pos))
-        pos0 = _flat(self.x.pos0)[i]
-        diff, err = None, None
-        for world in (pos, unit, blender):
-            d = world - pos0
-            e = _norm3(d)
-            if diff is None:
-                diff, err = d, e
-            else:
-                diff = np.where((e > err)[..., None], d, diff)
-                err = np.maximum(err, e)
-        _flat(self.diff)[i], _flat(self.err)[i] = diff, err
+        f_count = moved.shape[1]
+        for _, _, i in _pair_blocks(moved, np.arange(len(moved)), f_count):
+            pos, unit, blender = _flat(self.pos)[i], _flat(self.unit)[i], _flat(self.blender)[i]
+            _flat(self.spread)[i] = np.maximum(_norm3(unit - pos), _norm3(blender - pos))
+            pos0 = _flat(self.x.pos0)[i]
+            diff, err = None, None
+            for world in (pos, unit, blender):
+                d = world - pos0
+                e = _norm3(d)
+                if diff is None:
+                    diff, err = d, e
+                else:
+                    diff = np.where((e > err)[..., None], d, diff)
+                    err = np.maximum(err, e)
+            _flat(self.diff)[i], _flat(self.err)[i] = diff, err
 
     def _slide_at(self, moved: np.ndarray) -> None:
         """slide at the planted frame pairs (f, f + 1) with a moved frame."""
@@ -851,6 +841,19 @@ class _Player:
             d = (w[i + 1] - pos0[i + 1]) - (w[i] - pos0[i])
             slide = np.maximum(slide, _norm3(d))
         self.slide[j, f] = slide
+
+
+#: (joint, frame) pairs per block of a playback: the temporaries stay in cache
+_PAIRS = 16384
+
+
+def _pair_blocks(mask: np.ndarray, level: np.ndarray, f_count: int):
+    """(j, f, flat index j * F + f) of the True pairs of mask (L, F) over the joints `level`,
+    in blocks of _PAIRS (every pair is computed on its own: blocks give the same values)."""
+    li, fi = np.nonzero(mask)
+    for k in range(0, len(li), _PAIRS):
+        j, f = level[li[k:k + _PAIRS]], fi[k:k + _PAIRS]
+        yield j, f, j * f_count + f
 
 
 def _resegment(segments: tuple, played: np.ndarray, keep: np.ndarray) -> np.ndarray:
