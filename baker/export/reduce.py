@@ -896,14 +896,15 @@ def _blame(x: _Target, chains: np.ndarray, p: _Player):
     the translation channels and for the rotation channels, each (J, F); scores in metres."""
     j_count, f_count = p.viol.shape
     ki, fi = np.nonzero(p.viol)
-    e = p.diff[ki, fi]
+    e = _flat(p.diff)[ki * f_count + fi]
     e = e / np.maximum(np.linalg.norm(e, axis=-1, keepdims=True), 1e-300)
     chain = chains[ki]                                                     # (V, D)
     a = np.maximum(chain, 0)
     ft = np.broadcast_to(fi[:, None], a.shape)
     c_t, omega = _channel_moves(x, p, a, ft)
     ct = np.where(chain >= 0, np.einsum("vdk,vk->vd", c_t, e), -np.inf)
-    arm = _cross(p.pos[ki, fi][:, None, :] - p.pos[a, ft], e[:, None, :])
+    pos = _flat(p.pos)
+    arm = _cross(pos[ki * f_count + fi][:, None, :] - pos[a * f_count + ft], e[:, None, :])
     strict = (chain >= 0) & (np.arange(chain.shape[1]) > 0)[None, :]       # ancestors of k
     cr = np.where(strict, np.einsum("vdk,vdk->vd", omega, arm), -np.inf)
     top = np.maximum(ct.max(axis=1), cr.max(axis=1))[:, None]
