@@ -1,4 +1,4 @@
-"""Build a NavSurface from an Environment (Recast's build steps, done with rays and numpy).
+"""Build a navigation surface (NavData, queried through query.NavSurface) from an Environment (Recast's build steps, done with rays and numpy).
 
 Steps (all vectorized over columns / samples; rays are cast in batched chunks):
 1. Column heightfield: cast a ray straight down through every column centre from above the
@@ -35,7 +35,8 @@ from scipy.sparse.csgraph import connected_components
 
 from baker.errors import NavError
 from baker.navmesh import budget
-from baker.navmesh.surface import DIRS, OPPOSITE, NavSurface
+from baker.navmesh.query import NavSurface
+from baker.navmesh.surface import DIRS, OPPOSITE, NavData
 
 log = logging.getLogger(__name__)
 
@@ -293,9 +294,15 @@ def _round_up(x: float) -> str:
     return f"{math.ceil(x / 10 ** e) * 10 ** e:.3g}"
 
 
-def build(env, agent, *, bounds=None, coarse_factor: int = 4,
-          min_island_area: float | None = None) -> NavSurface:
-    """Build the navigation surface of `env` for `agent` (a NavAgentConfig).
+def build(env, agent, **kw) -> NavSurface:
+    """The navigation surface of `env` for `agent`, ready for queries: NavSurface(build_data(
+    env, agent, **kw)) (see build_data)."""
+    return NavSurface(build_data(env, agent, **kw))
+
+
+def build_data(env, agent, *, bounds=None, coarse_factor: int = 4,
+               min_island_area: float | None = None) -> NavData:
+    """Build the navigation surface data of `env` for `agent` (a NavAgentConfig).
 
     bounds          : optional (2, 3) [min, max] corners (or (2, 2) XZ corners) limiting the
                       build area; default: the environment's bounds
@@ -361,7 +368,7 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
     log.info("navmesh: %d x %d columns, %d hits, %d walkable samples, %d components, "
              "%.3f m^2; %s", nx, nz, s.n_hits, len(positions), len(comp_area), comp_area.sum(),
              ", ".join(f"{k} {v:.3f}s" for k, v in timings.items()))
-    return NavSurface(
+    return NavData(
         positions=positions.astype(np.float32),
         normals=s.normals[sel].astype(np.float32),
         cells=cells,

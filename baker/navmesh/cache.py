@@ -40,7 +40,8 @@ from pathlib import Path
 import numpy as np
 
 from baker.atomic import atomic_output
-from baker.navmesh.surface import DIRS, FORMAT_VERSION, NavSurface
+from baker.navmesh.query import NavSurface
+from baker.navmesh.surface import DIRS, FORMAT_VERSION, NavData
 
 log = logging.getLogger(__name__)
 
@@ -187,7 +188,7 @@ def _final_dtypes(a: dict) -> dict[str, str]:
     return out
 
 
-def encode(surface: NavSurface, raw=None) -> dict[str, np.ndarray]:
+def encode(surface: NavData | NavSurface, raw=None) -> dict[str, np.ndarray]:
     """The entry's members: {name: array}; see the module docstring. Packed arrays are cut
     into chunks of whole rows (about CHUNK raw bytes each), each deflated on its own, so a
     load inflates them in parallel straight into the surface's arrays. Those named in `raw`
@@ -243,8 +244,8 @@ def encode(surface: NavSurface, raw=None) -> dict[str, np.ndarray]:
     return out
 
 
-def decode(members) -> NavSurface:
-    """A NavSurface from an entry's members (a mapping name -> array). Raises ValueError (or
+def decode(members) -> NavData:
+    """A surface's data from an entry's members (a mapping name -> array). Raises ValueError (or
     another of _CORRUPT) when they are inconsistent."""
     meta = json.loads(bytes(members["meta"]).decode())
     if meta.get("layout") != LAYOUT or meta.get("format_version") != FORMAT_VERSION:
@@ -314,11 +315,11 @@ def decode(members) -> NavSurface:
     kw["coarse_factor"] = int(sc["coarse_factor"])
     for k in ("cell_size", "agent_radius", "agent_height", "step_height", "max_slope"):
         kw[k] = float(sc[k])
-    return NavSurface(**{f.name: kw[f.name] for f in fields(NavSurface) if f.name != "_cache"})
+    return NavData(**{f.name: kw[f.name] for f in fields(NavData)})
 
 
 # ----------------------------------------------------------------------------- files
-def save(surface: NavSurface, path) -> Path:
+def save(surface: NavData | NavSurface, path) -> Path:
     """Write `surface` to `path` (.npz) atomically (temporary file + os.replace). OSError (or
     ExportError) when the folder cannot be created or written."""
     path = Path(path)
@@ -346,7 +347,7 @@ def load(path, *, strict: bool = False) -> NavSurface | None:
             meta = json.loads(bytes(z["meta"]).decode())
             if meta.get("layout") != LAYOUT or meta.get("format_version") != FORMAT_VERSION:
                 return None
-            return decode({k: z[k] for k in z.files})
+            return NavSurface(decode({k: z[k] for k in z.files}))
     except FileNotFoundError:
         return None
     except IsADirectoryError as exc:

@@ -72,7 +72,7 @@ def test_arrays_that_cannot_be_derived_are_stored(surface, tmp_path):
     they are, not rebuilt."""
     pos = surface.positions.copy()
     pos[:, 0] += np.float32(1e-3)
-    odd = replace(surface, positions=pos)
+    odd = replace(surface.data, positions=pos)   # the data (NavData) is the dataclass
     back = cache.load(cache.save(odd, tmp_path / "a.npz"), strict=True)
     same_surface(odd, back)
 
