@@ -230,10 +230,10 @@ def _inside_solid(hcol, hprim, first, face_comp, comp_closed, comp_wind,
         same_next[:-1] = ~first[1:]
         lost_exit = si[wound & (lab == 1) & (nxt != -1)]
         lost_exit = lost_exit[same_next[lost_exit]]
-        np.add.at(toggle, lost_exit + 1, -1)
+        toggle[lost_exit + 1] -= 1   # distinct hits: no repeated index
         lost_entry = si[wound & (lab == -1) & (prev != 1)]
         lost_entry = lost_entry[~first[lost_entry]]
-        np.add.at(toggle, lost_entry - 1, 1)
+        toggle[lost_entry - 1] += 1
     excl = np.cumsum(toggle) - toggle
     fidx = np.maximum.accumulate(np.where(first, np.arange(nh), 0))
     return (excl - excl[fidx]) > 0
@@ -542,7 +542,7 @@ def _clearance(caster: _Caster, grid: _Grid, s: _Samples, links, radius, h_off) 
         cosang = (np.abs(fn[:, 0] * dirv[hit, 0] + fn[:, 2] * dirv[hit, 2])
                   / np.maximum(hlen, 1e-12))
         dd[hit] = th[hit] * np.where(hlen > 1e-6, cosang, 1.0)
-        np.minimum.at(d0, bs, dd)
+        d0 = _segment_min(bs, dd, len(border), np.inf)
     dist = np.full(len(sy), np.inf)
     dist[border] = d0
     w = np.where(np.arange(8) < 4, cell, cell * math.sqrt(2.0))
@@ -559,8 +559,14 @@ def _clearance(caster: _Caster, grid: _Grid, s: _Samples, links, radius, h_off) 
             nd = dist[src] + w[d]
             better = nd < dist[nb]
             if better.any():
-                np.minimum.at(dist, nb[better], nd[better])
-                changed.append(nb[better])
+                nb, nd = nb[better], nd[better]
+                o = np.argsort(nb, kind="stable")
+                nb, nd = nb[o], nd[o]
+                head = np.ones(len(nb), dtype=bool)
+                head[1:] = nb[1:] != nb[:-1]
+                u = nb[head]
+                dist[u] = np.minimum(dist[u], np.minimum.reduceat(nd, np.nonzero(head)[0]))
+                changed.append(u)
         active = np.unique(np.concatenate(changed)) if changed else np.zeros(0, np.int64)
         active = active[dist[active] < radius + cell * 1.5]
     return dist
@@ -608,13 +614,31 @@ def _blocker_columns(caster: _Caster, x0, z0, nx, nz, cell, angle) -> np.ndarray
     i1 = np.clip(np.floor((hi[:, 0] - x0) / cell).astype(np.int64) + 2, 0, nx)
     j0 = np.clip(np.floor((lo[:, 2] - z0) / cell).astype(np.int64) - 1, 0, nz)
     j1 = np.clip(np.floor((hi[:, 2] - z0) / cell).astype(np.int64) + 2, 0, nz)
-    diff = np.zeros((nx + 1, nz + 1), dtype=np.int32)
-    np.add.at(diff, (i0, j0), 1)
-    np.add.at(diff, (i1, j0), -1)
-    np.add.at(diff, (i0, j1), -1)
-    np.add.at(diff, (i1, j1), 1)
+    w = nz + 1
+    idx = np.concatenate([i0 * w + j0, i1 * w + j0, i0 * w + j1, i1 * w + j1])
+    sign = np.repeat(np.array([1, -1, -1, 1], dtype=np.int32), len(i0))
+    diff = np.zeros((nx + 1) * w, dtype=np.int32)   # sorted segments, not np.add.at
+    o = np.argsort(idx, kind="stable")
+    idx, sign = idx[o], sign[o]
+    head = np.ones(len(idx), dtype=bool)
+    head[1:] = idx[1:] != idx[:-1]
+    diff[idx[head]] = np.add.reduceat(sign, np.nonzero(head)[0])
+    diff = diff.reshape(nx + 1, w)
     cov = np.cumsum(np.cumsum(diff, axis=0), axis=1)[:nx, :nz]
     return (cov > 0).reshape(-1)
+
+
+def _segment_min(group: np.ndarray, values: np.ndarray, n: int, empty) -> np.ndarray:
+    """(n,) the smallest of `values` in each group 0..n-1 (`empty` where a group has none):
+    np.minimum.at's result, by a stable sort and reduceat (several times faster)."""
+    o = np.argsort(group, kind="stable")
+    g = group[o]
+    out = np.full(n, empty, dtype=values.dtype)
+    if len(g):
+        head = np.ones(len(g), dtype=bool)
+        head[1:] = g[1:] != g[:-1]
+        out[g[head]] = np.minimum.reduceat(values[o], np.nonzero(head)[0])
+    return out
 
 
 def _csr(links: np.ndarray, mask: np.ndarray) -> csr_matrix:
@@ -638,8 +662,7 @@ def _coarse(positions, cells, links, k, nz):
     c = (k - 1) * 0.5
     pri = np.abs(cells[:, 0] % k - c) + np.abs(cells[:, 1] % k - c)
     key = np.rint(pri * 2).astype(np.int64) * n + np.arange(n)
-    best = np.full(nc, np.iinfo(np.int64).max)
-    np.minimum.at(best, lab, key)
+    best = _segment_min(lab, key, nc, np.iinfo(np.int64).max)
     rep = (best % n).astype(np.int32)
     # coarse edges from 4-links that cross block borders
     keys = []

