@@ -50,6 +50,8 @@ MAX_PASSES = 256
 MAX_COLUMNS = 40_000_000
 #: Columns ray-cast and reduced to walkable samples at a time (bounds the per-hit memory).
 TILE_COLUMNS = 1 << 20
+#: Samples linked at a time (bounds the temporaries of the link tests).
+TILE_SAMPLES = 1 << 19
 
 
 # --------------------------------------------------------------------------- ray casting
@@ -251,36 +253,40 @@ def _riser(ya, yb, ga, gb):
     return np.minimum(np.abs(dy - ga), np.abs(dy - gb))
 
 
-def _link_axis(d, scol, six, siz, y, ceil, nx, nz, col_start, counts, step, height, g):
-    """Best neighbour sample (or -1) of every sample in axis direction d (0: +X, 1: +Z):
-    the sample of the next column with the smallest riser, within the step height, with the
-    agent height free above both. g : (n,) rise of each sample's plane over one cell along d."""
-    n = len(y)
+def _link_axis(d, rows, scol, six, siz, ys, ceil, nx, nz, col_start, counts, step, height,
+               gs):
+    """Best neighbour sample (or -1) of the samples `rows` (a slice) in axis direction d
+    (0: +X, 1: +Z): the sample of the next column with the smallest riser, within the step
+    height, with the agent height free above both. ys, ceil, gs : (n,) of every sample; gs is
+    the rise of each sample's plane over one cell along d."""
+    n = len(ys)
+    scol, y, g = scol[rows], ys[rows], gs[rows]
     if d == 0:
-        inb = six < nx - 1
+        inb = six[rows] < nx - 1
         ncol = scol + nz
     else:
-        inb = siz < nz - 1
+        inb = siz[rows] < nz - 1
         ncol = scol + 1
     ncol = np.where(inb, ncol, scol)
     cnt = np.where(inb, counts[ncol], 0)
     start = col_start[ncol]
     cand = np.minimum(start, n - 1)
-    yc = y[cand]
-    dy = _riser(y, yc, g, g[cand])
-    gap = np.minimum(ceil[cand], ceil) - np.maximum(yc, y)
+    yc = ys[cand]
+    dy = _riser(y, yc, g, gs[cand])
+    cs = ceil[rows]
+    gap = np.minimum(ceil[cand], cs) - np.maximum(yc, y)
     ok = (cnt > 0) & (dy <= step) & (gap >= height)
     best = np.where(ok, cand, -1)
     multi = np.nonzero(cnt > 1)[0]
     if len(multi):
         best_dy = np.where(ok, dy, np.inf)[multi]
         bm = best[multi]
-        ys, cs, st, cm = y[multi], ceil[multi], start[multi], cnt[multi]
+        ym, cm_, gm, st, cm = y[multi], cs[multi], g[multi], start[multi], cnt[multi]
         for k in range(1, int(cm.max())):
             sel = np.nonzero(cm > k)[0]
             cand = st[sel] + k
-            dy = _riser(ys[sel], y[cand], g[multi][sel], g[cand])
-            gap = np.minimum(ceil[cand], cs[sel]) - np.maximum(y[cand], ys[sel])
+            dy = _riser(ym[sel], ys[cand], gm[sel], gs[cand])
+            gap = np.minimum(ceil[cand], cm_[sel]) - np.maximum(ys[cand], ym[sel])
             ok = (dy <= step) & (gap >= height) & (dy < best_dy[sel])
             bm[sel[ok]] = cand[ok]
             best_dy[sel[ok]] = dy[ok]
@@ -475,12 +481,15 @@ def _links(caster: _Caster, grid: _Grid, s: _Samples, step, height, slope, h_off
     # rise of each sample's plane over one cell along +X, +Z and the two diagonals
     gx = -cell * s.normals[:, 0] / s.normals[:, 1]
     gz = -cell * s.normals[:, 2] / s.normals[:, 1]
-    grad = {0: gx, 1: gz, 4: gx + gz, 7: gx - gz}
+    grad = {0: gx, 1: gz}
     blockers = _blocker_columns(caster, grid.x0, grid.z0, nx, nz, cell,
                                 min(slope, math.atan2(h_off, cell)))
     for d in (0, 1):
-        nb = _link_axis(d, scol, s.ix, s.iz, sy, sceil, nx, nz, s.col_start, counts, step,
-                        height, grad[d])
+        nb = np.empty(n, dtype=np.int64)
+        for r0 in range(0, n, TILE_SAMPLES):   # bounded temporaries (peak memory, page faults)
+            r = slice(r0, min(n, r0 + TILE_SAMPLES))
+            nb[r] = _link_axis(d, r, scol, s.ix, s.iz, sy, sceil, nx, nz, s.col_start, counts,
+                               step, height, grad[d])
         src = np.nonzero(nb >= 0)[0]
         tt = nb[src]
         test = blockers[scol[src]] | blockers[scol[tt]]
@@ -511,7 +520,10 @@ def _links(caster: _Caster, grid: _Grid, s: _Samples, step, height, slope, h_off
         src = np.nonzero((u1 >= 0) & (u1 == u2))[0]
         u = u1[src]
         gap = np.minimum(sceil[src], sceil[u]) - np.maximum(sy[src], sy[u])
-        ok = (_riser(sy[src], sy[u], grad[d][src], grad[d][u]) <= step) & (gap >= height)
+        # the diagonal's rise, gx +/- gz, only where it is needed (the same sums, elementwise)
+        ga = gx[src] + gz[src] if d == 4 else gx[src] - gz[src]
+        gb = gx[u] + gz[u] if d == 4 else gx[u] - gz[u]
+        ok = (_riser(sy[src], sy[u], ga, gb) <= step) & (gap >= height)
         src, u = src[ok], u[ok]
         links[src, d] = u
         links[u, OPPOSITE[d]] = src
