@@ -2,13 +2,16 @@
 baker.navmesh's build and of benchmarks/recast_reference.cpp (Recast 1.5.1, up to its regions),
 both ratios printed by one run.
 
-    python benchmarks/bench_nav_recast.py [--repeat 3] [--recast-bin PATH]
+    python benchmarks/bench_nav_recast.py [--repeat 3] [--recast-bin PATH] [--before TREE]
+
+--before TREE also runs the build of another checkout of baker (e.g. a worktree of the commit
+before a change) in the same run, alternated with the others, for before/after figures.
 
 The level is bench_navmesh.generated_scene() (terrain, hollow half logs, rocks, 200 x 200 m),
 agent radius 0.3 m, height 1.0 m, climb 0.3 m, slope 60 deg, cell 0.1 m (Recast's cell height
 0.05 m). Each build runs in a fresh process, with the mesh loaded (and, for baker, the
 environment's ray caster built: the input the simulation shares) before it starts:
-- time: the build's wall time;
+- time: the build's wall time, and its CPU time (the fairer figure on a shared machine);
 - memory: the peak resident memory during the build (Linux VmHWM, reset through
   /proc/self/clear_refs just before it) above the resident memory before it.
 Medians over --repeat processes. Without --recast-bin the reference is compiled with g++
@@ -20,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import re
 import statistics
 import subprocess
@@ -62,11 +66,11 @@ def child() -> None:
     with open("/proc/self/clear_refs", "w") as fh:
         fh.write("5")
     before = _status_kb("VmRSS:")
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     s = build(env, agent)
-    dt = time.perf_counter() - t
+    dt, dc = time.perf_counter() - t, time.process_time() - c
     peak = _status_kb("VmHWM:")
-    print(json.dumps({"time_s": dt, "memory_mb": (peak - before) / 1024.0,
+    print(json.dumps({"time_s": dt, "cpu_s": dc, "memory_mb": (peak - before) / 1024.0,
                       "samples": s.n_samples, "walkable_m2": s.walkable_area}))
 
 
@@ -100,14 +104,18 @@ def run_recast(binary: Path, obj: Path) -> dict:
                           str(a["max_slope_deg"])], check=True, capture_output=True,
                          text=True).stdout
     t = float(re.search(r"build ([\d.]+) s", out).group(1))
+    cpu = float(re.search(r"cpu ([\d.]+) s", out).group(1))
     mem = float(re.search(r"build memory ([\d.]+) MB", out).group(1))
     area = float(re.search(r"walkable area ([\d.]+) m", out).group(1))
-    return {"time_s": t, "memory_mb": mem, "walkable_m2": area}
+    return {"time_s": t, "cpu_s": cpu, "memory_mb": mem, "walkable_m2": area}
 
 
-def run_baker() -> dict:
+def run_baker(tree: Path | None = None) -> dict:
+    env = dict(os.environ)
+    if tree is not None:   # that checkout's baker first on the path
+        env["PYTHONPATH"] = os.pathsep.join([str(tree), env.get("PYTHONPATH", "")])
     out = subprocess.run([sys.executable, __file__, "--child"], check=True, capture_output=True,
-                         text=True, cwd=ROOT).stdout
+                         text=True, cwd=ROOT, env=env).stdout
     return json.loads(out.strip().splitlines()[-1])
 
 
@@ -115,6 +123,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--recast-bin")
+    ap.add_argument("--before", type=Path, help="another checkout of baker, run alongside")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.child:
@@ -125,22 +134,29 @@ def main(argv=None) -> int:
         obj = tmp / "generated.obj"
         n = write_obj(obj)
         binary = recast_binary(tmp, a.recast_bin)
-        rec, ours = [], []
-        for _ in range(a.repeat):   # alternated, so both see the same machine load
+        rec, ours, old = [], [], []
+        for _ in range(a.repeat):   # alternated, so all see the same machine load
             rec.append(run_recast(binary, obj))
             ours.append(run_baker())
+            if a.before:
+                old.append(run_baker(a.before))
     med = statistics.median
-    rt, rm = med(r["time_s"] for r in rec), med(r["memory_mb"] for r in rec)
-    bt, bm = med(r["time_s"] for r in ours), med(r["memory_mb"] for r in ours)
+    r = {k: med(x[k] for x in rec) for k in ("time_s", "cpu_s", "memory_mb")}
     print(f"generated level: {n:,} triangles, cell {AGENT['cell_size']} m, {a.repeat} runs each, "
           f"medians")
-    print(f"  Recast C++ : build {rt:.2f} s, memory {rm:.0f} MB, walkable "
-          f"{rec[0]['walkable_m2']:.0f} m^2")
-    print(f"  baker      : build {bt:.2f} s, memory {bm:.0f} MB, walkable "
-          f"{ours[0]['walkable_m2']:.0f} m^2, {ours[0]['samples']:,} samples")
-    print(f"  ratio      : time {bt / rt:.2f}x (target <= {TARGET_TIME}x: "
-          f"{'met' if bt / rt <= TARGET_TIME else 'NOT met'}), memory {bm / rm:.1f}x "
-          f"(target <= {TARGET_MEMORY:g}x: {'met' if bm / rm <= TARGET_MEMORY else 'NOT met'})")
+    print(f"  Recast C++ : build {r['time_s']:.2f} s (CPU {r['cpu_s']:.2f} s), memory "
+          f"{r['memory_mb']:.0f} MB, walkable {rec[0]['walkable_m2']:.0f} m^2")
+    for label, runs in (("baker", ours), (f"baker ({a.before})", old)):
+        if not runs:
+            continue
+        b = {k: med(x[k] for x in runs) for k in ("time_s", "cpu_s", "memory_mb")}
+        tr, cr, mr = (b[k] / r[k] for k in ("time_s", "cpu_s", "memory_mb"))
+        print(f"  {label}: build {b['time_s']:.2f} s (CPU {b['cpu_s']:.2f} s), memory "
+              f"{b['memory_mb']:.0f} MB, walkable {runs[0]['walkable_m2']:.0f} m^2, "
+              f"{runs[0]['samples']:,} samples")
+        print(f"    ratio to Recast: time {tr:.2f}x, CPU {cr:.2f}x (target <= {TARGET_TIME}x: "
+              f"{'met' if tr <= TARGET_TIME else 'NOT met'}), memory {mr:.1f}x "
+              f"(target <= {TARGET_MEMORY:g}x: {'met' if mr <= TARGET_MEMORY else 'NOT met'})")
     return 0
 
 

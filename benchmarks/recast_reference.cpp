@@ -18,6 +18,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -77,6 +78,7 @@ int main(int argc, char** argv) {
 
     { std::ofstream reset("/proc/self/clear_refs"); reset << "5"; }  // peak := current
     const long rssBefore = procStatusKb("VmRSS:");
+    const std::clock_t c0 = std::clock();
     auto t0 = std::chrono::steady_clock::now();
     rcContext ctx(false);
     rcConfig cfg{};
@@ -109,9 +111,10 @@ int main(int argc, char** argv) {
     for (int i = 0; i < chf->spanCount; ++i)
         spans += chf->areas[i] != RC_NULL_AREA && chf->spans[i].reg != 0;
     double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double cpu = double(std::clock() - c0) / CLOCKS_PER_SEC;
     const long peak = procStatusKb("VmHWM:");
-    std::printf("grid %d x %d, eroded walkable spans %ld (%.2f m^2), in regions %ld, walkable area %.2f m^2, build %.3f s, build memory %.1f MB (peak %.1f MB, before %.1f MB)\n",
-                cfg.width, cfg.height, eroded, eroded * cs * cs, spans, spans * cs * cs, sec,
+    std::printf("grid %d x %d, eroded walkable spans %ld (%.2f m^2), in regions %ld, walkable area %.2f m^2, build %.3f s (cpu %.3f s), build memory %.1f MB (peak %.1f MB, before %.1f MB)\n",
+                cfg.width, cfg.height, eroded, eroded * cs * cs, spans, spans * cs * cs, sec, cpu,
                 (peak - rssBefore) / 1024.0, peak / 1024.0, rssBefore / 1024.0);
     return 0;
 }

@@ -473,37 +473,29 @@ def _samples(caster: _Caster, grid: _Grid, ytop, solids, slope, height, timings,
 
 def _links(caster: _Caster, grid: _Grid, s: _Samples, step, height, slope, h_off) -> np.ndarray:
     """3. (n, 8) int32 neighbour links of every sample (-1: none): a riser up to `step`, room
-    for `height` above both, and no steep face between them."""
+    for `height` above both, and no steep face between them. Tested in tiles of TILE_SAMPLES
+    samples, so that the temporaries stay small (fresh large arrays cost page faults)."""
     nx, nz, cell = grid.nx, grid.nz, grid.cell
     scol, sy, sceil, counts = s.col, s.y, s.ceil, s.counts
     n = len(sy)
     links = np.full((n, 8), -1, dtype=np.int32)
-    # rise of each sample's plane over one cell along +X, +Z and the two diagonals
+    # rise of each sample's plane over one cell along +X and +Z (the diagonals: their sums)
     gx = -cell * s.normals[:, 0] / s.normals[:, 1]
     gz = -cell * s.normals[:, 2] / s.normals[:, 1]
     grad = {0: gx, 1: gz}
     blockers = _blocker_columns(caster, grid.x0, grid.z0, nx, nz, cell,
                                 min(slope, math.atan2(h_off, cell)))
     for d in (0, 1):
-        nb = np.empty(n, dtype=np.int64)
-        for r0 in range(0, n, TILE_SAMPLES):   # bounded temporaries (peak memory, page faults)
+        for r0 in range(0, n, TILE_SAMPLES):   # tiles in sample order: writes as in one piece
             r = slice(r0, min(n, r0 + TILE_SAMPLES))
-            nb[r] = _link_axis(d, r, scol, s.ix, s.iz, sy, sceil, nx, nz, s.col_start, counts,
-                               step, height, grad[d])
-        src = np.nonzero(nb >= 0)[0]
-        tt = nb[src]
-        test = blockers[scol[src]] | blockers[scol[tt]]
-        if test.any():  # only links near steep triangles can be blocked by them
-            q, qt = src[test], tt[test]
-            o = np.stack([s.px[q], np.maximum(sy[q], sy[qt]) + h_off, s.pz[q]], axis=1)
-            dirv = np.zeros_like(o)
-            dirv[:, 0], dirv[:, 2] = DIRS[d]
-            th, _ = caster.cast(o, dirv, cell)
-            ok = np.ones(len(src), dtype=bool)
-            ok[np.nonzero(test)[0][np.isfinite(th)]] = False
-            src, tt = src[ok], tt[ok]
-        links[src, d] = tt
-        links[tt, OPPOSITE[d]] = src
+            nb = _link_axis(d, r, scol, s.ix, s.iz, sy, sceil, nx, nz, s.col_start, counts,
+                            step, height, grad[d])
+            src = np.nonzero(nb >= 0)[0]
+            tt = nb[src]
+            src += r0
+            src, tt = _unblocked(caster, s, blockers, d, src, tt, h_off, cell)
+            links[src, d] = tt
+            links[tt, OPPOSITE[d]] = src
     # keep symmetric links only: two layers of one column may have claimed the same sample
     msrc = np.nonzero(counts[scol] > 1)[0]
     for d in (0, 1):
@@ -511,23 +503,51 @@ def _links(caster: _Caster, grid: _Grid, s: _Samples, step, height, slope, h_off
         bad = links[links[src, d], OPPOSITE[d]] != src
         links[src[bad], d] = -1
     for d, (a1, a2) in ((4, (0, 1)), (7, (0, 3))):
-        s1 = np.nonzero(links[:, a1] >= 0)[0]
-        u1 = np.full(n, -1, dtype=np.int32)
-        u1[s1] = links[links[s1, a1], a2]
-        s2 = np.nonzero(links[:, a2] >= 0)[0]
-        u2 = np.full(n, -1, dtype=np.int32)
-        u2[s2] = links[links[s2, a2], a1]
-        src = np.nonzero((u1 >= 0) & (u1 == u2))[0]
-        u = u1[src]
-        gap = np.minimum(sceil[src], sceil[u]) - np.maximum(sy[src], sy[u])
-        # the diagonal's rise, gx +/- gz, only where it is needed (the same sums, elementwise)
-        ga = gx[src] + gz[src] if d == 4 else gx[src] - gz[src]
-        gb = gx[u] + gz[u] if d == 4 else gx[u] - gz[u]
-        ok = (_riser(sy[src], sy[u], ga, gb) <= step) & (gap >= height)
-        src, u = src[ok], u[ok]
+        src, u = _diagonal(links, d, a1, a2, sy, sceil, gx, gz, step, height)
         links[src, d] = u
         links[u, OPPOSITE[d]] = src
     return links
+
+
+def _unblocked(caster: _Caster, s: _Samples, blockers, d, src, tt, h_off, cell):
+    """The links src -> tt (direction d) that no steep face blocks: a short horizontal ray
+    from above the higher sample, cast only next to steep triangles (blocker columns)."""
+    test = blockers[s.col[src]] | blockers[s.col[tt]]
+    if not test.any():
+        return src, tt
+    q, qt = src[test], tt[test]
+    o = np.stack([s.px[q], np.maximum(s.y[q], s.y[qt]) + h_off, s.pz[q]], axis=1)
+    dirv = np.zeros_like(o)
+    dirv[:, 0], dirv[:, 2] = DIRS[d]
+    th, _ = caster.cast(o, dirv, cell)
+    ok = np.ones(len(src), dtype=bool)
+    ok[np.nonzero(test)[0][np.isfinite(th)]] = False
+    return src[ok], tt[ok]
+
+
+def _diagonal(links, d, a1, a2, sy, sceil, gx, gz, step, height):
+    """Diagonal links (src, u) in direction d: both L-shaped paths of axis links (a1 then a2,
+    a2 then a1) reach u, within the step height and with the agent height free above."""
+    n = len(links)
+    s1 = np.nonzero(links[:, a1] >= 0)[0]
+    u1 = np.full(n, -1, dtype=np.int32)
+    u1[s1] = links[links[s1, a1], a2]
+    s2 = np.nonzero(links[:, a2] >= 0)[0]
+    u2 = np.full(n, -1, dtype=np.int32)
+    u2[s2] = links[links[s2, a2], a1]
+    src = np.nonzero((u1 >= 0) & (u1 == u2))[0]
+    ok = np.empty(len(src), dtype=bool)
+    for r0 in range(0, len(src), TILE_SAMPLES):
+        r = slice(r0, r0 + TILE_SAMPLES)
+        sr = src[r]
+        u = u1[sr]
+        gap = np.minimum(sceil[sr], sceil[u]) - np.maximum(sy[sr], sy[u])
+        # the diagonal's rise, gx +/- gz, only where it is needed (the same sums, elementwise)
+        ga = gx[sr] + gz[sr] if d == 4 else gx[sr] - gz[sr]
+        gb = gx[u] + gz[u] if d == 4 else gx[u] - gz[u]
+        ok[r] = (_riser(sy[sr], sy[u], ga, gb) <= step) & (gap >= height)
+    src = src[ok]
+    return src, u1[src]
 
 
 def _clearance(caster: _Caster, grid: _Grid, s: _Samples, links, radius, h_off) -> np.ndarray:
@@ -628,13 +648,9 @@ def _blocker_columns(caster: _Caster, x0, z0, nx, nz, cell, angle) -> np.ndarray
     j1 = np.clip(np.floor((hi[:, 2] - z0) / cell).astype(np.int64) + 2, 0, nz)
     w = nz + 1
     idx = np.concatenate([i0 * w + j0, i1 * w + j0, i0 * w + j1, i1 * w + j1])
-    sign = np.repeat(np.array([1, -1, -1, 1], dtype=np.int32), len(i0))
-    diff = np.zeros((nx + 1) * w, dtype=np.int32)   # sorted segments, not np.add.at
-    o = np.argsort(idx, kind="stable")
-    idx, sign = idx[o], sign[o]
-    head = np.ones(len(idx), dtype=bool)
-    head[1:] = idx[1:] != idx[:-1]
-    diff[idx[head]] = np.add.reduceat(sign, np.nonzero(head)[0])
+    sign = np.repeat(np.array([1.0, -1.0, -1.0, 1.0]), len(i0))
+    # corner counts by bincount (exact small integers), not np.add.at
+    diff = np.bincount(idx, sign, minlength=(nx + 1) * w).astype(np.int32)
     diff = diff.reshape(nx + 1, w)
     cov = np.cumsum(np.cumsum(diff, axis=0), axis=1)[:nx, :nz]
     return (cov > 0).reshape(-1)
