@@ -104,13 +104,22 @@ def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     g = coo_matrix((np.ones(len(es), np.int8), (es[:, 0], es[:, 1])), shape=(nv, nv)).tocsr()
     ncomp, vcomp = connected_components(g, directed=True, connection="weak")
     key = es[:, 0] * nv + es[:, 1]
-    uk, cnt = np.unique(key, return_counts=True)
+    o = np.argsort(key)
+    ks = key[o]
+    head = np.ones(len(ks), dtype=bool)
+    head[1:] = ks[1:] != ks[:-1]
+    first = np.nonzero(head)[0]
+    cnt = np.diff(np.append(first, len(ks)))
+    uk = ks[first]
     closed = np.ones(ncomp, dtype=bool)
     closed[vcomp[(uk[cnt != 2] // nv)]] = False
-    # consistently wound: each edge is used once in each direction
+    # consistently wound: each edge is used once in each direction. Only closed components
+    # (every edge used exactly twice) are judged, so it is enough that the two uses of such
+    # an edge go opposite ways
     uniq_d = np.ones(ncomp, dtype=bool)
-    dk, dc = np.unique(e[:, 0] * nv + e[:, 1], return_counts=True)
-    uniq_d[vcomp[dk[dc != 1] // nv]] = False
+    fwd = (e[:, 0] < e[:, 1])[o]
+    two = first[cnt == 2]
+    uniq_d[vcomp[uk[cnt == 2][fwd[two] == fwd[two + 1]] // nv]] = False
     fc = vcomp[F[:, 0]]
     c = v - (lo + 0.5 * np.ptp(v, axis=0))
     vol = np.einsum("ij,ij->i", c[f[:, 0]], np.cross(c[f[:, 1]], c[f[:, 2]]))
@@ -684,7 +693,10 @@ def _coarse(positions, cells, links, k, nz):
     block = (cells[:, 0] // k).astype(np.int64) * bz + cells[:, 1] // k
     ax = links[:, :4]
     has = ax >= 0
-    same = has & (block[:, None] == block[np.maximum(ax, 0)])
+    same = np.empty_like(has)
+    for r0 in range(0, n, TILE_SAMPLES):   # bounded temporaries
+        r = slice(r0, r0 + TILE_SAMPLES)
+        same[r] = has[r] & (block[r, None] == block[np.maximum(ax[r], 0)])
     nc, lab = connected_components(_csr(ax, same), directed=True, connection="strong")
     # representative: the sample nearest its block's centre (ties: lowest index)
     c = (k - 1) * 0.5
