@@ -4,9 +4,9 @@ parameters, the build bounds, the surface's format version and the entry layout.
 An entry (`navsurface-<key>.npz`) is a valid, uncompressed .npz: `meta.npy` (JSON: layout,
 format version, scalars, a checksum per array) and every array of the NavData as `<name>.npy`
 in its own dtype, its data aligned to ALIGN bytes in the file. A load memory-maps the file and
-hands out read-only views of it (no copy, no inflating): about 10 ms for the default scene's
-1.25 M samples, where the compressed entries of layout 2 took 0.24 s to inflate and rebuild;
-the entry is larger in exchange (108 MB against 13.3 MB; benchmarks/bench_nav_cache.py).
+hands out read-only views of it (no copy, no inflating): 20-35 ms for the default scene's
+2.2 M samples, where the compressed entries of layout 2 took 0.29-0.35 s to inflate and
+rebuild; the entry is larger in exchange (191 MB against 13.3 MB; benchmarks/bench_nav_cache.py).
 
 Integrity: the zip comment holds the CRC-32 of the entry's structure (every byte but the array
 data: zip and .npy headers, meta, central directory), and the meta a 64-bit additive checksum
