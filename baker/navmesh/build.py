@@ -360,6 +360,7 @@ def build_data(env, agent, *, bounds=None, coarse_factor: int = 4,
     timings["links"] = time.perf_counter() - t
     t = time.perf_counter()
     dist = _clearance(caster, grid, s, links, radius, h_off)
+    s = s.slim()   # peak memory of the components and the coarse graph
     timings["erode"] = time.perf_counter() - t
     t = time.perf_counter()
     if min_island_area is None:
@@ -371,7 +372,11 @@ def build_data(env, agent, *, bounds=None, coarse_factor: int = 4,
     col_start = np.zeros(ncols + 1, dtype=np.int64)
     np.cumsum(counts, out=col_start[1:])
     positions = np.stack([s.px[sel], s.y[sel], s.pz[sel]], axis=1)
-    cells = np.stack([s.ix[sel], s.iz[sel]], axis=1).astype(np.int32)
+    cells = np.stack([s.ix[sel], s.iz[sel]], axis=1)
+    normals = s.normals[sel]
+    clearance = dist[sel].astype(np.float32)
+    n_hits = s.n_hits
+    del s, dist, sel, scol   # the per-sample build arrays (peak memory of the coarse graph)
     timings["components"] = time.perf_counter() - t
 
     # 6. coarse graph ---------------------------------------------------------------------
@@ -381,16 +386,16 @@ def build_data(env, agent, *, bounds=None, coarse_factor: int = 4,
     timings["coarse"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
     log.info("navmesh: %d x %d columns, %d hits, %d walkable samples, %d components, "
-             "%.3f m^2; %s", nx, nz, s.n_hits, len(positions), len(comp_area), comp_area.sum(),
+             "%.3f m^2; %s", nx, nz, n_hits, len(positions), len(comp_area), comp_area.sum(),
              ", ".join(f"{k} {v:.3f}s" for k, v in timings.items()))
     return NavData(
-        positions=positions.astype(np.float32),
-        normals=s.normals[sel].astype(np.float32),
+        positions=positions,
+        normals=normals,
         cells=cells,
         col_start=col_start,
-        links=links.astype(np.int32),
+        links=links.astype(np.int32, copy=False),
         component=comp,
-        clearance=dist[sel].astype(np.float32),
+        clearance=clearance,
         component_area=comp_area,
         coarse_of=coarse_of,
         coarse_rep=coarse_rep,
@@ -436,11 +441,20 @@ class _Samples:
     px: np.ndarray
     pz: np.ndarray
     y: np.ndarray
-    ceil: np.ndarray
+    ceil: np.ndarray | None
     normals: np.ndarray
-    col_start: np.ndarray
-    counts: np.ndarray
+    col_start: np.ndarray | None
+    counts: np.ndarray | None
     n_hits: int
+
+    def slim(self) -> "_Samples":
+        """What the steps after erosion still read, in the dtypes the surface keeps (float32
+        points and normals, int32 cells; no ceilings, no column index): about half the
+        memory, and the same values in the end (each is rounded to float32 either way)."""
+        f4, i4 = np.float32, np.int32
+        return _Samples(self.col, self.ix.astype(i4), self.iz.astype(i4), self.px.astype(f4),
+                        self.pz.astype(f4), self.y.astype(f4), None, self.normals.astype(f4),
+                        None, None, self.n_hits)
 
 
 def _samples(caster: _Caster, grid: _Grid, ytop, solids, slope, height, timings,
