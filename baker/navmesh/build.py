@@ -1,4 +1,4 @@
-"""Build a NavSurface from an Environment (Recast's build steps, done with rays and numpy).
+"""Build a navigation surface (NavData, queried through query.NavSurface) from an Environment (Recast's build steps, done with rays and numpy).
 
 Steps (all vectorized over columns / samples; rays are cast in batched chunks):
 1. Column heightfield: cast a ray straight down through every column centre from above the
@@ -35,7 +35,8 @@ from scipy.sparse.csgraph import connected_components
 
 from baker.errors import NavError
 from baker.navmesh import budget
-from baker.navmesh.surface import DIRS, OPPOSITE, NavSurface
+from baker.navmesh.query import NavSurface
+from baker.navmesh.surface import DIRS, OPPOSITE, NavData
 
 log = logging.getLogger(__name__)
 
@@ -49,6 +50,8 @@ MAX_PASSES = 256
 MAX_COLUMNS = 40_000_000
 #: Columns ray-cast and reduced to walkable samples at a time (bounds the per-hit memory).
 TILE_COLUMNS = 1 << 20
+#: Samples linked at a time (bounds the temporaries of the link tests).
+TILE_SAMPLES = 1 << 19
 
 
 # --------------------------------------------------------------------------- ray casting
@@ -101,13 +104,22 @@ def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     g = coo_matrix((np.ones(len(es), np.int8), (es[:, 0], es[:, 1])), shape=(nv, nv)).tocsr()
     ncomp, vcomp = connected_components(g, directed=True, connection="weak")
     key = es[:, 0] * nv + es[:, 1]
-    uk, cnt = np.unique(key, return_counts=True)
+    o = np.argsort(key)
+    ks = key[o]
+    head = np.ones(len(ks), dtype=bool)
+    head[1:] = ks[1:] != ks[:-1]
+    first = np.nonzero(head)[0]
+    cnt = np.diff(np.append(first, len(ks)))
+    uk = ks[first]
     closed = np.ones(ncomp, dtype=bool)
     closed[vcomp[(uk[cnt != 2] // nv)]] = False
-    # consistently wound: each edge is used once in each direction
+    # consistently wound: each edge is used once in each direction. Only closed components
+    # (every edge used exactly twice) are judged, so it is enough that the two uses of such
+    # an edge go opposite ways
     uniq_d = np.ones(ncomp, dtype=bool)
-    dk, dc = np.unique(e[:, 0] * nv + e[:, 1], return_counts=True)
-    uniq_d[vcomp[dk[dc != 1] // nv]] = False
+    fwd = (e[:, 0] < e[:, 1])[o]
+    two = first[cnt == 2]
+    uniq_d[vcomp[uk[cnt == 2][fwd[two] == fwd[two + 1]] // nv]] = False
     fc = vcomp[F[:, 0]]
     c = v - (lo + 0.5 * np.ptp(v, axis=0))
     vol = np.einsum("ij,ij->i", c[f[:, 0]], np.cross(c[f[:, 1]], c[f[:, 2]]))
@@ -229,10 +241,10 @@ def _inside_solid(hcol, hprim, first, face_comp, comp_closed, comp_wind,
         same_next[:-1] = ~first[1:]
         lost_exit = si[wound & (lab == 1) & (nxt != -1)]
         lost_exit = lost_exit[same_next[lost_exit]]
-        np.add.at(toggle, lost_exit + 1, -1)
+        toggle[lost_exit + 1] -= 1   # distinct hits: no repeated index
         lost_entry = si[wound & (lab == -1) & (prev != 1)]
         lost_entry = lost_entry[~first[lost_entry]]
-        np.add.at(toggle, lost_entry - 1, 1)
+        toggle[lost_entry - 1] += 1
     excl = np.cumsum(toggle) - toggle
     fidx = np.maximum.accumulate(np.where(first, np.arange(nh), 0))
     return (excl - excl[fidx]) > 0
@@ -250,36 +262,40 @@ def _riser(ya, yb, ga, gb):
     return np.minimum(np.abs(dy - ga), np.abs(dy - gb))
 
 
-def _link_axis(d, scol, six, siz, y, ceil, nx, nz, col_start, counts, step, height, g):
-    """Best neighbour sample (or -1) of every sample in axis direction d (0: +X, 1: +Z):
-    the sample of the next column with the smallest riser, within the step height, with the
-    agent height free above both. g : (n,) rise of each sample's plane over one cell along d."""
-    n = len(y)
+def _link_axis(d, rows, scol, six, siz, ys, ceil, nx, nz, col_start, counts, step, height,
+               gs):
+    """Best neighbour sample (or -1) of the samples `rows` (a slice) in axis direction d
+    (0: +X, 1: +Z): the sample of the next column with the smallest riser, within the step
+    height, with the agent height free above both. ys, ceil, gs : (n,) of every sample; gs is
+    the rise of each sample's plane over one cell along d."""
+    n = len(ys)
+    scol, y, g = scol[rows], ys[rows], gs[rows]
     if d == 0:
-        inb = six < nx - 1
+        inb = six[rows] < nx - 1
         ncol = scol + nz
     else:
-        inb = siz < nz - 1
+        inb = siz[rows] < nz - 1
         ncol = scol + 1
     ncol = np.where(inb, ncol, scol)
     cnt = np.where(inb, counts[ncol], 0)
     start = col_start[ncol]
     cand = np.minimum(start, n - 1)
-    yc = y[cand]
-    dy = _riser(y, yc, g, g[cand])
-    gap = np.minimum(ceil[cand], ceil) - np.maximum(yc, y)
+    yc = ys[cand]
+    dy = _riser(y, yc, g, gs[cand])
+    cs = ceil[rows]
+    gap = np.minimum(ceil[cand], cs) - np.maximum(yc, y)
     ok = (cnt > 0) & (dy <= step) & (gap >= height)
     best = np.where(ok, cand, -1)
     multi = np.nonzero(cnt > 1)[0]
     if len(multi):
         best_dy = np.where(ok, dy, np.inf)[multi]
         bm = best[multi]
-        ys, cs, st, cm = y[multi], ceil[multi], start[multi], cnt[multi]
+        ym, cm_, gm, st, cm = y[multi], cs[multi], g[multi], start[multi], cnt[multi]
         for k in range(1, int(cm.max())):
             sel = np.nonzero(cm > k)[0]
             cand = st[sel] + k
-            dy = _riser(ys[sel], y[cand], g[multi][sel], g[cand])
-            gap = np.minimum(ceil[cand], cs[sel]) - np.maximum(y[cand], ys[sel])
+            dy = _riser(ym[sel], ys[cand], gm[sel], gs[cand])
+            gap = np.minimum(ceil[cand], cm_[sel]) - np.maximum(ys[cand], ym[sel])
             ok = (dy <= step) & (gap >= height) & (dy < best_dy[sel])
             bm[sel[ok]] = cand[ok]
             best_dy[sel[ok]] = dy[ok]
@@ -293,9 +309,15 @@ def _round_up(x: float) -> str:
     return f"{math.ceil(x / 10 ** e) * 10 ** e:.3g}"
 
 
-def build(env, agent, *, bounds=None, coarse_factor: int = 4,
-          min_island_area: float | None = None) -> NavSurface:
-    """Build the navigation surface of `env` for `agent` (a NavAgentConfig).
+def build(env, agent, **kw) -> NavSurface:
+    """The navigation surface of `env` for `agent`, ready for queries: NavSurface(build_data(
+    env, agent, **kw)) (see build_data)."""
+    return NavSurface(build_data(env, agent, **kw))
+
+
+def build_data(env, agent, *, bounds=None, coarse_factor: int = 4,
+               min_island_area: float | None = None) -> NavData:
+    """Build the navigation surface data of `env` for `agent` (a NavAgentConfig).
 
     bounds          : optional (2, 3) [min, max] corners (or (2, 2) XZ corners) limiting the
                       build area; default: the environment's bounds
@@ -338,6 +360,7 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
     timings["links"] = time.perf_counter() - t
     t = time.perf_counter()
     dist = _clearance(caster, grid, s, links, radius, h_off)
+    s = s.slim()   # peak memory of the components and the coarse graph
     timings["erode"] = time.perf_counter() - t
     t = time.perf_counter()
     if min_island_area is None:
@@ -349,7 +372,11 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
     col_start = np.zeros(ncols + 1, dtype=np.int64)
     np.cumsum(counts, out=col_start[1:])
     positions = np.stack([s.px[sel], s.y[sel], s.pz[sel]], axis=1)
-    cells = np.stack([s.ix[sel], s.iz[sel]], axis=1).astype(np.int32)
+    cells = np.stack([s.ix[sel], s.iz[sel]], axis=1)
+    normals = s.normals[sel]
+    clearance = dist[sel].astype(np.float32)
+    n_hits = s.n_hits
+    del s, dist, sel, scol   # the per-sample build arrays (peak memory of the coarse graph)
     timings["components"] = time.perf_counter() - t
 
     # 6. coarse graph ---------------------------------------------------------------------
@@ -359,16 +386,16 @@ def build(env, agent, *, bounds=None, coarse_factor: int = 4,
     timings["coarse"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
     log.info("navmesh: %d x %d columns, %d hits, %d walkable samples, %d components, "
-             "%.3f m^2; %s", nx, nz, s.n_hits, len(positions), len(comp_area), comp_area.sum(),
+             "%.3f m^2; %s", nx, nz, n_hits, len(positions), len(comp_area), comp_area.sum(),
              ", ".join(f"{k} {v:.3f}s" for k, v in timings.items()))
-    return NavSurface(
-        positions=positions.astype(np.float32),
-        normals=s.normals[sel].astype(np.float32),
+    return NavData(
+        positions=positions,
+        normals=normals,
         cells=cells,
         col_start=col_start,
-        links=links.astype(np.int32),
+        links=links.astype(np.int32, copy=False),
         component=comp,
-        clearance=dist[sel].astype(np.float32),
+        clearance=clearance,
         component_area=comp_area,
         coarse_of=coarse_of,
         coarse_rep=coarse_rep,
@@ -414,11 +441,20 @@ class _Samples:
     px: np.ndarray
     pz: np.ndarray
     y: np.ndarray
-    ceil: np.ndarray
+    ceil: np.ndarray | None
     normals: np.ndarray
-    col_start: np.ndarray
-    counts: np.ndarray
+    col_start: np.ndarray | None
+    counts: np.ndarray | None
     n_hits: int
+
+    def slim(self) -> "_Samples":
+        """What the steps after erosion still read, in the dtypes the surface keeps (float32
+        points and normals, int32 cells; no ceilings, no column index): about half the
+        memory, and the same values in the end (each is rounded to float32 either way)."""
+        f4, i4 = np.float32, np.int32
+        return _Samples(self.col, self.ix.astype(i4), self.iz.astype(i4), self.px.astype(f4),
+                        self.pz.astype(f4), self.y.astype(f4), None, self.normals.astype(f4),
+                        None, None, self.n_hits)
 
 
 def _samples(caster: _Caster, grid: _Grid, ytop, solids, slope, height, timings,
@@ -460,34 +496,29 @@ def _samples(caster: _Caster, grid: _Grid, ytop, solids, slope, height, timings,
 
 def _links(caster: _Caster, grid: _Grid, s: _Samples, step, height, slope, h_off) -> np.ndarray:
     """3. (n, 8) int32 neighbour links of every sample (-1: none): a riser up to `step`, room
-    for `height` above both, and no steep face between them."""
+    for `height` above both, and no steep face between them. Tested in tiles of TILE_SAMPLES
+    samples, so that the temporaries stay small (fresh large arrays cost page faults)."""
     nx, nz, cell = grid.nx, grid.nz, grid.cell
     scol, sy, sceil, counts = s.col, s.y, s.ceil, s.counts
     n = len(sy)
     links = np.full((n, 8), -1, dtype=np.int32)
-    # rise of each sample's plane over one cell along +X, +Z and the two diagonals
+    # rise of each sample's plane over one cell along +X and +Z (the diagonals: their sums)
     gx = -cell * s.normals[:, 0] / s.normals[:, 1]
     gz = -cell * s.normals[:, 2] / s.normals[:, 1]
-    grad = {0: gx, 1: gz, 4: gx + gz, 7: gx - gz}
+    grad = {0: gx, 1: gz}
     blockers = _blocker_columns(caster, grid.x0, grid.z0, nx, nz, cell,
                                 min(slope, math.atan2(h_off, cell)))
     for d in (0, 1):
-        nb = _link_axis(d, scol, s.ix, s.iz, sy, sceil, nx, nz, s.col_start, counts, step,
-                        height, grad[d])
-        src = np.nonzero(nb >= 0)[0]
-        tt = nb[src]
-        test = blockers[scol[src]] | blockers[scol[tt]]
-        if test.any():  # only links near steep triangles can be blocked by them
-            q, qt = src[test], tt[test]
-            o = np.stack([s.px[q], np.maximum(sy[q], sy[qt]) + h_off, s.pz[q]], axis=1)
-            dirv = np.zeros_like(o)
-            dirv[:, 0], dirv[:, 2] = DIRS[d]
-            th, _ = caster.cast(o, dirv, cell)
-            ok = np.ones(len(src), dtype=bool)
-            ok[np.nonzero(test)[0][np.isfinite(th)]] = False
-            src, tt = src[ok], tt[ok]
-        links[src, d] = tt
-        links[tt, OPPOSITE[d]] = src
+        for r0 in range(0, n, TILE_SAMPLES):   # tiles in sample order: writes as in one piece
+            r = slice(r0, min(n, r0 + TILE_SAMPLES))
+            nb = _link_axis(d, r, scol, s.ix, s.iz, sy, sceil, nx, nz, s.col_start, counts,
+                            step, height, grad[d])
+            src = np.nonzero(nb >= 0)[0]
+            tt = nb[src]
+            src += r0
+            src, tt = _unblocked(caster, s, blockers, d, src, tt, h_off, cell)
+            links[src, d] = tt
+            links[tt, OPPOSITE[d]] = src
     # keep symmetric links only: two layers of one column may have claimed the same sample
     msrc = np.nonzero(counts[scol] > 1)[0]
     for d in (0, 1):
@@ -495,20 +526,51 @@ def _links(caster: _Caster, grid: _Grid, s: _Samples, step, height, slope, h_off
         bad = links[links[src, d], OPPOSITE[d]] != src
         links[src[bad], d] = -1
     for d, (a1, a2) in ((4, (0, 1)), (7, (0, 3))):
-        s1 = np.nonzero(links[:, a1] >= 0)[0]
-        u1 = np.full(n, -1, dtype=np.int32)
-        u1[s1] = links[links[s1, a1], a2]
-        s2 = np.nonzero(links[:, a2] >= 0)[0]
-        u2 = np.full(n, -1, dtype=np.int32)
-        u2[s2] = links[links[s2, a2], a1]
-        src = np.nonzero((u1 >= 0) & (u1 == u2))[0]
-        u = u1[src]
-        gap = np.minimum(sceil[src], sceil[u]) - np.maximum(sy[src], sy[u])
-        ok = (_riser(sy[src], sy[u], grad[d][src], grad[d][u]) <= step) & (gap >= height)
-        src, u = src[ok], u[ok]
+        src, u = _diagonal(links, d, a1, a2, sy, sceil, gx, gz, step, height)
         links[src, d] = u
         links[u, OPPOSITE[d]] = src
     return links
+
+
+def _unblocked(caster: _Caster, s: _Samples, blockers, d, src, tt, h_off, cell):
+    """The links src -> tt (direction d) that no steep face blocks: a short horizontal ray
+    from above the higher sample, cast only next to steep triangles (blocker columns)."""
+    test = blockers[s.col[src]] | blockers[s.col[tt]]
+    if not test.any():
+        return src, tt
+    q, qt = src[test], tt[test]
+    o = np.stack([s.px[q], np.maximum(s.y[q], s.y[qt]) + h_off, s.pz[q]], axis=1)
+    dirv = np.zeros_like(o)
+    dirv[:, 0], dirv[:, 2] = DIRS[d]
+    th, _ = caster.cast(o, dirv, cell)
+    ok = np.ones(len(src), dtype=bool)
+    ok[np.nonzero(test)[0][np.isfinite(th)]] = False
+    return src[ok], tt[ok]
+
+
+def _diagonal(links, d, a1, a2, sy, sceil, gx, gz, step, height):
+    """Diagonal links (src, u) in direction d: both L-shaped paths of axis links (a1 then a2,
+    a2 then a1) reach u, within the step height and with the agent height free above."""
+    n = len(links)
+    s1 = np.nonzero(links[:, a1] >= 0)[0]
+    u1 = np.full(n, -1, dtype=np.int32)
+    u1[s1] = links[links[s1, a1], a2]
+    s2 = np.nonzero(links[:, a2] >= 0)[0]
+    u2 = np.full(n, -1, dtype=np.int32)
+    u2[s2] = links[links[s2, a2], a1]
+    src = np.nonzero((u1 >= 0) & (u1 == u2))[0]
+    ok = np.empty(len(src), dtype=bool)
+    for r0 in range(0, len(src), TILE_SAMPLES):
+        r = slice(r0, r0 + TILE_SAMPLES)
+        sr = src[r]
+        u = u1[sr]
+        gap = np.minimum(sceil[sr], sceil[u]) - np.maximum(sy[sr], sy[u])
+        # the diagonal's rise, gx +/- gz, only where it is needed (the same sums, elementwise)
+        ga = gx[sr] + gz[sr] if d == 4 else gx[sr] - gz[sr]
+        gb = gx[u] + gz[u] if d == 4 else gx[u] - gz[u]
+        ok[r] = (_riser(sy[sr], sy[u], ga, gb) <= step) & (gap >= height)
+    src = src[ok]
+    return src, u1[src]
 
 
 def _clearance(caster: _Caster, grid: _Grid, s: _Samples, links, radius, h_off) -> np.ndarray:
@@ -535,7 +597,7 @@ def _clearance(caster: _Caster, grid: _Grid, s: _Samples, links, radius, h_off) 
         cosang = (np.abs(fn[:, 0] * dirv[hit, 0] + fn[:, 2] * dirv[hit, 2])
                   / np.maximum(hlen, 1e-12))
         dd[hit] = th[hit] * np.where(hlen > 1e-6, cosang, 1.0)
-        np.minimum.at(d0, bs, dd)
+        d0 = _segment_min(bs, dd, len(border), np.inf)
     dist = np.full(len(sy), np.inf)
     dist[border] = d0
     w = np.where(np.arange(8) < 4, cell, cell * math.sqrt(2.0))
@@ -552,8 +614,14 @@ def _clearance(caster: _Caster, grid: _Grid, s: _Samples, links, radius, h_off) 
             nd = dist[src] + w[d]
             better = nd < dist[nb]
             if better.any():
-                np.minimum.at(dist, nb[better], nd[better])
-                changed.append(nb[better])
+                nb, nd = nb[better], nd[better]
+                o = np.argsort(nb, kind="stable")
+                nb, nd = nb[o], nd[o]
+                head = np.ones(len(nb), dtype=bool)
+                head[1:] = nb[1:] != nb[:-1]
+                u = nb[head]
+                dist[u] = np.minimum(dist[u], np.minimum.reduceat(nd, np.nonzero(head)[0]))
+                changed.append(u)
         active = np.unique(np.concatenate(changed)) if changed else np.zeros(0, np.int64)
         active = active[dist[active] < radius + cell * 1.5]
     return dist
@@ -601,13 +669,27 @@ def _blocker_columns(caster: _Caster, x0, z0, nx, nz, cell, angle) -> np.ndarray
     i1 = np.clip(np.floor((hi[:, 0] - x0) / cell).astype(np.int64) + 2, 0, nx)
     j0 = np.clip(np.floor((lo[:, 2] - z0) / cell).astype(np.int64) - 1, 0, nz)
     j1 = np.clip(np.floor((hi[:, 2] - z0) / cell).astype(np.int64) + 2, 0, nz)
-    diff = np.zeros((nx + 1, nz + 1), dtype=np.int32)
-    np.add.at(diff, (i0, j0), 1)
-    np.add.at(diff, (i1, j0), -1)
-    np.add.at(diff, (i0, j1), -1)
-    np.add.at(diff, (i1, j1), 1)
+    w = nz + 1
+    idx = np.concatenate([i0 * w + j0, i1 * w + j0, i0 * w + j1, i1 * w + j1])
+    sign = np.repeat(np.array([1.0, -1.0, -1.0, 1.0]), len(i0))
+    # corner counts by bincount (exact small integers), not np.add.at
+    diff = np.bincount(idx, sign, minlength=(nx + 1) * w).astype(np.int32)
+    diff = diff.reshape(nx + 1, w)
     cov = np.cumsum(np.cumsum(diff, axis=0), axis=1)[:nx, :nz]
     return (cov > 0).reshape(-1)
+
+
+def _segment_min(group: np.ndarray, values: np.ndarray, n: int, empty) -> np.ndarray:
+    """(n,) the smallest of `values` in each group 0..n-1 (`empty` where a group has none):
+    np.minimum.at's result, by a stable sort and reduceat (several times faster)."""
+    o = np.argsort(group, kind="stable")
+    g = group[o]
+    out = np.full(n, empty, dtype=values.dtype)
+    if len(g):
+        head = np.ones(len(g), dtype=bool)
+        head[1:] = g[1:] != g[:-1]
+        out[g[head]] = np.minimum.reduceat(values[o], np.nonzero(head)[0])
+    return out
 
 
 def _csr(links: np.ndarray, mask: np.ndarray) -> csr_matrix:
@@ -625,14 +707,16 @@ def _coarse(positions, cells, links, k, nz):
     block = (cells[:, 0] // k).astype(np.int64) * bz + cells[:, 1] // k
     ax = links[:, :4]
     has = ax >= 0
-    same = has & (block[:, None] == block[np.maximum(ax, 0)])
+    same = np.empty_like(has)
+    for r0 in range(0, n, TILE_SAMPLES):   # bounded temporaries
+        r = slice(r0, r0 + TILE_SAMPLES)
+        same[r] = has[r] & (block[r, None] == block[np.maximum(ax[r], 0)])
     nc, lab = connected_components(_csr(ax, same), directed=True, connection="strong")
     # representative: the sample nearest its block's centre (ties: lowest index)
     c = (k - 1) * 0.5
     pri = np.abs(cells[:, 0] % k - c) + np.abs(cells[:, 1] % k - c)
     key = np.rint(pri * 2).astype(np.int64) * n + np.arange(n)
-    best = np.full(nc, np.iinfo(np.int64).max)
-    np.minimum.at(best, lab, key)
+    best = _segment_min(lab, key, nc, np.iinfo(np.int64).max)
     rep = (best % n).astype(np.int32)
     # coarse edges from 4-links that cross block borders
     keys = []

@@ -1,19 +1,20 @@
 """On-disk cache of built navigation surfaces, keyed by the environment's content hash, the agent
 parameters, the build bounds, the surface's format version and the entry layout.
 
-An entry (`navsurface-<key>.npz`) holds only what the queries cannot rebuild exactly and fast:
-- `cells` and `col_start` come back from the per-column sample counts, and the x and z of
-  `positions` from the cells (column centres); each is stored instead when, for some surface,
-  the rebuilt array would not be bit-identical to the built one (checked when saving);
-- `links` is stored as the offset to the linked sample (-1 - s where there is no link), which
-  zlib squeezes to almost nothing (a few hundred kB for 2.2 M samples);
-- the other arrays are zlib-compressed (level 1) in their own, narrowest exact dtype, except
-  the heights, which do not compress and are stored raw.
-The default scene's entry goes from 191 MB (every array raw) to 13.3 MB; the load takes about
-0.05-0.1 s more in exchange (inflating, rebuilding; benchmarks/bench_nav_cache.py).
+An entry (`navsurface-<key>.npz`) is a valid, uncompressed .npz: `meta.npy` (JSON: layout,
+format version, scalars, a checksum per array) and every array of the NavData as `<name>.npy`
+in its own dtype, its data aligned to ALIGN bytes in the file. A load memory-maps the file and
+hands out read-only views of it (no copy, no inflating): 20-35 ms for the default scene's
+2.2 M samples, where the compressed entries of layout 2 took 0.29-0.35 s to inflate and
+rebuild; the entry is larger in exchange (191 MB against 13.3 MB; benchmarks/bench_nav_cache.py).
+
+Integrity: the zip comment holds the CRC-32 of the entry's structure (every byte but the array
+data: zip and .npy headers, meta, central directory), and the meta a 64-bit additive checksum
+of each array's bytes (numpy sums them at memory speed); a load checks both, and every shape
+and count against the meta.
 
 The cache heals itself:
-- an entry that cannot be read (truncated, empty, corrupt: zip and zlib checksums, lengths) is
+- an entry that cannot be read (truncated, empty, corrupt: the checksums above, lengths) is
   rebuilt and rewritten, with one warning;
 - a folder that cannot be created or written to means the bake goes on without writing to it,
   with one warning per folder and process;
@@ -26,26 +27,31 @@ The cache heals itself:
 
 from __future__ import annotations
 
+import ast
 import hashlib
+import io
 import json
 import logging
+import math
+import mmap
 import os
+import struct
 import time
 import zipfile
 import zlib
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 import numpy as np
 
 from baker.atomic import atomic_output
-from baker.navmesh.surface import DIRS, FORMAT_VERSION, NavSurface
+from baker.navmesh.query import NavSurface
+from baker.navmesh.surface import DIRS, FORMAT_VERSION, NavData
 
 log = logging.getLogger(__name__)
 
 #: Layout of a cache entry (part of the key, so entries of another layout are never read).
-LAYOUT = 2
+LAYOUT = 3
 #: Default bound of a cache folder, MB (--cache-max): room for a few dozen entries of the
 #: default scene's size (about 13 MB each) or of big-level windows.
 DEFAULT_MAX_MB = 1024.0
@@ -56,10 +62,10 @@ STALE_TMP_S = 3600.0
 _PREFIX = "navsurface-"
 _SCALARS = ("origin", "shape", "cell_size", "coarse_factor", "agent_radius", "agent_height",
             "step_height", "max_slope")
-_NO_LINK = np.int32(-1)
 #: errors that mean "this entry is damaged" (not "the cache folder is unusable")
-_CORRUPT = (ValueError, KeyError, EOFError, TypeError, IndexError, zipfile.BadZipFile, zlib.error,
-            json.JSONDecodeError, UnicodeDecodeError)
+_CORRUPT = (ValueError, KeyError, EOFError, TypeError, IndexError, SyntaxError, struct.error,
+            NotImplementedError, OverflowError,
+            zipfile.BadZipFile, zlib.error, json.JSONDecodeError, UnicodeDecodeError)
 _warned: set[str] = set()
 
 
@@ -109,224 +115,195 @@ def _warn_once(key: str, msg: str, *args) -> None:
         log.warning(msg, *args)
 
 
-# ----------------------------------------------------------------------------- encoding
-def _narrow_int(a: np.ndarray) -> np.ndarray:
-    """`a` in the narrowest signed/unsigned integer dtype that holds it exactly."""
-    if a.size == 0:
-        return a
-    lo, hi = int(a.min()), int(a.max())
-    for dt in (np.uint8, np.int8, np.uint16, np.int16, np.int32, np.uint32, np.int64):
-        info = np.iinfo(dt)
-        if info.min <= lo and hi <= info.max:
-            return a.astype(dt, copy=False)
-    return a
+# ----------------------------------------------------------------------------- the entry's layout
+#: Entry data (array bytes) starts at a multiple of this many bytes from the file's start.
+ALIGN = 64
+#: The zip comment: this prefix and 8 hex digits, the CRC-32 of the entry's structure.
+_COMMENT = b"baker-navcache crc32 "
+_COMMENT_LEN = len(_COMMENT) + 8
+_LOCAL = struct.Struct("<4s5H3L2H")      # a zip local file header, without name and extra
+_NPY_MAGIC = b"\x93NUMPY\x01\x00"
 
 
-def _derived_cells(counts: np.ndarray, nz: int) -> np.ndarray:
-    """(N, 2) int32 (ix, iz) of every sample from the per-column counts (C,)."""
-    col = np.repeat(np.arange(len(counts), dtype=np.int32), counts)
-    cells = np.empty((len(col), 2), dtype=np.int32)
-    np.floor_divide(col, np.int32(nz), out=cells[:, 0])
-    np.subtract(col, cells[:, 0] * np.int32(nz), out=cells[:, 1])
-    return cells
+def _arrays(surface) -> dict[str, np.ndarray]:
+    """The data's arrays, C-contiguous, in the surface's own dtypes (what load maps back)."""
+    return {k: np.ascontiguousarray(v) for k, v in surface.arrays().items()
+            if isinstance(v, np.ndarray)}
 
 
-def _derived_xz(cells: np.ndarray, origin, cell: float, out: np.ndarray | None = None):
-    """Column centres of `cells` as float32 x and z, written into out[:, 0] and out[:, 2]
-    (N, 3) float32 when given; the same arithmetic (float64, then rounded) as the build."""
-    x0, z0 = origin
-    if out is None:
-        out = np.empty((len(cells), 3), dtype=np.float32)
-    out[:, 0] = x0 + (cells[:, 0] + 0.5) * cell
-    out[:, 2] = z0 + (cells[:, 1] + 0.5) * cell
-    return out
+def _sum64(buf) -> int:
+    """64-bit additive checksum of a byte buffer (its uint64 words, the last one zero-padded,
+    summed modulo 2^64): any single changed word changes it; ~20 GB/s with numpy."""
+    b = np.frombuffer(buf, dtype=np.uint8)
+    n8 = len(b) // 8 * 8
+    total = int(np.add.reduce(b[:n8].view(np.uint64), dtype=np.uint64)) if n8 else 0
+    if n8 < len(b):
+        tail = np.zeros(8, dtype=np.uint8)
+        tail[:len(b) - n8] = b[n8:]
+        total += int(tail.view(np.uint64)[0])
+    return total % (1 << 64)
 
 
-_NO_LINK16 = np.int16(-32768)
+def _npy_header(a: np.ndarray, at: int) -> bytes:
+    """A .npy (version 1.0) header for `a`, padded so that the data starts at a multiple of
+    ALIGN when the header is written at file offset `at`."""
+    d = "{'descr': %r, 'fortran_order': False, 'shape': %r, }" % (
+        np.lib.format.dtype_to_descr(a.dtype), tuple(int(v) for v in a.shape))
+    n = len(_NPY_MAGIC) + 2 + len(d) + 1
+    pad = (-(at + n)) % ALIGN
+    h = (d + " " * pad + "\n").encode("latin1")
+    return _NPY_MAGIC + struct.pack("<H", len(h)) + h
 
 
-def _link_offsets(links: np.ndarray) -> np.ndarray:
-    """links[s, d] - s: (N, 8) int16 with -32768 where there is no link when every offset fits
-    (a row of the grid holds fewer than ~32k samples), else int32 with -1 - s there; either way
-    links = offsets + s (see _links)."""
-    s = np.arange(len(links), dtype=np.int32)[:, None]
-    off = np.subtract(links, s, dtype=np.int32)
-    none = links < 0
-    linked = off[~none]
-    if linked.size == 0 or (int(linked.min()) > -32768 and int(linked.max()) < 32768):
-        out = off.astype(np.int16)
-        out[none] = _NO_LINK16
-        return out
-    np.copyto(off, np.int32(-1) - s, where=none)
-    return off
+def _write_entry(fh, meta: dict | bytes | None, arrays: dict[str, np.ndarray]) -> None:
+    """Write the entry (a valid, uncompressed .npz) to the open binary file `fh` (w+b): meta.npy
+    (the JSON meta as uint8; bytes as they are; None: none), then each array as <name>.npy with
+    its data aligned; the zip comment holds the CRC-32 of everything but the array data (see
+    _structure_crc)."""
+    with zipfile.ZipFile(fh, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
+        zf.comment = _COMMENT + b"0" * 8
+        raw = meta if isinstance(meta, bytes) or meta is None else json.dumps(meta).encode()
+        members = [] if raw is None else [("meta", np.frombuffer(raw, dtype=np.uint8))]
+        members += list(arrays.items())
+        for name, a in members:
+            zi = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            with zf.open(zi, "w", force_zip64=a.nbytes > (1 << 30)) as w:
+                w.write(_npy_header(a, fh.tell()))
+                if a.nbytes:
+                    w.write(memoryview(a).cast("B"))
+    fh.flush()
+    size = fh.tell()
+    with mmap.mmap(fh.fileno(), size, access=mmap.ACCESS_READ) as mm:
+        crc = _structure_crc(mm, _members(mm, size)[1])
+    fh.seek(size - 8)
+    fh.write(b"%08x" % crc)
 
 
-def _links(off: np.ndarray, first: int = 0) -> np.ndarray:
-    """Inverse of _link_offsets for rows first.. of the surface: (n, 8) int32, -1 = none."""
-    links = off.astype(np.int32)
-    links += np.arange(first, first + len(off), dtype=np.int32)[:, None]
-    if off.dtype == np.int16:
-        links[off == _NO_LINK16] = -1
-    return links
+def _members(mm, size: int):
+    """Parse an entry mapped in `mm`: ({name: (dtype, shape, data offset)} of the .npy members,
+    [(start, end)] byte ranges of the array data). Raises one of _CORRUPT when it is not an
+    entry of this layout."""
+    if size < 22 + _COMMENT_LEN:
+        raise ValueError("too short")
+    eocd = size - 22 - _COMMENT_LEN
+    if mm[eocd:eocd + 4] != b"PK\x05\x06" or mm[size - _COMMENT_LEN:size - 8] != _COMMENT:
+        raise ValueError("not a navigation cache entry of this layout")
+    out, ranges = {}, []
+    with zipfile.ZipFile(_MapFile(mm)) as zf:
+        infos = zf.infolist()
+    for zi in infos:
+        sig, _, flags, method, _, _, _, csize, usize, nlen, xlen = _LOCAL.unpack_from(
+            mm, zi.header_offset)
+        name = bytes(mm[zi.header_offset + 30:zi.header_offset + 30 + nlen]).decode()
+        if sig != b"PK\x03\x04" or method != zipfile.ZIP_STORED or flags & 1 \
+                or name != zi.filename or not name.endswith(".npy"):
+            raise ValueError(f"bad member header {name!r}")
+        at = zi.header_offset + 30 + nlen + xlen
+        end = at + zi.file_size
+        if mm[at:at + 8] != _NPY_MAGIC or end > eocd:
+            raise ValueError(f"{name}: not a .npy member")
+        hlen = struct.unpack_from("<H", mm, at + 8)[0]
+        d = ast.literal_eval(bytes(mm[at + 10:at + 10 + hlen]).decode("latin1"))
+        dtype = np.lib.format.descr_to_dtype(d["descr"])
+        shape = tuple(int(v) for v in d["shape"])
+        start = at + 10 + hlen
+        if dtype.hasobject or d["fortran_order"] or start + dtype.itemsize * math.prod(shape) != end:
+            raise ValueError(f"{name}: inconsistent .npy header")
+        out[name[:-4]] = (dtype, shape, start)
+        if name != "meta.npy":
+            ranges.append((start, end))
+    return out, sorted(ranges)
 
 
-#: Packed arrays stored without deflating (chosen by benchmarks/bench_nav_cache.py: the
-#: trade between entry size and load time).
-RAW_MEMBERS = frozenset()
-#: Raw bytes per compressed chunk; chunks are inflated in parallel when an entry is loaded.
-CHUNK = 4 << 20
+class _MapFile(io.RawIOBase):
+    """A read-only file over a mmap (zipfile reads the central directory through it)."""
+
+    def __init__(self, mm):
+        self.mm, self.pos = mm, 0
+
+    def readable(self):
+        return True
+
+    def seekable(self):
+        return True
+
+    def seek(self, pos, whence=0):
+        self.pos = pos if whence == 0 else (self.pos + pos if whence == 1 else len(self.mm) + pos)
+        return self.pos
+
+    def tell(self):
+        return self.pos
+
+    def readinto(self, b):
+        n = max(0, min(len(b), len(self.mm) - self.pos))
+        b[:n] = self.mm[self.pos:self.pos + n]
+        self.pos += n
+        return n
 
 
-def _final_dtypes(a: dict) -> dict[str, str]:
-    """dtype of every packed array once decoded (the surface's own)."""
-    out = {k: str(np.asarray(a[k]).dtype) for k in
-           ("normals", "clearance", "component_area", "coarse_indptr", "component", "coarse_of",
-            "coarse_rep", "coarse_indices", "cells", "positions", "col_start")}
-    out["link_offsets"] = str(np.asarray(a["links"]).dtype)
-    out["counts"] = out["col_start"]
-    return out
+def _structure_crc(mm, ranges) -> int:
+    """CRC-32 of the entry's bytes outside the array data and the comment's 8 hex digits:
+    every zip and .npy header, the meta, the central directory."""
+    crc, at = 0, 0
+    for start, end in list(ranges) + [(len(mm) - 8, len(mm))]:
+        crc = zlib.crc32(mm[at:start], crc)
+        at = end
+    return crc
 
 
-def encode(surface: NavSurface, raw=None) -> dict[str, np.ndarray]:
-    """The entry's members: {name: array}; see the module docstring. Packed arrays are cut
-    into chunks of whole rows (about CHUNK raw bytes each), each deflated on its own, so a
-    load inflates them in parallel straight into the surface's arrays. Those named in `raw`
-    (default RAW_MEMBERS) are stored as they are, in the same chunks."""
-    raw = RAW_MEMBERS if raw is None else frozenset(raw)
+def _meta(surface) -> dict:
     a = surface.arrays()
-    nx, nz = (int(v) for v in surface.shape)
-    counts = np.diff(np.asarray(a["col_start"], dtype=np.int64))
-    plain: dict[str, np.ndarray] = {}       # stored raw
-    packed: dict[str, np.ndarray] = {}      # deflated
-    derived = []
-    packed["counts"] = _narrow_int(counts)
-    if len(counts) == nx * nz and np.array_equal(_derived_cells(counts, nz), a["cells"]):
-        derived.append("cells")
-    else:
-        packed["cells"] = np.asarray(a["cells"])
-    pos = np.asarray(a["positions"], dtype=np.float32)
-    xz = _derived_xz(np.asarray(a["cells"]), surface.origin, surface.cell_size)
-    if np.array_equal(xz[:, 0], pos[:, 0]) and np.array_equal(xz[:, 2], pos[:, 2]):
-        derived.append("positions_xz")
-        plain["positions_y"] = np.ascontiguousarray(pos[:, 1])
-    else:
-        packed["positions"] = pos
-    packed["link_offsets"] = _link_offsets(np.asarray(a["links"]))
-    for name in ("normals", "clearance", "component_area", "coarse_indptr"):
-        packed[name] = np.asarray(a[name])
-    for name in ("component", "coarse_of", "coarse_rep", "coarse_indices"):
-        packed[name] = _narrow_int(np.asarray(a[name]))
-    out: dict[str, np.ndarray] = dict(plain)
-    chunks = {}
-    for k, v in packed.items():
-        v = np.ascontiguousarray(v)
-        row = max(1, v.itemsize * (int(np.prod(v.shape[1:])) if v.ndim > 1 else 1))
-        step = max(1, CHUNK // row)
-        starts = list(range(0, max(len(v), 1), step))
-        chunks[k] = [[r0, min(r0 + step, len(v))] for r0 in starts]
-        for i, (r0, r1) in enumerate(chunks[k]):
-            if k in raw:
-                out[f"r_{k}.{i}"] = v[r0:r1]
-            else:
-                out[f"z_{k}.{i}"] = np.frombuffer(
-                    zlib.compress(memoryview(v[r0:r1]).cast("B"), 1), dtype=np.uint8)
-    meta = {
-        "layout": LAYOUT, "format_version": FORMAT_VERSION, "derived": derived,
-        "samples": int(len(pos)),
-        "scalars": {k: (list(a[k]) if isinstance(a[k], tuple) else a[k]) for k in _SCALARS},
-        "dtypes": _final_dtypes(a),
-        "packed": {k: [str(v.dtype), list(v.shape), chunks[k], "raw" if k in raw else "zlib"]
-                   for k, v in packed.items()},
-    }
-    meta["scalars"] = json.loads(json.dumps(meta["scalars"], default=float))
-    out["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
-    return out
+    scalars = {k: (list(a[k]) if isinstance(a[k], tuple) else a[k]) for k in _SCALARS}
+    return {"layout": LAYOUT, "format_version": FORMAT_VERSION,
+            "scalars": json.loads(json.dumps(scalars, default=float))}
 
 
-def decode(members) -> NavSurface:
-    """A NavSurface from an entry's members (a mapping name -> array). Raises ValueError (or
-    another of _CORRUPT) when they are inconsistent."""
-    meta = json.loads(bytes(members["meta"]).decode())
+def _decode(mm, size: int) -> NavData | None:
+    """The NavData of an entry mapped in `mm` (its arrays are read-only views of the map);
+    None when it is of another layout or format version. Raises one of _CORRUPT when it is
+    damaged: a structure CRC, an array checksum, a shape or a count that does not match."""
+    members, ranges = _members(mm, size)
+    if int(bytes(mm[size - 8:size]), 16) != _structure_crc(mm, ranges):
+        raise ValueError("structure checksum mismatch")
+    dt, shape, at = members.pop("meta")
+    meta = json.loads(bytes(mm[at:at + math.prod(shape)]).decode())
     if meta.get("layout") != LAYOUT or meta.get("format_version") != FORMAT_VERSION:
-        raise ValueError("entry of another layout or format version")
+        return None
     sc = meta["scalars"]
     nx, nz = (int(v) for v in sc["shape"])
-    n = int(meta["samples"])
-    dt = meta["dtypes"]
-    want = {"counts": (nx * nz,), "link_offsets": (n, len(DIRS)), "normals": (n, 3),
-            "clearance": (n,), "component": (n,), "coarse_of": (n,), "cells": (n, 2),
-            "positions": (n, 3)}
-    arrays: dict[str, np.ndarray] = {}
-    tasks = []
-    for name, (stored, shape, chunks, codec) in meta["packed"].items():
-        shape = tuple(int(v) for v in shape)
-        if name in want and shape != want[name]:
-            raise ValueError(f"{name}: wrong shape {shape}")
-        arrays[name] = np.empty(shape, dtype=np.dtype(dt[name]))
-        for i, (r0, r1) in enumerate(chunks):
-            key = f"{'r' if codec == 'raw' else 'z'}_{name}.{i}"
-            tasks.append((name, np.dtype(stored), int(r0), int(r1), members[key], codec == "raw"))
-    covered = {k: 0 for k in arrays}
-
-    def inflate(task):
-        name, stored, r0, r1, blob, plain = task
-        out = arrays[name]
-        if plain:
-            if blob.dtype != stored:
-                raise ValueError(f"{name}: chunk of the wrong type")
-            part = blob.reshape(-1)
-        else:
-            part = np.frombuffer(zlib.decompress(blob), dtype=stored)
-        if part.size != (r1 - r0) * int(np.prod(out.shape[1:])):
-            raise ValueError(f"{name}: chunk of the wrong length")
-        part = part.reshape((r1 - r0,) + out.shape[1:])
-        if name == "link_offsets":
-            part = _links(part, r0)
-        out[r0:r1] = part
-        return name, r1 - r0
-
-    # zlib and numpy release the GIL: inflate the chunks on two threads, biggest first
-    tasks.sort(key=lambda t: -t[4].nbytes)
-    with ThreadPoolExecutor(max_workers=2) as pool:
-        for name, rows in pool.map(inflate, tasks):
-            covered[name] += rows
-    for name, a in arrays.items():
-        if covered[name] != len(a):
-            raise ValueError(f"{name}: chunks do not cover the array")
-    counts = arrays.pop("counts")
-    col_start = np.zeros(nx * nz + 1, dtype=counts.dtype)
-    np.cumsum(counts, out=col_start[1:])
-    if int(col_start[-1]) != n:
-        raise ValueError("counts do not add up to the samples")
-    cells = arrays.pop("cells") if "cells" in arrays else _derived_cells(counts, nz)
-    if "positions_xz" in meta["derived"]:
-        y = np.asarray(members["positions_y"])
-        if y.shape != (n,):
-            raise ValueError("positions: wrong length")
-        positions = _derived_xz(cells, sc["origin"], float(sc["cell_size"]))
-        positions[:, 1] = y
-    else:
-        positions = arrays.pop("positions")
-    kw = dict(arrays, positions=positions, cells=cells.astype(np.dtype(dt["cells"]), copy=False),
-              col_start=col_start, links=arrays.pop("link_offsets"))
-    kw["origin"] = tuple(float(v) for v in sc["origin"])
-    kw["shape"] = (nx, nz)
-    kw["coarse_factor"] = int(sc["coarse_factor"])
+    arrays = {}
+    for name, (dtype, shape, at) in members.items():
+        a = np.frombuffer(mm, dtype=dtype, count=math.prod(shape), offset=at).reshape(shape)
+        if _sum64(a.view(np.uint8).reshape(-1)) != int(meta["sums"][name]):
+            raise ValueError(f"{name}: checksum mismatch")
+        arrays[name] = a
+    n = len(arrays["positions"])
+    want = {"positions": (n, 3), "normals": (n, 3), "cells": (n, 2), "col_start": (nx * nz + 1,),
+            "links": (n, len(DIRS)), "component": (n,), "clearance": (n,), "coarse_of": (n,)}
+    for name, shp in want.items():
+        if arrays[name].shape != shp:
+            raise ValueError(f"{name}: wrong shape {arrays[name].shape}")
+    if int(arrays["col_start"][-1]) != n:
+        raise ValueError("column index does not add up to the samples")
+    kw = dict(arrays, origin=tuple(float(v) for v in sc["origin"]), shape=(nx, nz),
+              coarse_factor=int(sc["coarse_factor"]))
     for k in ("cell_size", "agent_radius", "agent_height", "step_height", "max_slope"):
         kw[k] = float(sc[k])
-    return NavSurface(**{f.name: kw[f.name] for f in fields(NavSurface) if f.name != "_cache"})
+    return NavData(**{f.name: kw[f.name] for f in fields(NavData)})
 
 
 # ----------------------------------------------------------------------------- files
-def save(surface: NavSurface, path) -> Path:
+def save(surface: NavData | NavSurface, path) -> Path:
     """Write `surface` to `path` (.npz) atomically (temporary file + os.replace). OSError (or
     ExportError) when the folder cannot be created or written."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    members = encode(surface)
+    arrays = _arrays(surface)
+    meta = _meta(surface)
+    meta["sums"] = {k: str(_sum64(memoryview(v).cast("B"))) for k, v in arrays.items()}
     with atomic_output(path) as tmp:
-        with open(tmp, "wb") as fh:
-            np.savez(fh, **members)
+        with open(tmp, "w+b") as fh:
+            _write_entry(fh, meta, arrays)
     return path
 
 
@@ -335,18 +312,19 @@ class CorruptEntry(Exception):
 
 
 def load(path, *, strict: bool = False) -> NavSurface | None:
-    """Read a surface saved by `save`; None when the file is missing or of another layout or
-    format version. A damaged entry (truncated, empty, failing a checksum or a length check)
-    gives None with a warning, or CorruptEntry when `strict`."""
+    """Read a surface saved by `save`, its arrays memory-mapped (read-only); None when the file
+    is missing or of another layout or format version. A damaged entry (truncated, empty,
+    failing a checksum or a length check) gives None with a warning, or CorruptEntry when
+    `strict`."""
     path = Path(path)
     try:
-        with np.load(path, allow_pickle=False) as z:
-            if "meta" not in z.files:
-                raise ValueError("no meta member")
-            meta = json.loads(bytes(z["meta"]).decode())
-            if meta.get("layout") != LAYOUT or meta.get("format_version") != FORMAT_VERSION:
-                return None
-            return decode({k: z[k] for k in z.files})
+        with open(path, "rb") as fh:
+            size = os.fstat(fh.fileno()).st_size
+            if size == 0:
+                raise ValueError("empty file")
+            mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
+        data = _decode(mm, size)
+        return None if data is None else NavSurface(data)
     except FileNotFoundError:
         return None
     except IsADirectoryError as exc:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from baker.navmesh.surface import NavSurface
+from baker.navmesh.query import NavSurface
 
 
 def walkable_mesh(s: NavSurface, lift: float = 0.002) -> tuple[np.ndarray, np.ndarray]:

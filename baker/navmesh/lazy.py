@@ -13,8 +13,10 @@ by the window's bounds) is shared between bakes that walk the same part of the l
 decision depends only on the queries, which depend only on the seed: the same seed builds the
 same windows, and gives the same results whether they come from the cache or not.
 
-LazyNav forwards everything else (positions, components, layer_height, ...) to the current
-NavSurface, so it stands in for one wherever a surface is used.
+LazyNav satisfies the Navigation protocol (protocol.py) as NavSurface does: the queries that
+can reach beyond the window grow it first, the other queries and the data attributes are the
+current window's NavSurface's. Anything else (the arrays, prepare, ...) is forwarded to it too,
+so a LazyNav stands in for a NavSurface wherever one is used.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ import numpy as np
 
 from baker.errors import BudgetError, NavError
 from baker.navmesh.cache import load_or_build
-from baker.navmesh.surface import NavSurface
+from baker.navmesh.query import NavSurface
 
 log = logging.getLogger(__name__)
 
@@ -45,8 +47,14 @@ def full_columns(env, cell: float) -> int:
             * int(math.ceil(min((hi[2] - lo[2]) / cell, 1e12))))
 
 
+def _current(name: str):
+    """A read-only attribute of the current window's surface."""
+    return property(lambda self: getattr(self.surface, name),
+                    doc=f"The current window's surface's {name}.")
+
+
 class LazyNav:
-    """A NavSurface over a growing window of the level.
+    """A NavSurface over a growing window of the level (a Navigation, see protocol.py).
 
     env, agent, cache_dir : as for navmesh.cache.load_or_build
     centre : (3,) world point the first window is centred on; half : metres, its half size
@@ -151,6 +159,33 @@ class LazyNav:
             if self.ensure(lo - slack, hi + slack):   # else nothing new to search
                 r = self.surface.find_path(a3, b3)
         return r
+
+    # ------------------------------------------------------------------ queries on the window
+    positions = _current("positions")
+    component = _current("component")
+    cell_size = _current("cell_size")
+    agent_radius = _current("agent_radius")
+    agent_height = _current("agent_height")
+    step_height = _current("step_height")
+    max_slope = _current("max_slope")
+
+    def is_walkable(self, points, tol: float | None = None) -> np.ndarray:
+        return self.surface.is_walkable(points, tol)
+
+    def component_of(self, p) -> int:
+        return self.surface.component_of(p)
+
+    def surface_height(self, points, tol: float = np.inf) -> np.ndarray:
+        return self.surface.surface_height(points, tol)
+
+    def layer_height(self, x: float, y: float, z: float, tol: float) -> float:
+        return self.surface.layer_height(x, y, z, tol)
+
+    def resample_path(self, points, spacing: float | None = None) -> np.ndarray:
+        return self.surface.resample_path(points, spacing)
+
+    def segment_visible(self, a, b) -> bool:
+        return self.surface.segment_visible(a, b)
 
     def stats(self) -> dict:
         s = self.surface.stats()

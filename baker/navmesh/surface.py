@@ -1,4 +1,6 @@
-"""The navigation surface data: plain numpy arrays, built by build.py, queried by query.py.
+"""The navigation surface's data: plain numpy arrays, built by build.py (Recast's side), stored
+by cache.py, queried through query.NavSurface (Detour's side). This module imports nothing of
+baker: the data knows nothing of the queries.
 
 Layout (Recast-like, but every sample is one ray hit at a column centre):
 - The world's XZ plane is cut into a grid of square columns of side `cell_size`, starting at
@@ -16,7 +18,7 @@ Layout (Recast-like, but every sample is one ray hit at a column centre):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -30,8 +32,9 @@ FORMAT_VERSION = 3
 
 
 @dataclass(frozen=True, eq=False)
-class NavSurface:
-    """A built navigation surface. Plain data: picklable, saved to .npz by navmesh.cache.
+class NavData:
+    """A built navigation surface's data (Recast's dtNavMesh data, not its query object).
+    Plain data: picklable, what navmesh.cache stores; query.NavSurface(data) answers queries.
 
     Arrays (N walkable samples, M coarse nodes, C = nx * nz columns, K components):
     positions     : (N, 3) float32, metres, world: the surface point at the column centre
@@ -70,9 +73,7 @@ class NavSurface:
     agent_height: float
     step_height: float
     max_slope: float
-    _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
-    # ------------------------------------------------------------------ plain properties
     @property
     def n_samples(self) -> int:
         return int(len(self.positions))
@@ -85,35 +86,6 @@ class NavSurface:
     def walkable_area(self) -> float:
         """Horizontal walkable area, m^2 (samples x cell^2)."""
         return float(self.n_samples * self.cell_size ** 2)
-
-    @property
-    def link_indptr(self) -> np.ndarray:
-        """CSR view of the links: (N + 1,) int64 (see link_indices)."""
-        return self._csr()[0]
-
-    @property
-    def link_indices(self) -> np.ndarray:
-        """CSR view of the links: (L,) int32 neighbour samples, rows in sample order."""
-        return self._csr()[1]
-
-    def _csr(self):
-        c = self._cache.get("csr")
-        if c is None:
-            m = self.links >= 0
-            indptr = np.zeros(len(self.links) + 1, dtype=np.int64)
-            np.cumsum(m.sum(axis=1), out=indptr[1:])
-            c = (indptr, self.links[m].astype(np.int32))
-            self._cache["csr"] = c
-        return c
-
-    def prepare(self) -> "NavSurface":
-        """Build the lazy query tables now (coarse-graph lists, members, block index) instead
-        of on the first query (about 0.1-0.3 s on a few million samples). Returns self."""
-        from baker.navmesh import query
-        query._coarse_lists(self)
-        query._members(self)
-        query._coarse_index(self)
-        return self
 
     def stats(self) -> dict:
         """Summary for reports (plain JSON types)."""
@@ -132,63 +104,7 @@ class NavSurface:
 
     def arrays(self) -> dict:
         """Every field as a dict of numpy arrays / scalars (for .npz saving)."""
-        return {f.name: getattr(self, f.name) for f in fields(self) if f.name != "_cache"}
-
-    def __getstate__(self):
-        return self.arrays()
-
-    def __setstate__(self, state):
-        for k, v in state.items():
-            object.__setattr__(self, k, v)
-        object.__setattr__(self, "_cache", {})
-
-    # ------------------------------------------------------------------ queries (query.py)
-    def nearest(self, p, max_dist: float = np.inf) -> np.ndarray | None:
-        """(3,) closest walkable surface point to p (within max_dist, 3D), or None."""
-        from baker.navmesh import query
-        return query.nearest(self, p, max_dist)
-
-    def random_point_near(self, p, radius: float, rng: np.random.Generator) -> np.ndarray | None:
-        """(3,) random walkable point within `radius` (3D) of p, reachable from p, uniform by
-        surface area; None when there is none."""
-        from baker.navmesh import query
-        return query.random_point_near(self, p, radius, rng)
-
-    def find_path(self, a, b) -> "PathResult":
-        """Shortest-ish smoothed path from a to b on the surface (see query.find_path)."""
-        from baker.navmesh import query
-        return query.find_path(self, a, b)
-
-    def is_walkable(self, points, tol: float | None = None) -> np.ndarray:
-        """(n,) bool: points within `tol` (vertically) of the walkable surface."""
-        from baker.navmesh import query
-        return query.is_walkable(self, points, tol)
-
-    def component_of(self, p) -> int:
-        """Component label of the sample nearest p, -1 when the surface is empty."""
-        from baker.navmesh import query
-        return query.component_of(self, p)
-
-    def surface_height(self, points, tol: float = np.inf) -> np.ndarray:
-        """(n,) surface height under each point (the layer closest in height), NaN if none."""
-        from baker.navmesh import query
-        return query.surface_height(self, points, tol)
-
-    def layer_height(self, x: float, y: float, z: float, tol: float) -> float:
-        """Height of the walkable layer in the column of (x, z) closest to y (within tol, else
-        NaN): a scalar surface_height for per-step use."""
-        from baker.navmesh import query
-        return query.layer_height(self, x, y, z, tol)
-
-    def resample_path(self, points, spacing: float | None = None) -> np.ndarray:
-        """(m, 3) points along a path every `spacing` m, heights on the walked surface."""
-        from baker.navmesh import query
-        return query.resample_path(self, points, spacing)
-
-    def segment_visible(self, a, b) -> bool:
-        """True when the straight segment a-b stays on linked walkable samples of one layer."""
-        from baker.navmesh import query
-        return query.segment_visible(self, a, b)
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
 @dataclass(frozen=True)
