@@ -561,8 +561,17 @@ def _above_surface(rays, lf: _Frames, cfg: RigConfig, target, sw, vert, inside, 
     sp = target[sw]
     probe = cfg.body.clearance + 2.0 * lg.lift
     hh = rays.cast_down(sp, probe, max_distance=2.0 * probe)
-    need = hh.points[:, 1] + np.maximum(0.35 * vert, np.where(inside, clear, 0.0))[sw]
-    y = np.where(hh.hit, np.maximum(sp[:, 1], need), sp[:, 1])
+    ground = np.full(sw.shape, -np.inf)
+    ground[sw] = np.where(hh.hit, hh.points[:, 1], -np.inf)
+    # a foot that crosses a step's edge between two frames is above the higher side in both
+    # (else the straight move between them cuts through the riser or the nosing, and the foot
+    # jumps a riser's height in one frame); the liftoff and touchdown frames stay on their holds
+    pad = np.full((1,) + sw.shape[1:], -np.inf)
+    nb = np.maximum(np.concatenate([ground[1:], pad]), np.concatenate([pad, ground[:-1]]))
+    ground = np.where(inside, np.maximum(ground, nb), ground)[sw]
+    hit = np.isfinite(ground)
+    need = np.where(hit, ground, 0.0) + np.maximum(0.35 * vert, np.where(inside, clear, 0.0))[sw]
+    y = np.where(hit, np.maximum(sp[:, 1], need), sp[:, 1])
     sp[:, 1] = y
     # a swinging foot stays on its hip's side of a wall: pulled back toward the hip where
     # the hip->foot line meets a steep face (eased in and out; re-timed below)
@@ -779,6 +788,12 @@ def _clear_swings(rays, target: np.ndarray, inside: np.ndarray, clear: float, re
         n = rays.face_normals[tri]
         n *= np.where(np.sum((p - c) * n, -1) < 0.0, -1.0, 1.0)[:, None]    # toward the foot
         n[buried] *= -1.0                                                   # ... or out of it
+        # nearest to an edge or a corner (a stair's nosing): away from that point, not along
+        # one face's normal (the riser's would push the foot down past the nosing)
+        away = p - c
+        dist = np.linalg.norm(away, axis=1)
+        off_face = ~buried & (dist > 1e-3 * clear) & (np.sum(away * n, -1) < (1.0 - 1e-6) * dist)
+        n[off_face] = away[off_face] / dist[off_face, None]
         target[f, l] = c + n * clear
     return target
 
