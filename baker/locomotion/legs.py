@@ -236,13 +236,18 @@ def _faces_up(normals: np.ndarray, up: np.ndarray) -> np.ndarray:
 
 
 def is_level(rays, pts: np.ndarray, up: np.ndarray, inward: np.ndarray, edge: float) -> np.ndarray:
-    """(n,) bool: the surface `edge` metres ahead, behind, in and out of each point (n, 3) lies
-    within half an `edge` of it along `up` (no step's edge or riser next to a foothold)."""
+    """(n,) bool: the surface `edge` metres ahead, behind, in and out of each point (n, 3) is
+    one plane with it, within half an `edge` along `up` (no step's edge or riser next to a
+    foothold), and no steeper than an `edge` rise per `edge`. Opposite sides are compared with
+    each other (a second difference), so a level tread under a body leaning with a flight of
+    stairs, or a ramp, is level."""
     along = normalize(np.cross(up, inward))
     ring = np.stack([along, -along, inward, -inward], 1) * edge                 # (n, 4, 3)
     top = pts[:, None] + ring + 2.0 * edge * up[:, None]
     hr = rays.first_hit(top.reshape(-1, 3), np.repeat(-up, 4, axis=0), max_distance=4.0 * edge)
-    return (hr.hit & (np.abs(hr.distance - 2.0 * edge) < 0.5 * edge)).reshape(-1, 4).all(1)
+    rise = (2.0 * edge - np.where(hr.hit, hr.distance, np.inf)).reshape(-1, 4)   # above the point
+    bend = np.abs(rise[:, [0, 2]] + rise[:, [1, 3]])                      # (n, 2): per axis
+    return (np.all(np.abs(rise) < edge, axis=1) & np.all(bend < 0.5 * edge, axis=1))
 
 
 def _swing_shape(u: np.ndarray) -> np.ndarray:

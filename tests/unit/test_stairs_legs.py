@@ -112,3 +112,25 @@ def test_stair_feet_and_leg_bones_stay_out_of_the_steps(climb):
     assert hits == 0
     # the feet climb with the body
     assert np.ptp(w["feet"][..., 1][w["contacts"]]) > 5 * RISER
+
+
+def test_a_tread_is_level_under_a_body_leaning_with_the_flight_and_a_riser_foot_is_not():
+    """Footholds prefer level ground away from a step's edge (legs.is_level). Under a segment
+    pitched with the flight (its up leans back by the flight's slope) the middle of a tread is
+    level, and the foot of a riser or a nosing is not."""
+    from baker.locomotion.legs import PLAN_REACH, EDGE_CLEAR, is_level
+
+    rays = staircase()
+    pitch = np.arctan2(RISER, TREAD)
+    edge = EDGE_CLEAR * PLAN_REACH * (RIG.legs.upper_length + RIG.legs.tip_length)
+    k = np.arange(3, 9)
+    mid = np.c_[np.zeros(len(k)), (k + 1) * RISER, (k + 0.5) * TREAD]
+    riser_foot = np.c_[np.zeros(len(k)), (k + 1) * RISER, (k + 1) * TREAD - 0.01]
+    nosing = np.c_[np.zeros(len(k)), (k + 1) * RISER, k * TREAD + 0.01]
+    for up in (np.array([0.0, 1.0, 0.0]),
+               np.array([0.0, np.cos(pitch), -np.sin(pitch)])):       # leaning with the flight
+        n = len(k)
+        args = (np.broadcast_to(up, (n, 3)), np.broadcast_to([1.0, 0.0, 0.0], (n, 3)), edge)
+        assert is_level(rays, mid, *args).all()
+        assert not is_level(rays, riser_foot, *args).any()
+        assert not is_level(rays, nosing, *args).any()
