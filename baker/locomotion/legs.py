@@ -183,7 +183,7 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
         for a in FAN:
             cands_o.append(o)
             cands_d.append(normalize(-np.cos(a) * up + np.sin(a) * inward))
-    for shift in (1.0, -1.0, 2.0, -2.0):    # a little ahead or behind, off a step's edge
+    for shift in (1.0, -1.0, 2.0, -2.0, 3.0, -3.0):   # ahead or behind, off a step's edge
         cands_o.append(points + probe * up + shift * edge * along)
         cands_d.append(-up)
     k = len(cands_o)
