@@ -183,7 +183,7 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
         for a in FAN:
             cands_o.append(o)
             cands_d.append(normalize(-np.cos(a) * up + np.sin(a) * inward))
-    for shift in (1.0, -1.0, 2.0, -2.0):    # a little ahead or behind, off a step's edge
+    for shift in (1.0, -1.0, 2.0, -2.0, 3.0, -3.0):   # ahead or behind, off a step's edge
         cands_o.append(points + probe * up + shift * edge * along)
         cands_d.append(-up)
     k = len(cands_o)
@@ -236,13 +236,18 @@ def _faces_up(normals: np.ndarray, up: np.ndarray) -> np.ndarray:
 
 
 def is_level(rays, pts: np.ndarray, up: np.ndarray, inward: np.ndarray, edge: float) -> np.ndarray:
-    """(n,) bool: the surface `edge` metres ahead, behind, in and out of each point (n, 3) lies
-    within half an `edge` of it along `up` (no step's edge or riser next to a foothold)."""
+    """(n,) bool: the surface `edge` metres ahead, behind, in and out of each point (n, 3) is
+    one plane with it, within half an `edge` along `up` (no step's edge or riser next to a
+    foothold), and no steeper than an `edge` rise per `edge`. Opposite sides are compared with
+    each other (a second difference), so a level tread under a body leaning with a flight of
+    stairs, or a ramp, is level."""
     along = normalize(np.cross(up, inward))
     ring = np.stack([along, -along, inward, -inward], 1) * edge                 # (n, 4, 3)
     top = pts[:, None] + ring + 2.0 * edge * up[:, None]
     hr = rays.first_hit(top.reshape(-1, 3), np.repeat(-up, 4, axis=0), max_distance=4.0 * edge)
-    return (hr.hit & (np.abs(hr.distance - 2.0 * edge) < 0.5 * edge)).reshape(-1, 4).all(1)
+    rise = (2.0 * edge - np.where(hr.hit, hr.distance, np.inf)).reshape(-1, 4)   # above the point
+    bend = np.abs(rise[:, [0, 2]] + rise[:, [1, 3]])                      # (n, 2): per axis
+    return (np.all(np.abs(rise) < edge, axis=1) & np.all(bend < 0.5 * edge, axis=1))
 
 
 def _swing_shape(u: np.ndarray) -> np.ndarray:
@@ -561,8 +566,17 @@ def _above_surface(rays, lf: _Frames, cfg: RigConfig, target, sw, vert, inside, 
     sp = target[sw]
     probe = cfg.body.clearance + 2.0 * lg.lift
     hh = rays.cast_down(sp, probe, max_distance=2.0 * probe)
-    need = hh.points[:, 1] + np.maximum(0.35 * vert, np.where(inside, clear, 0.0))[sw]
-    y = np.where(hh.hit, np.maximum(sp[:, 1], need), sp[:, 1])
+    ground = np.full(sw.shape, -np.inf)
+    ground[sw] = np.where(hh.hit, hh.points[:, 1], -np.inf)
+    # a foot that crosses a step's edge between two frames is above the higher side in both
+    # (else the straight move between them cuts through the riser or the nosing, and the foot
+    # jumps a riser's height in one frame); the liftoff and touchdown frames stay on their holds
+    pad = np.full((1,) + sw.shape[1:], -np.inf)
+    nb = np.maximum(np.concatenate([ground[1:], pad]), np.concatenate([pad, ground[:-1]]))
+    ground = np.where(inside, np.maximum(ground, nb), ground)[sw]
+    hit = np.isfinite(ground)
+    need = np.where(hit, ground, 0.0) + np.maximum(0.35 * vert, np.where(inside, clear, 0.0))[sw]
+    y = np.where(hit, np.maximum(sp[:, 1], need), sp[:, 1])
     sp[:, 1] = y
     # a swinging foot stays on its hip's side of a wall: pulled back toward the hip where
     # the hip->foot line meets a steep face (eased in and out; re-timed below)
@@ -779,6 +793,12 @@ def _clear_swings(rays, target: np.ndarray, inside: np.ndarray, clear: float, re
         n = rays.face_normals[tri]
         n *= np.where(np.sum((p - c) * n, -1) < 0.0, -1.0, 1.0)[:, None]    # toward the foot
         n[buried] *= -1.0                                                   # ... or out of it
+        # nearest to an edge or a corner (a stair's nosing): away from that point, not along
+        # one face's normal (the riser's would push the foot down past the nosing)
+        away = p - c
+        dist = np.linalg.norm(away, axis=1)
+        off_face = ~buried & (dist > 1e-3 * clear) & (np.sum(away * n, -1) < (1.0 - 1e-6) * dist)
+        n[off_face] = away[off_face] / dist[off_face, None]
         target[f, l] = c + n * clear
     return target
 

@@ -145,6 +145,24 @@ def _retimed(U, T, sid, u):
     return quat_slerp(U[j], U[j + 1], t), quat_slerp(T[j], T[j + 1], t)
 
 
+def _world_paced(q_seg, sid, turn):
+    """(n,) swing progress of flat entries (consecutive entries of one swing `sid` are
+    consecutive frames) paced by the turn left to the leg: each frame's step is `turn` less the
+    segment's world rotation (q_seg (n, 4)) since the previous frame, at least a quarter of
+    `turn`; 0 at each swing's first entry, 1 at its last."""
+    n = len(sid)
+    step = np.zeros(n)
+    same = sid[1:] == sid[:-1]
+    step[1:] = np.where(same, np.maximum(turn - quat_angle(q_seg[1:], q_seg[:-1]), 0.25 * turn),
+                        0.0)
+    cum = np.cumsum(step)
+    first = np.r_[0, np.nonzero(~same)[0] + 1]
+    runs = np.diff(np.r_[first, n])
+    cum -= np.repeat(cum[first], runs)
+    total = np.repeat(cum[np.r_[first[1:] - 1, n - 1]], runs)
+    return cum / np.maximum(total, 1e-12)
+
+
 def _own_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same):
     """(cost (n,), feet (n, 3)) per entry of flat swing frames (consecutive entries of one
     swing are consecutive frames; `same[k]`: entries k and k+1 belong to one swing): a bone
@@ -288,6 +306,12 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
     candidates += [("arc", PROFILES[0], r, 0.0, 0.0, 0.0, yw) for yw in YAWS
                    for r in RAISES[1:4]]
     candidates += [("bump", None, r, 0.0, 0.0, 0.0, 0.0) for r in RAISES[1:]]
+    # last, the same paths paced so each frame's share of the leg's own turn shrinks by what
+    # the segment turns in the world that frame (a leg joint turns in the world by its turn
+    # relative to the body plus the body's own turn)
+    u_world = _world_paced(qs, sk, lim.turn)
+    candidates += [("even/world", None, 0.0, 0.0, 0.0, 0.0, 0.0)]
+    candidates += [("arc/world", p, r, 0.0, 0.0, 0.0, 0.0) for p in PROFILES[:2] for r in RAISES]
     for kind, profile, r, swivel, flex, delay, yaw in candidates:
         open_ = todo & (best > 0)
         if not open_.any():
@@ -295,6 +319,8 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
         j = np.nonzero(open_[sk])[0]          # entries of the swings still to improve
         sj = sk[j]
         uj = u[j]
+        if kind.endswith("/world"):       # paced by the turn the segment leaves the leg
+            kind, uj = kind[:-6], u_world[j]
         if delay > 0:
             uj = np.clip((uj - delay) / (1.0 - delay), 0.0, 1.0)
         elif delay < 0:

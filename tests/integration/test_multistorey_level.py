@@ -168,9 +168,6 @@ def test_a_bake_visits_both_floors_and_climbs_the_staircase(climb):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="legs on stairs: feet still dip into the steps' nosings "
-                   "and tip bones graze them during some swings (about 2-4 % BL, tens of hits "
-                   "per 120 s); see the issue 10 note")
 def test_feet_and_leg_bones_stay_out_of_the_steps(climb):
     _, m = climb
     assert m["foot_penetration_max_pct_bl"] < 0.5 and m["leg_bone_hits"] == 0

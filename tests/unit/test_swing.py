@@ -77,3 +77,32 @@ def test_a_snapping_swing_is_redone_within_the_turn_limit_and_stances_stay():
     np.testing.assert_allclose(end[~swing, 0], t[~swing], atol=1e-9)     # stances untouched
     assert np.all(end[swing, 0, 1] > LIM.contact)              # the swing lifts off the floor
     assert np.all(mid[:, 0, 1] > 0.0)                          # no knee through it
+
+
+def test_a_swing_while_the_body_turns_keeps_the_world_turn_within_the_limit():
+    """The segment turns 20 deg a frame for three frames of a snapping swing, against the
+    leg's sweep: paced only in the leg's own space, a frame's world turn (the body's turn plus
+    the leg's) breaks the limit; paced by what the body's turn leaves, it does not."""
+    from baker.geometry.transforms import quat_about, quat_rotate
+
+    a, b = np.array([0.17, 0.0, -0.12]), np.array([0.17, 0.0, 0.12])
+    t = np.empty((15, 3))
+    t[:5], t[10:] = a, b
+    u = (np.arange(5, 10) - 4) / 6.0
+    t[5:10] = a + (b - a) * u[:, None] + [0.0, 0.03, 0.0] * np.sin(np.pi * u)[:, None]
+    t[7] = [0.02, 0.2, 0.0]                                     # the plan snaps
+    swing = np.zeros(15, bool)
+    swing[5:10] = True
+    yaw = -np.radians(20.0) * np.clip(np.arange(15) - 4, 0, 3)
+    q_seg = quat_about(np.broadcast_to([0.0, 1.0, 0.0], (15, 3)), yaw)
+    q_u, q_t, mid, end = leg(t)                                 # in the segment's frame
+    hip = np.broadcast_to(HIP, (15, 3))
+    out = joint_space_swings(ground(), hip[:, None], q_seg[:, None],
+                             quat_mul(q_seg, q_u)[:, None], quat_mul(q_seg, q_t)[:, None],
+                             (hip + quat_rotate(q_seg, mid - hip))[:, None],
+                             (hip + quat_rotate(q_seg, end - hip))[:, None], swing[:, None],
+                             np.array([1.0]), L1, L2, LIM)
+    qu, qt = out[0][:, 0], out[1][:, 0]
+    local = (quat_mul(quat_conj(q_seg), qu), quat_mul(quat_conj(qu), qt))
+    for q in (qu, qt) + local:
+        assert np.degrees(quat_angle(q[1:], q[:-1])).max() <= 27.0
