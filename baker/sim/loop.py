@@ -93,7 +93,7 @@ def simulate(cfg: BakeConfig, env, nav, streams: Streams, ctx: Context,
     follow = Follower(nav, env.rays, start, heading, rig, fps=cfg.fps)
     head = follow.head
     sun = sun_path(parse_sun_path(cfg.sun_path) if cfg.sun_path else None, env.sun.direction,
-                   cfg.seconds)
+                   cfg.seconds, env.sun.azimuth_rate)
     if intent is None:
         preys = ([Prey(i, nav.nearest(p, np.inf), rig.prey, nav, streams.get("prey", i))
                   for i, p in enumerate(cfg.prey_positions)]
