@@ -153,6 +153,9 @@ class PreyConfig:
     recovery: float = 0.25            # [>=0] stamina regained per second when not fleeing
     flee_trigger: float = 0.5         # [>0] [m] a centipede closer than this makes it flee
     acceleration: float = 2.0         # [>0] [m/s^2]
+    cover_trigger: float = 0.5        # [(0..1]] flee_trigger multiplier while the prey is in
+                                      # shade: under cover it keeps still and lets the
+                                      # centipede come closer before it bolts
     color: tuple[float, float, float] = (0.32, 0.42, 0.12)  # [0..1] linear RGB
 
 

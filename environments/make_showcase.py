@@ -298,7 +298,10 @@ def make_showcase(seed: int = DEFAULT_SEED) -> tuple[list[rf.Part], rf.SunSpec]:
 
     # stones: low flat ones to step onto, taller rocks to walk around
     for i, (x, z, a, c) in enumerate([(0.35, 0.2, 0.14, 0.04), (-0.35, -0.55, 0.12, 0.035),
-                                      (1.9, 1.6, 0.16, 0.04), (0.2, 2.15, 0.13, 0.03)]):
+                                      (1.9, 1.6, 0.16, 0.04), (0.2, 2.15, 0.13, 0.03),
+                                      (-1.5, 1.3, 0.12, 0.035), (1.0, 1.9, 0.13, 0.038),
+                                      (-2.3, -1.0, 0.14, 0.036), (1.75, -0.75, 0.12, 0.034),
+                                      (-1.1, 1.75, 0.11, 0.037), (1.5, 0.2, 0.13, 0.039)]):
         R = rf.random_rotation(rng, max_tilt=math.radians(4.0))
         g = float(ground.height(x, z))
         parts.append(ellipsoid(f"stone_{i + 1:02d}", "rock", np.array([a, c * 2.2, 0.8 * a]), R,

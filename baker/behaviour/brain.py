@@ -181,9 +181,11 @@ class Brain:
                     self._last_memory = s.t
                     break
         if self.cobra_mode == "auto" and self.state in ("wander", "seek_shade"):
+            # SEED: rearing is for climbing onto objects taller than the step height (and
+            # lower than the cobra height)
             step = self.rig.navigation.step_height
             if perception.obstacle_ahead(self.rays, s.head, s.heading, self.rig.cobra.obstacle_probe,
-                                         low=1.5 * step, high=self.rig.cobra.height):
+                                         low=step, high=self.rig.cobra.height):
                 # rear up for a look over it, then carry on with the same path
                 self._resume = (self.state, self.target)
                 self._enter("cobra", s.t, reason="obstacle ahead")
