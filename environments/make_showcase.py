@@ -7,12 +7,14 @@ A 6 m square of forest floor for a 0.25 m centipede (body length BL = 0.25 m) th
 - leaf litter relief: the ground undulates by a centimetre or two, and fallen leaves lie draped
   over it;
 - a bank along the east edge, rising 0.3 m with slopes up to about 50 deg;
-- two solid logs to climb over (buried so that their sides meet the ground at 52-55 deg), and a
+- fallen branches around the middle, 2.8 cm high (taller than a step: the centipede rears up
+  to climb them) and two solid logs to climb over (buried so that their sides meet the ground at 52-55 deg), and a
   hollow half log to walk through (open at both ends, 0.11 m of headroom inside, walkable
   outer walls);
 - a big log whose top (0.28 m up, its sides overhanging) is an upper level reached by a bark
   plank ramp at about 30 deg;
-- roots (one arching high enough to walk under) and stones (low flat ones to step onto, taller
+- roots 2-3 cm high (a climb worth rearing up for; two arch high enough to walk under) and
+  stones (low flat ones to step onto, taller
   rocks to walk around);
 - broad-leaved seedlings and a fallen bark sheet leaning on a stone that cast real shade: about
   15% of the walkable ground is in shade at the file's sun;
@@ -230,7 +232,7 @@ def root(name: str, ground: Ground, pts_xz, radius: float, arch: tuple | None) -
         u0, u1, h = arch
         a = np.clip((u - u0) / (u1 - u0), 0.0, 1.0)
         off = off + (h + 0.6 * radius) * np.sin(np.pi * a) ** 1.5
-    r = radius * (1.0 - 0.45 * su / s[-1])        # tapering
+    r = radius * (1.0 - 0.3 * su / s[-1])         # tapering
     return rf.merge(name, "root", tube(np.stack([x, ground.height(x, z) + off, z], 1), r, 12))
 
 
@@ -283,6 +285,11 @@ def make_showcase(seed: int = DEFAULT_SEED) -> tuple[list[rf.Part], rf.SunSpec]:
     # logs to climb over
     parts.append(buried_log("log_climb_1", ground, (-1.9, 0.3), (-0.7, 1.35), 0.16, 54.0))
     parts.append(buried_log("log_climb_2", ground, (0.2, -2.0), (1.4, -1.1), 0.2, 52.0))
+    # fallen branches, 2.8 cm high with 53 deg sides: climbed with the front reared up
+    for i, (a, b) in enumerate([((-0.3, 0.95), (0.25, 0.85)), ((0.05, -0.15), (0.55, -0.45)),
+                                ((-0.35, 0.1), (-0.05, 0.5)), ((1.35, 1.3), (1.8, 1.0)),
+                                ((0.6, 2.5), (1.3, 2.6)), ((-0.5, -0.9), (0.0, -0.75))]):
+        parts.append(buried_log(f"branch_{i + 1:02d}", ground, a, b, 0.07, 53.0, "wood"))
     # the hollow log to walk through (open side down, walkable 50 deg walls)
     shape = rf.LogShape(a=0.25, b=0.2, t=0.018, foot_slope=math.radians(50.0), bury=0.03)
     parts.append(rf.log_part("log_hollow", ground, (0.95, 0.75),
@@ -290,11 +297,11 @@ def make_showcase(seed: int = DEFAULT_SEED) -> tuple[list[rf.Part], rf.SunSpec]:
 
     # roots from a tree just off the patch's north-west corner; one arches over the floor
     parts.append(root("root_1", ground, [(-3.1, -2.6), (-2.2, -2.3), (-1.4, -2.5), (-0.4, -2.35)],
-                      0.035, (0.35, 0.75, 0.095)))
+                      0.075, (0.35, 0.75, 0.16)))
     parts.append(root("root_2", ground, [(-3.1, -2.2), (-2.6, -1.0), (-2.7, 0.2), (-2.3, 1.0)],
-                      0.03, None))
+                      0.07, None))
     parts.append(root("root_3", ground, [(-2.9, 0.6), (-1.9, 1.9), (-0.6, 2.3), (0.4, 2.0)],
-                      0.03, (0.45, 0.8, 0.1)))
+                      0.07, (0.45, 0.8, 0.16)))
 
     # stones: low flat ones to step onto, taller rocks to walk around
     for i, (x, z, a, c) in enumerate([(0.35, 0.2, 0.14, 0.04), (-0.35, -0.55, 0.12, 0.035),

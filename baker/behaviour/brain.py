@@ -36,6 +36,8 @@ log = logging.getLogger(__name__)
 
 #: [s] after the agent has arrived at a shade spot, how long the head has to get into its shade
 SETTLE_TIME = 1.0
+#: [m] a remembered shade spot has shade this far around it (4 rays on the level)
+SPOT_MARGIN = 0.05
 
 STATES = ("wander", "seek_shade", "rest_in_shade", "cobra", "hunt", "strike", "feed", "warning")
 MODES = ("auto", "wander", "shade", "hunt")
@@ -176,7 +178,7 @@ class Brain:
             here = self.nav.component_of(head)
             for p in pts[shade]:
                 if (all(np.linalg.norm(q - p) >= self.b.shade_spot_spacing for q in self.shade_spots)
-                        and self.nav.component_of(p) == here):
+                        and self.nav.component_of(p) == here and self._deep_shade(p, sun)):
                     self.shade_spots.append(p.copy())
                     self._last_memory = s.t
                     break
@@ -197,6 +199,12 @@ class Brain:
                 self._enter("hunt", s.t, prey=prey.name)
                 self._scout_until = s.t + self.b.scout_time
                 self._next_replan = s.t
+
+    def _deep_shade(self, p: np.ndarray, sun: np.ndarray) -> bool:
+        """The shade around p reaches SPOT_MARGIN every way: a spot worth walking to, not a
+        sliver the head may miss or the moving sun uncovers on the way."""
+        ring = p + SPOT_MARGIN * np.array([[1.0, 0, 0], [-1.0, 0, 0], [0, 0, 1.0], [0, 0, -1.0]])
+        return bool(perception.in_shade(self.rays, ring, sun, self.rig.body.clearance).all())
 
     def _closest_prey(self, head: np.ndarray) -> Prey | None:
         free = [p for p in self.preys if p.mode == FREE and self._ignore.get(p.name, -1.0) < self._now]
