@@ -99,8 +99,10 @@ def test_walkable_features(env, nav):
     bank = p[h.hit, 0] > 1.7
     assert slope[bank].max() > 45.0
     # inside the hollow log: walkable floor with the log's shell overhead
-    x, z = 0.95, 0.75
-    inside = (np.abs(p[:, 0] - x) < 0.08) & (np.abs(p[:, 2] - z) < 0.3)
+    c, axis = np.array([0.95, 0.75]), np.array([math.cos(math.radians(80)), math.sin(math.radians(80))])
+    rel = p[:, [0, 2]] - c
+    along, across = rel @ axis, rel @ np.array([-axis[1], axis[0]])
+    inside = (np.abs(along) < 0.5) & (np.abs(across) < 0.05) & (p[:, 1] < 0.06)
     assert inside.sum() > 20
     up = env.rays.first_hit(p[inside] + [0.0, 0.01, 0.0], np.tile([0.0, 1.0, 0.0], (inside.sum(), 1)))
     assert up.hit.all()
