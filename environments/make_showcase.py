@@ -4,8 +4,8 @@ that a 60 s bake meets every behaviour.
 A 6 m square of forest floor for a 0.25 m centipede (body length BL = 0.25 m) that walks about
 12 m a minute, so that it meets the features within a minute:
 
-- leaf litter relief: the ground undulates by a centimetre or two, and fallen leaves lie draped
-  over it;
+- leaf litter relief: the ground undulates by a centimetre or two, in patches of bare soil and
+  of litter (one surface, two materials);
 - a bank along the east edge, rising 0.3 m with slopes up to about 50 deg;
 - fallen branches around the middle, 2.8 cm high (taller than a step: the centipede rears up
   to climb them) and two solid logs to climb over (buried so that their sides meet the ground at 52-55 deg), and a
@@ -62,7 +62,7 @@ MATERIALS = {
     "leaf": rf.srgb_to_linear((38, 96, 34)),
     "root": rf.srgb_to_linear((80, 58, 40)),
 }
-DOUBLE_SIDED = ("leaf", "litter", "bark")
+DOUBLE_SIDED = ("leaf", "bark")
 
 
 # --------------------------------------------------------------------------- ground
@@ -89,7 +89,10 @@ class Ground:
         xb = BANK_X + 0.12 * np.sin(1.3 * z + 0.4)
         return h + BANK_HEIGHT / (1.0 + np.exp(-self.bank_s * (x - xb)))
 
-    def part(self) -> rf.Part:
+    def parts(self, rng: np.random.Generator) -> list[rf.Part]:
+        """The ground grid as two meshes on the same vertices: bare soil and leaf litter
+        (patches picked by a noise pattern). One surface: no thin sheets over the ground for
+        feet to plant under."""
         n = int(round(SIZE / GROUND_CELL)) + 1
         c = np.linspace(-SIZE / 2, SIZE / 2, n)
         X, Z = np.meshgrid(c, c, indexing="xy")
@@ -98,7 +101,17 @@ class Ground:
         a, b, cc, d = i[:-1, :-1], i[:-1, 1:], i[1:, :-1], i[1:, 1:]
         f = np.concatenate([np.stack([a, cc, b], -1).reshape(-1, 3),
                             np.stack([b, cc, d], -1).reshape(-1, 3)])
-        return rf.make_part("ground", "soil", v, f, up_hint=np.array([0.0, 1.0, 0.0]))
+        centre = v[f].mean(axis=1)
+        ang = rng.uniform(0.0, 2.0 * np.pi, 6)
+        k = np.stack([np.cos(ang), np.sin(ang)], 1) * (2 * np.pi / rng.uniform(0.3, 0.9, 6))[:, None]
+        noise = np.sin(centre[:, [0, 2]] @ k.T + rng.uniform(0.0, 2.0 * np.pi, 6)).sum(axis=1)
+        litter = noise > 0.0
+        out = []
+        for name, mat, sel in (("ground", "soil", ~litter), ("ground_litter", "litter", litter)):
+            used, ff = np.unique(f[sel], return_inverse=True)   # only the vertices it uses
+            out.append(rf.make_part(name, mat, v[used], ff.reshape(-1, 3),
+                                    up_hint=np.array([0.0, 1.0, 0.0])))
+        return out
 
 
 # --------------------------------------------------------------------------- shapes
@@ -201,21 +214,6 @@ def bark_sheet(name: str, ground: Ground, centre, yaw: float, length: float, wid
     return rf.Part(name, "bark", *top)
 
 
-def draped(ground: Ground, xz, yaw: float, length: float, width: float, lift: float) -> tuple:
-    """A fallen leaf lying on the ground, following it `lift` above."""
-    nu, nv = 5, 3
-    u = np.linspace(0.0, 1.0, nu)[:, None]
-    v = np.linspace(-1.0, 1.0, nv)[None, :]
-    half = width / 2 * np.sin(np.pi * np.clip(u, 0.05, 0.95)) ** 0.7
-    d = np.array([math.cos(yaw), math.sin(yaw)])
-    w = np.array([-math.sin(yaw), math.cos(yaw)])
-    p2 = (np.asarray(xz, float) + ((u - 0.5) * length * np.ones_like(v))[..., None] * d
-          + (v * half)[..., None] * w)
-    y = ground.height(p2[..., 0], p2[..., 1]) + lift
-    p = np.stack([p2[..., 0], y, p2[..., 1]], -1).reshape(-1, 3)
-    return rf.piece(p, rf.grid_faces(nu, nv), np.array([0.0, 1.0, 0.0]))
-
-
 def root(name: str, ground: Ground, pts_xz, radius: float, arch: tuple | None) -> rf.Part:
     """A root along the (x, z) points, sunk to 60% of its radius; `arch` = (u0, u1, height):
     between fractions u0 and u1 of its length it arches up, its axis `height` above the
@@ -264,14 +262,7 @@ def make_showcase(seed: int = DEFAULT_SEED) -> tuple[list[rf.Part], rf.SunSpec]:
     """Build the patch. Returns (parts, sun); parts are in world space (metres, +Y up)."""
     rng = np.random.default_rng(seed)
     ground = Ground(rng)
-    parts = [ground.part()]
-    # fallen leaves lying on the litter
-    litter = []
-    for _ in range(140):
-        xz = rng.uniform(-SIZE / 2 + 0.1, SIZE / 2 - 0.1, 2)
-        ln = rng.uniform(0.06, 0.14)
-        litter.append(draped(ground, xz, rng.uniform(0, 2 * np.pi), ln, 0.5 * ln, 0.004))
-    parts.append(rf.merge("litter", "litter", litter))
+    parts = ground.parts(rng)
 
     # the upper level: a big log with overhanging sides; a bark plank ramp up to its top
     big_r, big_y = 0.2, 0.08
