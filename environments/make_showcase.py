@@ -317,9 +317,10 @@ def make_showcase(seed: int = DEFAULT_SEED) -> tuple[list[rf.Part], rf.SunSpec]:
     # broad-leaved seedlings: the canopy the shade comes from
     plants = [(0.9, -0.5, 0.34, 5, 0.5), (-0.6, 0.6, 0.3, 5, 0.46), (2.4, 0.3, 0.36, 6, 0.5),
               (-2.0, -0.6, 0.28, 4, 0.42), (0.4, 1.3, 0.32, 5, 0.46), (-1.8, 2.3, 0.3, 5, 0.48),
-              (1.8, -2.3, 0.33, 5, 0.48), (2.5, 2.4, 0.34, 5, 0.5), (-0.1, -1.2, 0.3, 4, 0.44)]
+              (1.8, -2.3, 0.33, 5, 0.48), (2.5, 2.4, 0.34, 5, 0.5), (-0.1, -1.2, 0.3, 4, 0.44),
+              (0.05, 0.25, 0.3, 5, 0.42), (1.6, -1.6, 0.32, 5, 0.44)]
     for i, (x, z, h, n, ln) in enumerate(plants):
-        parts += seedling(f"plant_{i + 1:02d}", ground, (x, z), h, n, 1.15 * ln, rng)
+        parts += seedling(f"plant_{i + 1:02d}", ground, (x, z), h, n, 1.25 * ln, rng)
 
     zen, az = math.radians(SUN_ZENITH_DEG), math.radians(SUN_AZIMUTH_DEG)
     sun_dir = np.array([math.sin(zen) * math.cos(az), math.cos(zen), math.sin(zen) * math.sin(az)])
