@@ -17,7 +17,7 @@ A 6 m square of forest floor for a 0.25 m centipede (body length BL = 0.25 m) th
   stones (low flat ones to step onto, taller
   rocks to walk around);
 - broad-leaved seedlings and a fallen bark sheet leaning on a stone that cast real shade: about
-  15% of the walkable ground is in shade at the file's sun;
+  18% of the walkable ground is in shade at the file's sun;
 - a directional sun 40 deg from the zenith (glTF KHR_lights_punctual) that turns about the
   vertical at 0.5 deg/s during a bake (the light's extras `azimuth_deg_per_s`, read by
   baker.environment.load), so the shade moves by a few centimetres a minute.

@@ -36,6 +36,8 @@ log = logging.getLogger(__name__)
 
 #: [s] after the agent has arrived at a shade spot, how long the head has to get into its shade
 SETTLE_TIME = 1.0
+#: [s] longest cobra rearing at one obstacle (it may be pressing against one it cannot climb)
+COBRA_MAX_TIME = 3.0
 #: [m] a remembered shade spot has shade this far around it (4 rays on the level)
 SPOT_MARGIN = 0.05
 
@@ -86,6 +88,7 @@ class Brain:
         self._next_perception = 0.0
         self._next_replan = 0.0
         self._scout_until = -1.0
+        self._obstacle = False     # an obstacle worth rearing at is ahead (last perception)
         self._ignore: dict[str, float] = {}   # prey given up on, until this time
         self._now = 0.0
         # two rings of points around the head where shade is noticed (8 at half the sense
@@ -182,12 +185,14 @@ class Brain:
                     self.shade_spots.append(p.copy())
                     self._last_memory = s.t
                     break
-        if self.cobra_mode == "auto" and self.state in ("wander", "seek_shade"):
+        if self.cobra_mode == "auto" and self.state in ("wander", "seek_shade", "cobra"):
             # SEED: rearing is for climbing onto objects taller than the step height (and
             # lower than the cobra height)
             step = self.rig.navigation.step_height
-            if perception.obstacle_ahead(self.rays, s.head, s.heading, self.rig.cobra.obstacle_probe,
-                                         low=step, high=self.rig.cobra.height):
+            self._obstacle = perception.obstacle_ahead(
+                self.rays, s.head, s.heading, self.rig.cobra.obstacle_probe, low=step,
+                high=self.rig.cobra.height)
+            if self._obstacle and self.state != "cobra":
                 # rear up for a look over it, then carry on with the same path
                 self._resume = (self.state, self.target)
                 self._enter("cobra", s.t, reason="obstacle ahead")
@@ -280,8 +285,12 @@ class Brain:
             self._roll(s)
 
     def _cobra(self, s: Senses, decide: bool) -> None:
-        """Scouting over an obstacle while walking on; then back to what it was doing."""
-        if s.t - self.since >= max(self.b.scout_time, self.rig.cobra.ramp_time * 2):
+        """Scouting over an obstacle while walking on, reared until it is no longer ahead (it
+        has climbed it or turned away; at most COBRA_MAX_TIME); then back to what it was
+        doing."""
+        held = s.t - self.since
+        if held >= max(self.b.scout_time, self.rig.cobra.ramp_time * 2) and (
+                not self._obstacle or held >= COBRA_MAX_TIME):
             state, target = self._resume
             self._enter(state, s.t, reason="scouted", target=_r(target) if target is not None else None)
 

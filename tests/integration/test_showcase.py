@@ -127,7 +127,7 @@ def test_default_bake_shows_every_behaviour(tmp_path, nav_cache_dir):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [4, 6])
+@pytest.mark.parametrize("seed", [1, 2])
 def test_default_bake_shows_every_behaviour_on_other_seeds(seed, tmp_path, nav_cache_dir):
     """The same on other seeds (the timeline does not depend on the legs: baked without them)."""
     from baker.pipeline import bake
