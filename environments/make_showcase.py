@@ -149,15 +149,21 @@ def tube(path: np.ndarray, radius, n_around: int = 14, caps: bool = True) -> lis
 
 
 def buried_log(name: str, ground: Ground, p0, p1, radius: float, side_deg: float,
-               material: str = "bark") -> rf.Part:
+               material: str = "bark", dive: float = 0.0) -> rf.Part:
     """A solid log from p0 to p1 (x, z) sunk into the ground so that its sides meet the ground
-    at `side_deg` (the top shows radius * (1 - cos side) above the ground)."""
+    at `side_deg` (the top shows radius * (1 - cos side) above the ground). With `dive` > 0 its
+    ends dive under the ground over that fraction of its length at each end (no upright end
+    faces to walk into)."""
     p0, p1 = np.asarray(p0, float), np.asarray(p1, float)
     n = max(8, int(math.ceil(np.linalg.norm(p1 - p0) / 0.06)) + 1)
     xz = p0 + np.linspace(0.0, 1.0, n)[:, None] * (p1 - p0)
     g = ground.height(xz[:, 0], xz[:, 1])
     g = np.convolve(np.pad(g, 2, mode="edge"), np.ones(5) / 5, mode="valid")  # a straight-ish log
     y = g - radius * math.cos(math.radians(side_deg))
+    if dive > 0:
+        u = np.linspace(0.0, 1.0, n)
+        e = np.clip(np.minimum(u, 1.0 - u) / dive, 0.0, 1.0)     # 0 at the ends, 1 inside
+        y = y - 1.2 * radius * (1.0 - e * e * (3.0 - 2.0 * e))
     return rf.merge(name, material, tube(np.stack([xz[:, 0], y, xz[:, 1]], 1), radius, 24))
 
 
@@ -280,7 +286,8 @@ def make_showcase(seed: int = DEFAULT_SEED) -> tuple[list[rf.Part], rf.SunSpec]:
     for i, (a, b) in enumerate([((-0.3, 0.95), (0.25, 0.85)), ((0.05, -0.15), (0.55, -0.45)),
                                 ((-0.35, 0.1), (-0.05, 0.5)), ((1.35, 1.3), (1.8, 1.0)),
                                 ((0.6, 2.5), (1.3, 2.6)), ((-0.5, -0.9), (0.0, -0.75))]):
-        parts.append(buried_log(f"branch_{i + 1:02d}", ground, a, b, 0.07, 53.0, "wood"))
+        parts.append(buried_log(f"branch_{i + 1:02d}", ground, a, b, 0.07, 53.0, "wood",
+                                dive=0.25))
     # the hollow log to walk through (open side down, walkable 50 deg walls)
     shape = rf.LogShape(a=0.25, b=0.2, t=0.018, foot_slope=math.radians(50.0), bury=0.03)
     parts.append(rf.log_part("log_hollow", ground, (0.95, 0.75),

@@ -696,7 +696,7 @@ OPTION_CASES = {
     "sun-path": ["nan,30", "inf,30", "90,nan", "90,0", "90,91", "abc", "90", "1e308,30",
                  "90,30;nan,40", "90,30;270", ";;", "90,-inf"],
     "scale": ["0", "nan", "inf", "-1", "1e6", "abc"],
-    "cell-size": ["0", "-1", "nan", "inf", "abc", "0.0036", "1e-5", "1e-300"],
+    "cell-size": ["0", "-1", "nan", "inf", "abc", "0.00096", "1e-5", "1e-300"],
     "agent-radius": ["nan", "0", "-1", "inf", "1e9"],
     "agent-height": ["nan", "0", "-0.5", "inf"],
     "step-height": ["-1", "nan", "inf"],
