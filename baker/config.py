@@ -23,7 +23,7 @@ from baker.geometry.transforms import direction_from_angles
 PACKAGE_ROOT = Path(__file__).resolve().parent
 REPO_ROOT = PACKAGE_ROOT.parent
 DEFAULT_RIG = REPO_ROOT / "rigs" / "scolopendra.toml"
-DEFAULT_ENVIRONMENT = REPO_ROOT / "environments" / "rainforest_floor.glb"
+DEFAULT_ENVIRONMENT = REPO_ROOT / "environments" / "showcase.glb"
 MAX_FPS = 240  # [Limit] export fps must divide SIM_RATE_HZ and be at most this
 
 
@@ -153,6 +153,9 @@ class PreyConfig:
     recovery: float = 0.25            # [>=0] stamina regained per second when not fleeing
     flee_trigger: float = 0.5         # [>0] [m] a centipede closer than this makes it flee
     acceleration: float = 2.0         # [>0] [m/s^2]
+    cover_trigger: float = 0.5        # [(0..1]] flee_trigger multiplier while the prey is in
+                                      # shade: under cover it keeps still and lets the
+                                      # centipede come closer before it bolts
     color: tuple[float, float, float] = (0.32, 0.42, 0.12)  # [0..1] linear RGB
 
 
@@ -179,17 +182,18 @@ PREVIEW_SUFFIXES = {"map": "_map.png", "sheet": "_sheet.png", "gif": ".gif"}
 @dataclass(frozen=True)
 class BakeConfig:
     environment: Path = DEFAULT_ENVIRONMENT  # file to load
-    seconds: float = 20.0        # [>0, <=3600] [s] simulated duration
+    seconds: float = 60.0        # [>0, <=3600] [s] simulated duration
     fps: int = 30                # [1..240, divides 240] [Hz] export frame rate
     seed: int = 0                # [>=0] random seed
     rig: RigConfig = field(default_factory=RigConfig)
     out: Path = Path("outputs/centipede")  # output path without extension
     formats: tuple[str, ...] = ("glb", "usd")  # subset of {"glb", "usd", "usda"}
-    sun_direction: tuple[float, float, float] | None = None  # toward the sun; None: from file
+    sun_direction: tuple[float, float, float] | None = None  # toward the sun, fixed; None: the
+                                 # file's light (turning about +Y when its extras say so)
     debug_navmesh: bool = False
     behaviour: str = "auto"      # auto | wander | shade | hunt: which drives the brain may use
     cobra: str = "auto"          # auto | always | never
-    prey: int = 0                # [0..16] prey capsules
+    prey: int = 2                # [0..16] prey capsules
     sun_path: str | None = None  # "AZ,EL;AZ,EL;..." degrees, evenly spaced over the bake
     clips: bool = False          # also write one animation per behaviour segment
     root_motion: str = "world"   # world | root | in-place (see baker.rootmotion)

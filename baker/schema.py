@@ -159,6 +159,8 @@ class PreyTable(_Table):
     flee_trigger: Num | None = key("BL", "a centipede closer than this makes it flee",
                                      gt=0, le=1e4)
     acceleration: Num | None = key("BL/s^2", "capsule acceleration", gt=0, le=1e4)
+    cover_trigger: Num | None = key("", "flee_trigger multiplier while the prey is in shade "
+                                    "(it keeps still under cover)", gt=0, le=1)
     color: RGB | None = key("linear RGB", "capsule colour, each channel in [0, 1]")
 
 

@@ -3,7 +3,8 @@ its files (baker.inspect: the GLB and USD read back, the Khronos glTF validator 
 pxr.UsdValidation), then print per-limit pass rates per scene and the worst bakes with the joint
 and frame of each worst value.
 
-Scenes: the bundled default scene (60 s); ../shared/fixtures/nav_test.obj with the 2 m rig
+Scenes: the bundled default scene (environments/showcase.glb, 60 s, the default bake's 2 prey
+and turning sun); ../shared/fixtures/nav_test.obj with the 2 m rig
 (--scale 8, 120 s; skipped when ../shared is absent); the generated multi-storey level
 (environments/multistorey.glb, 2 m rig, 120 s); the default scene moved 10 km from the origin
 (60 s).
@@ -41,7 +42,7 @@ DIAGNOSTICS = tuple(f"rotation_{kind}_{group}_deg" for group in
     "antenna_bone_hits", "foot_near_ground_fraction", "head_unsupported_frames")
 
 SCENES = {
-    "default": dict(env="environments/rainforest_floor.glb", scale=None, seconds=60.0),
+    "default": dict(env="environments/showcase.glb", scale=None, seconds=60.0),
     "nav_test": dict(env=str(SHARED / "nav_test.obj"), scale=8.0, seconds=120.0),
     "multistorey": dict(env="environments/multistorey.glb", scale=8.0, seconds=120.0),
     "far": dict(env="far", scale=None, seconds=60.0),
@@ -69,7 +70,7 @@ def moved_glb(src: Path, dst: Path, offset) -> Path:
 def scene_environment(scene: str, work: Path) -> Path | None:
     """The environment file of a sweep scene (None when it is not available here)."""
     if scene == "far":
-        path = work / "rainforest_floor_far.glb"
+        path = work / "showcase_far.glb"
         if not path.exists():
             moved_glb(ROOT / SCENES["default"]["env"], path, FAR_OFFSET)
         return path

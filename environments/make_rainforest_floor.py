@@ -494,8 +494,16 @@ def _quat_z_to(d: np.ndarray) -> list[float]:
     return [round(float(x), 9) for x in q]  # rounded: the JSON text must not vary by platform
 
 
-def build_glb(parts: list[Part], sun: SunSpec, seed: int) -> bytes:
-    """Serialize the floor as GLB 2.0 bytes (deterministic)."""
+def build_glb(parts: list[Part], sun: SunSpec, seed: int, *, materials: dict | None = None,
+              scene_name: str = "rainforest_floor",
+              generator: str = "baker environments/make_rainforest_floor.py",
+              extras: dict | None = None, double_sided: tuple[str, ...] = (),
+              sun_extras: dict | None = None) -> bytes:
+    """Serialize the floor as GLB 2.0 bytes (deterministic). `materials` (name -> linear RGBA,
+    default MATERIALS), the scene's name, the generator string and extra scene extras let other
+    generators (make_showcase.py) share this writer; `double_sided` names materials of thin
+    sheets (leaves) seen from both sides; `sun_extras` go to the light's extras."""
+    materials_rgba = MATERIALS if materials is None else materials
     blob = bytearray()
     buffer_views, accessors = [], []
 
@@ -507,10 +515,11 @@ def build_glb(parts: list[Part], sun: SunSpec, seed: int) -> bytes:
         blob.extend(data)
         return len(buffer_views) - 1
 
-    mat_names = list(MATERIALS)
+    mat_names = list(materials_rgba)
     materials = [{"name": n,
-                  "pbrMetallicRoughness": {"baseColorFactor": list(MATERIALS[n]),
-                                           "metallicFactor": 0.0, "roughnessFactor": 1.0}}
+                  "pbrMetallicRoughness": {"baseColorFactor": list(materials_rgba[n]),
+                                           "metallicFactor": 0.0, "roughnessFactor": 1.0},
+                  **({"doubleSided": True} if n in double_sided else {})}
                  for n in mat_names]
     meshes, nodes = [], []
     for p in parts:
@@ -537,15 +546,17 @@ def build_glb(parts: list[Part], sun: SunSpec, seed: int) -> bytes:
     while len(blob) % 4:
         blob.append(0)
     doc = {
-        "asset": {"version": "2.0", "generator": "baker environments/make_rainforest_floor.py"},
+        "asset": {"version": "2.0", "generator": generator},
         "extensionsUsed": ["KHR_lights_punctual"],
         "extensions": {"KHR_lights_punctual": {"lights": [
             {"name": "sun", "type": "directional", "intensity": float(sun.intensity),
-             "color": [float(c) for c in sun.color]}]}},
+             "color": [float(c) for c in sun.color],
+             **({"extras": sun_extras} if sun_extras else {})}]}},
         "scene": 0,
-        "scenes": [{"name": "rainforest_floor", "nodes": list(range(len(nodes))),
+        "scenes": [{"name": scene_name, "nodes": list(range(len(nodes))),
                     "extras": {"seed": int(seed), "body_length_m": BODY_LENGTH,
-                               "fog": {"color": [0.05, 0.06, 0.05], "density": 0.08}}}],
+                               "fog": {"color": [0.05, 0.06, 0.05], "density": 0.08},
+                               **(extras or {})}}],
         "nodes": nodes,
         "meshes": meshes,
         "materials": materials,

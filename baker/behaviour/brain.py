@@ -36,6 +36,10 @@ log = logging.getLogger(__name__)
 
 #: [s] after the agent has arrived at a shade spot, how long the head has to get into its shade
 SETTLE_TIME = 1.0
+#: [s] longest cobra rearing at one obstacle (it may be pressing against one it cannot climb)
+COBRA_MAX_TIME = 3.0
+#: [m] a remembered shade spot has shade this far around it (4 rays on the level)
+SPOT_MARGIN = 0.05
 
 STATES = ("wander", "seek_shade", "rest_in_shade", "cobra", "hunt", "strike", "feed", "warning")
 MODES = ("auto", "wander", "shade", "hunt")
@@ -84,6 +88,7 @@ class Brain:
         self._next_perception = 0.0
         self._next_replan = 0.0
         self._scout_until = -1.0
+        self._obstacle = False     # an obstacle worth rearing at is ahead (last perception)
         self._ignore: dict[str, float] = {}   # prey given up on, until this time
         self._now = 0.0
         # two rings of points around the head where shade is noticed (8 at half the sense
@@ -176,14 +181,18 @@ class Brain:
             here = self.nav.component_of(head)
             for p in pts[shade]:
                 if (all(np.linalg.norm(q - p) >= self.b.shade_spot_spacing for q in self.shade_spots)
-                        and self.nav.component_of(p) == here):
+                        and self.nav.component_of(p) == here and self._deep_shade(p, sun)):
                     self.shade_spots.append(p.copy())
                     self._last_memory = s.t
                     break
-        if self.cobra_mode == "auto" and self.state in ("wander", "seek_shade"):
+        if self.cobra_mode == "auto" and self.state in ("wander", "seek_shade", "cobra"):
+            # SEED: rearing is for climbing onto objects taller than the step height (and
+            # lower than the cobra height)
             step = self.rig.navigation.step_height
-            if perception.obstacle_ahead(self.rays, s.head, s.heading, self.rig.cobra.obstacle_probe,
-                                         low=1.5 * step, high=self.rig.cobra.height):
+            self._obstacle = perception.obstacle_ahead(
+                self.rays, s.head, s.heading, self.rig.cobra.obstacle_probe, low=step,
+                high=self.rig.cobra.height)
+            if self._obstacle and self.state != "cobra":
                 # rear up for a look over it, then carry on with the same path
                 self._resume = (self.state, self.target)
                 self._enter("cobra", s.t, reason="obstacle ahead")
@@ -195,6 +204,12 @@ class Brain:
                 self._enter("hunt", s.t, prey=prey.name)
                 self._scout_until = s.t + self.b.scout_time
                 self._next_replan = s.t
+
+    def _deep_shade(self, p: np.ndarray, sun: np.ndarray) -> bool:
+        """The shade around p reaches SPOT_MARGIN every way: a spot worth walking to, not a
+        sliver the head may miss or the moving sun uncovers on the way."""
+        ring = p + SPOT_MARGIN * np.array([[1.0, 0, 0], [-1.0, 0, 0], [0, 0, 1.0], [0, 0, -1.0]])
+        return bool(perception.in_shade(self.rays, ring, sun, self.rig.body.clearance).all())
 
     def _closest_prey(self, head: np.ndarray) -> Prey | None:
         free = [p for p in self.preys if p.mode == FREE and self._ignore.get(p.name, -1.0) < self._now]
@@ -270,8 +285,12 @@ class Brain:
             self._roll(s)
 
     def _cobra(self, s: Senses, decide: bool) -> None:
-        """Scouting over an obstacle while walking on; then back to what it was doing."""
-        if s.t - self.since >= max(self.b.scout_time, self.rig.cobra.ramp_time * 2):
+        """Scouting over an obstacle while walking on, reared until it is no longer ahead (it
+        has climbed it or turned away; at most COBRA_MAX_TIME); then back to what it was
+        doing."""
+        held = s.t - self.since
+        if held >= max(self.b.scout_time, self.rig.cobra.ramp_time * 2) and (
+                not self._obstacle or held >= COBRA_MAX_TIME):
             state, target = self._resume
             self._enter(state, s.t, reason="scouted", target=_r(target) if target is not None else None)
 

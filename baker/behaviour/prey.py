@@ -1,5 +1,7 @@
 """Prey: a capsule-shaped navigation agent that wanders, and flees directly away from the
-centipede when it comes close (with a burst of speed that tires)."""
+centipede when it comes close (with a burst of speed that tires). Under cover (in shade) it
+keeps still longer: it bolts only when the centipede is within `cover_trigger` of its usual
+flee distance."""
 
 from __future__ import annotations
 
@@ -19,7 +21,7 @@ class Prey:
     centipede's head while it feeds) or HIDDEN (eaten)."""
 
     def __init__(self, index: int, position: np.ndarray, cfg: PreyConfig, nav,
-                 rng: np.random.Generator):
+                 rng: np.random.Generator, in_cover=None):
         self.index = index
         self.name = f"prey_{index + 1:02d}"
         self.cfg = cfg
@@ -31,6 +33,8 @@ class Prey:
         self.stamina = cfg.stamina
         self._next_wander = 0.0
         self._next_flee_plan = 0.0
+        # (t, (3,) point) -> bool: the point is in shade at time t (None: never under cover)
+        self.in_cover = in_cover
 
     @property
     def position(self) -> np.ndarray:
@@ -43,8 +47,13 @@ class Prey:
         c = self.cfg
         away = self.position - threat if threat is not None else None
         dist = math.hypot(away[0], away[2]) if away is not None else math.inf
-        # flee when the centipede comes within the trigger; keep running until well clear
-        self.fleeing = dist < c.flee_trigger * (1.5 if self.fleeing else 1.0)
+        # flee when the centipede comes within the trigger (closer when under cover, where it
+        # keeps still); keep running until well clear
+        trigger = c.flee_trigger * (1.5 if self.fleeing else 1.0)
+        if (not self.fleeing and dist < trigger and self.in_cover is not None
+                and self.in_cover(t, self.position)):
+            trigger *= c.cover_trigger
+        self.fleeing = dist < trigger
         if self.fleeing:
             self.stamina = max(self.stamina - dt, 0.0)
             self.agent.max_speed = c.flee_speed if self.stamina > 0 else c.tired_speed

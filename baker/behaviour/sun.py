@@ -36,8 +36,18 @@ class SunPath:
         return normalize(self.keys[i] * (1 - f) + self.keys[i + 1] * f)
 
 
-def sun_path(keys: np.ndarray | None, fixed: np.ndarray, duration: float) -> SunPath:
-    """The bake's sun: `keys` (K, 3) from config.parse_sun_path, or the fixed direction."""
+def sun_path(keys: np.ndarray | None, fixed: np.ndarray, duration: float,
+             azimuth_rate: float = 0.0) -> SunPath:
+    """The bake's sun: `keys` (K, 3) from config.parse_sun_path; else the environment's light
+    `fixed` (3,), turning about +Y at `azimuth_rate` [rad/s] (counter-clockwise seen from
+    above; the environment's Sun.azimuth_rate) over the bake, with keys at most 1 deg apart."""
     if keys is None:
-        return SunPath(np.asarray(fixed, dtype=np.float64)[None], duration)
+        fixed = np.asarray(fixed, dtype=np.float64)
+        turn = azimuth_rate * duration
+        if abs(turn) < 1e-9:
+            return SunPath(fixed[None], duration)
+        a = np.linspace(0.0, turn, int(np.ceil(abs(np.degrees(turn)))) + 1)
+        c, s = np.cos(a), np.sin(a)
+        keys = np.stack([c * fixed[0] + s * fixed[2], np.full_like(a, fixed[1]),
+                         -s * fixed[0] + c * fixed[2]], 1)
     return SunPath(np.asarray(keys, dtype=np.float64), duration)

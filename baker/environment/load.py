@@ -205,6 +205,16 @@ def _unique_names(names: list[str]) -> list[str]:
     return out
 
 
+def _azimuth_rate(light: dict) -> float:
+    """[rad/s] a glTF light's turning rate about +Y: its extras' `azimuth_deg_per_s` (a finite
+    number, at most 360 deg/s), else 0 (a fixed sun)."""
+    extras = light.get("extras")
+    rate = extras.get("azimuth_deg_per_s", 0.0) if isinstance(extras, dict) else 0.0
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not math.isfinite(rate):
+        return 0.0
+    return math.radians(max(-360.0, min(360.0, float(rate))))
+
+
 def _unit_direction(d, path, what) -> np.ndarray:
     d = np.asarray(d, dtype=np.float64).reshape(-1)
     n = float(np.linalg.norm(d)) if d.shape == (3,) else 0.0
@@ -740,7 +750,8 @@ class _GltfReader:
                         suns.append(Sun(direction=d / np.linalg.norm(d),
                                         intensity=float(light.get("intensity", 1.0)),
                                         color=tuple(float(c) for c in
-                                                    light.get("color", [1.0, 1.0, 1.0]))))
+                                                    light.get("color", [1.0, 1.0, 1.0])),
+                                        azimuth_rate=_azimuth_rate(light)))
             if "mesh" not in node:
                 continue
             mesh = meshes[node["mesh"]]

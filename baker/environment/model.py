@@ -36,11 +36,14 @@ class Sun:
                 (light travels along -direction).
     intensity : lux (glTF KHR_lights_punctual directional intensity)
     color     : linear RGB
+    azimuth_rate : [rad/s] how fast the sun turns about +Y (counter-clockwise seen from above)
+                during a bake, from a glTF light's extras `azimuth_deg_per_s`; 0: it stays put
     """
 
     direction: np.ndarray
     intensity: float = 3.0
     color: tuple[float, float, float] = (1.0, 0.95, 0.85)
+    azimuth_rate: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)

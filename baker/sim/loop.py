@@ -17,6 +17,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from baker.behaviour.brain import Brain, Senses
+from baker.behaviour.perception import in_shade
 from baker.behaviour.prey import HELD, HIDDEN, Prey
 from baker.behaviour.sun import sun_path
 from baker.config import BakeConfig, parse_sun_path
@@ -93,11 +94,17 @@ def simulate(cfg: BakeConfig, env, nav, streams: Streams, ctx: Context,
     follow = Follower(nav, env.rays, start, heading, rig, fps=cfg.fps)
     head = follow.head
     sun = sun_path(parse_sun_path(cfg.sun_path) if cfg.sun_path else None, env.sun.direction,
-                   cfg.seconds)
+                   cfg.seconds, env.sun.azimuth_rate)
     if intent is None:
-        preys = ([Prey(i, nav.nearest(p, np.inf), rig.prey, nav, streams.get("prey", i))
-                  for i, p in enumerate(cfg.prey_positions)]
-                 if cfg.prey_positions else spawn_prey(cfg.prey, start, nav, rig, streams))
+        def in_cover(t, p):
+            return bool(in_shade(env.rays, p, sun.at(t), body.clearance)[0])
+
+        preys = ([Prey(i, nav.nearest(p, np.inf), rig.prey, nav, streams.get("prey", i),
+                       in_cover) for i, p in enumerate(cfg.prey_positions)]
+                 if cfg.prey_positions else
+                 spawn_prey(cfg.prey, start, nav, rig, streams,
+                            lambda p: in_shade(env.rays, p, sun.at(0.0), body.clearance),
+                            in_cover))
         brain = Brain(rig, nav, env.rays, sun, streams.get("brain"), preys, mode=cfg.behaviour,
                       cobra_mode=cfg.cobra)
     else:
@@ -179,20 +186,26 @@ def simulate(cfg: BakeConfig, env, nav, streams: Streams, ctx: Context,
     )
 
 
-def spawn_prey(count: int, start: np.ndarray, nav, rig, streams: Streams) -> list[Prey]:
+def spawn_prey(count: int, start: np.ndarray, nav, rig, streams: Streams,
+               shaded=None, in_cover=None) -> list[Prey]:
     """`count` prey at reachable points between 1.2 and 2 detection ranges from the start, each
-    placed and later fleeing with its own stream."""
+    placed and later fleeing with its own stream. Prey shelter in shade as the centipede does:
+    with `shaded` ((n, 3) points -> (n,) bool) each takes the first shaded one of 32 draws,
+    else the first draw in range. `in_cover` is handed to each (Prey)."""
     preys = []
     r = rig.behaviour.detection_range
     for i in range(count):
         rng = streams.get("prey", i)
-        p = None
+        found = []
         for _ in range(32):
             q = nav.random_point_near(start, 2.0 * r, rng)
             if q is not None and np.linalg.norm(q - start) >= 1.2 * r:
-                p = q
-                break
-        preys.append(Prey(i, p if p is not None else start.copy(), rig.prey, nav, rng))
+                found.append(q)
+                if shaded is None or shaded(q[None])[0]:
+                    found = [q]
+                    break
+        preys.append(Prey(i, found[0] if found else start.copy(), rig.prey, nav, rng,
+                          in_cover))
     return preys
 
 

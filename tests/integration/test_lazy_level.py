@@ -42,7 +42,7 @@ def level(tmp_path_factory) -> Path:
 
 
 def run(level: Path, out: Path, cache, seconds=20.0, seed=0):
-    return bake(BakeConfig(environment=level, seconds=seconds, seed=seed, out=out,
+    return bake(BakeConfig(environment=level, seconds=seconds, seed=seed, out=out, prey=0,
                            formats=("glb",), nav_cache_dir=cache))
 
 

@@ -146,7 +146,7 @@ def climb(tmp_path_factory, nav_cache_dir):
 
     out = tmp_path_factory.mktemp("climb") / "ms"
     bake(BakeConfig(environment=GLB, seconds=120.0, seed=2, rig=RIG, out=out, formats=("glb",),
-                    nav_cache_dir=nav_cache_dir, start=STAIR_FOOT, behaviour="wander"))
+                    nav_cache_dir=nav_cache_dir, start=STAIR_FOOT, behaviour="wander", prey=0))
     scene = read_glb(out.with_suffix(".glb"))
     return scene, judge(scene)["metrics"]
 

@@ -43,7 +43,7 @@ def runs(tmp_path_factory, nav_cache_dir):
     out = {}
     for seed in SEEDS:
         cfg = BakeConfig(environment=FIXTURE, seconds=120.0, seed=seed, rig=rig, start=START,
-                         behaviour="wander", out=tmp / f"s{seed}", formats=("glb",),
+                         behaviour="wander", prey=0, out=tmp / f"s{seed}", formats=("glb",),
                          nav_cache_dir=nav_cache_dir)
         out[seed] = bake(cfg)
     return out

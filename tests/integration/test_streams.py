@@ -43,7 +43,7 @@ def first_sighting(report: dict) -> float:
 @pytest.mark.parametrize("seed", [3, 11, 23])
 def test_adding_a_prey_keeps_the_wander_targets_chosen_before_it_is_seen(
         tmp_path, nav_cache_dir, spine_rig_config, seed):
-    base = BakeConfig(seconds=40.0, seed=seed, rig=spine_rig_config, formats=("glb",),
+    base = BakeConfig(seconds=40.0, seed=seed, prey=0, rig=spine_rig_config, formats=("glb",),
                       nav_cache_dir=nav_cache_dir, out=tmp_path / "none", tolerance=0.0)
     alone = bake(base).report
     with_prey = bake(replace(base, prey=1, out=tmp_path / "one")).report
