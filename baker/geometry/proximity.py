@@ -64,7 +64,8 @@ class TriangleSet:
     """Triangles with their bounding spheres, for repeated closest-point queries.
 
     vertices : (v, 3) float; faces : (m, 3) int. Triangles are grouped by the size of their
-    bounding spheres (quartiles of size, then the largest few), each group in a KD-tree over
+    bounding spheres (quartiles of size, then the largest few, and split at every doubling of
+    size), each group in a KD-tree over
     its centres; a query pairs points with every group's triangles whose sphere comes within
     the cap, in C (cKDTree.sparse_distance_matrix), then tests each pair exactly.
     """
@@ -77,7 +78,13 @@ class TriangleSet:
                        if m else np.zeros(0))
         self.groups = []                    # (triangle indices, largest radius, tree)
         if m:
-            edges = np.unique(np.percentile(self.radius, [25, 50, 75, 95, 100]))
+            # quartiles of size, and no group whose largest sphere is over twice its smallest
+            # (a query pairs a point with every centre within the group's largest radius, so
+            # one large triangle in a group of small ones would pair it with all of them)
+            quart = np.percentile(self.radius, [25, 50, 75, 95, 100])
+            r_min = max(float(self.radius.min()), 1e-9)
+            doubling = r_min * 2.0 ** np.arange(1, 1 + np.ceil(np.log2(quart[-1] / r_min)))
+            edges = np.unique(np.r_[quart, doubling[doubling < quart[-1]]])
             lo = -np.inf
             for hi in edges:
                 idx = np.nonzero((self.radius > lo) & (self.radius <= hi))[0]
