@@ -42,7 +42,8 @@ DIAGNOSTICS = tuple(f"rotation_{kind}_{group}_deg" for group in
     "antenna_bone_hits", "foot_near_ground_fraction", "head_unsupported_frames")
 
 SCENES = {
-    "default": dict(env="environments/showcase.glb", scale=None, seconds=60.0),
+    "default": dict(env="environments/rainforest_floor.glb", scale=None, seconds=60.0),
+    "showcase": dict(env="environments/showcase.glb", scale=None, seconds=60.0, prey=2),
     "nav_test": dict(env=str(SHARED / "nav_test.obj"), scale=8.0, seconds=120.0),
     "multistorey": dict(env="environments/multistorey.glb", scale=8.0, seconds=120.0),
     "far": dict(env="far", scale=None, seconds=60.0),
@@ -70,7 +71,7 @@ def moved_glb(src: Path, dst: Path, offset) -> Path:
 def scene_environment(scene: str, work: Path) -> Path | None:
     """The environment file of a sweep scene (None when it is not available here)."""
     if scene == "far":
-        path = work / "showcase_far.glb"
+        path = work / "rainforest_floor_far.glb"
         if not path.exists():
             moved_glb(ROOT / SCENES["default"]["env"], path, FAR_OFFSET)
         return path
