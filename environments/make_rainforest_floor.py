@@ -572,9 +572,8 @@ def build_glb(parts: list[Part], sun: SunSpec, seed: int, *, materials: dict | N
             + struct.pack("<II", len(blob), 0x004E4942) + bytes(blob))
 
 
-def write(path: Path, seed: int = DEFAULT_SEED) -> Path:
-    parts, sun = make_rainforest_floor(seed)
-    data = build_glb(parts, sun, seed)
+def save(path: Path, data: bytes) -> Path:
+    """Write `data` to `path` through a temporary file and a rename (all or nothing)."""
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_bytes(data)
@@ -582,14 +581,24 @@ def write(path: Path, seed: int = DEFAULT_SEED) -> Path:
     return path
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seed", type=int, default=DEFAULT_SEED)
-    ap.add_argument("--out", type=Path, default=DEFAULT_OUT)
+def write(path: Path, seed: int = DEFAULT_SEED) -> Path:
+    parts, sun = make_rainforest_floor(seed)
+    return save(path, build_glb(parts, sun, seed))
+
+
+def run_cli(argv, doc: str, write_fn, default_seed: int, default_out: Path) -> int:
+    """A generator's command line: --seed and --out, then `write_fn(out, seed)`."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--seed", type=int, default=default_seed)
+    ap.add_argument("--out", type=Path, default=default_out)
     args = ap.parse_args(argv)
-    out = write(args.out, args.seed)
+    out = write_fn(args.out, args.seed)
     print(f"wrote {out} ({out.stat().st_size} bytes)")
     return 0
+
+
+def main(argv=None) -> int:
+    return run_cli(argv, __doc__, write, DEFAULT_SEED, DEFAULT_OUT)
 
 
 if __name__ == "__main__":

@@ -30,7 +30,6 @@ Usage: python environments/make_showcase.py [--seed N] [--out PATH]
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from pathlib import Path
@@ -343,21 +342,11 @@ def build(seed: int = DEFAULT_SEED) -> bytes:
 
 
 def write(path: Path, seed: int = DEFAULT_SEED) -> Path:
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_bytes(build(seed))
-    tmp.replace(path)
-    return path
+    return rf.save(path, build(seed))
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seed", type=int, default=DEFAULT_SEED)
-    ap.add_argument("--out", type=Path, default=DEFAULT_OUT)
-    args = ap.parse_args(argv)
-    out = write(args.out, args.seed)
-    print(f"wrote {out} ({out.stat().st_size} bytes)")
-    return 0
+    return rf.run_cli(argv, __doc__, write, DEFAULT_SEED, DEFAULT_OUT)
 
 
 if __name__ == "__main__":
