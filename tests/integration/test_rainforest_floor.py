@@ -72,10 +72,9 @@ def _log_frame(mesh):
     return c, axis, across, half
 
 
-def test_bundled_floor_is_small_and_not_the_default():
-    """Bundled beside the default scene (environments/showcase.glb, tests/integration/
-    test_showcase.py)."""
-    assert Path(DEFAULT_ENVIRONMENT).resolve() != GLB.resolve()
+def test_bundled_floor_is_small_and_the_default():
+    """The default scene; the showcase (tests/integration/test_showcase.py) is bundled beside it."""
+    assert Path(DEFAULT_ENVIRONMENT).resolve() == GLB.resolve()
     assert GLB.stat().st_size < 2_000_000
 
 
