@@ -3,8 +3,8 @@ its files (baker.inspect: the GLB and USD read back, the Khronos glTF validator 
 pxr.UsdValidation), then print per-limit pass rates per scene and the worst bakes with the joint
 and frame of each worst value.
 
-Scenes: the bundled default scene (environments/showcase.glb, 60 s, the default bake's 2 prey
-and turning sun); ../shared/fixtures/nav_test.obj with the 2 m rig
+Scenes: the bundled default scene (environments/rainforest_floor.glb, 60 s); the showcase
+(environments/showcase.glb, 60 s, 2 prey, its turning sun); ../shared/fixtures/nav_test.obj with the 2 m rig
 (--scale 8, 120 s; skipped when ../shared is absent); the generated multi-storey level
 (environments/multistorey.glb, 2 m rig, 120 s); the default scene moved 10 km from the origin
 (60 s).
@@ -85,7 +85,8 @@ def make_config(env: Path, scene: str, seed: int, seconds: float, out: Path, cac
 
     rig = override_rig(load_rig_config(DEFAULT_RIG), scale=SCENES[scene]["scale"])
     return BakeConfig(environment=env, seconds=seconds, fps=30, seed=seed, rig=rig, out=out,
-                      formats=("glb", "usd"), nav_cache_dir=cache)
+                      formats=("glb", "usd"), nav_cache_dir=cache,
+                      prey=SCENES[scene].get("prey", 0))
 
 
 def ensure_validator() -> bool:
