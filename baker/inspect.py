@@ -24,7 +24,6 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from baker.errors import BakerError
-from baker.geometry.proximity import distance_to_mesh
 from baker.geometry.transforms import quat_conj, quat_mul
 
 #: a foot within this many body lengths of the surface is touching it
@@ -464,7 +463,7 @@ def judge(scene: BakedScene, usd: BakedScene | None = None,
 
 def _judge_feet(scene: BakedScene, rays, bl: float, spacing: float, m: dict, worst: dict) -> None:
     """Skate (contact from the surface distance), penetration and neighbouring-feet distance."""
-    from baker.metrics import inside_geometry
+    from baker.metrics import depth_inside
 
     legs = _legs(scene.names)
     if not legs:
@@ -472,7 +471,7 @@ def _judge_feet(scene: BakedScene, rays, bl: float, spacing: float, m: dict, wor
     feet, fnames = _feet(scene, legs)
     F, L, _ = feet.shape
     flat = feet.reshape(-1, 3)
-    dist = distance_to_mesh(flat, scene.env_vertices, scene.env_faces, CONTACT_BL * bl)
+    dist = rays.closest(flat, CONTACT_BL * bl)[0]
     near = np.isfinite(dist).reshape(F, L)
     pair = near[1:] & near[:-1]
     step = np.linalg.norm(np.diff(feet, axis=0), axis=2) / bl * 100.0
@@ -482,12 +481,7 @@ def _judge_feet(scene: BakedScene, rays, bl: float, spacing: float, m: dict, wor
     m["skate_ratio"] = float(np.mean(st > 0.5)) if st.size else 0.0
     m["skate_max_pct_bl"] = float(st.max()) if st.size else 0.0
     worst["skate_ratio"] = _worst(np.where(pair, step, -np.inf), fnames)
-    inside = inside_geometry(flat, rays)
-    depth = np.zeros(len(flat))
-    if inside.any():
-        d = distance_to_mesh(flat[inside], scene.env_vertices, scene.env_faces, 0.5 * bl)
-        depth[inside] = np.where(np.isfinite(d), d, 0.5 * bl)
-    depth = depth.reshape(F, L) / bl * 100.0
+    depth = depth_inside(flat, rays, 0.5 * bl).reshape(F, L) / bl * 100.0
     worst["foot_penetration_max_pct_bl"] = _worst(depth, fnames)
     m["foot_penetration_max_pct_bl"] = worst["foot_penetration_max_pct_bl"]["value"]
     by_side = {}

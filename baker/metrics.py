@@ -71,6 +71,18 @@ def inside_geometry(points: np.ndarray, rays) -> np.ndarray:
     return rays.inside(points)
 
 
+def depth_inside(points: np.ndarray, rays, cap: float) -> np.ndarray:
+    """(n,) metres: how deep each point is inside a solid (its distance to the nearest surface,
+    `cap` when none is that close); 0 outside. A surface just above a point (a foot under a
+    root's arch) does not count: only being inside does."""
+    depth = np.zeros(len(points))
+    inside = inside_geometry(points, rays)
+    if inside.any():
+        d = rays.closest(points[inside], cap)[0]
+        depth[inside] = np.where(np.isfinite(d), d, cap)
+    return depth
+
+
 def surface_metrics(traj: Trajectory, nav, *, clearance: float) -> dict:
     """How far the spine strays from the walkable navigation surface (`nav`, a NavSurface).
 
@@ -146,7 +158,8 @@ def leg_metrics(traj: Trajectory, rays, legs_cfg, *, spacing: float, body_length
 
     - skate: per-frame motion of each planted foot tip (both frames in the same stance), as % of
       body length: median, max, and the fraction of stance frames sliding > 0.5% BL;
-    - penetration: depth of foot tips below the surface straight under them (% BL);
+    - penetration: depth of foot tips inside a solid, to its nearest surface (% BL; as the
+      files are judged, baker.inspect);
     - bones through the environment: a ray along every leg bone (walking and ultimate legs),
       every frame, shortened by 0.5% BL at its end so a foot resting on the ground does not count;
       antenna bones are counted separately;
@@ -177,11 +190,11 @@ def leg_metrics(traj: Trajectory, rays, legs_cfg, *, spacing: float, body_length
     skate_median = float(np.median(st)) if st.size else 0.0
     slide_frac = float(np.mean(st > 0.5)) if st.size else 0.0
 
-    # penetration of foot tips
+    # penetration of foot tips; support: ground within 5% BL under the tip
     probe = 0.05 * bl
     fp = feet.reshape(-1, 3)
     h = rays.cast_down(fp, probe, max_distance=2.0 * probe)
-    depth = np.where(h.hit, probe - h.distance, -np.inf) / bl * 100.0     # > 0: below
+    depth = depth_inside(fp, rays, 0.5 * bl) / bl * 100.0
 
     # bones through the environment, one batch per bone kind
     def bone_hits(start_names, lengths):
@@ -262,7 +275,7 @@ def leg_metrics(traj: Trajectory, rays, legs_cfg, *, spacing: float, body_length
         "skate_median_pct_bl": skate_median,
         "skate_max_pct_bl": float(st.max()) if st.size else 0.0,
         "skate_frames_over_0p5pct_fraction": slide_frac,
-        "foot_penetration_max_pct_bl": float(max(depth.max(), 0.0)),
+        "foot_penetration_max_pct_bl": float(depth.max()),
         "foot_unsupported_fraction": float(np.mean(~h.hit)),
         "leg_bone_hits": int(leg_hits.sum() + tip_hits.sum() + ult_hits.sum()),
         "leg_bone_hit_frames": int(np.count_nonzero(leg_hits.any(1) | tip_hits.any(1) | ult_hits.any(1))),
