@@ -275,6 +275,22 @@ def _segments(keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return prev, nxt
 
 
+def _around(prev: np.ndarray, nxt: np.ndarray, frames: np.ndarray, times: np.ndarray,
+            f_count: int) -> tuple:
+    """The keys around frames `frames` (any shape) given their segments' key frames `prev` and
+    `nxt` (`_segments`, read at those frames): (prev, nxt) clipped into the clip, alpha within
+    the segment (float32 key times, as written), `fixed` (the channel has no key) and `last`
+    (past the last key)."""
+    fixed = prev < 0
+    last = nxt >= f_count
+    prev = np.clip(prev, 0, f_count - 1)
+    nxt = np.where(last, prev, nxt)
+    t = np.asarray(times, dtype=np.float32).astype(np.float64)
+    span = t[nxt] - t[prev]
+    a = np.where(span > 0, (t[frames] - t[prev]) / np.where(span > 0, span, 1.0), 0.0)
+    return prev, nxt, a, fixed, last
+
+
 def _sample_cf(values: np.ndarray, keep: np.ndarray, static: np.ndarray, times: np.ndarray,
                rotation: bool) -> np.ndarray:
     """`sample` with channels first: values (C, F, W) -> (C, F, W) float64. Like three.js's
@@ -283,13 +299,7 @@ def _sample_cf(values: np.ndarray, keep: np.ndarray, static: np.ndarray, times: 
     returned as stored."""
     c_count, f_count = keep.shape
     prev, nxt = _segments(keep)
-    fixed = prev < 0
-    last = nxt >= f_count
-    prev = np.clip(prev, 0, f_count - 1)
-    nxt = np.where(last, prev, nxt)
-    t = np.asarray(times, dtype=np.float32).astype(np.float64)
-    span = t[nxt] - t[prev]
-    a = np.where(span > 0, (t[None, :] - t[prev]) / np.where(span > 0, span, 1.0), 0.0)
+    prev, nxt, a, fixed, last = _around(prev, nxt, np.arange(f_count)[None, :], times, f_count)
     rows = np.arange(c_count)[:, None]
     v0 = values[rows, prev].astype(np.float64)
     v1 = values[rows, nxt].astype(np.float64)
@@ -312,14 +322,8 @@ def _spans(segments, rows: np.ndarray, frames: np.ndarray, times: np.ndarray,
     prev, nxt = segments
     f_count = prev.shape[1]
     sr = rows if seg_rows is None else seg_rows
-    prev, nxt = prev[sr, frames], nxt[sr, frames]
-    fixed = prev < 0
-    last = nxt >= f_count
-    prev = np.clip(prev, 0, f_count - 1)
-    nxt = np.where(last, prev, nxt)
-    t = np.asarray(times, dtype=np.float32).astype(np.float64)
-    span = t[nxt] - t[prev]
-    a = np.where(span > 0, (t[frames] - t[prev]) / np.where(span > 0, span, 1.0), 0.0)
+    prev, nxt, a, fixed, last = _around(prev[sr, frames], nxt[sr, frames], frames, times,
+                                        f_count)
     base = rows * f_count
     return base + prev, base + nxt, a, fixed, last
 
