@@ -55,6 +55,16 @@ MATERIALS = {
 }
 
 
+def sum_of_waves(x, z, k, amp, phase, h=None) -> np.ndarray:
+    """`h` (default 0) plus the plane waves amp * sin(k . (x, z) + phase), added in order."""
+    x = np.asarray(x, dtype=np.float64)
+    z = np.asarray(z, dtype=np.float64)
+    h = np.zeros(np.broadcast(x, z).shape) if h is None else h
+    for kk, a, p in zip(k, amp, phase):
+        h = h + a * np.sin(kk[0] * x + kk[1] * z + p)
+    return h
+
+
 @dataclass(frozen=True)
 class Part:
     """One mesh of the floor. vertices (n, 3) float64 world metres; faces (m, 3) int64;
@@ -92,14 +102,8 @@ class Ground:
         self.rphase = rng.uniform(0.0, 2.0 * np.pi, 3)
 
     def height(self, x, z) -> np.ndarray:
-        x = np.asarray(x, dtype=np.float64)
-        z = np.asarray(z, dtype=np.float64)
-        h = np.zeros(np.broadcast(x, z).shape)
-        for k, a, p in zip(self.k, self.amp, self.phase):
-            h = h + a * np.sin(k[0] * x + k[1] * z + p)
-        for k, a, p in zip(self.rk, self.ramp, self.rphase):
-            h = h + a * np.sin(k[0] * x + k[1] * z + p)
-        return h
+        h = sum_of_waves(x, z, self.k, self.amp, self.phase)
+        return sum_of_waves(x, z, self.rk, self.ramp, self.rphase, h)
 
     def part(self) -> Part:
         n = int(round(GROUND_SIZE / GROUND_CELL)) + 1

@@ -81,9 +81,7 @@ class Ground:
     def height(self, x, z) -> np.ndarray:
         x = np.asarray(x, dtype=np.float64)
         z = np.asarray(z, dtype=np.float64)
-        h = np.zeros(np.broadcast(x, z).shape)
-        for k, a, p in zip(self.k, self.amp, self.phase):
-            h = h + a * np.sin(k[0] * x + k[1] * z + p)
+        h = rf.sum_of_waves(x, z, self.k, self.amp, self.phase)
         # the bank's foot wavers a little along z
         xb = BANK_X + 0.12 * np.sin(1.3 * z + 0.4)
         return h + BANK_HEIGHT / (1.0 + np.exp(-self.bank_s * (x - xb)))
