@@ -75,6 +75,8 @@ WALL_FOLD = 0.7
 INNER_REACH = 0.6
 #: swing progress peak rate relative to its mean (see _swing_shape)
 SWING_PEAK = 1.1
+#: frames ahead over which the shortest lever sets the duty factor (see _levers)
+LEVER_LEAD = 15
 #: the duty factor never drops below this at high speed
 MIN_DUTY = 0.4
 #: frames ahead in which a planted foot is checked against its hip (reach, under the body)
@@ -411,6 +413,17 @@ class _Steps:
     phase_td: np.ndarray
 
 
+def _levers(lf: _Frames, anchor: np.ndarray) -> np.ndarray:
+    """(F,) the shortest lever (hip to anchor, across the body) of any leg at each frame: the
+    anchors fold in next to walls and inside bends, and a shorter lever sweeps its foot round
+    the hip faster for the same stride. Held a little ahead of time (a minimum over the next
+    LEVER_LEAD frames) and eased, so the duty factor changes smoothly before the feet fold in."""
+    rel = quat_rotate(lf.q_inv, anchor - lf.hip)
+    lat = np.min(np.abs(rel[..., 0]), axis=1)
+    lat = -maximum_filter1d(-lat, LEVER_LEAD, axis=0, mode="nearest", origin=-(LEVER_LEAD // 2))
+    return np.minimum(gaussian_filter1d(lat, 3.0, mode="nearest"), lf.lever)
+
+
 def _step_events(rays, lf: _Frames, clock, anchor: np.ndarray, times: np.ndarray) -> _Steps:
     """Touchdown and liftoff frames of every step, one cycle at a time for all legs."""
     lay, lg = lf.lay, lf.lg
@@ -418,7 +431,7 @@ def _step_events(rays, lf: _Frames, clock, anchor: np.ndarray, times: np.ndarray
     phi, D, travel = clock.phase, clock.stride, clock.travel
     # duty factor: the setting, lowered at high speed so that no swing is faster than
     # max_swing_rate (a swinging foot sweeps about duty/(1-duty) * v / lever rad/s)
-    ratio = lg.max_swing_rate * lf.lever / (SWING_PEAK * np.maximum(clock.speed, 1e-9))
+    ratio = lg.max_swing_rate * _levers(lf, anchor) / (SWING_PEAK * np.maximum(clock.speed, 1e-9))
     duty = np.clip(ratio / (1.0 + ratio), MIN_DUTY, lg.duty)           # (F,)
     lift_gate = np.maximum.accumulate(phi - duty)   # liftoff of cycle i: first f with this >= i - lag
     A = 0.5 * duty * D                                                # half stance sweep (F,)

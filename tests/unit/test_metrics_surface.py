@@ -60,6 +60,35 @@ def test_inside_is_winding_majority_not_single_face():
     assert not inside_geometry([[0.0, 0.5, 0.0]], env2.rays).any()
 
 
+def test_grazing_the_far_side_of_rough_ground_is_not_inside():
+    """A foot 5 cm over the ground whose horizontal rays slip through seams of rough ground and
+    meet the far side of two gentle slopes half a metre away (seen from behind, at a glancing
+    angle): the ground straight below, met squarely from the front, outweighs them."""
+    def slope(centre, normal):
+        n = np.asarray(normal, float) / np.linalg.norm(normal)
+        a = np.cross(n, [0.0, 0.0, 1.0] if abs(n[2]) < 0.9 else [1.0, 0.0, 0.0])
+        a /= np.linalg.norm(a)
+        b = np.cross(n, a)
+        c = np.asarray(centre, float)
+        v = [c - 0.2 * a - 0.2 * b, c + 0.2 * a - 0.2 * b, c + 0.2 * a + 0.2 * b, c - 0.2 * a + 0.2 * b]
+        tri = np.array([[0, 1, 2], [0, 2, 3]])
+        m = trimesh.Trimesh(v, tri, process=False)
+        if np.dot(m.face_normals[0], n) < 0:
+            m = trimesh.Trimesh(v, tri[:, ::-1], process=False)
+        return m
+
+    foot = np.array([[0.0, 0.05, 0.0]])
+    behind_x = slope((-0.5, 0.05, 0.0), (-0.22, 0.96, 0.0))   # ray -x meets its back at cos 0.22
+    behind_z = slope((0.0, 0.05, -0.5), (0.0, 0.9, -0.44))    # ray -z meets its back at cos 0.44
+    env = env_of(floor(), behind_x, behind_z)
+    t, prim = env.rays.cast(np.repeat(foot, 6, axis=0), np.array(
+        [[0, 1, 0], [0, -1, 0], [1, 0, 0], [-1, 0, 0], [0, 0, 1], [0, 0, -1]], float))
+    assert (prim >= 0).sum() == 3                      # below, and the two slopes from behind
+    assert not inside_geometry(foot, env.rays).any()
+    # the same slopes met squarely (a real solid around the point) still make it inside
+    assert inside_geometry([[0.0, -0.05, 0.0]], env.rays).all()
+
+
 class _Traj:
     def __init__(self, pos, ground):
         self.spine_positions = pos
