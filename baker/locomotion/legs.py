@@ -416,10 +416,12 @@ class _Steps:
 def _levers(lf: _Frames, anchor: np.ndarray) -> np.ndarray:
     """(F,) the shortest lever (hip to anchor, across the body) of any leg at each frame: the
     anchors fold in next to walls and inside bends, and a shorter lever sweeps its foot round
-    the hip faster for the same stride. Held a little ahead of time (a minimum over the next
-    LEVER_LEAD frames) and eased, so the duty factor changes smoothly before the feet fold in."""
+    the hip faster for the same stride. Never below half the rig's own lever (a foot folded
+    against a riser beside it does not slow a slow climb's gait), held a little ahead of time
+    (a minimum over the next LEVER_LEAD frames) and eased, so the duty factor changes smoothly
+    before the feet fold in."""
     rel = quat_rotate(lf.q_inv, anchor - lf.hip)
-    lat = np.min(np.abs(rel[..., 0]), axis=1)
+    lat = np.maximum(np.min(np.abs(rel[..., 0]), axis=1), 0.5 * lf.lever)
     lat = -maximum_filter1d(-lat, LEVER_LEAD, axis=0, mode="nearest", origin=-(LEVER_LEAD // 2))
     return np.minimum(gaussian_filter1d(lat, 3.0, mode="nearest"), lf.lever)
 
