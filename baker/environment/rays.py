@@ -193,12 +193,14 @@ class RayCaster:
         points : (n, 3) float, metres, world. Six axis rays per point, cast in one batch; each
         first hit votes "back" when the ray leaves through the face's back (its normal, as
         wound, points along the ray) and "front" otherwise. A point is inside when back votes
-        outnumber front votes and also outweigh them with each vote weighted by how squarely
-        its ray meets the face (|cos|: a ray that grazes rough ground far away, through a seam
-        between overlapping patches, says little about which side of it the point is).
-        On a closed, consistently outward-wound mesh every first hit from inside is a back
-        face, so this is exact there; the majority vote tolerates a few flipped faces and open
-        meshes (a one-sided ground plane: a point below it sees its back from
+        outnumber front votes, also outweigh them with each vote weighted by how squarely its
+        ray meets the face (|cos|: a ray that grazes rough ground far away, through a seam
+        between overlapping patches, says little about which side of it the point is), and
+        the nearest hit is a back face (a foot in the open over the ground, under a one-sided
+        leaf, with some face metres away seen from behind, is not inside: the ground it sees
+        first is a front). On a closed, consistently outward-wound mesh every first hit from
+        inside is a back face, so this is exact there; the majority vote tolerates flipped
+        faces away from the point and open meshes (a one-sided ground plane: a point below it sees its back from
         below and nothing else, so it counts as inside; a one-sided deck overhead with a floor
         below is one vote each, so not inside). Limitation: it trusts the winding. A mesh wound
         inward throughout, or an object whose faces are mostly flipped, reads inside-out.
@@ -213,8 +215,9 @@ class RayCaster:
         vote = np.zeros(len(d))
         vote[hit] = np.einsum("ij,ij->i", self.face_normals[prim[hit]], d[hit])
         vote = vote.reshape(n, 6)
-        return (np.count_nonzero(vote > 0, axis=1) > np.count_nonzero(vote < 0, axis=1)) & (
-            vote.sum(axis=1) > 0.0)
+        nearest = vote[np.arange(n), np.argmin(t.reshape(n, 6), axis=1)]
+        return ((np.count_nonzero(vote > 0, axis=1) > np.count_nonzero(vote < 0, axis=1))
+                & (vote.sum(axis=1) > 0.0) & (nearest > 0.0))
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray,
                  max_distance: float | np.ndarray = np.inf) -> np.ndarray:

@@ -46,12 +46,15 @@ def test_inside_a_closed_box_and_below_an_open_floor():
 def test_inside_is_winding_majority_not_single_face():
     b = box((0.0, 0.5, 0.0), (1.0, 1.0, 1.0))
     f = np.asarray(b.faces).copy()
-    f[0] = f[0][::-1]  # one flipped triangle
+    f[0] = f[0][::-1]  # one flipped triangle, on the x = -0.5 side
     env = env_of(trimesh.Trimesh(b.vertices, f, process=False))
     rng = np.random.default_rng(0)
     inner = rng.uniform([-0.45, 0.05, -0.45], [0.45, 0.95, 0.45], (200, 3))
     outer = inner + [0.0, 1.5, 0.0]
-    assert inside_geometry(inner, env.rays).all()
+    # the flipped face is outvoted wherever it is not the nearest thing the point sees
+    away = inner[inner[:, 0] > 0.0]
+    assert len(away) > 80 and inside_geometry(away, env.rays).all()
+    assert inside_geometry(inner, env.rays).mean() > 0.9
     assert not inside_geometry(outer, env.rays).any()
     # a one-sided deck overhead (normal up) with the floor below: not inside
     deck = floor(1.0)
@@ -87,6 +90,22 @@ def test_grazing_the_far_side_of_rough_ground_is_not_inside():
     assert not inside_geometry(foot, env.rays).any()
     # the same slopes met squarely (a real solid around the point) still make it inside
     assert inside_geometry([[0.0, -0.05, 0.0]], env.rays).all()
+
+
+def test_open_air_under_a_leaf_is_not_inside():
+    """A foot 6 cm over the floor, under a one-sided leaf (normal up) 27 cm overhead, with a wall
+    4 m away facing away from it: two back faces against one front, but the nearest thing it
+    sees is the floor, from the front."""
+    leaf = floor(0.4)
+    leaf.apply_translation((0.0, 0.33, 0.0))
+    wall = trimesh.Trimesh([[-4.0, -1, -1], [-4.0, 2, -1], [-4.0, 2, 1], [-4.0, -1, 1]],
+                           [[0, 1, 2], [0, 2, 3]], process=False)
+    if wall.face_normals[0][0] > 0:
+        wall.invert()                                       # faces -x: seen from behind
+    env = env_of(floor(), leaf, wall)
+    assert not inside_geometry([[0.0, 0.06, 0.0]], env.rays).any()
+    # still inside: a point under the floor (its back face is the nearest hit)
+    assert inside_geometry([[0.0, -0.02, 0.0]], env.rays).all()
 
 
 class _Traj:
