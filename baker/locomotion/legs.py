@@ -171,7 +171,8 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     (within FOOT_SLOPE of the segment's up) within `reach` of its hip and at least `min_out`
     (scalar or (n,)) outward from it, and no steeper below it than MAX_DROP (a leg does not
     reach straight down a ledge beside the body), and in sight of its hip. Without one, the
-    point itself is kept.
+    first candidate that meets an upward face is taken (the foot stays on the surface, not in
+    it), and without that the point itself is kept.
     """
     n = len(points)
     if n == 0:
@@ -221,6 +222,10 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
         flat[kk[level], nn[level]] = True
         prefer = flat.any(axis=0)
         ok &= np.where(prefer[None, :], flat, True)
+    # without a usable hold the foot still goes on the surface, never into it: the first
+    # candidate that meets an upward face, out of reach or not (IK leaves such a foot short,
+    # in the air), else the point itself
+    ok |= ~ok.any(axis=0)[None, :] & h.hit.reshape(k, n) & facing
     first = np.argmax(ok, axis=0)
     any_ok = ok.any(axis=0)
     out = points.copy()
@@ -806,8 +811,11 @@ def _clear_swings(rays, target: np.ndarray, inside: np.ndarray, clear: float, re
             break
         f, l, p, c, tri, buried = f[fix], l[fix], p[fix], c[fix], tri[fix], buried[fix]
         n = rays.face_normals[tri]
-        n *= np.where(np.sum((p - c) * n, -1) < 0.0, -1.0, 1.0)[:, None]    # toward the foot
-        n[buried] *= -1.0                                                   # ... or out of it
+        # out the face's front, unless the foot is in the open behind it (under a one-sided
+        # leaf): then away from it. A foot on the face itself (a hold, to rounding) reads as
+        # buried under one-sided ground, and goes out the front
+        behind = np.sum((p - c) * n, -1) < -1e-3 * clear
+        n *= np.where(behind & ~buried, -1.0, 1.0)[:, None]
         # nearest to an edge or a corner (a stair's nosing): away from that point, not along
         # one face's normal (the riser's would push the foot down past the nosing)
         away = p - c
