@@ -77,6 +77,9 @@ INNER_REACH = 0.6
 SWING_PEAK = 1.1
 #: frames ahead over which the shortest lever sets the duty factor (see _levers)
 LEVER_LEAD = 15
+#: frames added to a swing's longest time for the margins the legs are planned over before
+#: the first frame and after the last (see _planned_with_margins)
+MARGIN_FRAMES = 4
 #: the duty factor never drops below this at high speed
 MIN_DUTY = 0.4
 #: frames ahead in which a planted foot is checked against its hip (reach, under the body)
@@ -1138,6 +1141,10 @@ def _push(holds, hold, leg, vec, need, Ts, rays, up, probe) -> np.ndarray:
         h = rays.first_hit(new + probe * axis, -axis, max_distance=2.0 * probe)
         good = (~ok & h.hit & (np.abs(np.sum((h.points - holds[moved]) * u, -1)) < 0.5 * probe)
                 & _faces_up(h.normals, u))
+        # a top surface in the open, not one inside another solid (a ray that starts inside a
+        # branch where it dives into the ground finds the ground inside the branch)
+        kk = np.nonzero(good)[0]
+        good[kk] = ~rays.inside(h.points[kk] + 0.05 * probe * u[kk])
         found[good] = h.points[good]
         ok |= good
     # a hold that is on no surface the foot can stand on (a fallback next to a log's side)
@@ -1273,6 +1280,36 @@ def hip_extent(cfg: RigConfig) -> tuple[float, float]:
     return float(np.abs(lay.hip[:, 0]).max()), float(-lay.hip[:, 1].min())
 
 
+def _planned_with_margins(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays,
+                          cfg: RigConfig) -> dict:
+    """walking_legs over the bake's frames with margins it then drops: before frame 0 the body
+    stands still in its first pose for longer than a swing may last, so every foot has landed
+    on a hold by frame 0 (a leg starting mid-swing turns fast and can dip into the ground);
+    after the last frame it carries on at its last velocity, so a swing under way at the end
+    keeps its pace instead of being squeezed into the frames left."""
+    F = len(times)
+    dt = float(times[1] - times[0]) if F > 1 else 1.0 / 30.0
+    before = int(np.ceil(cfg.legs.settle_time / dt)) + MARGIN_FRAMES
+    after = before
+    k = np.arange(1, after + 1, dtype=float)
+    idx = np.r_[np.zeros(before, int), np.arange(F), np.full(after, F - 1)]
+    step = bf.positions[-1] - bf.positions[-2] if F > 1 else np.zeros_like(bf.positions[-1])
+    pos = bf.positions[idx].copy()
+    pos[before + F:] += k[:, None, None] * step.mean(axis=0)[None, None, :]
+    padded = BodyFrames(positions=pos, rotations=bf.rotations[idx], normals=bf.normals[idx],
+                        ground=bf.ground[idx])
+    d_arc = float(arc[-1] - arc[-2]) if F > 1 else 0.0
+    arc2 = np.r_[np.full(before, arc[0]), arc, arc[-1] + k * d_arc]
+    times2 = np.r_[times[0] - dt * np.arange(before, 0, -1), times, times[-1] + dt * k]
+    w = walking_legs(padded, arc2, times2, rays, cfg)
+    keep = slice(before, before + F)
+    for key in ("positions", "rotations", "feet", "targets", "contacts", "touchdown"):
+        w[key] = w[key][keep]
+    for key in ("touchdowns", "liftoffs"):
+        w[key] = w[key] - before
+    return w
+
+
 def leg_frames(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: RigConfig,
                warning: np.ndarray | None = None, chain_period: float | None = None) -> LegFrames:
     """All limbs for all frames.
@@ -1285,7 +1322,7 @@ def leg_frames(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: Ri
     warning : (F,) float 0..1 or None, Posture 1 strength (raises the ultimate legs)
     chain_period : [s] or None, see posed_chains
     """
-    w = walking_legs(bf, np.asarray(arc, float), np.asarray(times, float), rays, cfg)
+    w = _planned_with_margins(bf, np.asarray(arc, float), np.asarray(times, float), rays, cfg)
     cn, cp, cq = posed_chains(bf, np.asarray(times, float), rays, cfg, warning=warning,
                               chain_period=chain_period)
     return LegFrames(names=w["names"] + tuple(cn),
