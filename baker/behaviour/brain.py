@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from baker.behaviour import perception
+from baker.behaviour.intent import Intent, IntentSource
 from baker.behaviour.prey import CAPTURED, FREE, HELD, HIDDEN, Prey
 from baker.behaviour.sun import SunPath
 from baker.config import RigConfig
@@ -55,14 +56,16 @@ class Senses:
     arrived: bool             # the agent reached its target (within stopping distance)
 
 
-class Brain:
-    """Chooses targets and drives. The simulation loop reads the drive attributes each step:
+class Brain(IntentSource):
+    """Chooses targets and drives: `step(senses)` returns this step's Intent
+    (behaviour.intent), made from the drive attributes below.
 
-    speed_scale, turn_scale : multipliers on max speed and slither turn rate
-    stopping_distance       : metres
-    cobra                   : 0/1 request for the cobra lift (smoothed by the body stage)
-    warning                 : 0/1 request for Posture 1
-    route                   : always None: the brain gives targets, the path is planned
+    target, new_target, halt : the goal point, a new goal this step, stop this step
+    speed_scale, turn_scale  : multipliers on max speed and slither turn rate
+    stopping_distance        : metres
+    cobra                    : 0/1 request for the cobra lift (smoothed by the body stage)
+    warning                  : 0/1 request for Posture 1
+    route                    : always None: the brain gives targets, the path is planned
     """
 
     route = None
@@ -144,7 +147,7 @@ class Brain:
         return tuple(self.events)
 
     # ------------------------------------------------------------------ the step
-    def step(self, s: Senses) -> None:
+    def step(self, s: Senses) -> Intent:
         t = s.t
         self._now = t
         self.new_target = False
@@ -161,6 +164,7 @@ class Brain:
         else:
             self.cobra = 1.0 if (self.state == "cobra" or t < self._scout_until) else 0.0
         self.warning = 1.0 if self.state == "warning" else 0.0
+        return self.intent()
 
     def _perceive(self, s: Senses) -> None:
         sun = self.sun.at(s.t)

@@ -23,6 +23,7 @@ import math
 
 import numpy as np
 
+from baker.behaviour.intent import Intent
 from baker.config import RigConfig
 from baker.geometry import polyline
 from baker.locomotion.agent import PathAgent
@@ -115,6 +116,15 @@ class Follower:
         self.target = target
         self.head.new_path()   # a U-turn chooses its side afresh on a new or re-planned path
         self.agent.set_path(path)
+
+    def apply(self, intent: Intent) -> None:
+        """This step's Intent: a new goal means a new path (else a halt stops the agent), and
+        its speed, stopping distance and turn scale set the gait."""
+        if intent.new_target:
+            self.go(intent.target, route=intent.route)
+        elif intent.halt:
+            self.halt()
+        self.drive(intent.speed_scale, intent.stopping_distance, intent.turn_scale)
 
     def halt(self) -> None:
         """Stop where the agent is; the head closes up behind it."""
