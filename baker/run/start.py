@@ -11,9 +11,9 @@ from baker.streams import Streams
 
 
 def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None, heading=None,
-                 spread: float = np.inf):
-    """A walkable start point near the middle of the scene (within a fifth of its extent, at
-    most `spread` metres; or the one nearest to `at`), and a
+                 spread: float = np.inf, extent_frac: float = 0.2):
+    """A walkable start point near the middle of the scene (within `extent_frac` of its extent,
+    at most `spread` metres; or the one nearest to `at`), and a
     heading (or `heading`) whose straight body line behind the head is as walkable as possible.
 
     returns (position (3,), heading (3,) unit horizontal)
@@ -29,8 +29,8 @@ def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None
     if anchor is None:
         raise NavError("environment has no walkable surface")
     extent = float(np.max(hi - lo))
-    start = anchor if at is not None else nav.random_point_near(anchor, min(0.2 * extent, spread),
-                                                                rng)
+    start = (anchor if at is not None
+             else nav.random_point_near(anchor, min(extent_frac * extent, spread), rng))
     if start is None:
         start = anchor
     if heading is not None:

@@ -3,10 +3,15 @@ paths), then the solve stage (baker/solve, the body, legs and prey for every fra
 
 from __future__ import annotations
 
+from dataclasses import replace
+
+import numpy as np
+
 from baker.config import BakeConfig
 from baker.context import Context
+from baker.run.crowd import run_crowd
 from baker.run.loop import run
-from baker.solve.solve import solve
+from baker.solve.solve import prey_frames, solve
 from baker.solve.trajectory import Trajectory
 from baker.streams import Streams
 
@@ -22,3 +27,23 @@ def simulate(cfg: BakeConfig, env, nav, streams: Streams, ctx: Context,
     rec = run(cfg, env, nav, streams, ctx, intent)
     ctx.notes["path_replans"] = rec.replans
     return solve(rec, env.rays, cfg.rig)
+
+
+def simulate_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context) -> list[Trajectory]:
+    """Run `n` creatures together (run.crowd.run_crowd: their own streams, separate starts,
+    local avoidance, one creature per shade spot, one hunter per prey), then solve each.
+    The bake's prey ride on the first trajectory (each held at its hunter's head while fed
+    on); the others have none. ctx.notes["path_replans"] lists every creature's replans."""
+    recs, prey = run_crowd(cfg, env, nav, seed, n, ctx)
+    ctx.notes["path_replans"] = [r.replans for r in recs]
+    trajs = [solve(r, env.rays, cfg.rig) for r in recs]
+    if prey["prey_names"]:
+        holder = prey["prey_holder"]                        # (F, P) creature or -1
+        heads_p = np.stack([t.spine_positions[:, 0] for t in trajs])    # (n, F, 3)
+        heads_q = np.stack([t.spine_rotations[:, 0] for t in trajs])
+        f = np.arange(len(holder))[:, None]
+        h = np.maximum(holder, 0)
+        frames = prey_frames(prey["prey_names"], prey["prey_positions"], prey["prey_modes"],
+                             heads_p[h, f], heads_q[h, f], env.rays, cfg.rig)
+        trajs[0] = replace(trajs[0], **frames)
+    return trajs

@@ -51,7 +51,8 @@ def solve(rec: RunRecord, rays, rig: RigConfig) -> Trajectory:
                         chain_period=rec.chain_period)
         limbs = dict(joint_names=lf.names, joint_positions=lf.positions,
                      joint_rotations=lf.rotations, foot_contacts=lf.contacts)
-    prey_t = prey_frames(rec, bf, rays, rig, probe) if rec.prey_names else {}
+    prey_t = (prey_frames(rec.prey_names, rec.prey_positions, rec.prey_modes, bf.positions[:, 0],
+                          bf.rotations[:, 0], rays, rig) if rec.prey_names else {})
     return Trajectory(
         times=times,
         spine_positions=bf.positions,
@@ -69,10 +70,17 @@ def solve(rec: RunRecord, rays, rig: RigConfig) -> Trajectory:
     )
 
 
-def prey_frames(rec: RunRecord, bf, rays, rig, probe: float) -> dict:
+def prey_frames(names, positions: np.ndarray, modes: np.ndarray, head_p: np.ndarray,
+                head_q: np.ndarray, rays, rig: RigConfig) -> dict:
     """World frames of every prey capsule: on the surface while free or captured, held at the
-    head while the centipede feeds, hidden (scale 0) once eaten."""
-    pos = rec.prey_positions.copy()
+    head while a centipede feeds, hidden (scale 0) once eaten.
+
+    names : P names; positions (F, P, 3) on the prey agents' paths; modes (F, P) int8
+    head_p, head_q : the holding head's positions and rotations (xyzw): (F, 3) and (F, 4) for a
+                     lone creature, (F, P, 3) and (F, P, 4) per prey in a crowd
+    """
+    probe = 0.5 * rig.navigation.height
+    pos = positions.copy()
     F, P, _ = pos.shape
     flat = pos.reshape(-1, 3)
     ground, _, hit = project_to_surface(rays, flat, probe)
@@ -89,18 +97,16 @@ def prey_frames(rec: RunRecord, bf, rays, rig, probe: float) -> dict:
     last = np.maximum.accumulate(np.where(moving, np.arange(F)[:, None], 0), axis=0)
     fwd = fwd[last, np.arange(P)[None, :]]
     rot = frames_to_quat(fwd, np.broadcast_to(UP, fwd.shape))
-    held = rec.prey_modes == HELD
+    held = modes == HELD
     if held.any():
-        head_p = bf.positions[:, 0]
-        head_q = bf.rotations[:, 0]
         ahead = quat_rotate(head_q, np.array([0.0, 0.0, 1.0]))
         below = quat_rotate(head_q, np.array([0.0, -1.0, 0.0]))
         grip = (head_p + ahead * (0.5 * rig.prey.length + 0.25 * rig.body.spacing)
                 + below * 0.25 * rig.prey.radius)
         f_idx, j_idx = np.nonzero(held)
-        pos[f_idx, j_idx] = grip[f_idx]
+        at = f_idx if head_p.ndim == 2 else (f_idx, j_idx)
+        pos[f_idx, j_idx] = grip[at]
         side = quat_mul(head_q, Rotation.from_euler("y", np.pi / 2).as_quat())
-        rot[f_idx, j_idx] = side[f_idx]
-    return dict(prey_names=rec.prey_names, prey_positions=pos,
-                prey_rotations=rot, prey_visible=rec.prey_modes != HIDDEN,
-                prey_modes=rec.prey_modes)
+        rot[f_idx, j_idx] = side[at]
+    return dict(prey_names=tuple(names), prey_positions=pos, prey_rotations=rot,
+                prey_visible=modes != HIDDEN, prey_modes=modes)
