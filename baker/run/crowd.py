@@ -43,11 +43,13 @@ def crowd_separation(rig) -> float:
     return 2.0 * rig.navigation.radius
 
 
-def crowd_starts(nav, env, rig, streams: list[Streams], separation: float):
+def crowd_starts(nav, env, rig, streams: list[Streams], separation: float, at=None,
+                 heading=None):
     """A start (point, heading) per creature whose straight start body line keeps `separation`
     from every earlier creature's: draws from the creature's own start stream, near the middle
     of the scene and farther out as draws fail (the first creature's first draw is a lone
-    creature's start). returns [(start (3,), heading (3,))]"""
+    creature's start; `at` and `heading`, the bake's --start, apply to it alone).
+    returns [(start (3,), heading (3,))]"""
     length = rig.body.length
     back = np.linspace(length * 1.05, 0, 22)
     taken = np.zeros((0, 2))
@@ -57,13 +59,15 @@ def crowd_starts(nav, env, rig, streams: list[Streams], separation: float):
         tree = cKDTree(taken) if len(taken) else None
         best, best_gap = None, -1.0
         for attempt in range(START_TRIES):
-            start, heading = choose_start(nav, env, length, rng,
-                                          spread=rig.wander.radius * (1.0 + attempt / 4.0),
-                                          extent_frac=0.2 + 0.3 * attempt / START_TRIES)
-            line = (start[None, :] - heading[None, :] * back[:, None])[:, [0, 2]]
+            first = not out and attempt == 0
+            start, head = choose_start(nav, env, length, rng, at if first else None,
+                                       heading if first else None,
+                                       spread=rig.wander.radius * (1.0 + attempt / 4.0),
+                                       extent_frac=0.2 + 0.3 * attempt / START_TRIES)
+            line = (start[None, :] - head[None, :] * back[:, None])[:, [0, 2]]
             gap = np.inf if tree is None else float(tree.query(line)[0].min())
             if gap > best_gap:
-                best, best_gap = (start, heading, line), gap
+                best, best_gap = (start, head, line), gap
             if gap >= separation:
                 break
         if best_gap < separation:
@@ -116,7 +120,7 @@ def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
     rig = cfg.rig
     sep = crowd_separation(rig) if separation is None else float(separation)
     streams = [Streams(seed, creature=i) for i in range(n)]
-    starts = crowd_starts(nav, env, rig, streams, sep)
+    starts = crowd_starts(nav, env, rig, streams, sep, cfg.start, cfg.start_heading)
     sun = make_sun(cfg, env)
     claims = Claims(rig.behaviour.shade_spot_spacing)
     follows = [Follower(nav, env.rays, s, h, rig, fps=cfg.fps) for s, h in starts]

@@ -4,6 +4,7 @@ has one hunter; and the claims those rest on (behaviour.claims)."""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import replace
 
 import numpy as np
@@ -130,3 +131,21 @@ def test_claims():
     assert c.hunter("prey_01") == 1
     c.free_prey(1)
     assert c.hunter("prey_01") is None
+
+
+def test_a_crowd_of_one_is_a_lone_creature(plane):
+    """simulate_crowd(n=1) gives simulate's trajectory bit for bit, a hunt and a feed included,
+    so the pipeline can call it for every bake."""
+    from baker.sim.loop import simulate
+
+    env, nav = plane
+    cfg = BakeConfig(seconds=10.0, rig=RIG, behaviour="hunt", prey_positions=((0.0, 0.0, 0.3),))
+    alone = simulate(cfg, env, nav, Streams(2), Context())
+    crowd = simulate_crowd(cfg, env, nav, 2, 1, Context())[0]
+    assert (alone.prey_modes == 2).any()           # HELD: the prey is carried at the head
+    for f in dataclasses.fields(alone):
+        a, b = getattr(alone, f.name), getattr(crowd, f.name)
+        if isinstance(a, np.ndarray):
+            assert a.tobytes() == b.tobytes() and a.shape == b.shape, f.name
+        else:
+            assert a == b, f.name
