@@ -76,7 +76,8 @@ def main():
                 spines = np.stack([solve(r, env.rays, spine_rig).spine_positions for r in recs])
                 g = min_spine_gap(spines, 0.5)
                 gap = (f"   min spine gap {g * 1000:6.1f} mm" if np.isfinite(g)
-                       else "   min spine gap > 500 mm") + f" (2 x body radius {two_r * 1000:.1f} mm)"
+                       else "   min spine gap > 500 mm")
+                gap += f" (2 x body radius {two_r * 1000:.1f} mm)"
             print(f"  N = {n:4d}: {med[n]:8.2f} s   {med[n] / n:6.3f} s per creature"
                   f"   ({n * args.seconds / med[n]:6.1f} creature-seconds per second){gap}")
         if 10 in med and 100 in med:

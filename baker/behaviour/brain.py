@@ -228,7 +228,8 @@ class Brain(IntentSource):
         return bool(perception.in_shade(self.rays, ring, sun, self.rig.body.clearance).all())
 
     def _closest_prey(self, head: np.ndarray) -> Prey | None:
-        free = [p for p in self.preys if p.mode == FREE and self._ignore.get(p.name, -1.0) < self._now
+        free = [p for p in self.preys
+                if p.mode == FREE and self._ignore.get(p.name, -1.0) < self._now
                 and (self.claims is None or self.claims.hunter(p.name) in (None, self.who))]
         if not free:
             return None

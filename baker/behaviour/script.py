@@ -1,8 +1,9 @@
 """Scripted intent: the brain's drives from a fixed timeline instead of decisions.
 
 `simulate(..., intent=ScriptedIntent(...))` (baker.sim.loop) runs the same agent, head, body and
-legs as a bake, but what the creature does comes from a list of `Drive`s (walk this route at this speed, stand,
-rear up, raise the ultimate legs, lunge): locomotion cycles (baker/cycles.py) are made this way.
+legs as a bake, but what the creature does comes from a list of `Drive`s (walk this route at
+this speed, stand, rear up, raise the ultimate legs, lunge): locomotion cycles (baker/cycles/)
+are made this way.
 It draws no random numbers and spawns no prey.
 """
 
