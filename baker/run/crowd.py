@@ -26,7 +26,7 @@ from baker.context import Context
 from baker.run.follow import Follower
 from baker.run.loop import Clock, make_prey, make_sun, record, start_line
 from baker.run.record import Recorder, RunRecord
-from baker.run.start import choose_start
+from baker.run.start import choose_start, middle_anchor
 from baker.streams import Streams
 
 log = logging.getLogger(__name__)
@@ -54,6 +54,7 @@ def crowd_starts(nav, env, rig, streams: list[Streams], separation: float, at=No
     back = np.linspace(length * 1.05, 0, 22)
     taken = np.zeros((0, 2))
     out = []
+    anchor = middle_anchor(nav, env)
     for st in streams:
         rng = st.get("start")
         tree = cKDTree(taken) if len(taken) else None
@@ -63,7 +64,8 @@ def crowd_starts(nav, env, rig, streams: list[Streams], separation: float, at=No
             start, head = choose_start(nav, env, length, rng, at if first else None,
                                        heading if first else None,
                                        spread=rig.wander.radius * (1.0 + attempt / 4.0),
-                                       extent_frac=0.2 + 0.3 * attempt / START_TRIES)
+                                       extent_frac=0.2 + 0.3 * attempt / START_TRIES,
+                                       anchor=anchor)
             line = (start[None, :] - head[None, :] * back[:, None])[:, [0, 2]]
             gap = np.inf if tree is None else float(tree.query(line)[0].min())
             if gap > best_gap:

@@ -11,21 +11,19 @@ from baker.streams import Streams
 
 
 def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None, heading=None,
-                 spread: float = np.inf, extent_frac: float = 0.2):
+                 spread: float = np.inf, extent_frac: float = 0.2, anchor=None):
     """A walkable start point near the middle of the scene (within `extent_frac` of its extent,
     at most `spread` metres; or the one nearest to `at`), and a
     heading (or `heading`) whose straight body line behind the head is as walkable as possible.
 
+    anchor : the scene's middle_anchor(nav, env) when the caller has it (a crowd's many draws)
     returns (position (3,), heading (3,) unit horizontal)
     """
     lo, hi = env.bounds
     if at is not None:
         anchor = nav.nearest(np.asarray(at, dtype=np.float64), np.inf)
-    else:  # the largest walkable component's sample closest to the middle of the scene
-        centre = 0.5 * (lo + hi)
-        main = np.nonzero(nav.component == 0)[0]
-        d = np.linalg.norm(nav.positions[main] - centre.astype(np.float32), axis=1)
-        anchor = nav.positions[main[np.argmin(d)]].astype(np.float64) if len(main) else None
+    elif anchor is None:
+        anchor = middle_anchor(nav, env)
     if anchor is None:
         raise NavError("environment has no walkable surface")
     extent = float(np.max(hi - lo))
@@ -42,6 +40,16 @@ def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None
     pts = start[None, None, :] - dirs[:, None, :] * d[None, :, None]
     ok = nav.is_walkable(pts.reshape(-1, 3)).reshape(len(dirs), len(d)).sum(axis=1)
     return start, dirs[int(np.argmax(ok))]
+
+
+def middle_anchor(nav, env) -> np.ndarray | None:
+    """The largest walkable component's sample closest to the middle of the scene (None when
+    nothing is walkable)."""
+    lo, hi = env.bounds
+    centre = 0.5 * (lo + hi)
+    main = np.nonzero(nav.component == 0)[0]
+    d = np.linalg.norm(nav.positions[main] - centre.astype(np.float32), axis=1)
+    return nav.positions[main[np.argmin(d)]].astype(np.float64) if len(main) else None
 
 
 def spawn_prey(count: int, start: np.ndarray, nav, rig, streams: Streams,
