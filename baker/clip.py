@@ -18,7 +18,7 @@ from baker.geometry.conventions import is_valid_name
 from baker.geometry.transforms import light_rotation, quat_conj, quat_mul, quat_rotate
 from baker.rig.build import Rig
 from baker.rig.skeleton import forward_kinematics
-from baker.sim.trajectory import Trajectory
+from baker.solve.trajectory import Trajectory
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ import numpy as np
 
 from baker.geometry.conventions import UP
 from baker.geometry.transforms import quat_conj, quat_mul
-from baker.sim.trajectory import Trajectory
+from baker.solve.trajectory import Trajectory
 
 
 def spine_metrics(traj: Trajectory, rays, *, spacing: float, clearance: float,

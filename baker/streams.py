@@ -14,7 +14,7 @@ import numpy as np
 
 #: subsystem -> first spawn-key word. Never renumber: that would change every bake's output.
 SUBSYSTEMS = {
-    "start": 0,    # start point and heading (sim.loop.choose_start)
+    "start": 0,    # start point and heading (run.start.choose_start)
     "brain": 1,    # the d10 rolls, wander targets and shade spot choices (behaviour.brain)
     "gait": 2,     # gait phase jitter (reserved: today's gait is deterministic)
     "prey": 3,     # index: the prey's number; its spawn point and flee targets

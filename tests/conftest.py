@@ -26,7 +26,7 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 from baker.config import DEFAULT_RIG, load_rig_config  # noqa: E402
 from baker.environment.model import EnvMesh, Environment, Sun  # noqa: E402
 from baker.geometry.transforms import frames_to_quat, normalize  # noqa: E402
-from baker.sim.trajectory import Trajectory  # noqa: E402
+from baker.solve.trajectory import Trajectory  # noqa: E402
 
 
 def box_mesh(name: str, centre, half, color) -> EnvMesh:

@@ -28,6 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from baker.behaviour import perception
+from baker.behaviour.claims import Claims
+from baker.behaviour.intent import Intent, IntentSource
 from baker.behaviour.prey import CAPTURED, FREE, HELD, HIDDEN, Prey
 from baker.behaviour.sun import SunPath
 from baker.config import RigConfig
@@ -55,21 +57,27 @@ class Senses:
     arrived: bool             # the agent reached its target (within stopping distance)
 
 
-class Brain:
-    """Chooses targets and drives. The simulation loop reads the drive attributes each step:
+class Brain(IntentSource):
+    """Chooses targets and drives: `step(senses)` returns this step's Intent
+    (behaviour.intent), made from the drive attributes below.
 
-    speed_scale, turn_scale : multipliers on max speed and slither turn rate
-    stopping_distance       : metres
-    cobra                   : 0/1 request for the cobra lift (smoothed by the body stage)
-    warning                 : 0/1 request for Posture 1
-    route                   : always None: the brain gives targets, the path is planned
+    target, new_target, halt : the goal point, a new goal this step, stop this step
+    speed_scale, turn_scale  : multipliers on max speed and slither turn rate
+    stopping_distance        : metres
+    cobra                    : 0/1 request for the cobra lift (smoothed by the body stage)
+    warning                  : 0/1 request for Posture 1
+    route                    : always None: the brain gives targets, the path is planned
     """
 
     route = None
 
     def __init__(self, rig: RigConfig, nav, rays, sun: SunPath, rng: np.random.Generator,
-                 preys: list[Prey], *, mode: str = "auto", cobra_mode: str = "auto"):
+                 preys: list[Prey], *, mode: str = "auto", cobra_mode: str = "auto",
+                 claims: Claims | None = None, who: int = 0):
+        """claims, who : in a crowd, the shade spots and prey its creatures hold (shared by
+        all brains), and this creature's number; None for a lone creature."""
         self.rig = rig
+        self.claims, self.who = claims, who
         self.b = rig.behaviour
         self.nav = nav
         self.rays = rays
@@ -121,6 +129,11 @@ class Brain:
                             "details": details})
         log.info("t=%.2f %s -> %s %s", t, self.state or "start", state, details or "")
         self.state, self.since = state, t
+        if self.claims is not None:
+            if state not in ("seek_shade", "rest_in_shade", "cobra"):
+                self.claims.free_spot(self.who)
+            if state not in ("hunt", "strike", "feed"):
+                self.claims.free_prey(self.who)
         hunting = state in ("hunt",)
         self.speed_scale = self.b.onslaught_speed if hunting else 1.0
         self.turn_scale = self.b.onslaught_turn_rate if hunting else 1.0
@@ -144,7 +157,7 @@ class Brain:
         return tuple(self.events)
 
     # ------------------------------------------------------------------ the step
-    def step(self, s: Senses) -> None:
+    def step(self, s: Senses) -> Intent:
         t = s.t
         self._now = t
         self.new_target = False
@@ -161,6 +174,7 @@ class Brain:
         else:
             self.cobra = 1.0 if (self.state == "cobra" or t < self._scout_until) else 0.0
         self.warning = 1.0 if self.state == "warning" else 0.0
+        return self.intent()
 
     def _perceive(self, s: Senses) -> None:
         sun = self.sun.at(s.t)
@@ -202,6 +216,8 @@ class Brain:
                 # onslaught at once, scouting with the front raised for the first moments
                 self.prey = prey
                 self._enter("hunt", s.t, prey=prey.name)
+                if self.claims is not None:
+                    self.claims.take_prey(self.who, prey.name)
                 self._scout_until = s.t + self.b.scout_time
                 self._next_replan = s.t
 
@@ -212,7 +228,9 @@ class Brain:
         return bool(perception.in_shade(self.rays, ring, sun, self.rig.body.clearance).all())
 
     def _closest_prey(self, head: np.ndarray) -> Prey | None:
-        free = [p for p in self.preys if p.mode == FREE and self._ignore.get(p.name, -1.0) < self._now]
+        free = [p for p in self.preys
+                if p.mode == FREE and self._ignore.get(p.name, -1.0) < self._now
+                and (self.claims is None or self.claims.hunter(p.name) in (None, self.who))]
         if not free:
             return None
         d = [float(np.linalg.norm(p.position - head)) for p in free]
@@ -231,23 +249,40 @@ class Brain:
         self._next_decision = s.t + self.b.decision_interval
         self._recheck_spots(s.t)
         roll = int(self.rng.integers(0, 10))
-        if self.shade_on and len(self.shade_spots) >= self.b.shade_min_spots and roll <= self.b.shade_roll_max:
-            if self.shaded:
+        spots = self._free_spots()
+        if self.shade_on and len(spots) >= self.b.shade_min_spots and roll <= self.b.shade_roll_max:
+            if self.shaded and self._may_rest(s.head):
                 if self.state != "rest_in_shade":
                     self._enter("rest_in_shade", s.t, roll=roll, spot=_r(s.head))
+                    self._hold_spot(s.head)
                     self._stop(s.head)
                 return
             if self.state == "seek_shade":
                 return  # keep walking to the chosen spot
-            k = int(self.rng.integers(0, len(self.shade_spots)))
-            spot = self.shade_spots[k]
+            k = int(self.rng.integers(0, len(spots)))
+            spot = spots[k]
             self._enter("seek_shade", s.t, roll=roll, spot=_r(spot), spot_index=k)
+            self._hold_spot(spot)
             self._sought = spot
             self._go(spot.copy())
             return
         target = self.nav.random_point_near(s.head, self.rig.wander.radius, self.rng)
         self._enter("wander", s.t, roll=roll, target=_r(target) if target is not None else None)
         self._go(target)
+
+    def _free_spots(self) -> list[np.ndarray]:
+        """The remembered spots no other creature of a crowd holds (all of them alone)."""
+        if self.claims is None:
+            return self.shade_spots
+        return [p for p in self.shade_spots if not self.claims.spot_taken(p, self.who)]
+
+    def _may_rest(self, head: np.ndarray) -> bool:
+        """No other creature of a crowd holds the shade here."""
+        return self.claims is None or not self.claims.spot_taken(head, self.who)
+
+    def _hold_spot(self, p: np.ndarray) -> None:
+        if self.claims is not None:
+            self.claims.take_spot(self.who, p)
 
     # ------------------------------------------------------------------ states
     def _start(self, s: Senses, decide: bool) -> None:
@@ -264,8 +299,9 @@ class Brain:
             self._arrived_at = s.t
         if decide:
             self._roll(s)
-        elif s.arrived and self.shaded:
+        elif s.arrived and self.shaded and self._may_rest(s.head):
             self._enter("rest_in_shade", s.t, spot=_r(s.head))
+            self._hold_spot(s.head)
             self._stop(s.head)
         elif s.arrived and s.t - self._arrived_at >= SETTLE_TIME:
             # arrived, but the head is not in shade (a sliver of shade the head cannot reach):

@@ -1,8 +1,9 @@
 """Scripted intent: the brain's drives from a fixed timeline instead of decisions.
 
-`simulate(..., intent=ScriptedIntent(...))` runs the same agent, head, body and legs as a bake,
-but what the creature does comes from a list of `Drive`s (walk this route at this speed, stand,
-rear up, raise the ultimate legs, lunge): locomotion cycles (baker/cycles.py) are made this way.
+`simulate(..., intent=ScriptedIntent(...))` (baker.sim.loop) runs the same agent, head, body and
+legs as a bake, but what the creature does comes from a list of `Drive`s (walk this route at
+this speed, stand, rear up, raise the ultimate legs, lunge): locomotion cycles (baker/cycles/)
+are made this way.
 It draws no random numbers and spawns no prey.
 """
 
@@ -14,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from baker.behaviour.brain import Senses
+from baker.behaviour.intent import Intent, IntentSource
 
 log = logging.getLogger(__name__)
 
@@ -43,8 +45,9 @@ class Drive:
     warning: float = 0.0
 
 
-class ScriptedIntent:
-    """The brain's drive interface (behaviour.brain.Brain) played from a timeline of drives.
+class ScriptedIntent(IntentSource):
+    """The brain's drive interface (behaviour.brain.Brain) played from a timeline of drives:
+    `step(senses)` returns this step's Intent (behaviour.intent).
 
     drives       : Drive, sorted by start (the first at 0)
     chain_period : [s] or None: antennae and ultimate legs repeat after this period (their
@@ -66,12 +69,13 @@ class ScriptedIntent:
         self.cobra = 0.0
         self.warning = 0.0
 
-    def step(self, s: Senses) -> None:
+    def step(self, s: Senses) -> Intent:
         self.new_target = False
         self.halt = False
         nxt = self._i + 1
         if nxt < len(self.drives) and s.t + 1e-9 >= self.drives[nxt].start:
             self._enter(nxt, s)
+        return self.intent()
 
     def _enter(self, i: int, s: Senses) -> None:
         d = self.drives[i]

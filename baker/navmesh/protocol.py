@@ -6,7 +6,7 @@ Two classes satisfy it:
   reach beyond the window (nearest, random_point_near, find_path) grow it first, the others
   answer on the current window.
 
-Callers (baker/sim, baker/behaviour, baker/metrics, the report) type their `nav` as Navigation
+Callers (baker/run, baker/behaviour, baker/metrics, the report) type their `nav` as Navigation
 and use nothing else, so either class stands in for the other. tests/unit/test_navmesh_protocol.py
 checks that both classes provide every member with the same signature.
 

@@ -1,1 +1,1 @@
-"""Fixed-step clock and the step loop."""
+"""The simulation: run (baker/run) then solve (baker/solve); loop.simulate is the entry."""

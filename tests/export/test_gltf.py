@@ -201,7 +201,7 @@ def test_awkward_names_large_meshes_and_empty_layers(tmp_path, rig, clip, small_
 
 def test_single_frame_clip_validates(tmp_path, small_env, rig, trajectory):
     from baker.clip import build_clip
-    from baker.sim.trajectory import Trajectory
+    from baker.solve.trajectory import Trajectory
 
     one = Trajectory(times=trajectory.times[:1], spine_positions=trajectory.spine_positions[:1],
                      spine_rotations=trajectory.spine_rotations[:1],

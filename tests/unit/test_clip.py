@@ -7,7 +7,7 @@ from conftest import sine_trajectory
 from baker.clip import build_clip, sign_continuous
 from baker.errors import ExportError
 from baker.geometry.transforms import quat_mul
-from baker.sim.trajectory import Trajectory
+from baker.solve.trajectory import Trajectory
 
 
 def test_shapes_dtypes_and_times(clip, trajectory, rig):

@@ -1,4 +1,4 @@
-"""Following a path on the walkable surface (sim/follow.py, locomotion/head.py, body.py), on
+"""Following a path on the walkable surface (run/follow.py, locomotion/head.py, body.py), on
 scenes built in code, with the default rig (0.25 m: agent radius 0.02 m, turning radius
 3 spacings = 0.036 m, cell 0.015 m), stepped at the bake's rate (SIM_RATE_HZ):
 - the head stays on the walkable surface where its turning circle does not fit;
@@ -23,8 +23,8 @@ from baker.config import DEFAULT_RIG, SIM_RATE_HZ, load_rig_config, scale_rig
 from baker.locomotion.body import build_trail, place_chain
 from baker.metrics import inside_geometry
 from baker.navmesh import build
-from baker.sim import follow as follow_mod
-from baker.sim.follow import Follower
+from baker.run import follow as follow_mod
+from baker.run.follow import Follower
 from test_navmesh_scenes import box, env_of, floor, quad
 
 #: the default rig with a 0.08 BL navigation agent: the scenes below are sized for it (the rig's

@@ -1,7 +1,7 @@
 """The package's dependencies point one way (DESIGN.md): geometry <- environment <- navmesh <-
-behaviour/locomotion <- sim <- clip <- export, with the pipeline and CLI on top. Only
-environment/ reads scene files and only export/ (plus the navigation cache and its debug map)
-writes files, all through baker/atomic.py (temporary file, then rename)."""
+behaviour/locomotion <- run <- solve <- sim <- clip <- export, with the pipeline and CLI on
+top. Only environment/ reads scene files and only export/ (plus the navigation cache and its
+debug map) writes files, all through baker/atomic.py (temporary file, then rename)."""
 
 import ast
 import re
@@ -26,11 +26,13 @@ ALLOWED = {
     "locomotion": {"environment", "config", "rig"},
     "behaviour": {"environment", "navmesh", "locomotion", "config"},
     "rig": {"config"},
-    "sim": {"environment", "navmesh", "behaviour", "locomotion", "config", "context", "streams"},
-    "metrics": {"sim"},
-    "clip": {"rig", "sim"},
+    "run": {"environment", "navmesh", "behaviour", "locomotion", "config", "context", "streams"},
+    "solve": {"environment", "locomotion", "behaviour", "config", "run"},   # a run's record
+    "sim": {"run", "solve", "config", "context", "streams"},     # simulate: run, then solve
+    "metrics": {"solve"},
+    "clip": {"rig", "solve"},
     "rootmotion": {"clip", "rig"},
-    "export": {"clip", "rig", "sim", "environment", "config", "navmesh", "atomic",
+    "export": {"clip", "rig", "solve", "environment", "config", "navmesh", "atomic",
                "inspect"},                 # export/preview.py draws a bake read back from its GLB
     "inspect": {"environment", "metrics"},     # reads a bake's files back to judge them
     "inspect_file": {"inspect"},               # `baker inspect`: a file's summary

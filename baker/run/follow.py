@@ -23,6 +23,7 @@ import math
 
 import numpy as np
 
+from baker.behaviour.intent import Intent
 from baker.config import RigConfig
 from baker.geometry import polyline
 from baker.locomotion.agent import PathAgent
@@ -87,6 +88,10 @@ class Follower:
         self.pending: np.ndarray | None = None   # a target waiting for the body to leave risers
         self.waited = 0.0
         self.replans = 0
+        # a crowd's local avoidance (run.crowd): other creatures' body points near the head,
+        # (m, 2) x, z, or None; the head keeps `separation` metres from them
+        self.others: np.ndarray | None = None
+        self.separation = 0.0
 
     @property
     def position(self) -> np.ndarray:
@@ -115,6 +120,15 @@ class Follower:
         self.target = target
         self.head.new_path()   # a U-turn chooses its side afresh on a new or re-planned path
         self.agent.set_path(path)
+
+    def apply(self, intent: Intent) -> None:
+        """This step's Intent: a new goal means a new path (else a halt stops the agent), and
+        its speed, stopping distance and turn scale set the gait."""
+        if intent.new_target:
+            self.go(intent.target, route=intent.route)
+        elif intent.halt:
+            self.halt()
+        self.drive(intent.speed_scale, intent.stopping_distance, intent.turn_scale)
 
     def halt(self) -> None:
         """Stop where the agent is; the head closes up behind it."""
@@ -148,7 +162,8 @@ class Follower:
             self._bends()
         aim = agent.point_behind(self._back) if self._back > 0.0 else None
         base = head.base.copy()
-        head.step(dt, agent.position, agent.speed, allowed=self._on_layer, aim=aim)
+        allowed = self._on_layer if self.others is None else self._avoiding(self.others)
+        head.step(dt, agent.position, agent.speed, allowed=allowed, aim=aim)
         height = self._layer_height(head.position)
         self._walked += math.hypot(head.base[0] - base[0], head.base[2] - base[2])
         if abs(height - self.height) > self.riser:
@@ -181,6 +196,21 @@ class Follower:
         if scale != self.bend_scale:
             self.bend_scale = scale
             self._apply_speed()
+
+    def _avoiding(self, others: np.ndarray):
+        """The head's surface test in a crowd: on its layer, and at least `separation` from
+        every other creature's body point (or, where it already is closer, no closer than it
+        is), so other bodies are obstacles the head turns or slides along as it does edges."""
+        ox, oz = others[:, 0], others[:, 1]
+        b = self.head.base
+        need = min(self.separation ** 2, float(((ox - b[0]) ** 2 + (oz - b[2]) ** 2).min()))
+        need -= 1e-12
+        on_layer = self._on_layer
+
+        def allowed(x: float, z: float) -> bool:
+            return float(((ox - x) ** 2 + (oz - z) ** 2).min()) >= need and on_layer(x, z)
+
+        return allowed
 
     def _on_layer(self, x: float, z: float) -> bool:
         """True when the column of (x, z) has a walkable sample on the head's layer."""

@@ -1,0 +1,75 @@
+"""Where creatures and prey start: reachable points and a heading whose straight body line
+behind the head lies on walkable ground."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from baker.behaviour.prey import Prey
+from baker.errors import NavError
+from baker.streams import Streams
+
+
+def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None, heading=None,
+                 spread: float = np.inf, extent_frac: float = 0.2, anchor=None):
+    """A walkable start point near the middle of the scene (within `extent_frac` of its extent,
+    at most `spread` metres; or the one nearest to `at`), and a
+    heading (or `heading`) whose straight body line behind the head is as walkable as possible.
+
+    anchor : the scene's middle_anchor(nav, env) when the caller has it (a crowd's many draws)
+    returns (position (3,), heading (3,) unit horizontal)
+    """
+    lo, hi = env.bounds
+    if at is not None:
+        anchor = nav.nearest(np.asarray(at, dtype=np.float64), np.inf)
+    elif anchor is None:
+        anchor = middle_anchor(nav, env)
+    if anchor is None:
+        raise NavError("environment has no walkable surface")
+    extent = float(np.max(hi - lo))
+    start = (anchor if at is not None
+             else nav.random_point_near(anchor, min(extent_frac * extent, spread), rng))
+    if start is None:
+        start = anchor
+    if heading is not None:
+        h = np.array([heading[0], 0.0, heading[2]], dtype=np.float64)
+        return start, h / max(np.linalg.norm(h), 1e-12)
+    angles = rng.uniform(0, 2 * np.pi) + np.linspace(0, 2 * np.pi, 16, endpoint=False)
+    dirs = np.stack([np.sin(angles), np.zeros_like(angles), np.cos(angles)], axis=1)
+    d = np.linspace(0, body_length, 9)
+    pts = start[None, None, :] - dirs[:, None, :] * d[None, :, None]
+    ok = nav.is_walkable(pts.reshape(-1, 3)).reshape(len(dirs), len(d)).sum(axis=1)
+    return start, dirs[int(np.argmax(ok))]
+
+
+def middle_anchor(nav, env) -> np.ndarray | None:
+    """The largest walkable component's sample closest to the middle of the scene (None when
+    nothing is walkable)."""
+    lo, hi = env.bounds
+    centre = 0.5 * (lo + hi)
+    main = np.nonzero(nav.component == 0)[0]
+    d = np.linalg.norm(nav.positions[main] - centre.astype(np.float32), axis=1)
+    return nav.positions[main[np.argmin(d)]].astype(np.float64) if len(main) else None
+
+
+def spawn_prey(count: int, start: np.ndarray, nav, rig, streams: Streams,
+               shaded=None, in_cover=None) -> list[Prey]:
+    """`count` prey at reachable points between 1.2 and 2 detection ranges from the start, each
+    placed and later fleeing with its own stream. Prey shelter in shade as the centipede does:
+    with `shaded` ((n, 3) points -> (n,) bool) each takes the first shaded one of 32 draws,
+    else the first draw in range. `in_cover` is handed to each (Prey)."""
+    preys = []
+    r = rig.behaviour.detection_range
+    for i in range(count):
+        rng = streams.get("prey", i)
+        found = []
+        for _ in range(32):
+            q = nav.random_point_near(start, 2.0 * r, rng)
+            if q is not None and np.linalg.norm(q - start) >= 1.2 * r:
+                found.append(q)
+                if shaded is None or shaded(q[None])[0]:
+                    found = [q]
+                    break
+        preys.append(Prey(i, found[0] if found else start.copy(), rig.prey, nav, rng,
+                          in_cover))
+    return preys

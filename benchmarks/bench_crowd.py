@@ -1,0 +1,91 @@
+"""Crowd benchmark (issue 15): the run stage (run.crowd.run_crowd: brains, agents, heads,
+avoidance, all creatures in lockstep at 240 Hz) for N = 1, 10, 100 creatures on the default
+scene, warm navigation cache. Prints medians, the time per creature and its growth from 10 to
+100 creatures, and the smallest distance between different creatures' spine joints over all
+frames (solved spine-only: the legs do not move the spine) against twice the body radius.
+
+Run from the repo root:  python benchmarks/bench_crowd.py [--seconds 60] [--runs 3]
+[--big-runs 1] [--sizes 1,10,100]   (--runs for N <= 10, --big-runs for larger crowds)
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from baker.config import BakeConfig, DEFAULT_RIG, load_rig_config
+from baker.context import Context
+from baker.environment import load_environment
+from baker.pipeline import in_local_frame, navigation_surface, validate_bake
+from baker.run.crowd import run_crowd
+from baker.solve.solve import solve
+
+
+def min_spine_gap(spines: np.ndarray, bound: float) -> float:
+    """Smallest distance between spine joints of different creatures over all frames (inf when
+    none come within `bound`). spines : (n, F, S, 3)."""
+    n, F, S, _ = spines.shape
+    owner = np.repeat(np.arange(n), S)
+    best = np.inf
+    for f in range(F):
+        pts = spines[:, f].reshape(-1, 3)
+        pairs = cKDTree(pts).query_pairs(bound, output_type="ndarray")
+        pairs = pairs[owner[pairs[:, 0]] != owner[pairs[:, 1]]]
+        if len(pairs):
+            best = min(best, float(np.linalg.norm(pts[pairs[:, 0]] - pts[pairs[:, 1]],
+                                                  axis=1).min()))
+    return best
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--seconds", type=float, default=60.0)
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--big-runs", type=int, default=1)
+    ap.add_argument("--sizes", default="1,10,100")
+    ap.add_argument("--cache-dir", type=Path, default=None)
+    args = ap.parse_args()
+    sizes = [int(s) for s in args.sizes.split(",")]
+    with tempfile.TemporaryDirectory() as tmp:
+        cfg = validate_bake(BakeConfig(seconds=args.seconds, fps=30, seed=0,
+                                       rig=load_rig_config(DEFAULT_RIG),
+                                       nav_cache_dir=args.cache_dir or Path(tmp)))
+        env = load_environment(cfg.environment)
+        run_cfg = in_local_frame(cfg, env.origin)
+        nav, _ = navigation_surface(run_cfg, env)
+        spine_rig = replace(run_cfg.rig, legs=replace(run_cfg.rig.legs, enabled=False))
+        two_r = 2.0 * max(run_cfg.rig.body.width_profile)
+        med = {}
+        print(f"crowd run stage, default scene, {args.seconds:.0f} s at 240 Hz (medians)")
+        for n in sizes:
+            times = []
+            for _ in range(args.runs if n <= 10 else args.big_runs):
+                t = time.perf_counter()
+                recs, _ = run_crowd(run_cfg, env, nav, 0, n, Context())
+                times.append(time.perf_counter() - t)
+            med[n] = statistics.median(times)
+            gap = ""
+            if n > 1:
+                spines = np.stack([solve(r, env.rays, spine_rig).spine_positions for r in recs])
+                g = min_spine_gap(spines, 0.5)
+                gap = (f"   min spine gap {g * 1000:6.1f} mm" if np.isfinite(g)
+                       else "   min spine gap > 500 mm")
+                gap += f" (2 x body radius {two_r * 1000:.1f} mm)"
+            print(f"  N = {n:4d}: {med[n]:8.2f} s   {med[n] / n:6.3f} s per creature"
+                  f"   ({n * args.seconds / med[n]:6.1f} creature-seconds per second){gap}")
+        if 10 in med and 100 in med:
+            print(f"  growth per creature 10 -> 100: {(med[100] / 100) / (med[10] / 10):.2f}x "
+                  f"(1.00 = linear)")
+        if 1 in med and 10 in med:
+            print(f"  growth per creature 1 -> 10:   {(med[10] / 10) / med[1]:.2f}x")
+
+
+if __name__ == "__main__":
+    main()

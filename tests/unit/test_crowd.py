@@ -1,0 +1,151 @@
+"""A crowd run (run.crowd, sim.loop.simulate_crowd) on small scenes built in code, with the
+spine-only default rig: bodies never interpenetrate, a shade spot holds one creature, a prey
+has one hunter; and the claims those rest on (behaviour.claims)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy.spatial.distance import cdist
+
+from baker.behaviour.claims import Claims
+from baker.config import BakeConfig, load_rig_config, DEFAULT_RIG
+from baker.context import Context
+from baker.environment.model import Sun
+from baker.navmesh import build
+from baker.run.crowd import crowd_separation, crowd_starts, run_crowd
+from baker.sim.loop import simulate_crowd
+from baker.streams import Streams
+from test_navmesh_scenes import box, env_of, floor
+
+RIG = load_rig_config(DEFAULT_RIG)
+RIG = replace(RIG, legs=replace(RIG.legs, enabled=False))
+BODY_RADIUS = max(RIG.body.width_profile)
+
+
+def nav_of(env):
+    return build(env, RIG.navigation)
+
+
+def min_spine_gap(trajs) -> float:
+    """The smallest distance between spine joints of different creatures over all frames."""
+    sp = np.stack([t.spine_positions for t in trajs])          # (n, F, S, 3)
+    n, F, S, _ = sp.shape
+    own = np.repeat(np.arange(n), S)
+    other = own[:, None] != own[None, :]
+    return min(float(cdist(sp[:, f].reshape(-1, 3), sp[:, f].reshape(-1, 3))[other].min())
+               for f in range(F))
+
+
+def overlapping(a, b) -> bool:
+    return a["start"] < b["end"] and b["start"] < a["end"]
+
+
+@pytest.fixture(scope="module")
+def plane():
+    env = env_of(floor(-0.6, 0.6, -0.6, 0.6))
+    return env, nav_of(env)
+
+
+def test_five_creatures_on_a_small_plane_never_interpenetrate():
+    env = env_of(floor(-1.0, 1.0, -1.0, 1.0))
+    nav = nav_of(env)
+    cfg = BakeConfig(seconds=8.0, rig=RIG, behaviour="wander")
+    trajs = simulate_crowd(cfg, env, nav, 3, 5, Context())
+    assert len(trajs) == 5 and all(t.n_frames == 241 for t in trajs)
+    gap = min_spine_gap(trajs)
+    assert gap >= 2.0 * BODY_RADIUS, gap
+    # they move: every head walks at least a body length
+    for t in trajs:
+        walked = np.linalg.norm(np.diff(t.spine_positions[:, 0, [0, 2]], axis=0), axis=1).sum()
+        assert walked > RIG.body.length
+
+
+def test_starts_keep_the_straight_start_lines_apart(plane):
+    env, nav = plane
+    sep = crowd_separation(RIG)
+    starts = crowd_starts(nav, env, RIG, [Streams(1, creature=i) for i in range(6)], sep)
+    back = np.linspace(1.05 * RIG.body.length, 0, 22)
+    lines = [(s[None] - h[None] * back[:, None])[:, [0, 2]] for s, h in starts]
+    for i in range(6):
+        for j in range(i):
+            assert cdist(lines[i], lines[j]).min() >= sep
+
+
+def test_the_first_creature_starts_where_a_lone_creature_does(plane):
+    env, nav = plane
+    from baker.run.start import choose_start
+
+    alone = choose_start(nav, env, RIG.body.length, Streams(5).get("start"),
+                         spread=RIG.wander.radius)
+    first = crowd_starts(nav, env, RIG, [Streams(5, creature=i) for i in range(3)],
+                         crowd_separation(RIG))[0]
+    np.testing.assert_array_equal(first[0], alone[0])
+    np.testing.assert_array_equal(first[1], alone[1])
+
+
+def test_a_shade_spot_holds_one_creature():
+    # a 0.26 m roof 0.4 m over the middle of a plane, the sun straight above: the shade deep
+    # enough for a spot (SPOT_MARGIN all round) is a 0.16 m square, room for one spot
+    env = env_of(floor(-0.6, 0.6, -0.6, 0.6), box((-0.13, 0.4, -0.13), (0.13, 0.42, 0.13)))
+    env = replace(env, sun=Sun(np.array([0.0, 1.0, 0.0])))
+    rig = replace(RIG, behaviour=replace(RIG.behaviour, shade_min_spots=1, shade_roll_max=9,
+                                         decision_interval=2.0, shade_memory_interval=0.5,
+                                         shade_sense_radius=0.12))
+    cfg = BakeConfig(seconds=20.0, rig=rig, behaviour="shade")
+    recs, _ = run_crowd(cfg, env, nav_of(env), 1, 2, Context())
+    rests = [[e for e in r.events if e["state"] == "rest_in_shade"] for r in recs]
+    assert all(rests), "both creatures rest in the spot, one after the other"
+    for a in rests[0]:
+        for b in rests[1]:
+            if overlapping(a, b):
+                gap = np.linalg.norm(np.subtract(a["details"]["spot"], b["details"]["spot"]))
+                assert gap >= rig.behaviour.shade_spot_spacing
+
+
+def test_a_prey_has_one_hunter(plane):
+    env, nav = plane
+    cfg = BakeConfig(seconds=12.0, rig=RIG, behaviour="hunt", prey_positions=((0.0, 0.0, 0.3),))
+    recs, prey = run_crowd(cfg, env, nav, 2, 2, Context())
+    hunts = [[e for e in r.events if e["state"] in ("hunt", "strike", "feed")] for r in recs]
+    assert any(hunts), "nobody hunted: the scene does not test the claim"
+    for a in hunts[0]:
+        for b in hunts[1]:
+            assert not overlapping(a, b), (a, b)
+    held = prey["prey_holder"][prey["prey_modes"] > 0]
+    assert len(set(held.tolist()) - {-1}) <= 1
+
+
+def test_claims():
+    c = Claims(0.25)
+    c.take_spot(0, np.zeros(3))
+    assert c.spot_taken(np.array([0.1, 0.0, 0.0]), 1)
+    assert not c.spot_taken(np.array([0.1, 0.0, 0.0]), 0)      # its own
+    assert not c.spot_taken(np.array([0.3, 0.0, 0.0]), 1)
+    c.free_spot(0)
+    assert not c.spot_taken(np.zeros(3), 1)
+    c.take_prey(1, "prey_01")
+    assert c.hunter("prey_01") == 1
+    c.free_prey(1)
+    assert c.hunter("prey_01") is None
+
+
+def test_a_crowd_of_one_is_a_lone_creature(plane):
+    """simulate_crowd(n=1) gives simulate's trajectory bit for bit, a hunt and a feed included,
+    so the pipeline can call it for every bake."""
+    from baker.sim.loop import simulate
+
+    env, nav = plane
+    cfg = BakeConfig(seconds=10.0, rig=RIG, behaviour="hunt", prey_positions=((0.0, 0.0, 0.3),))
+    alone = simulate(cfg, env, nav, Streams(2), Context())
+    crowd = simulate_crowd(cfg, env, nav, 2, 1, Context())[0]
+    assert (alone.prey_modes == 2).any()           # HELD: the prey is carried at the head
+    for f in dataclasses.fields(alone):
+        a, b = getattr(alone, f.name), getattr(crowd, f.name)
+        if isinstance(a, np.ndarray):
+            assert a.tobytes() == b.tobytes() and a.shape == b.shape, f.name
+        else:
+            assert a == b, f.name
