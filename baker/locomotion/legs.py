@@ -754,8 +754,9 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
                  tol=0.005 * body.length, turn=np.radians(SWING_TURN), gap=SWING_GAP * body.spacing,
                  hard_turn=np.radians(HARD_TURN), hard_gap=HARD_GAP * body.spacing,
                  deep=DEEP * body.length)
-    q_u, q_t, mid, feet = joint_space_swings(rays, hip, lf.q, q_u, q_t, mid, sol.end, ~contact,
-                                             lay.side, lay.l1, lay.l2, lim)
+    q_u, q_t, mid, feet, swing = joint_space_swings(rays, hip, lf.q, q_u, q_t, mid, sol.end,
+                                                    ~contact, lay.side, lay.l1, lay.l2, lim)
+    contact = ~swing
     names = tuple(n for pair in zip(lay.upper_names, lay.tip_names) for n in pair)
     positions = np.stack([hip, mid], axis=2).reshape(F, 2 * L, 3)
     rotations = np.stack([q_u, q_t], axis=2).reshape(F, 2 * L, 4)

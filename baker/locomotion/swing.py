@@ -29,6 +29,8 @@ import numpy as np
 from baker.geometry.transforms import (quat_about, quat_angle, quat_conj, quat_mul, quat_rotate,
                                        quat_slerp)
 
+#: deep tucks (the foot drawn up to the hip) tried with the larger raises, last [rad]
+TUCKS = np.radians([60.0, 90.0])
 #: raises of the whole leg about the body's long axis tried, smallest first [rad]
 RAISES = np.radians([4.0, 8.0, 12.0, 16.0, 24.0, 32.0, 45.0, 60.0])
 #: knee swivels about the hip -> foot line tried when raising alone does not clear [rad]
@@ -41,6 +43,10 @@ BUMP_WIDTH = 0.25
 YAWS = np.radians([12.0, -12.0, 24.0, -24.0])
 #: fractions of a swing spent waiting at its start (> 0) or landed early (< 0)
 DELAYS = (0.3, -0.3)
+#: a swing that still breaks a limit tries lifting off this fraction of its length sooner
+EARLY_LIFT = 0.5
+#: ... keeping at least this many planted frames after the previous touchdown
+MIN_STANCE = 2
 #: the cost of a fault that breaks a limit, against 1 for a near miss
 HARD = 100.0
 #: raise profiles over the swing's progress u: a plain bump, and two that rise sooner (off the
@@ -215,7 +221,7 @@ class _Swings:
         self.lg = leg[self.sid]
         self.u = (self.f - a[self.sid]) / (b - a)[self.sid]
         self.inner = (self.u > 0.0) & (self.u < 1.0)
-        self.leg = leg
+        self.leg, self.a, self.b = leg, a, b
 
     def near(self, feet: np.ndarray, k: np.ndarray) -> np.ndarray:
         """(len(k), 2, 3) the feet of legs l - 2 and l + 2 at entries k (NaN for none)."""
@@ -236,14 +242,50 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, mid, end, swing, side, l1, l2
     Legs are ordered L_01, R_01, L_02, ...: leg l's neighbours on its side are l - 2 and l + 2.
     Each swing's own faults are found once; crowding is judged against the neighbours' latest
     feet, and neighbours never change in the same pass (legs of odd and even segments take
-    turns, `rounds` times).
-    returns (q_u, q_t, mid, end), each (F, L, ...)
+    turns, `rounds` times). A swing that still breaks a limit then tries again lifting off
+    earlier (EARLY_LIFT of its length sooner, keeping MIN_STANCE planted frames): a longer
+    swing turns its joints more slowly, so it can rise over what it could not. The earlier
+    lift is kept where it costs less.
+    returns (q_u, q_t, mid, end, swing), each (F, L, ...); swing with the earlier lifts
     """
+    args = (rays, hip, q_seg, side, l1, l2, lim, rounds)
+    out, sw, cost = _swings_pass(*args, q_u, q_t, mid, end, swing)
+    broken = np.nonzero(cost >= HARD)[0]
+    if not len(broken):
+        return out + (swing,)
+    longer = np.zeros_like(swing)           # only the lengthened swings are redone
+    extended = []
+    for i in broken:
+        leg, a, b = sw.leg[i], sw.a[i], sw.b[i]
+        prev = np.nonzero(swing[:a, leg])[0]
+        first_ok = (prev[-1] + 1 if len(prev) else 0) + MIN_STANCE
+        a2 = max(a - max(2, int(np.ceil(EARLY_LIFT * (b - a)))), first_ok)
+        if a2 < a:
+            longer[a2 + 1:b, leg] = True
+            extended.append((leg, b, a2, a))
+    if not extended:
+        return out + (swing,)
+    out2, sw2, cost2 = _swings_pass(*args[:-1], 1, *out, longer)
+    by_end = dict(zip(zip(sw2.leg, sw2.b), cost2))
+    by_end_old = dict(zip(zip(sw.leg, sw.b), cost))
+    final = swing.copy()
+    merged = [x.copy() for x in out]
+    for leg, b, a2, a in extended:
+        if by_end.get((leg, b), np.inf) < by_end_old[(leg, b)]:
+            final[a2 + 1:a + 1, leg] = True
+            for x, y in zip(merged, out2):
+                x[a2:b + 1, leg] = y[a2:b + 1, leg]
+    return tuple(merged) + (final,)
+
+
+def _swings_pass(rays, hip, q_seg, side, l1, l2, lim: Limits, rounds, q_u, q_t, mid, end, swing):
+    """One joint_space_swings pass: ((q_u, q_t, mid, end), the _Swings, (n,) each swing's final
+    cost)."""
     U_all = quat_mul(quat_conj(q_seg), q_u)
     T_all = quat_mul(quat_conj(q_u), q_t)
     sw = _Swings(swing)
     if sw.n == 0:
-        return q_u, q_t, mid, end
+        return (q_u, q_t, mid, end), sw, np.zeros(0)
     f, lg = sw.f, sw.lg
     own, feet_k = _own_faults(rays, lim, hip[f, lg], q_seg[f, lg], U_all[f, lg], T_all[f, lg],
                               l1, l2, sw.inner, sw.sid[1:] == sw.sid[:-1])
@@ -263,8 +305,9 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, mid, end, swing, side, l1, l2
     q_u2, q_t2, mid2, end2 = _pose(q_seg, hip, U_all, T_all, l1, l2)
     # frames left as planned keep the planner's exact numbers (no round trip through rotations)
     r = redone[..., None]
-    return (np.where(r, q_u2, q_u), np.where(r, q_t2, q_t), np.where(r, mid2, mid),
-            np.where(r, end2, end))
+    final = own + _crowding(feet[f, lg], sw.inner, sw.near(feet, np.arange(len(f))), lim)
+    return ((np.where(r, q_u2, q_u), np.where(r, q_t2, q_t), np.where(r, mid2, mid),
+             np.where(r, end2, end)), sw, np.bincount(sw.sid, weights=final, minlength=sw.n))
 
 
 def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, own, best,
@@ -306,6 +349,8 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
     candidates += [("arc", PROFILES[0], r, 0.0, 0.0, 0.0, yw) for yw in YAWS
                    for r in RAISES[1:4]]
     candidates += [("bump", None, r, 0.0, 0.0, 0.0, 0.0) for r in RAISES[1:]]
+    candidates += [("arc", p, r, 0.0, fx, 0.0, 0.0) for fx in TUCKS for p in PROFILES[:2]
+                   for r in RAISES[2::2]]
     # last, the same paths paced so each frame's share of the leg's own turn shrinks by what
     # the segment turns in the world that frame (a leg joint turns in the world by its turn
     # relative to the body plus the body's own turn)

@@ -37,7 +37,7 @@ def run(targets, swing, lim):
     out = joint_space_swings(ground(), np.broadcast_to(HIP, (F, 1, 3)), q_seg, q_u[:, None],
                              q_t[:, None], mid[:, None], end[:, None], swing[:, None],
                              np.array([1.0]), L1, L2, lim)
-    return out, (q_u, q_t)
+    return out[:4], (q_u, q_t)
 
 
 LIM = Limits(contact=0.004, slide=0.001, tol=0.001, turn=np.radians(27.0), gap=0.003)
@@ -106,3 +106,29 @@ def test_a_swing_while_the_body_turns_keeps_the_world_turn_within_the_limit():
     local = (quat_mul(quat_conj(q_seg), qu), quat_mul(quat_conj(qu), qt))
     for q in (qu, qt) + local:
         assert np.degrees(quat_angle(q[1:], q[:-1])).max() <= 27.0
+
+
+def test_a_swing_too_short_to_turn_within_the_limit_lifts_off_earlier():
+    """A swing of two frames that sweeps the leg 112 deg round its hip cannot keep every joint
+    within 27 deg a frame; lifting off earlier (the stance before it is long) spreads the sweep
+    over more frames. The touchdown frame and the stance up to the new liftoff stay."""
+    a, b = np.array([0.1, 0.0, -0.15]), np.array([0.1, 0.0, 0.15])
+    t = np.empty((12, 3))
+    t[:5], t[7:] = a, b
+    t[5:7] = a + (b - a) * np.array([1 / 3, 2 / 3])[:, None] + [0.0, 0.03, 0.0]
+    swing = np.zeros(12, bool)
+    swing[5:7] = True
+    q_u, q_t, mid, end = leg(t)
+    q_seg = np.tile([0.0, 0.0, 0.0, 1.0], (12, 1, 1))
+    *pose, swing2 = joint_space_swings(ground(), np.broadcast_to(HIP, (12, 1, 3)), q_seg,
+                                       q_u[:, None], q_t[:, None], mid[:, None], end[:, None],
+                                       swing[:, None], np.array([1.0]), L1, L2, LIM)
+    lifted = np.nonzero(swing2[:, 0])[0]
+    assert lifted[0] < 5 and lifted[-1] == 6                   # lifts sooner, lands as planned
+    assert np.all(~swing2[:lifted[0], 0])
+    qu, qt = pose[0][:, 0], pose[1][:, 0]
+    local_t = quat_mul(quat_conj(qu), qt)
+    for q in (qu, local_t):
+        assert np.degrees(quat_angle(q[1:], q[:-1])).max() <= 27.0 + 1e-6
+    np.testing.assert_allclose(pose[3][~swing2[:, 0], 0], t[~swing2[:, 0]], atol=1e-9)
+    assert np.all(pose[3][swing2[:, 0], 0, 1] > 0.0)           # the swing stays above the floor
