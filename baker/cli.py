@@ -192,8 +192,15 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
     result = with_progress(run_bake, cfg)
     m = result.report["metrics"]
     files = ", ".join(str(p) for p in result.outputs.values())
-    click.echo(f"baked {m['frames']} frames, walked {m['distance_walked_m']:.2f} m "
-               f"({m['distance_walked_body_lengths']:.1f} body lengths) -> {files} "
+    crowd = result.report.get("creatures") or ()
+    if crowd:                        # --creatures N: the distance every creature walked
+        walked = sum(c["metrics"]["distance_walked_m"] for c in crowd)
+        bls = sum(c["metrics"]["distance_walked_body_lengths"] for c in crowd)
+        what = f"{len(crowd)} creatures x {m['frames']} frames, walked {walked:.2f} m in all"
+    else:
+        walked, bls = m["distance_walked_m"], m["distance_walked_body_lengths"]
+        what = f"{m['frames']} frames, walked {walked:.2f} m"
+    click.echo(f"baked {what} ({bls:.1f} body lengths) -> {files} "
                f"in {time.perf_counter() - t0:.2f} s")
 
 

@@ -243,15 +243,8 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
     # -- the creature and its animations
     clips = (([clip] if clip is not None else []) + list(extra_clips)) if rig is not None else []
     if rig is not None:
-        roots, node_of = _add_creature(gltf, b, creature_mats, rig, placement)
-        scene_nodes.extend(roots)
-        others = []                    # (clip, node_of) of a crowd's further creatures
-        for i, c in enumerate(crowd, start=1):
-            more, nodes = _add_creature(gltf, b, creature_mats, rig, c.placement,
-                                        label=creature_label(i, 1 + len(crowd)),
-                                        mesh=gltf.nodes[roots[1]].mesh)
-            scene_nodes.extend(more)
-            others.append((c, nodes))
+        node_of, others = _add_creatures(gltf, b, creature_mats, rig, placement, crowd,
+                                         scene_nodes)
         parts = [(c, node_of) for c in clips] + others
         dropped = _drop_static_channels(gltf, parts, node_by_name)
         for k, c in enumerate(clips):
@@ -328,6 +321,24 @@ def _reserve_names(rig: Rig | None, props: Sequence[DebugMesh],
     debug = [safe_name(d[0], names, "debug") for d in debug_meshes]
     mats = [safe_name(f"centipede_{m}", names) for m, _ in (rig.mesh.materials if rig else ())]
     return names, debug, mats
+
+
+def _add_creatures(gltf: gl.GLTF2, b: _Builder, mat_names: Sequence[str], rig: Rig, placement,
+                   crowd: Sequence[Clip], scene_nodes: list[int]):
+    """Creature 0 (_add_creature at placement (3,) float64 metres) and a crowd's further
+    creatures (each at its clip's placement, named by export.creature_label, sharing creature
+    0's skinned mesh); their root nodes are appended to scene_nodes.
+    Returns (creature 0's joint node indices, [(clip, joint node indices)] of the others)."""
+    roots, node_of = _add_creature(gltf, b, mat_names, rig, placement)
+    scene_nodes.extend(roots)
+    others = []
+    for i, c in enumerate(crowd, start=1):
+        more, nodes = _add_creature(gltf, b, mat_names, rig, c.placement,
+                                    label=creature_label(i, 1 + len(crowd)),
+                                    mesh=gltf.nodes[roots[1]].mesh)
+        scene_nodes.extend(more)
+        others.append((c, nodes))
+    return node_of, others
 
 
 def _mesh_node_name(top: str) -> str:

@@ -222,3 +222,21 @@ def test_a_jobs_file_takes_creatures(tmp_path):
     plan = batch.load_plan(tmp_path / "j.toml", tmp_path / "out")
     assert [j.cfg.creatures for j in plan.jobs] == [4, 1]
     assert plan.jobs[0].key != plan.jobs[1].key
+
+
+def test_an_unreduced_crowd_with_a_root_joint(tmp_path, nav_cache_dir):
+    """--tolerance 0 writes every key of every creature; --root-motion root gives each its
+    own `root` joint (`c01_root`)."""
+    cfg = BakeConfig(seconds=1.0, seed=2, creatures=2, rig=load_rig_config(DEFAULT_RIG),
+                     out=tmp_path / "t0", nav_cache_dir=nav_cache_dir, tolerance=0.0,
+                     root_motion="root", formats=("glb",))
+    res = bake(cfg)
+    assert gltf_validate(res.outputs["glb"])["issues"]["numErrors"] == 0
+    d = Glb(res.outputs["glb"].read_bytes()).doc
+    assert [d["nodes"][s["skeleton"]]["name"] for s in d["skins"]] == ["root", "c01_root"]
+    anim = d["animations"][0]
+    assert len(anim["channels"]) == 2 * 2 * len(d["skins"][0]["joints"])   # T and R, all
+    for i, traj in enumerate(res.trajectories):
+        g = read_glb(res.outputs["glb"], "bake", creature=i)
+        head = g.positions[:, g.index("head")]
+        assert np.abs(head - (traj.spine_positions[:, 0] + res.origin)).max() < 1e-5
