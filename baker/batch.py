@@ -86,7 +86,7 @@ OPTIONS: dict[str, object] = {
     "environment": "path", "seconds": "number", "fps": "int", "seed": "int", "rig": "path",
     "format": ("glb", "usd", "both"), "usda": "bool", "sun": "vec3", "debug_navmesh": "bool",
     "nav_build": ("auto", "full", "lazy"), "behaviour": ("auto", "wander", "shade", "hunt"),
-    "prey": "int", "cobra": ("auto", "always", "never"), "sun_path": "str", "clips": "bool",
+    "prey": "int", "creatures": "int", "cobra": ("auto", "always", "never"), "sun_path": "str", "clips": "bool",
     "root_motion": ("world", "root", "in-place"), "max_memory": "number", "scale": "number",
     "agent_radius": "number", "agent_height": "number", "step_height": "number",
     "max_slope": "number", "cell_size": "number", "tolerance": "number",
@@ -97,6 +97,7 @@ BATCH_LEVEL = {"out": "--out", "cache_dir": "--cache-dir", "no_cache": "--cache-
                "cache_max": "--cache-max"}
 #: job key -> BakeConfig field, where the option is copied as it is
 _FIELDS = {"seconds": "seconds", "fps": "fps", "seed": "seed", "prey": "prey",
+           "creatures": "creatures",
            "behaviour": "behaviour", "cobra": "cobra", "sun_path": "sun_path", "clips": "clips",
            "root_motion": "root_motion", "nav_build": "nav_build",
            "debug_navmesh": "debug_navmesh", "max_memory": "max_memory_mb",

@@ -113,6 +113,9 @@ def cli(verbose: int):
 @click.option("--behaviour", type=click.Choice(["auto", "wander", "shade", "hunt"]), default="auto",
               show_default=True, help="auto lets the brain choose; the others force one drive.")
 @click.option("--prey", type=int, default=0, show_default=True, help="Number of prey capsules (0-16).")
+@click.option("--creatures", type=int, default=1, show_default=True,
+              help="Number of centipedes baked together (1-1000): each its own skinned "
+                   "skeleton, sharing one mesh, keeping apart from the others.")
 @click.option("--cobra", type=click.Choice(["auto", "always", "never"]), default="auto",
               show_default=True, help="Cobra mode (front third raised).")
 @click.option("--sun-path", default=None, metavar="AZ,EL;AZ,EL",
@@ -142,8 +145,8 @@ def cli(verbose: int):
 @max_memory_option
 @rig_options
 def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_navmesh,
-         cache_dir, no_cache, cache_max, nav_build, behaviour, prey, cobra, sun_path, clips,
-         root_motion, tolerance, rotations, preview, max_memory,
+         cache_dir, no_cache, cache_max, nav_build, behaviour, prey, creatures, cobra, sun_path,
+         clips, root_motion, tolerance, rotations, preview, max_memory,
          **rig_overrides):
     """Bake a centipede on ENVIRONMENT (glTF/GLB, OBJ, PLY, STL or USD).
 
@@ -161,7 +164,8 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
     sun_direction = parse_vec3(sun, "--sun")
     validate_bake(BakeConfig(seconds=seconds, fps=fps, seed=seed, formats=formats,
                              sun_direction=sun_direction, behaviour=behaviour,
-                             prey=prey, cobra=cobra, sun_path=sun_path, nav_build=nav_build,
+                             prey=prey, creatures=creatures, cobra=cobra, sun_path=sun_path,
+                             nav_build=nav_build,
                              tolerance=tolerance, rotations=rotations, preview=preview))
     if preview:
         from baker.export.preview import check_dependencies
@@ -179,7 +183,8 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
         rig=override_rig(load_rig_config(rig_path), **rig_overrides), out=resolve_out(out),
         formats=formats, sun_direction=sun_direction, debug_navmesh=debug_navmesh,
         nav_cache_dir=None if no_cache else NavCache.of(cache_dir or default_cache_dir(), cache_max),
-        nav_build=nav_build, behaviour=behaviour, prey=prey, cobra=cobra, sun_path=sun_path, clips=clips,
+        nav_build=nav_build, behaviour=behaviour, prey=prey, creatures=creatures, cobra=cobra,
+        sun_path=sun_path, clips=clips,
         root_motion=root_motion, max_memory_mb=max_memory, tolerance=tolerance,
         rotations=rotations, preview=preview,
     )
@@ -187,8 +192,15 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
     result = with_progress(run_bake, cfg)
     m = result.report["metrics"]
     files = ", ".join(str(p) for p in result.outputs.values())
-    click.echo(f"baked {m['frames']} frames, walked {m['distance_walked_m']:.2f} m "
-               f"({m['distance_walked_body_lengths']:.1f} body lengths) -> {files} "
+    crowd = result.report.get("creatures") or ()
+    if crowd:                        # --creatures N: the distance every creature walked
+        walked = sum(c["metrics"]["distance_walked_m"] for c in crowd)
+        bls = sum(c["metrics"]["distance_walked_body_lengths"] for c in crowd)
+        what = f"{len(crowd)} creatures x {m['frames']} frames, walked {walked:.2f} m in all"
+    else:
+        walked, bls = m["distance_walked_m"], m["distance_walked_body_lengths"]
+        what = f"{m['frames']} frames, walked {walked:.2f} m"
+    click.echo(f"baked {what} ({bls:.1f} body lengths) -> {files} "
                f"in {time.perf_counter() - t0:.2f} s")
 
 

@@ -197,6 +197,8 @@ class BakeConfig:
     behaviour: str = "auto"      # auto | wander | shade | hunt: which drives the brain may use
     cobra: str = "auto"          # auto | always | never
     prey: int = 0                # [0..16] prey capsules
+    creatures: int = 1           # [1..1000] centipedes baked together (run.crowd); 1 is the
+                                 # lone creature, byte-identical to a bake without the option
     sun_path: str | None = None  # "AZ,EL;AZ,EL;..." degrees, evenly spaced over the bake
     clips: bool = False          # also write one animation per behaviour segment
     root_motion: str = "world"   # world | root | in-place (see baker.rootmotion)
@@ -249,7 +251,7 @@ def validate_bake(cfg: BakeConfig) -> BakeConfig:
         except (TypeError, ValueError):
             raise ConfigError("--sun must be three numbers x,y,z", where="command line") from None
     schema.validate_options(seconds=cfg.seconds, fps=cfg.fps, seed=cfg.seed, prey=cfg.prey,
-                            sun=sun, tolerance=cfg.tolerance)
+                            creatures=cfg.creatures, sun=sun, tolerance=cfg.tolerance)
     if SIM_RATE_HZ % cfg.fps:
         divisors = [d for d in range(1, MAX_FPS + 1) if SIM_RATE_HZ % d == 0]
         raise ConfigError(

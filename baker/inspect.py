@@ -11,11 +11,15 @@ frames, whatever the gait declares (the GMD-style skate measure), and the enviro
     usd = read_usd(path_usd)          # joints only
     result = judge(scene, usd)        # {"metrics": {...}, "worst": {...}}
     failures(result["metrics"])       # the limits that do not hold
+
+A crowd (`--creatures N`) holds a skin (GLB) and a Skeleton (USD) per creature: read_glb and
+read_usd take a creature index (0 by default), and judge_creatures judges each of them.
 """
 
 from __future__ import annotations
 
 import json
+import re
 import struct
 from dataclasses import dataclass
 from pathlib import Path
@@ -212,17 +216,37 @@ def frame_times(n_frames: int, fps: int) -> np.ndarray:
     return (np.arange(n_frames) / fps).astype(np.float32).astype(np.float64)
 
 
+def creature_count(doc: dict) -> int:
+    """How many creatures a bake's glTF document holds: one skin each."""
+    return len(doc.get("skins") or [])
+
+
+#: a crowd creature's glTF joint-name prefix (c01_head, ...; export.creature_label)
+_PREFIX = re.compile(r"^c\d+_")
+
+
+def _unprefixed(names: list[str]) -> list[str]:
+    """Joint names less the creature prefix they all share (`c01_`), as the rig names them."""
+    m = _PREFIX.match(names[0]) if names else None
+    if m and all(n.startswith(m.group(0)) for n in names):
+        return [n[len(m.group(0)):] for n in names]
+    return names
+
+
 def read_glb(path: str | Path, animation: str | int = 0,
-             glb: GlbFile | None = None) -> BakedScene:
+             glb: GlbFile | None = None, creature: int = 0) -> BakedScene:
     """Read a bake's GLB: the skin's joints posed by `animation` (name or index) at every frame
     of the bake's fps grid, composed with their non-joint ancestors in float64, and the
     environment's triangles in world coordinates. glb: the file already parsed (then `path`
-    only names it in messages)."""
+    only names it in messages). creature: which skin (a crowd's creature); its joint names
+    are returned less their creature prefix."""
     g = glb if glb is not None else GlbFile(Path(path).read_bytes())
     doc = g.doc
     nodes = doc.get("nodes", [])
     if not doc.get("skins") or not doc.get("animations"):
         raise InspectError(f"{path}: no skin or no animation")
+    if not 0 <= creature < creature_count(doc):
+        raise InspectError(f"{path}: no creature {creature} (it has {creature_count(doc)})")
     anims = doc["animations"]
     anim = next((a for a in anims if a.get("name") == animation), None) if isinstance(
         animation, str) else anims[animation]
@@ -253,7 +277,7 @@ def read_glb(path: str | Path, animation: str | int = 0,
                                         rot))
         return out
 
-    joints = list(doc["skins"][0]["joints"])
+    joints = list(doc["skins"][creature]["joints"])
     jset = set(joints)
     # joint order parents first (the skin lists them that way in a baker bake; sort to be sure)
     depth = {}
@@ -282,7 +306,8 @@ def read_glb(path: str | Path, animation: str | int = 0,
     parents = np.array([index.get(parent.get(j), -1) if parent.get(j) in jset else -1
                         for j in joints])
     ev, ef = _environment(g, world)
-    return BakedScene(names=tuple(nodes[j].get("name", f"joint{j}") for j in joints),
+    names = _unprefixed([nodes[j].get("name", f"joint{j}") for j in joints])
+    return BakedScene(names=tuple(names),
                       parents=parents, positions=m[..., :3, 3].copy(), rotations=world_q,
                       local=local_q, rest_translations=rest_t, fps=fps, env_vertices=ev,
                       env_faces=ef, extras=extras)
@@ -291,18 +316,23 @@ def read_glb(path: str | Path, animation: str | int = 0,
 # ---------------------------------------------------------------- USD
 
 
-def read_usd(path: str | Path) -> BakedScene:
-    """Read a bake's USD: the first skeleton's joints, posed by its bound animation at every
-    time code, as world transforms (UsdSkel, double precision). No environment."""
+def read_usd(path: str | Path, creature: int = 0) -> BakedScene:
+    """Read a bake's USD: the skeleton's joints (the `creature`-th Skeleton, in stage order:
+    a crowd's creatures), posed by its bound animation at every time code, as world transforms
+    (UsdSkel, double precision). No environment."""
     from pxr import Usd, UsdGeom, UsdSkel
 
     stage = Usd.Stage.Open(str(path))
     if stage is None:
         raise InspectError(f"{path}: cannot open the USD stage")
-    skel_prim = next((p for p in stage.Traverse() if p.IsA(UsdSkel.Skeleton)), None)
-    root_prim = next((p for p in stage.Traverse() if p.IsA(UsdSkel.Root)), None)
-    if skel_prim is None or root_prim is None:
-        raise InspectError(f"{path}: no UsdSkel skeleton")
+    skels = [p for p in stage.Traverse() if p.IsA(UsdSkel.Skeleton)]
+    skel_prim = skels[creature] if 0 <= creature < len(skels) else None
+    root_prim = skel_prim.GetParent() if skel_prim is not None else None
+    while root_prim is not None and root_prim.IsValid() and not root_prim.IsA(UsdSkel.Root):
+        root_prim = root_prim.GetParent()
+    if skel_prim is None or root_prim is None or not root_prim.IsValid():
+        raise InspectError(f"{path}: no UsdSkel skeleton" + (f" for creature {creature}"
+                                                              if creature else ""))
     cache = UsdSkel.Cache()
     cache.Populate(UsdSkel.Root(root_prim), Usd.TraverseInstanceProxies())
     sq = cache.GetSkelQuery(UsdSkel.Skeleton(skel_prim))
@@ -515,6 +545,19 @@ def _judge_bones(scene: BakedScene, rays, bl: float, m: dict, worst: dict) -> No
         hits = hit.hit.reshape(len(scene.positions), len(bones))
         m[key] = int(hits.sum())
         worst[key] = _worst(hits.astype(float), [scene.names[i] for i in j])
+
+
+def judge_creatures(glb_path: str | Path, usd_path: str | Path | None = None) -> list[dict]:
+    """judge() of every creature of a bake (one for a lone creature), each read from the GLB
+    (its skin) and, when given, the USD (its Skeleton)."""
+    g = GlbFile(Path(glb_path).read_bytes())
+    names = [a.get("name") for a in g.doc.get("animations", [])]
+    anim = "bake" if "bake" in names else 0
+    out = []
+    for i in range(creature_count(g.doc)):
+        scene = read_glb(glb_path, anim, glb=g, creature=i)
+        out.append(judge(scene, read_usd(usd_path, i) if usd_path is not None else None))
+    return out
 
 
 def failures(metrics: dict) -> list[str]:

@@ -250,10 +250,19 @@ def _glb_report(path: Path, validate: bool) -> dict:
         sizes = _glb_sizes(doc, path.stat().st_size, jlen, joints)
     except (KeyError, IndexError, TypeError, ValueError, AttributeError) as e:
         raise InspectError(f"malformed glTF ({type(e).__name__}: {e})", where=str(path)) from None
-    return {"file": str(path), "format": "glb", "bytes": path.stat().st_size,
-            "skeleton": skeleton, "clips": clips, "sizes": sizes, "sizes_exact": True,
-            "validator": khronos_validate(path) if validate else {"skipped": True},
-            "metadata": metadata_summary(extras)}
+    return _with_creatures(
+        {"file": str(path), "format": "glb", "bytes": path.stat().st_size,
+         "skeleton": skeleton, "clips": clips, "sizes": sizes, "sizes_exact": True,
+         "validator": khronos_validate(path) if validate else {"skipped": True},
+         "metadata": metadata_summary(extras)}, len(doc["skins"]))
+
+
+def _with_creatures(report: dict, n: int) -> dict:
+    """A crowd's report (`--creatures N`: N skins, or N Skeletons) says how many creatures the
+    file holds; the skeleton summarized is the first one's (they are the same rig)."""
+    if n > 1:
+        report["creatures"] = n
+    return report
 
 
 # ---------------------------------------------------------------- USD
@@ -363,13 +372,17 @@ def _usd_report(path: Path, validate: bool) -> dict:
     stage = _open_stage(path)
     skeleton, skel = _usd_skeleton(stage)
     fps = stage.GetTimeCodesPerSecond()
+    from pxr import UsdSkel
+
     custom = _custom_data(stage.GetDefaultPrim()) if stage.GetDefaultPrim() else {}
-    return {"file": str(path), "format": path.suffix.lower().lstrip("."),
-            "bytes": path.stat().st_size, "skeleton": skeleton,
-            "clips": _usd_clips(stage, skel, fps), "sizes": _usd_sizes(stage),
-            "sizes_exact": False,
-            "validator": usd_validate(stage) if validate else {"skipped": True},
-            "metadata": metadata_summary(custom)}
+    return _with_creatures(
+        {"file": str(path), "format": path.suffix.lower().lstrip("."),
+         "bytes": path.stat().st_size, "skeleton": skeleton,
+         "clips": _usd_clips(stage, skel, fps), "sizes": _usd_sizes(stage),
+         "sizes_exact": False,
+         "validator": usd_validate(stage) if validate else {"skipped": True},
+         "metadata": metadata_summary(custom)},
+        sum(1 for p in stage.Traverse() if p.IsA(UsdSkel.Skeleton)))
 
 
 def _custom_data(prim) -> dict:
@@ -573,6 +586,8 @@ def format_report(r: dict) -> str:
     lines.append(f"skeleton: {sk['joints']} joints, root {', '.join(sk['roots'])}, depth "
                  f"{sk['depth']}, {sk['end_joints']} end joints")
     lines.append("  " + ", ".join(f"{g} {n}" for g, n in sk["groups"].items()))
+    if r.get("creatures"):
+        lines.append(f"creatures: {r['creatures']} (a skeleton each, as above)")
     lines.append(f"clips: {len(r['clips'])}")
     width = max((len(c["name"]) for c in r["clips"]), default=0)
     for c in r["clips"]:

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from scipy.spatial import cKDTree
+
 from baker.geometry.conventions import UP
 from baker.geometry.transforms import quat_conj, quat_mul
 from baker.solve.trajectory import Trajectory
@@ -358,4 +360,184 @@ def behaviour_metrics(traj: Trajectory, rays, *, fps: int, clearance: float) -> 
         "hunts": len(outcomes),
         "captures": outcomes.count("caught"),
         "escapes": outcomes.count("escaped"),
+    }
+
+
+# --------------------------------------------------------------------------- crowds
+#: points per k-d tree when a crowd's frames are searched in chunks (bounds the memory)
+_CHUNK_POINTS = 200_000
+
+
+def _frame_chunks(n_frames: int, per_frame: int):
+    """(f0, f1) ranges of frames whose points (per_frame each) fill about one chunk."""
+    step = max(1, _CHUNK_POINTS // max(per_frame, 1))
+    for f0 in range(0, n_frames, step):
+        yield f0, min(f0 + step, n_frames)
+
+
+def _frame_space(points: np.ndarray, f0: int, gap: float) -> np.ndarray:
+    """(fc, m, 3) points of frames f0.. -> (fc * m, 4): a 4th coordinate (frame * gap) keeps
+    points of different frames farther apart than `gap` metres, so one k-d tree serves a whole
+    chunk of frames."""
+    fc, m, _ = points.shape
+    frame = np.repeat(np.arange(f0, f0 + fc, dtype=np.float64) * gap, m)
+    return np.column_stack([points.reshape(-1, 3), frame])
+
+
+def min_spine_gap(spines: np.ndarray) -> dict:
+    """The smallest distance between spine joints of different creatures over all frames.
+
+    spines : (n, F, S, 3) float64 metres, every creature's spine joints
+    returns {"gap_m": metres (inf for fewer than two creatures), "frame": int,
+             "creatures": [i, j]} (frame and pair -1 when there is none)
+
+    For every joint the k-d tree finds its S + 1 nearest joints of the same frame: at most S
+    of them (itself included) are its own creature's, so the nearest other creature's joint is
+    among them. Frames are searched in chunks (_frame_space)."""
+    n, F, S, _ = spines.shape
+    best = {"gap_m": float("inf"), "frame": -1, "creatures": [-1, -1]}
+    if n < 2 or F == 0:
+        return best
+    far = 2.0 * float(np.ptp(spines.reshape(-1, 3), axis=0).max()) + 1.0
+    owner = np.repeat(np.arange(n), S)
+    by_frame = np.transpose(spines, (1, 0, 2, 3)).reshape(F, n * S, 3)
+    for f0, f1 in _frame_chunks(F, n * S):
+        x = _frame_space(by_frame[f0:f1], f0, far)
+        d, idx = cKDTree(x).query(x, k=S + 1)
+        own = np.tile(owner, f1 - f0)
+        d = np.where(own[idx] != own[:, None], d, np.inf)
+        k = int(np.argmin(d))
+        row, col = np.unravel_index(k, d.shape)
+        if d[row, col] < best["gap_m"]:
+            best = {"gap_m": float(d[row, col]), "frame": int(f0 + row // (n * S)),
+                    "creatures": sorted([int(own[row]), int(own[idx[row, col]])])}
+    return best
+
+
+def segment_distances(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray,
+                      q2: np.ndarray) -> np.ndarray:
+    """(m,) metres: the closest distance between segments p1-q1 and p2-q2 (each (m, 3)),
+    vectorized (Ericson, Real-Time Collision Detection, 5.1.9); a zero-length segment is a
+    point."""
+    eps = 1e-18
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a, e = np.einsum("ij,ij->i", d1, d1), np.einsum("ij,ij->i", d2, d2)
+    b, c, f = (np.einsum("ij,ij->i", d1, d2), np.einsum("ij,ij->i", d1, r),
+               np.einsum("ij,ij->i", d2, r))
+    a_ok, e_ok = a > eps, e > eps
+    a_, e_ = np.where(a_ok, a, 1.0), np.where(e_ok, e, 1.0)
+    denom = a * e - b * b
+    s = np.where(denom > eps, np.clip((b * f - c * e) / np.where(denom > eps, denom, 1.0),
+                                      0.0, 1.0), 0.0)
+    s = np.where(e_ok, s, np.clip(-c / a_, 0.0, 1.0))
+    t = np.where(e_ok, (b * s + f) / e_, 0.0)
+    s = np.where(t < 0.0, np.clip(-c / a_, 0.0, 1.0),
+                 np.where(t > 1.0, np.clip((b - c) / a_, 0.0, 1.0), s))
+    t = np.clip(t, 0.0, 1.0)
+    s = np.where(a_ok, s, 0.0)
+    t = np.where(a_ok, t, np.clip(f / e_, 0.0, 1.0) * e_ok)
+    return np.linalg.norm(p1 + d1 * s[:, None] - p2 - d2 * t[:, None], axis=1)
+
+
+def leg_bones(traj: Trajectory, legs_cfg) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """(starts (F, B, 3), ends (F, B, 3), B bone names) of every walking-leg and ultimate-leg
+    bone of a trajectory, metres, world: `*_upper` runs to its `*_tip` joint, `*_tip` to the
+    foot (its own +Y by the rig's tip length)."""
+    from baker.geometry.transforms import quat_rotate
+
+    names = traj.joint_names
+    if not names:
+        empty = np.zeros((traj.n_frames, 0, 3))
+        return empty, empty, []
+    index = {n: i for i, n in enumerate(names)}
+    uppers = [n for n in names if n.startswith(("leg_", "ultimate_")) and n.endswith("_upper")]
+    tips = [n[: -len("upper")] + "tip" for n in uppers]
+    length = np.array([legs_cfg.ultimate_tip if n.startswith("ultimate_") else legs_cfg.tip_length
+                       for n in tips])
+    p = traj.joint_positions
+    up, tp = [index[n] for n in uppers], [index[n] for n in tips]
+    ends = p[:, tp] + quat_rotate(traj.joint_rotations[:, tp],
+                                  np.stack([np.zeros_like(length), length, np.zeros_like(length)],
+                                           axis=1)[None].repeat(traj.n_frames, axis=0))
+    starts = np.concatenate([p[:, up], p[:, tp]], axis=1)
+    return starts, np.concatenate([p[:, tp], ends], axis=1), uppers + tips
+
+
+def legs_through_others(trajs, legs_cfg, radius: float) -> dict:
+    """Leg bones of one creature passing through another creature's body: each other body is a
+    chain of capsules of `radius` metres around its spine segments (neighbouring spine joints),
+    and a leg bone (leg_bones) counts once per frame when it comes closer than `radius` to any
+    of them. Candidate pairs come from one k-d tree per chunk of frames (segment midpoints, in
+    _frame_space), then exact segment-to-segment distances.
+
+    returns {"bone_frames": (frame, bone) pairs inside another body, "frames": frames with
+             one, "by_creature": [pairs per creature], "deepest_m": smallest bone-to-spine
+             distance among them (None when there are none)}"""
+    n = len(trajs)
+    out = {"bone_frames": 0, "frames": 0, "by_creature": [0] * n, "deepest_m": None}
+    per = np.zeros(n, np.int64)
+    bones = [leg_bones(t, legs_cfg) for t in trajs]
+    B = bones[0][0].shape[1]
+    if n < 2 or B == 0:
+        return out
+    F, S = trajs[0].spine_positions.shape[:2]
+    a = np.stack([b[0] for b in bones], axis=1)                # (F, n, B, 3)
+    b = np.stack([b[1] for b in bones], axis=1)
+    sp = np.stack([t.spine_positions for t in trajs], axis=1)   # (F, n, S, 3)
+    p, q = sp[:, :, :-1], sp[:, :, 1:]
+    reach = radius + 0.5 * float(np.linalg.norm(q - p, axis=-1).max()) + 0.5 * float(
+        np.linalg.norm(b - a, axis=-1).max())
+    far = 2.0 * float(np.ptp(sp.reshape(-1, 3), axis=0).max()) + 4.0 * reach + 1.0
+    bone_owner = np.repeat(np.arange(n), B)
+    seg_owner = np.repeat(np.arange(n), S - 1)
+    hit_frames, deepest = set(), np.inf
+    for f0, f1 in _frame_chunks(F, n * max(B, S)):
+        mids_b = _frame_space((0.5 * (a + b))[f0:f1].reshape(f1 - f0, n * B, 3), f0, far)
+        mids_s = _frame_space((0.5 * (p + q))[f0:f1].reshape(f1 - f0, n * (S - 1), 3), f0, far)
+        pairs = cKDTree(mids_b).sparse_distance_matrix(cKDTree(mids_s), reach,
+                                                       output_type="ndarray")
+        i, j = pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
+        ob, os_ = bone_owner[i % (n * B)], seg_owner[j % (n * (S - 1))]
+        keep = ob != os_
+        i, j, ob = i[keep], j[keep], ob[keep]
+        if not len(i):
+            continue
+        fa = a[f0:f1].reshape(-1, 3)
+        fb = b[f0:f1].reshape(-1, 3)
+        d = segment_distances(fa[i], fb[i], p[f0:f1].reshape(-1, 3)[j],
+                              q[f0:f1].reshape(-1, 3)[j])
+        inside = d < radius
+        if not inside.any():
+            continue
+        deepest = min(deepest, float(d[inside].min()))
+        hit = np.unique(i[inside])
+        out["bone_frames"] += len(hit)
+        np.add.at(per, bone_owner[hit % (n * B)], 1)
+        hit_frames.update((f0 + hit // (n * B)).tolist())
+    out["frames"] = len(hit_frames)
+    out["by_creature"] = [int(x) for x in per]
+    out["deepest_m"] = None if not np.isfinite(deepest) else deepest
+    return out
+
+
+def crowd_metrics(trajs, legs_cfg, body_radius: float) -> dict:
+    """How a crowd's creatures keep apart, over all frames: the smallest distance between
+    spine joints of different creatures (min_spine_gap; it should be at least two body radii)
+    and leg bones through other creatures' bodies (legs_through_others, capsules of
+    `body_radius` metres around the spine segments)."""
+    gap = min_spine_gap(np.stack([t.spine_positions for t in trajs]))
+    legs = legs_through_others(trajs, legs_cfg, body_radius)
+    return {
+        "creatures": len(trajs),
+        "body_radius_m": float(body_radius),
+        "min_spine_gap_m": gap["gap_m"] if np.isfinite(gap["gap_m"]) else None,
+        "min_spine_gap_body_radii": (gap["gap_m"] / body_radius
+                                     if np.isfinite(gap["gap_m"]) else None),
+        "min_spine_gap_frame": gap["frame"],
+        "min_spine_gap_creatures": gap["creatures"],
+        "spines_apart": bool(gap["gap_m"] >= 2.0 * body_radius),
+        "leg_bones_in_other_bodies": legs["bone_frames"],
+        "leg_bones_in_other_bodies_frames": legs["frames"],
+        "leg_bones_in_other_bodies_by_creature": legs["by_creature"],
+        "leg_bone_in_other_body_min_distance_m": legs["deepest_m"],
     }

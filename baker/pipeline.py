@@ -4,8 +4,10 @@
     Step 2  build the navigation surface   navmesh.build (or the on-disk cache)
     Step 3  build the rig                  rig.build_rig
     Step 4  simulate                       sim.loop.simulate -> Trajectory
-    Step 5  pose                           clip.build_clip   -> Clip
+                                           (--creatures N: sim.loop.simulate_crowd -> N)
+    Step 5  pose                           clip.build_clip   -> Clip (one per creature)
     Step 6  measure                        metrics.spine_metrics, surface_metrics, leg_metrics
+                                           (a crowd: metrics.crowd_metrics)
     Step 7  reduce keys                    export.reduce.reduce_clip (world-space tolerance)
     Step 8  export                         export.gltf / export.usd / export.report
                                            (/ export.preview with --preview)
@@ -38,10 +40,11 @@ class BakeResult:
 
     outputs    : format -> path written
     report     : the JSON report as a dict
-    trajectory : the simulation's Trajectory, in the environment's local frame
-    clip       : the exported Clip (root joint relative to clip.placement, world)
+    trajectory : the simulation's Trajectory, in the environment's local frame (creature 0's)
+    clip       : the exported Clip (root joint relative to clip.placement, world; creature 0's)
     origin     : (3,) float64, metres, world position of the local frame (env.origin):
                  world = origin + trajectory position
+    trajectories, clips : every creature's (--creatures N), creature 0 first
     """
 
     outputs: dict[str, Path]
@@ -49,6 +52,8 @@ class BakeResult:
     trajectory: object
     clip: object
     origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    trajectories: tuple = ()
+    clips: tuple = ()
 
 
 
@@ -110,15 +115,11 @@ def bake(cfg: BakeConfig, ctx: Context | None = None) -> BakeResult:
 
 
 def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
-    from baker import metrics
     from baker.environment import load_environment
     from baker.export import report as report_mod
     from baker.atomic import OutputSet, check_outputs
-    from baker.export.gltf import build_glb
-    from baker.export.usd import build_stage, save_stage
     from baker.navmesh import debug as nav_debug
     from baker.rig import build_rig
-    from baker.sim.loop import simulate
 
     cfg = validate_bake(cfg)
     if cfg.preview:
@@ -143,39 +144,36 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
 
     # Step 3: skeleton and skinned mesh.
     with ctx.stage("rig"):
-        rig = build_rig(cfg.rig)
+        base_rig = build_rig(cfg.rig)
 
-    # Step 4: behaviour, agent, head and body, at the fixed simulation rate.
+    # Step 4: behaviour, agent, head and body, at the fixed simulation rate (--creatures N:
+    # all of them at once, keeping apart; creature 0 is the lone creature's).
     with ctx.stage("simulate"):
-        traj = simulate(run_cfg, env, nav, Streams(cfg.seed), ctx)
+        trajs = simulate_creatures(run_cfg, env, nav, ctx)
+    traj = trajs[0]
 
     # Step 5: joint-local transforms at the export fps, relative to a placement near the path,
-    # on a skeleton with a `root` joint when root motion is asked for.
+    # on a skeleton with a `root` joint when root motion is asked for; one clip per creature.
     with ctx.stage("pose"):
-        clip, rig, root_motion = posed_clip(cfg, traj, rig, env)
+        posed = [posed_clip(cfg, t, base_rig, env) for t in trajs]
+    clip, rig, root_motion = posed[0]
 
-    # Step 6: motion-quality metrics (independent ray casts against the environment).
+    # Step 6: motion-quality metrics (independent ray casts against the environment), per
+    # creature, and how a crowd's creatures keep apart.
     with ctx.stage("metrics"):
-        motion = metrics.spine_metrics(
-            traj, env.rays, spacing=cfg.rig.body.spacing, clearance=cfg.rig.body.clearance,
-            max_slope=cfg.rig.navigation.max_slope, body_length=cfg.rig.body.length)
-        motion.update(metrics.surface_metrics(traj, nav, clearance=cfg.rig.body.clearance))
-        if cfg.rig.legs.enabled:
-            motion["legs"] = metrics.leg_metrics(
-                traj, env.rays, cfg.rig.legs, spacing=cfg.rig.body.spacing,
-                body_length=cfg.rig.body.length,
-                lag_setting_deg=360.0 * cfg.rig.legs.waves / (cfg.rig.body.segments - 1),
-                max_speed=cfg.rig.locomotion.max_speed)
-        motion["behaviour"] = metrics.behaviour_metrics(traj, env.rays, fps=cfg.fps,
-                                                        clearance=cfg.rig.body.clearance)
+        motions = [measure(cfg, t, env, nav) for t in trajs]
+        crowd = crowd_report(cfg, trajs)
+    motion = motions[0]
 
     # Step 7: keyframe reduction: each channel keeps the keys that hold every joint within
     # cfg.tolerance body lengths of its unreduced world position (planted feet do not slide).
+    # Per-behaviour clips (--clips) are creature 0's.
     events = events_of(cfg, traj, env.origin)
     clip = replace(clip, events=events(0, clip.n_frames))
     segments = behaviour_clips(clip, traj.events, cfg.fps, events) if cfg.clips else ()
     with ctx.stage("reduce"):
         clip, segments, animation = reduce_clips(cfg, rig, traj, clip, segments)
+        others = reduce_crowd(cfg, rig, env.origin, trajs[1:], [p[0] for p in posed[1:]])
 
     # Step 8: files, all or nothing: each is written to a temporary beside its target and
     # they are renamed together at the end (atomic.OutputSet); a failure or a signal before
@@ -183,22 +181,18 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
     extras = report_mod.extras(cfg, traj, env.origin)
     if clip.keys is not None:        # --tolerance 0 writes the files exactly as before
         extras["animation"] = animation
+    if len(trajs) > 1:
+        extras["creatures"] = report_mod.creature_entries(cfg, trajs, env.origin)
     debug_meshes = ()
     if cfg.debug_navmesh:
         v, f = nav_debug.walkable_mesh(nav)
         debug_meshes = (("navmesh", v, f, (0.1, 0.6, 1.0, 0.5)),)
-    props = prey_props(cfg.rig, traj)
-    scene = dict(extras=extras, debug_meshes=debug_meshes, props=props, extra_clips=segments,
-                 root_motion=root_motion)
+    scene = dict(extras=extras, debug_meshes=debug_meshes, props=prey_props(cfg.rig, traj),
+                 extra_clips=segments, root_motion=root_motion)
+    if len(trajs) > 1:
+        scene.update(crowd=[c for c, _ in others], crowd_root_motion=[p[2] for p in posed[1:]])
     with OutputSet(paths) as out:
-        with ctx.stage("export"):
-            if "glb" in paths:
-                glb = build_glb(env, rig, clip, **scene)
-                out.write_bytes("glb", glb)
-            for fmt in ("usd", "usda"):
-                if fmt in paths:
-                    stage = build_stage(env, rig, clip, fps=cfg.fps, **scene)
-                    save_stage(stage, out.temp(fmt), paths[fmt])
+        glb = write_scene(cfg, paths, out, env, rig, clip, scene, ctx)
         # --preview: the map and the contact sheet, drawn from the GLB's bytes, committed with
         # the other files
         if cfg.preview:
@@ -211,9 +205,90 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
         written["json"] = paths["json"]
         rep = report_mod.build_report(cfg, env, nav, traj, motion, ctx, written)
         rep["animation"] = animation
+        if len(trajs) > 1:
+            rep["creatures"] = report_mod.creature_entries(
+                cfg, trajs, env.origin, motions=motions,
+                animations=[animation] + [a for _, a in others])
+            rep["crowd"] = crowd
         out.write_bytes("json", report_mod.to_json_bytes(rep))
         out.commit()
-    return BakeResult(outputs=written, report=rep, trajectory=traj, clip=clip, origin=env.origin)
+    return BakeResult(outputs=written, report=rep, trajectory=traj, clip=clip, origin=env.origin,
+                      trajectories=tuple(trajs), clips=(clip,) + tuple(c for c, _ in others))
+
+
+def simulate_creatures(cfg: BakeConfig, env, nav, ctx: Context) -> list:
+    """The trajectories of cfg.creatures creatures (sim.loop.simulate for one, run together by
+    sim.loop.simulate_crowd for more), in the environment's local frame."""
+    from baker.sim.loop import simulate, simulate_crowd
+
+    if cfg.creatures == 1:
+        return [simulate(cfg, env, nav, Streams(cfg.seed), ctx)]
+    return simulate_crowd(cfg, env, nav, cfg.seed, cfg.creatures, ctx)
+
+
+def measure(cfg: BakeConfig, traj, env, nav) -> dict:
+    """One creature's motion-quality metrics (the report's `metrics`): spine, surface, legs
+    and behaviour (baker.metrics)."""
+    from baker import metrics
+
+    rig = cfg.rig
+    motion = metrics.spine_metrics(
+        traj, env.rays, spacing=rig.body.spacing, clearance=rig.body.clearance,
+        max_slope=rig.navigation.max_slope, body_length=rig.body.length)
+    motion.update(metrics.surface_metrics(traj, nav, clearance=rig.body.clearance))
+    if rig.legs.enabled:
+        motion["legs"] = metrics.leg_metrics(
+            traj, env.rays, rig.legs, spacing=rig.body.spacing, body_length=rig.body.length,
+            lag_setting_deg=360.0 * rig.legs.waves / (rig.body.segments - 1),
+            max_speed=rig.locomotion.max_speed)
+    motion["behaviour"] = metrics.behaviour_metrics(traj, env.rays, fps=cfg.fps,
+                                                    clearance=rig.body.clearance)
+    return motion
+
+
+def crowd_report(cfg: BakeConfig, trajs) -> dict | None:
+    """The report's `crowd` section (metrics.crowd_metrics, capsules of the rig's body radius,
+    its widest half-width), or None for a lone creature."""
+    if len(trajs) < 2:
+        return None
+    from baker import metrics
+
+    return metrics.crowd_metrics(trajs, cfg.rig.legs, body_radius(cfg.rig))
+
+
+def body_radius(rig_cfg) -> float:
+    """[m] the rig's body radius: its widest half-width (BodyConfig.width_profile)."""
+    return float(max(rig_cfg.body.width_profile))
+
+
+def reduce_crowd(cfg: BakeConfig, rig, origin, trajs, clips) -> list:
+    """(reduced clip, the report's `animation` section) of each of a crowd's further creatures:
+    its own events (events_of), no node tracks (the prey and the sun ride on creature 0's
+    clip), no per-behaviour clips."""
+    out = []
+    for traj, clip in zip(trajs, clips):
+        clip = replace(clip, tracks=(), events=events_of(cfg, traj, origin)(0, clip.n_frames))
+        reduced, _, animation = reduce_clips(cfg, rig, traj, clip, ())
+        out.append((reduced, animation))
+    return out
+
+
+def write_scene(cfg: BakeConfig, paths: dict, out, env, rig, clip, scene: dict, ctx):
+    """Step 8's GLB and USD files into the OutputSet `out`. Returns the GLB's bytes (None
+    without a GLB)."""
+    from baker.export.gltf import build_glb
+    from baker.export.usd import build_stage, save_stage
+
+    glb = None
+    with ctx.stage("export"):
+        if "glb" in paths:
+            glb = build_glb(env, rig, clip, **scene)
+            out.write_bytes("glb", glb)
+        for fmt in ("usd", "usda"):
+            if fmt in paths:
+                stage = build_stage(env, rig, clip, fps=cfg.fps, **scene)
+                save_stage(stage, out.temp(fmt), paths[fmt])
+    return glb
 
 
 def posed_clip(cfg: BakeConfig, traj, rig, env):

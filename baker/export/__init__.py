@@ -120,3 +120,17 @@ def environment_parts(env):
             continue
         rgba = tuple(float(c) for c in m.color)
         yield m, rgba + (1.0,) * (4 - len(rgba))
+
+
+def creature_label(i: int, n: int) -> tuple[str, str]:
+    """(placement name, joint-name prefix) of creature i of a bake of n creatures.
+
+    Creature 0 is named as a lone creature's (`Centipede`, joints `head`, `trunk_01`, ...), so
+    tools that read one creature find it. Creature i >= 1 is `Centipede_<ii>` and its glTF
+    joints are `c<ii>_head`, `c<ii>_trunk_01`, ... (ii zero-padded to two digits, or three
+    from a thousand creatures on), so every node name in the file stays unique, also without
+    regard to case. USD needs no prefix (joints are scoped by their Skeleton prim)."""
+    if i == 0:
+        return "Centipede", ""
+    tag = f"{i:0{max(2, len(str(n - 1)))}d}"
+    return f"Centipede_{tag}", f"c{tag}_"

@@ -10,6 +10,10 @@ deterministic and both chunks are padded to 4 bytes. Node layout of the scene:
     Centipede              non-joint placement node, translation = clip.placement
                            -> head -> trunk_01 -> ... (the root joint's keys are relative to it)
     centipede_mesh         skinned mesh `centipede_skinned`, at the scene root with no transform
+    Centipede_01, ...      a crowd's further creatures (`--creatures N`): each its own placement
+    centipede_mesh_01, ... node and joints (`c01_head`, ...; export.creature_label), its own skin
+                           `Centipede_01_skin`, and a mesh node of its own that uses the one
+                           skinned mesh `centipede_skinned` with that skin
     <debug layers>         optional overlays, one node each, translation = env.origin
 
 Names: every node, mesh and material name is unique, also without regard to case (engines key
@@ -37,7 +41,7 @@ import baker
 from baker.clip import Clip, NodeTrack
 from baker.environment.model import Environment
 from baker.errors import ExportError
-from baker.export import checked_mesh, environment_parts, jsonable, safe_name
+from baker.export import checked_mesh, creature_label, environment_parts, jsonable, safe_name
 from baker.geometry.transforms import light_rotation
 from baker.rig.build import Rig
 
@@ -153,7 +157,9 @@ def _offset(v) -> dict:
 
 def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: dict,
               debug_meshes: Sequence[DebugMesh] = (), props: Sequence[DebugMesh] = (),
-              extra_clips: Sequence[Clip] = (), root_motion: NodeTrack | None = None) -> bytes:
+              extra_clips: Sequence[Clip] = (), root_motion: NodeTrack | None = None,
+              crowd: Sequence[Clip] = (),
+              crowd_root_motion: Sequence[NodeTrack | None] = ()) -> bytes:
     """The whole scene as GLB bytes. Same inputs give identical bytes.
 
     env          : environment meshes (each gets a node and a PBR material) and the sun; the
@@ -171,16 +177,25 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
     extra_clips  : more animations over the same joints and nodes (per-behaviour clips)
     root_motion  : the motion an in-place clip leaves out (a track on the `root` joint), written
                    as one more animation named `root_motion`
-    Each clip's `events` go into its animation's `extras`.
+    crowd        : the bake clips of a crowd's further creatures (creature 1, 2, ...) over the
+                   same skeleton, each with its own placement and no node tracks: each gets its
+                   own joints, skin and mesh node (sharing the skinned mesh), and its channels
+                   go into the main clip's animation. extra_clips drive creature 0 only.
+    crowd_root_motion : their root motion tracks (in-place), joined to `root_motion`'s
+    Each clip's `events` go into its animation's `extras` (a crowd's bake animation: creature
+    0's; every creature's timeline and foot contacts are in `extras`, see export.report).
     """
     if clip is not None and rig is None:
         raise ExportError("a clip needs a rig to drive")
     if any(np.any(c.placement != (clip.placement if clip else 0.0)) for c in extra_clips):
         raise ExportError("every clip of a scene must share the main clip's placement")
+    if crowd and (clip is None or any(c.tracks for c in crowd)):
+        raise ExportError("a crowd needs the main clip, and only it drives scene nodes")
     gltf = gl.GLTF2(asset=gl.Asset(version="2.0", generator=f"baker {baker.__version__}"))
     gltf.buffers = []
     b = _Builder(gltf)
-    names, debug_names, creature_mats = _reserve_names(rig, props, debug_meshes)
+    names, debug_names, creature_mats = _reserve_names(rig, props, debug_meshes,
+                                                       1 + len(crowd))
     placement = clip.placement if clip is not None else np.zeros(3)
     scene_nodes: list[int] = []
 
@@ -228,16 +243,18 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
     # -- the creature and its animations
     clips = (([clip] if clip is not None else []) + list(extra_clips)) if rig is not None else []
     if rig is not None:
-        roots, node_of = _add_creature(gltf, b, creature_mats, rig, placement)
-        scene_nodes.extend(roots)
-        dropped = _drop_static_channels(gltf, clips, node_of, node_by_name)
-        for c in clips:
-            _add_animation(gltf, b, c, node_of, node_by_name, dropped)
-        if root_motion is not None:
+        node_of, others = _add_creatures(gltf, b, creature_mats, rig, placement, crowd,
+                                         scene_nodes)
+        parts = [(c, node_of) for c in clips] + others
+        dropped = _drop_static_channels(gltf, parts, node_by_name)
+        for k, c in enumerate(clips):
+            _add_animation(gltf, b, c, node_of, node_by_name, dropped,
+                           more=others if k == 0 else ())
+        motions = [(root_motion, node_of)] + list(zip(crowd_root_motion, [o[1] for o in others]))
+        if any(m is not None for m, _ in motions):
             if clip is None:
                 raise ExportError("root motion needs a clip")
-            joints = {n: int(node_of[j]) for j, n in enumerate(rig.skeleton.names)}
-            _add_animation(gltf, b, _track_clip(clip, root_motion), node_of[:0], joints)
+            _add_root_motion(gltf, b, clip, rig, motions)
 
     # -- debug overlays
     for (name, verts, faces, rgba), nm in zip(debug_meshes, debug_names):
@@ -280,17 +297,22 @@ def _glb_container(json_bytes: bytes, blob: bytes) -> bytes:
 
 
 def _reserve_names(rig: Rig | None, props: Sequence[DebugMesh],
-                   debug_meshes: Sequence[DebugMesh]) -> tuple[set[str], list[str], list[str]]:
+                   debug_meshes: Sequence[DebugMesh],
+                   creatures: int = 1) -> tuple[set[str], list[str], list[str]]:
     """The names baker itself writes, reserved before the environment's: the fixed nodes and
-    the skinned mesh, the joints and prey (exactly as given), then the debug layers' nodes and
-    the creature's materials (made safe and unique). Every other node, mesh and material name
-    is made unique around them, also without regard to case.
+    the skinned mesh, the joints and prey (exactly as given), a crowd's further creatures'
+    placement and mesh nodes and prefixed joints (export.creature_label), then the debug
+    layers' nodes and the creature's materials (made safe and unique). Every other node, mesh
+    and material name is made unique around them, also without regard to case.
 
     returns (taken: names and their lower-case forms, for safe_name; debug layer node names;
     the creature's material names, one per rig.mesh.materials entry)"""
     fixed = ["Environment", "Sun", "Centipede", "centipede_mesh", SKINNED_MESH] + (
         ["Prey"] if props else [])
     reserved = fixed + [p[0] for p in props] + (list(rig.skeleton.names) if rig else [])
+    for i in range(1, creatures if rig else 1):
+        top, prefix = creature_label(i, creatures)
+        reserved += [top, _mesh_node_name(top)] + [prefix + n for n in rig.skeleton.names]
     names: set[str] = {n.lower() for n in reserved}
     if len(names) != len(reserved):
         raise ExportError("joint or prey names clash with the scene's node names "
@@ -301,14 +323,43 @@ def _reserve_names(rig: Rig | None, props: Sequence[DebugMesh],
     return names, debug, mats
 
 
-def _add_creature(gltf: gl.GLTF2, b: _Builder, mat_names: Sequence[str], rig: Rig, placement):
-    """Joint nodes under a non-joint `Centipede` node (translated by placement (3,) float64,
-    metres, world) and the skinned mesh node (scene root, no transform; its inverse bind
-    matrices are in the skeleton's own frame, so the placement moves the skin with the joints).
+def _add_creatures(gltf: gl.GLTF2, b: _Builder, mat_names: Sequence[str], rig: Rig, placement,
+                   crowd: Sequence[Clip], scene_nodes: list[int]):
+    """Creature 0 (_add_creature at placement (3,) float64 metres) and a crowd's further
+    creatures (each at its clip's placement, named by export.creature_label, sharing creature
+    0's skinned mesh); their root nodes are appended to scene_nodes.
+    Returns (creature 0's joint node indices, [(clip, joint node indices)] of the others)."""
+    roots, node_of = _add_creature(gltf, b, mat_names, rig, placement)
+    scene_nodes.extend(roots)
+    others = []
+    for i, c in enumerate(crowd, start=1):
+        more, nodes = _add_creature(gltf, b, mat_names, rig, c.placement,
+                                    label=creature_label(i, 1 + len(crowd)),
+                                    mesh=gltf.nodes[roots[1]].mesh)
+        scene_nodes.extend(more)
+        others.append((c, nodes))
+    return node_of, others
+
+
+def _mesh_node_name(top: str) -> str:
+    """The skinned mesh node of the creature whose placement node is `top`:
+    `centipede_mesh`, `centipede_mesh_01`, ..."""
+    return "centipede_mesh" + top[len("Centipede"):]
+
+
+def _add_creature(gltf: gl.GLTF2, b: _Builder, mat_names: Sequence[str], rig: Rig, placement,
+                  label: tuple[str, str] = ("Centipede", ""), mesh: int | None = None):
+    """Joint nodes under a non-joint placement node (`Centipede`, translated by placement
+    (3,) float64, metres, world) and the skinned mesh node (scene root, no transform; its
+    inverse bind matrices are in the skeleton's own frame, so the placement moves the skin with
+    the joints).
     mat_names: the material name of each rig.mesh.materials entry.
+    label : (placement node name, joint-name prefix), export.creature_label
+    mesh  : the skinned mesh to use (a crowd's creatures share one), or None to write it
     Returns (the scene-root node indices it added, the node index of every joint)."""
     skel = rig.skeleton
     j_count = skel.n_joints
+    top_name, prefix = label
 
     # joint nodes in skeleton order, rest TRS; children from the parents array
     first = len(gltf.nodes)
@@ -316,18 +367,25 @@ def _add_creature(gltf: gl.GLTF2, b: _Builder, mat_names: Sequence[str], rig: Ri
     for j in range(j_count):
         kids = [int(node_of[c]) for c in skel.children(j)]
         gltf.nodes.append(gl.Node(
-            name=skel.names[j], translation=_rounded(skel.rest_translations[j]),
+            name=prefix + skel.names[j], translation=_rounded(skel.rest_translations[j]),
             rotation=_rounded(skel.rest_rotations[j]), children=kids or None))
     roots = [int(node_of[j]) for j in range(j_count) if skel.parents[j] < 0]
-    top = _add_node(gltf, gl.Node(name="Centipede", children=roots, **_offset(placement)))
+    top = _add_node(gltf, gl.Node(name=top_name, children=roots, **_offset(placement)))
 
     # skin: inverse bind matrices = inverse(world bind), column-major
     ibm = np.linalg.inv(skel.world_bind())
     ibm_acc = b.accessor(ibm.transpose(0, 2, 1).reshape(j_count, 16), FLOAT)
-    gltf.skins.append(gl.Skin(name="Centipede_skin", inverseBindMatrices=ibm_acc,
+    gltf.skins.append(gl.Skin(name=f"{top_name}_skin", inverseBindMatrices=ibm_acc,
                               joints=[int(x) for x in node_of], skeleton=roots[0]))
     skin = len(gltf.skins) - 1
+    if mesh is None:
+        mesh = _skinned_mesh(gltf, b, mat_names, rig)
+    mesh_node = _add_node(gltf, gl.Node(name=_mesh_node_name(top_name), mesh=mesh, skin=skin))
+    return [top, mesh_node], node_of
 
+
+def _skinned_mesh(gltf: gl.GLTF2, b: _Builder, mat_names: Sequence[str], rig: Rig) -> int:
+    """The rig's skinned mesh `centipede_skinned` with its materials; returns its index."""
     mesh = rig.mesh
     prims = []
     for mi, (mname, rgb) in enumerate(mesh.materials):
@@ -343,36 +401,55 @@ def _add_creature(gltf: gl.GLTF2, b: _Builder, mat_names: Sequence[str], rig: Ri
                 WEIGHTS_0=b.accessor(mesh.weights[used], FLOAT, target=ARRAY_BUFFER)),
             indices=b.indices(faces, len(used)), material=mat, mode=gl.TRIANGLES))
     gltf.meshes.append(gl.Mesh(name=SKINNED_MESH, primitives=prims))
-    mesh_node = _add_node(gltf, gl.Node(name="centipede_mesh",
-                                        mesh=len(gltf.meshes) - 1, skin=skin))
-
-    return [top, mesh_node], node_of
+    return len(gltf.meshes) - 1
 
 
-def _track_clip(clip: Clip, track: NodeTrack) -> Clip:
-    """A clip named `root_motion` over no joints that plays one node track along `clip`."""
+def _add_root_motion(gltf: gl.GLTF2, b: _Builder, clip: Clip, rig: Rig, motions) -> None:
+    """The `root_motion` animation: each creature's track on its `root` joint.
+    motions : (NodeTrack or None, node index of every joint) per creature, creature 0 first"""
+    names = rig.skeleton.names
+    tracks, joints = [], {}
+    for i, (track, node_of) in enumerate(motions):
+        if track is None:
+            continue
+        prefix = creature_label(i, len(motions))[1]
+        joints.update({prefix + n: int(node_of[j]) for j, n in enumerate(names)})
+        tracks.append(track if not prefix else NodeTrack(prefix + track.node, track.translations,
+                                                         track.rotations, track.scales))
+    _add_animation(gltf, b, _track_clip(clip, tuple(tracks)), np.zeros(0, np.int64), joints)
+
+
+def _track_clip(clip: Clip, tracks: tuple[NodeTrack, ...]) -> Clip:
+    """A clip named `root_motion` over no joints that plays node tracks along `clip`."""
     f = clip.n_frames
     empty = np.zeros((f, 0, 3), np.float32)
     return Clip(name="root_motion", times=clip.times, translations=empty,
                 rotations=np.zeros((f, 0, 4), np.float32), scales=empty, fps=clip.fps,
-                tracks=(track,), placement=clip.placement)
+                tracks=tracks, placement=clip.placement)
 
 
 def _add_animation(gltf: gl.GLTF2, b: _Builder, clip: Clip, node_of: np.ndarray,
-                   node_by_name: dict[str, int], dropped: frozenset = frozenset()) -> None:
+                   node_by_name: dict[str, int], dropped: frozenset = frozenset(),
+                   more: Sequence[tuple[Clip, np.ndarray]] = ()) -> None:
     """One glTF animation for `clip`: every frame of every channel, or, for a reduced clip
-    (clip.keys), each channel's kept keys (see _add_reduced_channels)."""
-    f_count, j_count = clip.translations.shape[:2]
-    if j_count != len(node_of):
-        raise ExportError(f"clip has {j_count} joints, the skeleton {len(node_of)}")
+    (clip.keys), each channel's kept keys (see _add_reduced_channels).
+    more : (clip, node index of every joint) of a crowd's further creatures, played by the
+           same animation (same frames; each reduced or not as `clip` is)"""
+    parts = [(clip, node_of)] + list(more)
     times = np.asarray(clip.times, dtype=np.float32)
-    if f_count == 0 or times[0] < 0 or np.any(np.diff(times) <= 0):
-        raise ExportError("clip times must start at >= 0 and strictly increase")
-    for tr in clip.tracks:
-        if tr.node not in node_by_name:
-            raise ExportError(f"clip {clip.name!r} animates node {tr.node!r}, which is not in the scene")
+    for c, nodes in parts:
+        f_count, j_count = c.translations.shape[:2]
+        if j_count != len(nodes):
+            raise ExportError(f"clip has {j_count} joints, the skeleton {len(nodes)}")
+        if f_count == 0 or times[0] < 0 or np.any(np.diff(times) <= 0):
+            raise ExportError("clip times must start at >= 0 and strictly increase")
+        if c is not clip and (c.n_frames != clip.n_frames or (c.keys is None) != (clip.keys is None)):
+            raise ExportError("a crowd's clips must have the same frames, all reduced or none")
+        for tr in c.tracks:
+            if tr.node not in node_by_name:
+                raise ExportError(f"clip {c.name!r} animates node {tr.node!r}, which is not in the scene")
     if clip.keys is not None:
-        _add_reduced_channels(gltf, b, clip, node_of, node_by_name, dropped)
+        _add_reduced_channels(gltf, b, parts, node_by_name, dropped)
         return
     t_acc = b.accessor(times, FLOAT, minmax=True)
     samplers, channels = [], []
@@ -383,20 +460,21 @@ def _add_animation(gltf: gl.GLTF2, b: _Builder, clip: Clip, node_of: np.ndarray,
         channels.append(gl.AnimationChannel(
             sampler=len(samplers) - 1, target=gl.AnimationChannelTarget(node=int(node), path=path)))
 
-    rot = np.asarray(clip.rotations, dtype=np.float32)
-    scl = np.asarray(clip.scales, dtype=np.float32)
-    animate_scale = not np.all(scl == 1.0)
-    for j in range(j_count):
-        channel(node_of[j], "translation", clip.translations[:, j])
-        channel(node_of[j], "rotation", rot[:, j])
-        if animate_scale:
-            channel(node_of[j], "scale", scl[:, j])
-    for tr in clip.tracks:
-        node = node_by_name[tr.node]
-        for path, values in (("translation", tr.translations), ("rotation", tr.rotations),
-                             ("scale", tr.scales)):
-            if values is not None:
-                channel(node, path, np.asarray(values, dtype=np.float32))
+    for c, nodes in parts:
+        rot = np.asarray(c.rotations, dtype=np.float32)
+        scl = np.asarray(c.scales, dtype=np.float32)
+        animate_scale = not np.all(scl == 1.0)
+        for j in range(len(nodes)):
+            channel(nodes[j], "translation", c.translations[:, j])
+            channel(nodes[j], "rotation", rot[:, j])
+            if animate_scale:
+                channel(nodes[j], "scale", scl[:, j])
+        for tr in c.tracks:
+            node = node_by_name[tr.node]
+            for path, values in (("translation", tr.translations), ("rotation", tr.rotations),
+                                 ("scale", tr.scales)):
+                if values is not None:
+                    channel(node, path, np.asarray(values, dtype=np.float32))
     gltf.animations.append(gl.Animation(name=clip.name, samplers=samplers, channels=channels))
 
 
@@ -415,14 +493,14 @@ def _clip_channels(clip: Clip, node_of: np.ndarray, node_by_name: dict[str, int]
             yield node_by_name[tr.node], path, keys, 0
 
 
-def _drop_static_channels(gltf: gl.GLTF2, clips, node_of: np.ndarray,
-                          node_by_name: dict[str, int]) -> frozenset:
+def _drop_static_channels(gltf: gl.GLTF2, parts, node_by_name: dict[str, int]) -> frozenset:
     """The (node, path) channels that are static with the same value in every animation of the
-    file (all reduced): they are written as the node's TRS and get no channel. Returns them."""
-    if not clips or any(c.keys is None for c in clips):
+    file that drives them (all reduced): they are written as the node's TRS and get no channel.
+    parts : (clip, node index of every joint it drives) of every clip. Returns them."""
+    if not parts or any(c.keys is None for c, _ in parts):
         return frozenset()
     value: dict = {}
-    for c in clips:
+    for c, node_of in parts:
         for node, path, keys, i in _clip_channels(c, node_of, node_by_name):
             v = None if not keys.is_static[i] else tuple(float(x) for x in keys.static[i])
             if value.get((node, path), v) != v:
@@ -438,15 +516,19 @@ def _drop_static_channels(gltf: gl.GLTF2, clips, node_of: np.ndarray,
     return frozenset(dropped)
 
 
-def _add_reduced_channels(gltf: gl.GLTF2, b: _Builder, clip: Clip, node_of: np.ndarray,
-                          node_by_name: dict[str, int], dropped: frozenset) -> None:
+def _add_reduced_channels(gltf: gl.GLTF2, b: _Builder, parts, node_by_name: dict[str, int],
+                          dropped: frozenset) -> None:
     """A reduced clip's animation: each channel's kept frames (clip.keys), the key sets sharing
     their time accessors; rotations as normalized SHORT when the keys say so. A static channel
-    is left out when it is in `dropped` (its value is the node's TRS), else written as one key."""
+    is left out when it is in `dropped` (its value is the node's TRS), else written as one key.
+    parts : (clip, node index of every joint) of each creature, in one animation named after
+            the first clip"""
+    clip = parts[0][0]
     times = np.asarray(clip.times, dtype=np.float32)
     time_of: dict[bytes, int] = {}
     samplers, channels = [], []
-    for node, path, keys, i in _clip_channels(clip, node_of, node_by_name):
+    channels_of = (ch for c, node_of in parts for ch in _clip_channels(c, node_of, node_by_name))
+    for node, path, keys, i in channels_of:
         frames = keys.frames(i)
         if frames is None and (node, path) in dropped:
             continue

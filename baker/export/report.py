@@ -76,6 +76,29 @@ def extras(cfg, traj, origin=(0.0, 0.0, 0.0)) -> dict:
     }
 
 
+def creature_entries(cfg, trajs, origin, motions=None, animations=None) -> list[dict]:
+    """One entry per creature of a crowd (`--creatures N`), creature 0 first: {index, name (its
+    placement node / SkelRoot), joint_prefix (of its glTF joint names), timeline (world)}, and
+    either its foot_contacts (the files' extras, as the lone creature's `foot_contacts`) or,
+    with `motions` / `animations` (the report), its `metrics` and its keyframe reduction's
+    `animation`. A lone creature's files and report have no such list."""
+    from baker.export import creature_label
+
+    out = []
+    for i, traj in enumerate(trajs):
+        name, prefix = creature_label(i, len(trajs))
+        entry = {"index": i, "name": name, "joint_prefix": prefix,
+                 "timeline": jsonable(world_events(traj.events, origin))}
+        if motions is not None:
+            entry["metrics"] = jsonable(motions[i])
+        if animations is not None:
+            entry["animation"] = jsonable(animations[i])
+        if motions is None:
+            entry["foot_contacts"] = foot_contacts(traj, cfg.rig)
+        out.append(entry)
+    return out
+
+
 def foot_contacts(traj, rig_cfg) -> dict:
     """Planted intervals per walking leg, keyed by the leg's foot joint (its end joint at the
     contact point), as inclusive [first, last] frame pairs:

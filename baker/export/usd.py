@@ -12,6 +12,12 @@ Stage layout (defaultPrim /World):
         Animation                  SkelAnimation, time samples keyed by frame number
         Clips/<name>               optional per-behaviour SkelAnimations (not bound)
         body, legs                 skinned Meshes (one per material)
+      Centipede_01, ...            a crowd's further creatures (`--creatures N`), each a SkelRoot
+                                   laid out as Centipede (its own Skeleton, Animation and
+                                   Clips/root_motion) whose Meshes body_01, legs_01 reference
+                                   /World/Centipede/body and legs (the mesh data is stored
+                                   once) and bind to its own Skeleton; joints keep the rig's
+                                   names (they are scoped by the Skeleton)
       Prey/<name>                  Xform translated by clip.placement; animated Xforms
                                    (translate, orient, scale, visibility) + mesh <name>_mesh
       Debug/<name>                 Xform translated by env.origin; optional overlay meshes
@@ -41,7 +47,7 @@ import numpy as np
 from baker.clip import Clip
 from baker.environment.model import Environment
 from baker.errors import ExportError
-from baker.export import checked_mesh, environment_parts, jsonable, safe_name
+from baker.export import checked_mesh, creature_label, environment_parts, jsonable, safe_name
 from baker.geometry.transforms import light_rotation
 from baker.atomic import atomic_output
 from baker.rig.build import Rig
@@ -139,7 +145,8 @@ def _reserved_names(names: Sequence[str]) -> set[str]:
     return taken | set(fixed)
 
 
-def _stage_names(rig: Rig, props: Sequence, debug_meshes: Sequence, extra_clips: Sequence):
+def _stage_names(rig: Rig, props: Sequence, debug_meshes: Sequence, extra_clips: Sequence,
+                 creatures: int = 1):
     """One name space for the stage's objects (Xforms, meshes, materials, clips), unique also
     without regard to case, as in the GLB: Blender names its objects and materials by prim
     name, and two prims named `mesh` would arrive as `mesh` and `mesh.001`. baker's own names
@@ -147,7 +154,8 @@ def _stage_names(rig: Rig, props: Sequence, debug_meshes: Sequence, extra_clips:
 
     returns (taken: for safe_name, updated as names are given out; the debug layers' names;
     (mesh, material) names of each rig.mesh.materials entry)"""
-    taken = _reserved_names([p[0] for p in props] + [c.name for c in extra_clips])
+    taken = _reserved_names([p[0] for p in props] + [c.name for c in extra_clips]
+                            + [creature_label(i, creatures)[0] for i in range(1, creatures)])
     debug_names = [safe_name(d[0], taken, "debug") for d in debug_meshes]
     part_names = [(safe_name(m, taken, "part"), safe_name(f"centipede_{m}", taken))
                   for m, _ in rig.mesh.materials]
@@ -266,7 +274,8 @@ def _animate_xform(xf, track, keys=None) -> None:
 
 def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dict,
                 debug_meshes: Sequence = (), props: Sequence = (),
-                extra_clips: Sequence[Clip] = (), root_motion: NodeTrack | None = None):
+                extra_clips: Sequence[Clip] = (), root_motion: NodeTrack | None = None,
+                crowd: Sequence[Clip] = (), crowd_root_motion: Sequence[NodeTrack | None] = ()):
     """The scene as an in-memory Usd.Stage (see the module docstring for its layout).
 
     props       : (name, vertices, faces, rgba) animated objects (prey) under /World/Prey,
@@ -276,6 +285,9 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
                   /World/Centipede/Clips (not bound: the Skeleton plays the full clip)
     root_motion : the motion an in-place clip leaves out (a track on the `root` joint), written
                   as the SkelAnimation /World/Centipede/Clips/root_motion over that joint alone
+    crowd       : the bake clips of a crowd's further creatures (creature 1, 2, ...), each a
+                  SkelRoot of its own at its clip's placement; extra_clips drive creature 0 only
+    crowd_root_motion : their root motion tracks (in-place), as root_motion
     Each clip's `events` go into its SkelAnimation's customData.
     """
     Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdSkel, Vt = _pxr()
@@ -302,7 +314,8 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
     # set as one dictionary: SetCustomDataByKey would split keys containing ":" into levels
     world.GetPrim().SetCustomData(_custom_data_value(jsonable(dict(extras))))
     looks = UsdGeom.Scope.Define(stage, "/World/Looks").GetPath()
-    taken, debug_names, part_names = _stage_names(rig, props, debug_meshes, extra_clips)
+    taken, debug_names, part_names = _stage_names(rig, props, debug_meshes, extra_clips,
+                                                  1 + len(crowd))
 
     # -- environment
     env_xf = UsdGeom.Xform.Define(stage, "/World/Environment")
@@ -328,22 +341,53 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
     light.CreateIntensityAttr().Set(float(sun.intensity))
     light.CreateColorAttr().Set(Gf.Vec3f(*[float(c) for c in sun.color]))
 
-    # -- the creature
-    root = UsdSkel.Root.Define(stage, "/World/Centipede")
+    # -- the creature, the props (prey, under a static Xform at the placement), the skinned
+    # meshes; then a crowd's further creatures, whose meshes reference creature 0's
+    root, sk = _creature(stage, rig, clip, "/World/Centipede", extra_clips, root_motion)
+    if props:
+        _props(stage, looks, taken, props, tracks, clip.placement, track_keys)
+    meshes = _skinned_meshes(stage, looks, part_names, rig, root, sk)
+    motions = list(crowd_root_motion) + [None] * (len(crowd) - len(crowd_root_motion))
+    for i, (c, motion) in enumerate(zip(crowd, motions), start=1):
+        if c.tracks:
+            raise ExportError("only the main clip drives scene nodes (prey, sun)")
+        top = creature_label(i, 1 + len(crowd))[0]
+        names = [(safe_name(f"{m}_{top[len('Centipede_'):]}", taken), mat)
+                 for m, mat in part_names]
+        root_i, sk_i = _creature(stage, rig, c, f"/World/{top}", (), motion)
+        _skinned_meshes(stage, looks, names, rig, root_i, sk_i, meshes)
+
+    # -- debug overlays, in the environment's frame
+    if debug_meshes:
+        _debug_layers(stage, looks, taken, debug_meshes, debug_names, env.origin)
+    return stage
+
+
+def _creature(stage, rig: Rig, clip: Clip, path: str, extra_clips=(),
+              root_motion: NodeTrack | None = None):
+    """One creature's SkelRoot at `path`, translated by clip.placement, with its Skeleton, the
+    bound Animation (the clip) and Clips/<name> (extra_clips, root_motion).
+    Returns (the SkelRoot, the Skeleton)."""
+    _, _, Usd, UsdGeom, _, _, UsdSkel, Vt = _pxr()
+    skel = rig.skeleton
+    j_count = skel.n_joints
+    if clip.translations.shape[1] != j_count:
+        raise ExportError(f"clip has {clip.translations.shape[1]} joints, the skeleton {j_count}")
+    root = UsdSkel.Root.Define(stage, path)
     Usd.ModelAPI(root.GetPrim()).SetKind("component")
     _offset(root, clip.placement)
-    sk = UsdSkel.Skeleton.Define(stage, "/World/Centipede/Skeleton")
+    sk = UsdSkel.Skeleton.Define(stage, f"{path}/Skeleton")
     joints = Vt.TokenArray(list(skel.joint_paths()))
     sk.CreateJointsAttr(joints)
     sk.CreateJointNamesAttr(Vt.TokenArray(list(skel.names)))
     sk.CreateBindTransformsAttr(_matrices(skel.world_bind()))
     sk.CreateRestTransformsAttr(_matrices(skel.local_rest_matrices()))
 
-    anim = _skel_animation(stage, "/World/Centipede/Animation", joints, clip)
+    anim = _skel_animation(stage, f"{path}/Animation", joints, clip)
     _events(anim, clip)
     UsdSkel.BindingAPI.Apply(sk.GetPrim()).CreateAnimationSourceRel().SetTargets([anim.GetPath()])
     if extra_clips or root_motion is not None:
-        clips_path = UsdGeom.Scope.Define(stage, "/World/Centipede/Clips").GetPath()
+        clips_path = UsdGeom.Scope.Define(stage, f"{path}/Clips").GetPath()
         for c in extra_clips:
             if c.translations.shape[1] != j_count:
                 raise ExportError(f"clip {c.name!r} has {c.translations.shape[1]} joints, "
@@ -353,21 +397,38 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
             _events(_skel_animation(stage, clips_path.AppendChild(c.name), joints, c), c)
         if root_motion is not None:
             _root_motion(stage, clips_path.AppendChild("root_motion"), skel, root_motion)
+    return root, sk
 
-    # -- props (prey), under a static Xform at the placement
-    if props:
-        _props(stage, looks, taken, props, tracks, clip.placement, track_keys)
 
+def _skinned_meshes(stage, looks, part_names, rig: Rig, root, sk, meshes: dict | None = None):
+    """The creature's skinned Meshes under its SkelRoot `root`, bound to its Skeleton `sk`,
+    named by part_names ((mesh, material) per rig.mesh.materials entry).
+    meshes : {material index: (Mesh prim path, Material)} of a creature already written: the
+             Meshes then reference those prims (the mesh data is stored once), with their own
+             skeleton and material bindings
+    Returns {material index: (Mesh prim path, Material)}."""
+    Gf, _, _, UsdGeom, _, UsdShade, UsdSkel, Vt = _pxr()
     mesh = rig.mesh
     identity = Gf.Matrix4d(1.0)
+    out = {}
     for mi, (mname, rgb) in enumerate(mesh.materials):
         used, faces = mesh.submesh(mi)
         if not len(faces):
             continue
         nm, mat_nm = part_names[mi]
+        path = root.GetPath().AppendChild(nm)
+        if meshes is not None:
+            src, mat = meshes[mi]
+            prim = UsdGeom.Mesh.Define(stage, path).GetPrim()
+            prim.GetReferences().AddInternalReference(src)
+            UsdShade.MaterialBindingAPI.Apply(prim).Bind(mat)
+            UsdSkel.BindingAPI.Apply(prim).CreateSkeletonRel().SetTargets([sk.GetPath()])
+            out[mi] = (src, mat)
+            continue
         mat = _material(stage, looks, mat_nm, rgb, 1.0, 0.0, 0.6)
-        m = _mesh(stage, root.GetPath().AppendChild(nm), mesh.vertices[used], faces,
-                  mesh.normals[used], tuple(rgb), mat, double_sided=False)
+        m = _mesh(stage, path, mesh.vertices[used], faces, mesh.normals[used], tuple(rgb), mat,
+                  double_sided=False)
+        out[mi] = (path, mat)
         binding = UsdSkel.BindingAPI.Apply(m.GetPrim())
         binding.CreateSkeletonRel().SetTargets([sk.GetPath()])
         binding.CreateJointIndicesPrimvar(False, 4).Set(
@@ -375,11 +436,8 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
         binding.CreateJointWeightsPrimvar(False, 4).Set(
             Vt.FloatArray.FromNumpy(mesh.weights[used].astype(np.float32).reshape(-1)))
         binding.CreateGeomBindTransformAttr(identity)
+    return out
 
-    # -- debug overlays, in the environment's frame
-    if debug_meshes:
-        _debug_layers(stage, looks, taken, debug_meshes, debug_names, env.origin)
-    return stage
 
 
 def _props(stage, looks, taken: set[str], props: Sequence, tracks: dict, placement,
