@@ -16,8 +16,10 @@ the one with the fewest offending frames, and the planned swing stays when it ha
 than that. A fault that breaks the bake's own limits (a bone through something, a foot deeper
 than `deep` in a solid, a joint turning more than `hard_turn`, a neighbour's foot nearer than
 `hard_gap`) outweighs any number of near misses (a shallow foot, a turn over `turn`, a foot
-nearer than `gap`, a sliding touch). Both ends are the planted poses, so stances are untouched. All swings, candidates
-and frames are checked in flat batches (one ray batch per candidate).
+nearer than `gap`, a sliding touch). Both ends are the planted poses, so stances are untouched,
+but for one last resort: a swing that still breaks a limit lifts off earlier (EARLY_LIFT of its
+length sooner) and is redone over the longer swing, kept where it costs less. All swings,
+candidates and frames are checked in flat batches (one ray batch per candidate).
 """
 
 from __future__ import annotations
