@@ -25,6 +25,12 @@ from baker.run.start import choose_start, spawn_prey
 from baker.streams import Streams
 
 
+#: [body lengths] the straight line the body lies on at the start: the body, and behind the
+#: tail three times the reach of the trail's rounding (body.ROUND spacings), which pulls a
+#: line's ends in; the tail never runs off the trail's start, whatever the ground does
+START_LINE = 1.3
+
+
 def run(cfg: BakeConfig, env, nav, streams: Streams, ctx: Context, intent=None) -> RunRecord:
     """Run the bake's creature for cfg.seconds at cfg.sim_rate and record it.
 
@@ -108,11 +114,12 @@ def make_prey(cfg: BakeConfig, env, nav, streams: Streams, sun, start) -> list[P
 
 
 def start_line(nav, rig, start: np.ndarray, heading: np.ndarray) -> np.ndarray:
-    """(21, 3) the straight body line behind the start (tail end first, without the head's
-    point), put on the layer nearest the start's height, never one a free agent height above
-    or below."""
+    """(n, 3) the straight line START_LINE body lengths behind the start, a point a spacing
+    (tail end first, without the head's point), put on the layer nearest the start's height,
+    never one a free agent height above or below."""
     body, navc = rig.body, rig.navigation
-    tail = start[None, :] - heading[None, :] * np.linspace(body.length * 1.05, 0, 22)[:, None]
+    n = int(round(START_LINE * body.segments)) + 1
+    tail = start[None, :] - heading[None, :] * np.linspace(body.length * START_LINE, 0, n)[:, None]
     line = tail[:-1].copy()
     h = nav.surface_height(line, tol=0.5 * navc.height)
     line[np.isfinite(h), 1] = h[np.isfinite(h)]

@@ -13,7 +13,7 @@ class RunRecord:
 
     fps, sim_rate : export frame rate and simulation rate [Hz] (sim_rate % fps == 0)
     start, heading: (3,) float64, the start point (metres, world) and unit horizontal heading
-    start_line    : (21, 3) float64 metres, the straight body line behind the start (tail end
+    start_line    : (n, 3) float64 metres, the straight body line behind the start (tail end
                     first, the head's point excluded), on the layer nearest the start
     heads         : (N + 1, 3) float64 metres, the head (slither included) after every step
     cobra         : (F,) float64 0..1, the cobra request ramped over the cobra's ramp time
