@@ -437,12 +437,12 @@ def _add_animation(gltf: gl.GLTF2, b: _Builder, clip: Clip, node_of: np.ndarray,
            same animation (same frames; each reduced or not as `clip` is)"""
     parts = [(clip, node_of)] + list(more)
     times = np.asarray(clip.times, dtype=np.float32)
+    if clip.translations.shape[0] == 0 or times[0] < 0 or np.any(np.diff(times) <= 0):
+        raise ExportError("clip times must start at >= 0 and strictly increase")
     for c, nodes in parts:
-        f_count, j_count = c.translations.shape[:2]
+        j_count = c.translations.shape[1]
         if j_count != len(nodes):
             raise ExportError(f"clip has {j_count} joints, the skeleton {len(nodes)}")
-        if f_count == 0 or times[0] < 0 or np.any(np.diff(times) <= 0):
-            raise ExportError("clip times must start at >= 0 and strictly increase")
         if c is not clip and (c.n_frames != clip.n_frames or (c.keys is None) != (clip.keys is None)):
             raise ExportError("a crowd's clips must have the same frames, all reduced or none")
         for tr in c.tracks:

@@ -259,9 +259,9 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, mid, end, swing, side, l1, l2
     extended = []
     for i in broken:
         leg, a, b = sw.leg[i], sw.a[i], sw.b[i]
-        prev = np.nonzero(swing[:a, leg])[0]
-        first_ok = (prev[-1] + 1 if len(prev) else 0) + MIN_STANCE
-        a2 = max(a - max(2, int(np.ceil(EARLY_LIFT * (b - a)))), first_ok)
+        # swings are ordered by leg, then time: the previous one of this leg lands at its b
+        landed = sw.b[i - 1] if i > 0 and sw.leg[i - 1] == leg else 0
+        a2 = max(a - max(2, int(np.ceil(EARLY_LIFT * (b - a)))), landed + MIN_STANCE)
         if a2 < a:
             longer[a2 + 1:b, leg] = True
             extended.append((leg, b, a2, a))

@@ -12,8 +12,8 @@ from scipy.spatial.distance import cdist
 
 from baker.config import DEFAULT_RIG, BakeConfig, load_rig_config
 from baker.context import Context
-from baker.metrics import (crowd_metrics, leg_bones, legs_through_others, min_spine_gap,
-                           segment_distances)
+from baker.geometry.proximity import segment_distances
+from baker.metrics import crowd_metrics, leg_bones, legs_through_others, min_spine_gap
 from baker.solve.trajectory import Trajectory
 
 RIG = load_rig_config(DEFAULT_RIG)
