@@ -326,6 +326,50 @@ def place_chain(trail: Trail, head_arc: np.ndarray, offset: np.ndarray, spacing:
     return pos, arc
 
 
+def step_over_lips(trail: Trail, head_arc: np.ndarray, rays, height: float, max_slope: float,
+                   reach: float, depth: float) -> np.ndarray:
+    """(F,) head arcs moved off the steep strips of the trail, so no frame samples the head
+    over a face steeper than `max_slope` [rad] (a ray straight down from it meets that face).
+
+    Seen from above, a riser leaning a little off vertical is a strip a few millimetres wide
+    that the head crosses in about a frame while it climbs the riser; it is sampled over it in
+    roughly half of the crossings. Each such frame moves to the nearest arc, within `reach`
+    metres along the trail, whose ray meets a walkable face: the head steps over the lip between
+    two frames instead of being drawn on it. Frames with no such arc in reach (a head on a
+    long steep slope) keep theirs. `head_arc` is non-decreasing (the head's arc along its own
+    trail) and stays so.
+
+    height : metres above the trail the rays start (the head's clearance); depth : how far
+    they look [m]
+    """
+    head_arc = np.asarray(head_arc, dtype=np.float64)
+    steep = _steep_under(trail, head_arc, rays, height, max_slope, depth)
+    if not steep.any():
+        return head_arc
+    idx = np.nonzero(steep)[0]
+    step = 0.05 * reach
+    d = np.arange(-reach, reach + 0.5 * step, step)
+    d = d[np.lexsort((-d, np.abs(d)))]      # nearest first; ahead before behind
+    cand = np.clip(head_arc[idx, None] + d[None, :], trail.cum[0], trail.cum[-1])
+    ok = ~_steep_under(trail, cand.ravel(), rays, height, max_slope, depth).reshape(cand.shape)
+    found = ok.any(axis=1)
+    out = head_arc.copy()
+    out[idx[found]] = cand[found, np.argmax(ok[found], axis=1)]
+    # the head's arc only grows: a frame moved back behind the one before it (or forward past
+    # the next) takes that frame's arc, which is clear of the strip too
+    return np.maximum.accumulate(out)
+
+
+def _steep_under(trail: Trail, arc: np.ndarray, rays, height: float, max_slope: float,
+                 depth: float) -> np.ndarray:
+    """(n,) bool: a ray straight down from `height` above the trail at each arc meets a face
+    steeper than `max_slope`."""
+    pts = polyline.sample(trail.points, trail.cum, arc)
+    h = rays.cast_down(pts, height, max_distance=depth)
+    cos = np.abs(np.nan_to_num(h.normals[:, 1], nan=1.0))
+    return h.hit & (cos < math.cos(max_slope))
+
+
 def limit_rise(lift: np.ndarray, rise: float) -> np.ndarray:
     """(F, S) lifts with each joint at most `rise` metres above the joint behind it (from the
     tail forward: a steeper curve is lowered at the front)."""

@@ -21,11 +21,17 @@ from baker.config import RigConfig
 from baker.geometry import polyline
 from baker.geometry.conventions import UP
 from baker.geometry.transforms import frames_to_quat, quat_mul, quat_rotate
-from baker.locomotion.body import body_frames, build_trail, project_to_surface
+from baker.locomotion.body import body_frames, build_trail, project_to_surface, step_over_lips
 from baker.locomotion.cobra import lift_profile
 from baker.locomotion.legs import hip_extent, leg_frames
 from baker.run.record import RunRecord
 from baker.solve.trajectory import Trajectory
+
+#: the head is never drawn over a face steeper than this (the quality limit on the head's
+#: slope is 60 degrees) [rad]
+LIP_SLOPE = np.radians(58.0)
+#: how far along its trail a head sampled over a steep strip may move off it [spacings]
+LIP_REACH = 0.5
 
 
 def solve(rec: RunRecord, rays, rig: RigConfig) -> Trajectory:
@@ -41,6 +47,9 @@ def solve(rec: RunRecord, rays, rig: RigConfig) -> Trajectory:
     frame_steps = rec.frame_steps
     times = rec.times
     head_arc = trail.arc_at(cum_h[len(rec.start_line) + frame_steps])
+    head_arc = step_over_lips(trail, head_arc, rays, body.clearance, LIP_SLOPE,
+                              reach=LIP_REACH * body.spacing,
+                              depth=0.5 * body.spacing * body.segments)
     lift = lift_profile(rec.cobra, rig.cobra.curve, rig.cobra.height, body.segments)
     bf = body_frames(trail, head_arc, body.spacing, body.segments, body.clearance, lift=lift,
                      rays=rays, ceiling_margin=rig.cobra.ceiling_margin, fps=rec.fps,
