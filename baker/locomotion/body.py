@@ -290,6 +290,7 @@ def place_chain(trail: Trail, head_arc: np.ndarray, offset: np.ndarray, spacing:
     chord exact keeps the body's segments rigid.
     """
     F, S = offset.shape
+    offset = np.array(offset, dtype=np.float64, copy=True)
     pos = np.empty((F, S, 3))
     arc = np.empty((F, S))
     w = np.zeros((F, S)) if raised is None or trail.high is None else raised
@@ -309,6 +310,13 @@ def place_chain(trail: Trail, head_arc: np.ndarray, offset: np.ndarray, spacing:
     rows = np.arange(F)
     for i in range(1, S):
         prev = pos[:, i - 1]
+        if raised is not None:
+            # at the arc of the joint ahead, this joint lies at most RAISED_RISE spacings below
+            # it, so a point a spacing behind exists on its trail (a joint riding the smooth
+            # profile less than the one ahead, over a dip, would otherwise hang straight down
+            # from it, short of the trail)
+            below = prev[:, 1] - at(arc[:, i - 1], i)[:, 1] - RAISED_RISE * spacing
+            offset[:, i] += np.maximum(below, 0.0)
         # bracket: the first of a few arc steps back whose point is a spacing away (the trail
         # can fold back on itself over a crease or in a tight turn)
         cand = arc[:, i - 1:i] - steps[None, :]

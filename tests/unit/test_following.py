@@ -20,7 +20,8 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from baker.config import DEFAULT_RIG, SIM_RATE_HZ, load_rig_config, scale_rig
-from baker.locomotion.body import build_trail, place_chain
+from baker.geometry import polyline
+from baker.locomotion.body import Trail, build_trail, place_chain
 from baker.metrics import inside_geometry
 from baker.navmesh import build
 from baker.run import follow as follow_mod
@@ -208,6 +209,24 @@ def test_trail_clears_the_edge_of_a_step(shift):
     on = pos[..., 0] > 0.48 + 3 * body.spacing
     assert np.all(pos[..., 1][near] - top < 2.5 * body.clearance)
     assert np.all(np.abs(pos[..., 1][on] - top - body.clearance) < 0.95 * body.clearance)
+
+
+def test_a_raised_neck_over_a_dip_keeps_its_spacing():
+    """Cobra: the front joints ride the trail's smooth high profile, here 2.4 spacings above the
+    trail (a dip before an obstacle), and the joints behind them ride the trail. The first joint
+    riding low used to hang straight down from the last one riding high, at the same arc, 140%
+    of a spacing away from it; it now lies a spacing behind it, further back on the trail."""
+    sp, S, n = RIG.body.spacing, RIG.body.segments, 401
+    pts = np.column_stack([np.linspace(0.0, 1.0, n), np.zeros(n), np.zeros(n)])
+    cum = polyline.arc_lengths(pts)
+    trail = Trail(points=pts, normals=np.tile([0.0, 1.0, 0.0], (n, 1)), ground=np.zeros(n),
+                  cum=cum, cum_h=cum, high=np.full(n, 2.4 * sp))
+    raised = np.zeros((3, S))
+    raised[:, :5] = np.array([1.0, 0.8, 0.6])[:, None]
+    pos, arc = place_chain(trail, np.full(3, 0.8), np.full((3, S), 0.25 * sp), sp, raised=raised)
+    gaps = np.linalg.norm(np.diff(pos, axis=1), axis=2) / sp - 1.0
+    assert np.abs(gaps).max() < 1e-3, np.abs(gaps).max()
+    assert np.all(np.diff(arc, axis=1) < 0.0)
 
 
 def test_trail_takes_a_step_at_a_ramp_top_over_a_spacing():
