@@ -14,12 +14,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d, maximum_filter1d
+from scipy.ndimage import gaussian_filter1d, label, maximum_filter1d
 
 from baker.environment.rays import RayCaster
 from baker.geometry import polyline
 from baker.geometry.conventions import UP
-from baker.geometry.transforms import frames_to_quat, normalize
+from baker.geometry.transforms import frames_to_quat, normalize, quat_angle
 from baker.locomotion.cobra import limit_lift
 
 
@@ -40,6 +40,11 @@ RAISED_SMOOTH = 3.0
 RAISED_RISE = 0.75
 #: [deg/s] fastest turn of the head's facing (where its trail folds back)
 HEAD_TURN_RATE = 540.0
+#: [deg] a cobra ramp turning a spine joint more than this in a frame rises more slowly (the
+#: quality limit is 30 degrees; the legs' joints hang on the spine's)
+LIFT_TURN = 24.0
+#: at most this many halvings of a ramp's rate
+LIFT_ROUNDS = 3
 
 
 @dataclass(frozen=True)
@@ -378,6 +383,17 @@ def _steep_under(trail: Trail, arc: np.ndarray, rays, height: float, max_slope: 
     return h.hit & (cos < math.cos(max_slope))
 
 
+def eroded(a: np.ndarray, rate: float | np.ndarray) -> np.ndarray:
+    """The largest function <= a that changes by at most `rate` per frame along axis 0: the
+    cone erosion min_j a[j] + rate * |i - j|. `rate` is a scalar or one per column."""
+    a = np.asarray(a, dtype=np.float64)
+    t = (np.arange(len(a), dtype=np.float64).reshape((-1,) + (1,) * (a.ndim - 1))
+         * np.asarray(rate, dtype=np.float64))
+    ahead = t + np.minimum.accumulate(a - t, axis=0)
+    behind = np.flip(np.minimum.accumulate(np.flip(a + t, axis=0), axis=0), axis=0) - t
+    return np.minimum(ahead, behind)
+
+
 def limit_rise(lift: np.ndarray, rise: float) -> np.ndarray:
     """(F, S) lifts with each joint at most `rise` metres above the joint behind it (from the
     tail forward: a steeper curve is lowered at the front)."""
@@ -394,17 +410,67 @@ def body_frames(trail: Trail, head_arc: np.ndarray, spacing: float, segments: in
 
     head_arc : (F,) float, 3D arc length of the head along the trail at each frame
     lift     : (F, S) optional cobra lift per joint (metres), limited by upward rays on `rays`
+    A cobra ramp that would turn a spine joint more than LIFT_TURN in a frame rises (or
+    settles) more slowly, for up to LIFT_ROUNDS halvings of its rate.
     """
     F = len(head_arc)
-    if lift is not None and lift.max(initial=0.0) > 0.0:
-        s0 = head_arc[:, None] - spacing * np.arange(segments)[None, :]
-        flat = polyline.sample(trail.points, trail.cum, s0) + clearance * UP
-        lift = limit_lift(flat, lift, spacing, rays, ceiling_margin, int(round(ramp_time * fps)))
-        lift = limit_rise(lift, RAISED_RISE * spacing)
-        raised = np.clip(4.0 * lift / max(float(lift.max()), 1e-12), 0.0, 1.0)
-    else:
+    ramp = 1.0 / max(ramp_time * fps, 1.0)
+    if lift is None or lift.max(initial=0.0) <= 0.0:
         lift = np.zeros((F, segments))
-        raised = None
+        return _placed(trail, head_arc, spacing, clearance, lift, None, fps)
+    s0 = head_arc[:, None] - spacing * np.arange(segments)[None, :]
+    flat = polyline.sample(trail.points, trail.cum, s0) + clearance * UP
+    lift = limit_lift(flat, lift, spacing, rays, ceiling_margin, int(round(ramp_time * fps)))
+    lift = limit_rise(lift, RAISED_RISE * spacing)
+    bf = _placed(trail, head_arc, spacing, clearance, lift, _raised(lift, ramp), fps)
+    rate = np.abs(np.diff(lift, axis=0)).max(axis=0, initial=0.0)
+    for _ in range(LIFT_ROUNDS):
+        turn = np.degrees(quat_angle(bf.rotations[:-1], bf.rotations[1:])).max(axis=1)
+        rate = 0.5 * rate
+        slow = _fast_ramps(lift, limit_rise(eroded(lift, rate), RAISED_RISE * spacing),
+                           turn > LIFT_TURN)
+        if not slow.any():
+            break
+        lift = np.where(slow[:, None], limit_rise(eroded(lift, rate), RAISED_RISE * spacing),
+                        lift)
+        again = _placed(trail, head_arc[slow], spacing, clearance, lift[slow],
+                        _raised(lift, ramp)[slow], fps)
+        bf = BodyFrames(**{k: _spliced(getattr(bf, k), getattr(again, k), slow)
+                           for k in ("positions", "rotations", "normals", "ground", "lift")})
+    return bf
+
+
+def _spliced(a: np.ndarray, b: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    out = a.copy()
+    out[rows] = b
+    return out
+
+
+def _raised(lift: np.ndarray, ramp: float) -> np.ndarray:
+    """(F, S) 0..1: how much each joint rides the trail's smooth profile: fully from a quarter
+    of the highest lift, changing by at most a full ride over the cobra's ramp (`ramp` per
+    frame): over a dip the profile is several spacings above the trail, and the joints would
+    rise into it in a few frames, a wave of turns down the neck."""
+    return eroded(np.clip(4.0 * lift / max(float(lift.max()), 1e-12), 0.0, 1.0), ramp)
+
+
+def _fast_ramps(lift: np.ndarray, slower: np.ndarray, turned: np.ndarray) -> np.ndarray:
+    """(F,) bool: the frames of every lift ramp that turns a joint too fast (`turned`, (F-1,)
+    per frame step) and that the `slower` lift would change: the runs of frames where the two
+    differ, taken whole so the slower ramp joins the lift on either side of it."""
+    runs, n = label((slower < lift - 1e-9).any(axis=1))
+    if n == 0 or not turned.any():
+        return np.zeros(len(lift), dtype=bool)
+    bad = np.zeros(len(lift), dtype=bool)
+    bad[1:] |= turned
+    bad[:-1] |= turned
+    hit = np.unique(runs[bad & (runs > 0)])
+    return np.isin(runs, hit) & (runs > 0)
+
+
+def _placed(trail: Trail, head_arc: np.ndarray, spacing: float, clearance: float,
+            lift: np.ndarray, raised: np.ndarray | None, fps: int) -> BodyFrames:
+    """The spine at the given frames, each joint `clearance + lift` above the trail."""
     pos, s = place_chain(trail, head_arc, clearance + lift, spacing, raised=raised)
     normals = normalize(polyline.sample(trail.normals, trail.cum, s))
     ground = np.interp(s, trail.cum, trail.ground)
