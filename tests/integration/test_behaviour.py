@@ -19,6 +19,7 @@ from baker.metrics import head_in_shade, state_frames
 from baker.pipeline import bake
 from conftest import box_mesh, flat_ground
 from glb_read import Glb
+from simulated import simulated
 from validator import gltf_validate, issues_summary, usd_validate
 
 pytestmark = pytest.mark.slow
@@ -83,7 +84,7 @@ def test_shade_seeking_spends_time_in_shade(shelter, nav_cache_dir):
     same). The d10 rule (SEED.md) makes single
     runs noisy, so the bounds hold on the mean, and at least five seeds of six prefer shade
     with seeking on."""
-    tmp, env = shelter
+    _, env = shelter
     share = shaded_share(env, SUN45)
     start = dict(start=(0.2, 0.0, 0.1), start_heading=(-1.0, 0.0, 0.0))
     on_all, off_all = [], []
@@ -91,18 +92,17 @@ def test_shade_seeking_spends_time_in_shade(shelter, nav_cache_dir):
 
     rays = load_environment(env).rays
     for seed in range(6):
-        on = run(tmp, env, f"on{seed}", nav_cache_dir, seconds=180, seed=seed, behaviour="shade",
-                 rig=SPINE_RIG, **start)
-        off = run(tmp, env, f"off{seed}", nav_cache_dir, seconds=180, seed=seed,
-                  behaviour="wander", rig=SPINE_RIG, **start)
-        f_on = on.report["metrics"]["behaviour"]["shade_fraction"]
-        f_off = off.report["metrics"]["behaviour"]["shade_fraction"]
+        traj, on = simulated(BakeConfig(environment=env, rig=SPINE_RIG, nav_cache_dir=nav_cache_dir,
+                                        seconds=180, seed=seed, behaviour="shade", **start))
+        _, off = simulated(BakeConfig(environment=env, rig=SPINE_RIG, nav_cache_dir=nav_cache_dir,
+                                      seconds=180, seed=seed, behaviour="wander", **start))
+        f_on = on["behaviour"]["shade_fraction"]
+        f_off = off["behaviour"]["shade_fraction"]
         print(f"seed {seed}: in shade {100 * f_on:.1f}% with shade seeking, {100 * f_off:.1f}% "
               f"wander only (shaded share of the ground {100 * share:.1f}%)")
         on_all.append(f_on)
         off_all.append(f_off)
         # resting really is in shade
-        traj = on.trajectory
         rest = state_frames(traj.events, traj.n_frames, 30) == "rest_in_shade"
         if rest.any():
             assert head_in_shade(traj, rays)[rest].mean() >= 0.9
@@ -165,9 +165,12 @@ def open_ground(tmp_path_factory, nav_cache_dir):
 
 
 def hunt(open_ground, name, prey_at, seconds=40, seed=0, **kw):
+    """A hunt of one prey from the origin, spine only (what is judged is where the head, the
+    spine and the prey go)."""
     tmp, env, cache = open_ground
     return run(tmp, env, name, cache, seconds=seconds, seed=seed, behaviour="hunt",
-               start=(0, 0, 0), start_heading=(0, 0, 1), prey_positions=(prey_at,), **kw)
+               start=(0, 0, 0), start_heading=(0, 0, 1), prey_positions=(prey_at,),
+               rig=SPINE_RIG, **kw)
 
 
 def test_onslaught_starts_fast_and_doubles_speed(open_ground):
