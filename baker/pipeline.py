@@ -33,6 +33,10 @@ from baker.streams import Streams
 
 log = logging.getLogger(__name__)
 
+#: [BL] a limb's bone is judged clear of the environment up to this far from its end (its foot
+#: stands on a surface): inspect.judge reads the files the same way
+LIMB_END_GAP = 0.005
+
 
 @dataclass(frozen=True)
 class BakeResult:
@@ -172,8 +176,8 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
     clip = replace(clip, events=events(0, clip.n_frames))
     segments = behaviour_clips(clip, traj.events, cfg.fps, events) if cfg.clips else ()
     with ctx.stage("reduce"):
-        clip, segments, animation = reduce_clips(cfg, rig, traj, clip, segments)
-        others = reduce_crowd(cfg, rig, env.origin, trajs[1:], [p[0] for p in posed[1:]])
+        clip, segments, animation = reduce_clips(cfg, rig, traj, clip, segments, env)
+        others = reduce_crowd(cfg, rig, env, trajs[1:], [p[0] for p in posed[1:]])
 
     # Step 8: files, all or nothing: each is written to a temporary beside its target and
     # they are renamed together at the end (atomic.OutputSet); a failure or a signal before
@@ -261,14 +265,14 @@ def body_radius(rig_cfg) -> float:
     return float(max(rig_cfg.body.width_profile))
 
 
-def reduce_crowd(cfg: BakeConfig, rig, origin, trajs, clips) -> list:
+def reduce_crowd(cfg: BakeConfig, rig, env, trajs, clips) -> list:
     """(reduced clip, the report's `animation` section) of each of a crowd's further creatures:
     its own events (events_of), no node tracks (the prey and the sun ride on creature 0's
     clip), no per-behaviour clips."""
     out = []
     for traj, clip in zip(trajs, clips):
-        clip = replace(clip, tracks=(), events=events_of(cfg, traj, origin)(0, clip.n_frames))
-        reduced, _, animation = reduce_clips(cfg, rig, traj, clip, ())
+        clip = replace(clip, tracks=(), events=events_of(cfg, traj, env.origin)(0, clip.n_frames))
+        reduced, _, animation = reduce_clips(cfg, rig, traj, clip, (), env)
         out.append((reduced, animation))
     return out
 
@@ -324,9 +328,10 @@ def _import_stages() -> None:
     import baker.navmesh.lazy, baker.rig, baker.sim.loop  # noqa: F401
 
 
-def reduce_clips(cfg: BakeConfig, rig, traj, clip, segments: tuple):
+def reduce_clips(cfg: BakeConfig, rig, traj, clip, segments: tuple, env=None):
     """Keyframe reduction of the bake's clip and its per-behaviour segments (export.reduce),
-    within cfg.tolerance body lengths, the walking feet held planted where the gait plants them.
+    within cfg.tolerance body lengths, the walking feet held planted where the gait plants them,
+    and the limbs' joints held closer where a bone passes within the tolerance of `env`.
     Returns (clip, segments, the report's `animation` section)."""
     from baker.export.reduce import reduce_clip, reduction_stats
     from baker.rig.limbs import leg_layout
@@ -338,9 +343,10 @@ def reduce_clips(cfg: BakeConfig, rig, traj, clip, segments: tuple):
         planted = np.zeros((clip.n_frames, skel.n_joints), dtype=bool)
         feet = [skel.index(n) for n in leg_layout(cfg.rig).foot_names]
         planted[:, feet] = np.asarray(traj.foot_contacts, dtype=bool)
+    tight = limbs_near(cfg, skel, clip, env, tol)
     kw = dict(rest=(skel.rest_translations, skel.rest_rotations),
               short_rotations=cfg.rotations == "short")
-    reduced = reduce_clip(clip, skel.parents, tol, contacts=planted, **kw)
+    reduced = reduce_clip(clip, skel.parents, tol, contacts=planted, tight=tight, **kw)
     animation = {"tolerance_bl": cfg.tolerance, **reduction_stats(clip, reduced)}
     ranges = {name: (f0, f1) for f0, f1, name in behaviour_ranges(clip.n_frames, traj.events,
                                                                    cfg.fps)}
@@ -348,11 +354,29 @@ def reduce_clips(cfg: BakeConfig, rig, traj, clip, segments: tuple):
     for seg in segments:
         f0, f1 = ranges[seg.name]
         out.append(reduce_clip(seg, skel.parents, tol, **kw,
-                               contacts=None if planted is None else planted[f0:f1]))
+                               contacts=None if planted is None else planted[f0:f1],
+                               tight=None if tight is None else tight[f0:f1]))
     if segments:
         animation["segment_clips"] = [{"name": a.name, **reduction_stats(b, a)}
                                       for b, a in zip(segments, out)]
     return reduced, tuple(out), animation
+
+
+def limbs_near(cfg: BakeConfig, skel, clip, env, tol: float):
+    """(F, J) bool or None: the frames at which a leg or ultimate-leg bone of the unreduced
+    clip passes within `tol` of the environment (export.reduce.bones_near), for clips played
+    in the world (not --root-motion in-place)."""
+    from baker.export.reduce import bones_near
+
+    if env is None or tol <= 0 or not cfg.rig.legs.enabled or cfg.root_motion == "in-place":
+        return None
+    names = skel.names
+    bones = np.array([(int(p), j) for j, p in enumerate(skel.parents)
+                      if p >= 0 and names[p].startswith(("leg_", "ultimate_"))],
+                     dtype=np.int64).reshape(-1, 2)
+    world = clip.world(skel.parents)[0] - np.asarray(env.origin, dtype=np.float64)
+    return bones_near(world, bones, env.rays, tol,
+                      end_gap=LIMB_END_GAP * cfg.rig.body.length + 2.0 * tol)
 
 
 def prey_props(rig_cfg, traj) -> tuple:

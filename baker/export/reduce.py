@@ -87,6 +87,9 @@ LOCAL_SHARE = 0.5
 #: world refinement: channels contributing at least this share of the largest contribution to
 #: an offending joint's error get a key
 BLAME_SHARE = 0.8
+#: joints at their tight frames (a bone within the tolerance of the environment) keep within
+#: this share of the tolerance
+TIGHT_SHARE = 0.1
 #: planted joints: largest change of the reduced joint's error between two planted frames, as a
 #: fraction of the tolerance
 PLANTED_SLIDE = 0.5
@@ -581,9 +584,10 @@ class _Target:
     planted: np.ndarray | None
     tol: float
     short: bool
+    tight: np.ndarray | None = None
 
 
-def _target(clip: Clip, parents, planted, tol: float, short: bool) -> _Target:
+def _target(clip: Clip, parents, planted, tol: float, short: bool, tight=None) -> _Target:
     parents = np.asarray(parents)
     depth = (ancestors(parents) >= 0).sum(axis=1)
     levels = tuple(np.flatnonzero(depth == d) for d in range(1, depth.max() + 1))
@@ -592,7 +596,8 @@ def _target(clip: Clip, parents, planted, tol: float, short: bool) -> _Target:
     pos0, wq0 = forward_kinematics(parents, t0, q0)
     first = (lambda a: np.ascontiguousarray(np.swapaxes(a, 0, 1)))
     return _Target(first(t0), first(q0), first(pos0), first(wq0), clip.times, parents, levels,
-                   None if planted is None else first(planted), tol, short)
+                   None if planted is None else first(planted), tol, short,
+                   None if tight is None else first(tight))
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -734,6 +739,8 @@ class _Player:
         self._errors_at(moved)
         self._slide_at(moved)
         viol = (self.err > x.tol) | (self.spread > PLAYER_SPREAD_M)
+        if x.tight is not None:
+            viol |= x.tight & (self.err > TIGHT_SHARE * x.tol)
         if x.planted is not None and f_count > 1:
             bad = self.slide > PLANTED_SLIDE * x.tol
             viol[:, 1:] |= bad
@@ -1006,7 +1013,7 @@ def _track_keys(clip: Clip, tol: float, lever: float, short: bool) -> tuple[Trac
 
 def reduce_clip(clip: Clip, parents, tolerance_m: float, *, contacts=None,
                 rest: tuple[np.ndarray, np.ndarray] | None = None,
-                short_rotations: bool = False) -> Clip:
+                short_rotations: bool = False, tight=None) -> Clip:
     """`clip` with `keys` set (a ClipKeys): keys whose playback keeps every joint within
     `tolerance_m` of its unreduced world position at every frame (the two passes of the module
     docstring).
@@ -1018,6 +1025,9 @@ def reduce_clip(clip: Clip, parents, tolerance_m: float, *, contacts=None,
                       take when they are within tolerance (so the nodes keep their rest TRS)
     short_rotations : store animated rotations as normalized SHORT (see the module docstring),
                       unless the quantization alone would use more than half the tolerance
+    tight           : (F, J) bool or None: frames at which a joint keeps within TIGHT_SHARE of
+                      the tolerance (a bone passing that close to the environment, see
+                      bones_near, must not be moved into it)
     """
     tol = float(tolerance_m)
     if not np.isfinite(tol) or tol < 0:
@@ -1034,7 +1044,11 @@ def reduce_clip(clip: Clip, parents, tolerance_m: float, *, contacts=None,
         if planted.shape != (f_count, j_count):
             raise ExportError(f"contacts have shape {planted.shape}, expected "
                               f"({f_count}, {j_count})")
-    x = _target(clip, parents, planted, tol, short_rotations)
+    if tight is not None and np.shape(tight) != (f_count, j_count):
+        raise ExportError(f"tight frames have shape {np.shape(tight)}, expected "
+                          f"({f_count}, {j_count})")
+    x = _target(clip, parents, planted, tol, short_rotations,
+                None if tight is None else np.asarray(tight, dtype=bool))
     if short_rotations and not _short_fits(x):
         x = dataclasses.replace(x, short=False)
     lever = np.maximum(levers(parents, np.swapaxes(x.pos0, 0, 1), clip.translations), 1e-9)
@@ -1077,7 +1091,8 @@ def _short_fits(x: _Target) -> bool:
     j_count, f_count = x.t0.shape[:2]
     some = np.arange(0, f_count, 8)         # every frame a key: frames are independent
     sub = dataclasses.replace(x, t0=x.t0[:, some], q0=x.q0[:, some], pos0=x.pos0[:, some],
-                              wq0=x.wq0[:, some], times=x.times[some], planted=None)
+                              wq0=x.wq0[:, some], times=x.times[some], planted=None,
+                              tight=None)
     every = np.ones((j_count, len(some)), dtype=bool)
     p = _Player(sub, np.zeros((j_count, 3)), np.zeros((j_count, 4)))
     p.play(every, every)
@@ -1153,3 +1168,40 @@ def played_joints(clip: Clip) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return clip.translations, clip.rotations, clip.scales
     return (k.translations.play(clip.times, False), k.rotations.play(clip.times, True),
             k.scales.play(clip.times, False))
+
+
+def bones_near(world: np.ndarray, bones: np.ndarray, rays, margin: float, end_gap: float
+               ) -> np.ndarray:
+    """(F, J) bool: the frames at which a bone passes within about `margin` of the environment,
+    marked on both its joints. A reduced pose moves each joint by up to the tolerance, so such a
+    bone could be moved into what the unreduced one just clears.
+
+    world : (F, J, 3) unreduced joint positions in the frame of `rays` (a RayCaster)
+    bones : (B, 2) joint index pairs (start, end)
+    margin: [m] the rays along each bone are offset by this much, 4 ways, and cast with it
+    end_gap: [m] the rays stop this short of the bone's end (a foot's tip bone ends on the
+             ground)
+    """
+    F, J, _ = world.shape
+    near = np.zeros((F, J), dtype=bool)
+    if len(bones) == 0 or F == 0:
+        return near
+    a, b = world[:, bones[:, 0]], world[:, bones[:, 1]]          # (F, B, 3)
+    v = b - a
+    length = np.linalg.norm(v, axis=-1)
+    d = v / np.maximum(length, 1e-12)[..., None]
+    side = np.cross(d, np.array([0.0, 1.0, 0.0]))
+    weak = np.linalg.norm(side, axis=-1) < 1e-6
+    side[weak] = np.cross(d[weak], np.array([1.0, 0.0, 0.0]))
+    side /= np.maximum(np.linalg.norm(side, axis=-1, keepdims=True), 1e-12)
+    other = np.cross(d, side)
+    reach = np.maximum(length - end_gap, 0.0)
+    hit = np.zeros(a.shape[:2], dtype=bool)
+    for off in (np.zeros_like(side), side, -side, other, -other):
+        o = (a + margin * off).reshape(-1, 3)
+        h = rays.first_hit(o, d.reshape(-1, 3), max_distance=reach.reshape(-1))
+        hit |= h.hit.reshape(a.shape[:2])
+    f, k = np.nonzero(hit)
+    near[f, bones[k, 0]] = True
+    near[f, bones[k, 1]] = True
+    return near

@@ -452,3 +452,47 @@ def test_blender_plays_reduced_files_within_tolerance(tmp_path, suffix, small_en
         p = world[f]
         want = np.stack([p[:, 0], -p[:, 2], p[:, 1]], -1)          # +Y up -> Blender's +Z up
         assert np.linalg.norm(got - want, axis=1).max() <= TOL + 1e-5, f
+
+
+# ------------------------------------------------------------------ bones close to the world
+def test_bones_near_marks_a_bone_that_clears_an_edge_by_less_than_the_margin():
+    """A bone 0.1 mm above a box's top edge is near at a 0.25 mm margin (a reduced pose may move
+    it into the box); 2 mm above, or ending on a surface, it is not."""
+    import trimesh
+
+    from baker.environment.rays import RayCaster
+
+    rays = RayCaster(trimesh.creation.box((0.1, 0.1, 0.1)))     # top at y = 0.05
+    world = np.zeros((3, 4, 3))
+    for f, y in enumerate((0.0501, 0.052, 0.0)):
+        world[f, 0] = (-0.08, y, 0.0)
+        world[f, 1] = (0.08, y, 0.0)                            # over the top, across it
+    world[2, 0] = (0.0, 0.08, 0.0)
+    world[2, 1] = (0.0, 0.05, 0.0)                              # standing on the top
+    world[:, 2:] = 1.0                                          # joints 2, 3: far away
+    near = red.bones_near(world, np.array([[0, 1], [2, 3]]), rays, 0.00025, end_gap=0.002)
+    assert near[0, :2].all() and not near[1].any() and not near[2].any()
+    assert not near[:, 2:].any()
+
+
+def test_tight_frames_hold_their_joints_closer(clip, rig, reduced):
+    """Joints at their tight frames keep within TIGHT_SHARE of the tolerance; the others within
+    the tolerance, as before."""
+    skel = rig.skeleton
+    F, J = clip.translations.shape[:2]
+    tight = np.zeros((F, J), dtype=bool)
+    tight[F // 3: F // 2, J - 10:] = True
+    got = _reduce(clip, rig, short_rotations=True, tight=tight)
+    from baker.rig.skeleton import forward_kinematics
+
+    def world(c):
+        t, q, _ = red.played_joints(c)
+        return forward_kinematics(skel.parents, t.astype(np.float64), q.astype(np.float64))[0]
+
+    w0 = world(clip)
+    err0 = np.linalg.norm(world(reduced) - w0, axis=-1)
+    err = np.linalg.norm(world(got) - w0, axis=-1)
+    assert err[tight].max() <= red.TIGHT_SHARE * TOL + SLACK < err0[tight].max()
+    assert err.max() <= TOL + SLACK
+    with pytest.raises(ExportError):
+        _reduce(clip, rig, tight=tight[:-1])
