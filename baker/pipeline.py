@@ -343,7 +343,7 @@ def reduce_clips(cfg: BakeConfig, rig, traj, clip, segments: tuple, env=None):
         planted = np.zeros((clip.n_frames, skel.n_joints), dtype=bool)
         feet = [skel.index(n) for n in leg_layout(cfg.rig).foot_names]
         planted[:, feet] = np.asarray(traj.foot_contacts, dtype=bool)
-    tight = limbs_near(cfg, skel, clip, env, tol)
+    tight = limbs_near(cfg, skel, traj, env, tol)
     kw = dict(rest=(skel.rest_translations, skel.rest_rotations),
               short_rotations=cfg.rotations == "short")
     reduced = reduce_clip(clip, skel.parents, tol, contacts=planted, tight=tight, **kw)
@@ -362,21 +362,28 @@ def reduce_clips(cfg: BakeConfig, rig, traj, clip, segments: tuple, env=None):
     return reduced, tuple(out), animation
 
 
-def limbs_near(cfg: BakeConfig, skel, clip, env, tol: float):
-    """(F, J) bool or None: the frames at which a leg or ultimate-leg bone of the unreduced
-    clip passes within `tol` of the environment (export.reduce.bones_near), for clips played
-    in the world (not --root-motion in-place)."""
+def limbs_near(cfg: BakeConfig, skel, traj, env, tol: float):
+    """(F, J) bool or None: the frames at which a leg or ultimate-leg bone of the simulation
+    (metrics.leg_bones) passes within `tol` of the environment (export.reduce.bones_near),
+    marked on both of its joints; for clips played in the world (not --root-motion in-place)."""
     from baker.export.reduce import bones_near
+    from baker.metrics import leg_bones
 
     if env is None or tol <= 0 or not cfg.rig.legs.enabled or cfg.root_motion == "in-place":
         return None
-    names = skel.names
-    bones = np.array([(int(p), j) for j, p in enumerate(skel.parents)
-                      if p >= 0 and names[p].startswith(("leg_", "ultimate_"))],
-                     dtype=np.int64).reshape(-1, 2)
-    world = clip.world(skel.parents)[0] - np.asarray(env.origin, dtype=np.float64)
-    return bones_near(world, bones, env.rays, tol,
-                      end_gap=LIMB_END_GAP * cfg.rig.body.length + 2.0 * tol)
+    starts, ends, names = leg_bones(traj, cfg.rig.legs)
+    hit = bones_near(starts, ends, env.rays, tol,
+                     end_gap=LIMB_END_GAP * cfg.rig.body.length + 2.0 * tol)
+    # a bone is named by its start joint; an upper bone ends at its tip joint, a tip bone at
+    # its foot end joint
+    first = [skel.index(n) for n in names]
+    last = [skel.index(n[: -len("upper")] + "tip" if n.endswith("_upper")
+                       else n[: -len("tip")] + "foot") for n in names]
+    near = np.zeros((traj.n_frames, skel.n_joints), dtype=bool)
+    f, b = np.nonzero(hit)
+    near[f, np.asarray(first, dtype=np.int64)[b]] = True
+    near[f, np.asarray(last, dtype=np.int64)[b]] = True
+    return near
 
 
 def prey_props(rig_cfg, traj) -> tuple:

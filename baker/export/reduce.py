@@ -1170,24 +1170,18 @@ def played_joints(clip: Clip) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             k.scales.play(clip.times, False))
 
 
-def bones_near(world: np.ndarray, bones: np.ndarray, rays, margin: float, end_gap: float
+def bones_near(starts: np.ndarray, ends: np.ndarray, rays, margin: float, end_gap: float
                ) -> np.ndarray:
-    """(F, J) bool: the frames at which a bone passes within about `margin` of the environment,
-    marked on both its joints. A reduced pose moves each joint by up to the tolerance, so such a
-    bone could be moved into what the unreduced one just clears.
+    """(F, B) bool: the frames at which each bone passes within about `margin` of the
+    environment. A reduced pose moves each joint by up to the tolerance, so such a bone could be
+    moved into what the unreduced one just clears.
 
-    world : (F, J, 3) unreduced joint positions in the frame of `rays` (a RayCaster)
-    bones : (B, 2) joint index pairs (start, end)
-    margin: [m] the rays along each bone are offset by this much, 4 ways, and cast with it
+    starts, ends : (F, B, 3) unreduced bone ends in the frame of `rays` (a RayCaster)
+    margin : [m] the rays along each bone are offset by this much, 4 ways, and cast with it
     end_gap: [m] the rays stop this short of the bone's end (a foot's tip bone ends on the
              ground)
     """
-    F, J, _ = world.shape
-    near = np.zeros((F, J), dtype=bool)
-    if len(bones) == 0 or F == 0:
-        return near
-    a, b = world[:, bones[:, 0]], world[:, bones[:, 1]]          # (F, B, 3)
-    v = b - a
+    v = ends - starts
     length = np.linalg.norm(v, axis=-1)
     d = v / np.maximum(length, 1e-12)[..., None]
     side = np.cross(d, np.array([0.0, 1.0, 0.0]))
@@ -1195,13 +1189,12 @@ def bones_near(world: np.ndarray, bones: np.ndarray, rays, margin: float, end_ga
     side[weak] = np.cross(d[weak], np.array([1.0, 0.0, 0.0]))
     side /= np.maximum(np.linalg.norm(side, axis=-1, keepdims=True), 1e-12)
     other = np.cross(d, side)
-    reach = np.maximum(length - end_gap, 0.0)
-    hit = np.zeros(a.shape[:2], dtype=bool)
+    reach = np.maximum(length - end_gap, 0.0).reshape(-1)
+    hit = np.zeros(length.shape, dtype=bool)
+    if hit.size == 0:
+        return hit
     for off in (np.zeros_like(side), side, -side, other, -other):
-        o = (a + margin * off).reshape(-1, 3)
-        h = rays.first_hit(o, d.reshape(-1, 3), max_distance=reach.reshape(-1))
-        hit |= h.hit.reshape(a.shape[:2])
-    f, k = np.nonzero(hit)
-    near[f, bones[k, 0]] = True
-    near[f, bones[k, 1]] = True
-    return near
+        h = rays.first_hit((starts + margin * off).reshape(-1, 3), d.reshape(-1, 3),
+                           max_distance=reach)
+        hit |= h.hit.reshape(length.shape)
+    return hit

@@ -427,12 +427,11 @@ def body_frames(trail: Trail, head_arc: np.ndarray, spacing: float, segments: in
     for _ in range(LIFT_ROUNDS):
         turn = np.degrees(quat_angle(bf.rotations[:-1], bf.rotations[1:])).max(axis=1)
         rate = 0.5 * rate
-        slow = _fast_ramps(lift, limit_rise(eroded(lift, rate), RAISED_RISE * spacing),
-                           turn > LIFT_TURN)
+        slower = limit_rise(eroded(lift, rate), RAISED_RISE * spacing)
+        slow = _fast_ramps(lift, slower, turn > LIFT_TURN)
         if not slow.any():
             break
-        lift = np.where(slow[:, None], limit_rise(eroded(lift, rate), RAISED_RISE * spacing),
-                        lift)
+        lift = np.where(slow[:, None], slower, lift)
         again = _placed(trail, head_arc[slow], spacing, clearance, lift[slow],
                         _raised(lift, ramp)[slow], fps)
         bf = BodyFrames(**{k: _spliced(getattr(bf, k), getattr(again, k), slow)
