@@ -76,6 +76,7 @@ class Follower:
         self.gait_scale = 1.0       # the brain's speed factor
         self.terrain_scale = 1.0    # rough_speed on risers, else 1
         self.bend_scale = 1.0       # < 1 while a sharp bend of the trail is under the body
+        self.bend = math.inf        # [m] radius of the sharpest bend of the trail under the body
         self.bend_speed = BEND_TURN * fps    # [rad/s] a segment's largest turn rate
         self.spacing = body.spacing
         self._trail = [(0.0, float(start[0]), float(start[2]))]   # (walked, x, z) under the body
@@ -143,7 +144,11 @@ class Follower:
         self._apply_speed()
 
     def _apply_speed(self) -> None:
-        scale = self.gait_scale * self.terrain_scale * self.bend_scale
+        scale = self.gait_scale * self.terrain_scale
+        # the bend bounds the speed itself, whatever the brain's and the terrain's factors (a
+        # hunt's doubled speed would round the bend at twice bend_speed)
+        self.bend_scale = min(1.0, self.bend_speed * self.bend / max(self.max_speed * scale, 1e-12))
+        scale *= self.bend_scale
         self.agent.speed_scale = scale
         self.head.max_speed = self.max_speed * scale
 
@@ -192,9 +197,8 @@ class Follower:
             while self._walked - self._trail[0][0] > self.body_length + self.spacing:
                 self._trail.pop(0)
         radius = bend_radius(np.array(self._trail)[:, 1:], int(round(0.5 / BEND_SAMPLE)))
-        scale = min(1.0, self.bend_speed * radius / self.max_speed)
-        if scale != self.bend_scale:
-            self.bend_scale = scale
+        if radius != self.bend:
+            self.bend = radius
             self._apply_speed()
 
     def _avoiding(self, others: np.ndarray):

@@ -372,3 +372,42 @@ def test_head_facing_swings_round_a_reversal_at_a_bounded_rate():
     assert np.allclose(out[25:], dirs[25:])            # ...and it catches up (180 deg in 10 frames)
     assert np.allclose(np.linalg.norm(out, axis=1), 1.0)
     assert np.abs(out[:, 1]).max() < 1e-9              # swung about the surface normal
+
+
+# --------------------------------------------------------------------------- bends at speed
+def segment_turns(path: np.ndarray, fps: int) -> np.ndarray:
+    """Largest per-frame turn [deg] of any segment of a body that follows the head's path
+    (n, 3) stepped at SIM_RATE_HZ: the segment between joints i and i + 1 lies on the path
+    i and i + 1 spacings behind the head, frames taken every SIM_RATE_HZ / fps steps."""
+    sp, S = RIG.body.spacing, RIG.body.segments
+    dense = path[:, [0, 2]]
+    cum = polyline.arc_lengths(dense)
+    head = polyline.arc_lengths(path[:, [0, 2]])[:: SIM_RATE_HZ // fps]
+    arcs = head[:, None] - sp * np.arange(S + 1)[None, :]
+    ok = arcs[:, -1] > 0.0
+    pts = polyline.sample(dense, cum, arcs[ok])
+    d = pts[:, :-1] - pts[:, 1:]
+    ang = np.arctan2(d[..., 1], d[..., 0])
+    turn = np.abs((np.diff(ang, axis=0) + np.pi) % (2 * np.pi) - np.pi)
+    return np.degrees(turn).max()
+
+
+def test_a_hunt_rounds_a_hook_under_the_body_no_faster_than_the_bend_allows(walled):
+    """The head walks, turns back on itself (a U-turn leaves a hook of about its turning
+    radius under the body), and a hunt then doubles its speed while the hook is still under
+    the body. The body slows so that no segment turns more than BEND_TURN in an exported
+    frame (the slow-down used to be taken against the walking speed, so a hunt rounded the
+    hook at twice the rate: 35 degrees a frame on the showcase). At 24 fps the hook the
+    turning radius allows is already too tight for the hunt's speed (24 degrees a frame
+    before)."""
+    env, nav = walled
+    f = Follower(nav, env.rays, nav.nearest([0.2, 0.0, 0.2]), np.array([0.0, 0.0, 1.0]), RIG,
+                 fps=24)
+    f.go(np.array([0.2, 0.0, 0.8]))
+    path = list(run(f, 2.0))
+    f.go(np.array([0.3, 0.0, 0.1]))          # a target behind: a U-turn
+    path += list(run(f, 0.8))
+    f.drive(2.0, 0.01, 2.0)                   # the onslaught
+    path += list(run(f, 3.0))
+    turn = segment_turns(np.array(path), 24)
+    assert turn < np.degrees(follow_mod.BEND_TURN) + 1.0, turn
