@@ -244,40 +244,57 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, mid, end, swing, side, l1, l2
     Legs are ordered L_01, R_01, L_02, ...: leg l's neighbours on its side are l - 2 and l + 2.
     Each swing's own faults are found once; crowding is judged against the neighbours' latest
     feet, and neighbours never change in the same pass (legs of odd and even segments take
-    turns, `rounds` times). A swing that still breaks a limit then tries again lifting off
-    earlier (EARLY_LIFT of its length sooner, keeping MIN_STANCE planted frames): a longer
-    swing turns its joints more slowly, so it can rise over what it could not. The earlier
-    lift is kept where it costs less.
+    turns, `rounds` times). A swing that still breaks a limit then tries again longer
+    (_second_tries: merged with a swing next to it across a single planted frame, or lifting
+    off earlier): a longer swing turns its joints more slowly, so it can rise over what it
+    could not. The longer swing is kept where it costs less.
     returns (q_u, q_t, mid, end, swing), each (F, L, ...); swing with the earlier lifts
     """
     args = (rays, hip, q_seg, side, l1, l2, lim, rounds)
     out, sw, cost = _swings_pass(*args, q_u, q_t, mid, end, swing)
-    broken = np.nonzero(cost >= HARD)[0]
-    if not len(broken):
+    tries = _second_tries(sw, cost)
+    if not tries:
         return out + (swing,)
     longer = np.zeros_like(swing)           # only the lengthened swings are redone
-    extended = []
-    for i in broken:
-        leg, a, b = sw.leg[i], sw.a[i], sw.b[i]
-        # swings are ordered by leg, then time: the previous one of this leg lands at its b
-        landed = sw.b[i - 1] if i > 0 and sw.leg[i - 1] == leg else 0
-        a2 = max(a - max(2, int(np.ceil(EARLY_LIFT * (b - a)))), landed + MIN_STANCE)
-        if a2 < a:
-            longer[a2 + 1:b, leg] = True
-            extended.append((leg, b, a2, a))
-    if not extended:
-        return out + (swing,)
+    for leg, s, e, _ in tries:
+        longer[s + 1:e, leg] = True
     out2, sw2, cost2 = _swings_pass(*args[:-1], 1, *out, longer)
     by_end = dict(zip(zip(sw2.leg, sw2.b), cost2))
-    by_end_old = dict(zip(zip(sw.leg, sw.b), cost))
     final = swing.copy()
     merged = [x.copy() for x in out]
-    for leg, b, a2, a in extended:
-        if by_end.get((leg, b), np.inf) < by_end_old[(leg, b)]:
-            final[a2 + 1:a + 1, leg] = True
+    for leg, s, e, old in tries:
+        if by_end.get((leg, e), np.inf) < old:
+            final[s + 1:e, leg] = True
             for x, y in zip(merged, out2):
-                x[a2:b + 1, leg] = y[a2:b + 1, leg]
+                x[s:e + 1, leg] = y[s:e + 1, leg]
     return tuple(merged) + (final,)
+
+
+def _second_tries(sw: "_Swings", cost: np.ndarray) -> list:
+    """(leg, s, e, cost now) of the longer swing each swing that still breaks a limit tries
+    next, from the planted frame s to the planted frame e: through a tap (a single planted
+    frame between it and the swing before or after it: the foot lands and lifts again in the
+    next frame, reversing its joints within two frames) the two swings become one, from the
+    hold before to the hold after; otherwise it lifts off EARLY_LIFT of its length sooner,
+    keeping MIN_STANCE planted frames. Tries of one leg never overlap."""
+    tries, last = [], {}
+    for i in np.nonzero(cost >= HARD)[0]:
+        leg, a, b = sw.leg[i], sw.a[i], sw.b[i]
+        # swings are ordered by leg, then time: the previous one of this leg lands at its b
+        before = i > 0 and sw.leg[i - 1] == leg
+        after = i + 1 < sw.n and sw.leg[i + 1] == leg
+        landed = sw.b[i - 1] if before else 0
+        tap_before, tap_after = before and landed == a, after and sw.a[i + 1] == b
+        s = sw.a[i - 1] if tap_before else a
+        e = sw.b[i + 1] if tap_after else b
+        old = cost[i] + (cost[i - 1] if tap_before else 0.0) + (cost[i + 1] if tap_after else 0.0)
+        if not (tap_before or tap_after):
+            s = max(a - max(2, int(np.ceil(EARLY_LIFT * (b - a)))), landed + MIN_STANCE)
+        if s < a or e > b:
+            if s >= last.get(leg, -1):
+                tries.append((leg, s, e, old))
+                last[leg] = e
+    return tries
 
 
 def _swings_pass(rays, hip, q_seg, side, l1, l2, lim: Limits, rounds, q_u, q_t, mid, end, swing):

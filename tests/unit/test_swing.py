@@ -132,3 +132,32 @@ def test_a_swing_too_short_to_turn_within_the_limit_lifts_off_earlier():
         assert np.degrees(quat_angle(q[1:], q[:-1])).max() <= 27.0 + 1e-6
     np.testing.assert_allclose(pose[3][~swing2[:, 0], 0], t[~swing2[:, 0]], atol=1e-9)
     assert np.all(pose[3][swing2[:, 0], 0, 1] > 0.0)           # the swing stays above the floor
+
+
+def test_a_tap_between_two_swings_too_fast_for_the_limit_becomes_one_swing():
+    """Two swings of two frames with a single planted frame between them (a tap: the foot lands
+    at C and lifts again the next frame), sweeping the leg round its hip from A a little
+    forward to C and then far forward to B. The second swing cannot keep every joint within
+    27 deg a frame (52 deg before), and it cannot lift off earlier (its stance is one frame);
+    solved as one swing from A to B, over the tap, every joint keeps within the limit. The
+    stances before and after stay as planned."""
+    a, c, b = (np.array([0.1, 0.0, z]) for z in (-0.1, -0.05, 0.16))
+    t = np.empty((15, 3))
+    t[:5], t[7], t[10:] = a, c, b
+    t[5:7] = a + (c - a) * np.array([1 / 3, 2 / 3])[:, None] + [0.0, 0.03, 0.0]
+    t[8:10] = c + (b - c) * np.array([1 / 3, 2 / 3])[:, None] + [0.0, 0.03, 0.0]
+    swing = np.zeros(15, bool)
+    swing[[5, 6, 8, 9]] = True
+    q_u, q_t, mid, end = leg(t)
+    q_seg = np.tile([0.0, 0.0, 0.0, 1.0], (15, 1, 1))
+    *pose, swing2 = joint_space_swings(ground(), np.broadcast_to(HIP, (15, 1, 3)), q_seg,
+                                       q_u[:, None], q_t[:, None], mid[:, None], end[:, None],
+                                       swing[:, None], np.array([1.0]), L1, L2, LIM)
+    assert swing2[7, 0]                                         # the tap is gone
+    assert np.all(~swing2[:5, 0]) and np.all(~swing2[10:, 0])  # the stances stay
+    qu, qt = pose[0][:, 0], pose[1][:, 0]
+    local_t = quat_mul(quat_conj(qu), qt)
+    for q in (qu, local_t):
+        assert np.degrees(quat_angle(q[1:], q[:-1])).max() <= 27.0 + 1e-6
+    np.testing.assert_allclose(pose[3][~swing2[:, 0], 0], t[~swing2[:, 0]], atol=1e-9)
+    assert np.all(pose[3][swing2[:, 0], 0, 1] > 0.0)
