@@ -52,6 +52,10 @@ MAX_COLUMNS = 40_000_000
 TILE_COLUMNS = 1 << 20
 #: Samples linked at a time (bounds the temporaries of the link tests).
 TILE_SAMPLES = 1 << 19
+#: A part narrower than this many cells in x and in z (a stem, a post) can stand between the
+#: grid lines the links are tested along: the samples around it are kept clear of it
+#: explicitly.
+THIN_POST = 2.0
 
 
 # --------------------------------------------------------------------------- ray casting
@@ -359,7 +363,8 @@ def build_data(env, agent, *, bounds=None, coarse_factor: int = 4,
     links = _links(caster, grid, s, step, height, slope, h_off)
     timings["links"] = time.perf_counter() - t
     t = time.perf_counter()
-    dist = _clearance(caster, grid, s, links, radius, h_off)
+    posts = _thin_parts(caster, cell, slope)
+    dist = _clearance(caster, grid, s, links, radius, h_off, posts, height)
     s = s.slim()   # peak memory of the components and the coarse graph
     timings["erode"] = time.perf_counter() - t
     t = time.perf_counter()
@@ -573,9 +578,12 @@ def _diagonal(links, d, a1, a2, sy, sceil, gx, gz, step, height):
     return src, u1[src]
 
 
-def _clearance(caster: _Caster, grid: _Grid, s: _Samples, links, radius, h_off) -> np.ndarray:
+def _clearance(caster: _Caster, grid: _Grid, s: _Samples, links, radius, h_off,
+               posts=None, height: float = 0.0) -> np.ndarray:
     """4. (n,) each sample's distance to the walkable surface's edge (a wall or a drop), exact
-    beside the edge and grown over the links up to `radius` (+inf farther in)."""
+    beside the edge and grown over the links up to `radius` (+inf farther in). `posts`
+    (_thin_parts) are thin upright parts the links can pass between (a stem thinner than a
+    cell): a sample whose agent space they stand in is on the edge too."""
     cell = grid.cell
     sy = s.y
     missing = links[:, :4] < 0
@@ -600,6 +608,10 @@ def _clearance(caster: _Caster, grid: _Grid, s: _Samples, links, radius, h_off) 
         d0 = _segment_min(bs, dd, len(border), np.inf)
     dist = np.full(len(sy), np.inf)
     dist[border] = d0
+    if posts is not None and len(posts[0]):
+        near, dp = _beside_posts(grid, s, posts, h_off, height)
+        np.minimum.at(dist, near, dp)
+        border = np.union1d(border, near)
     w = np.where(np.arange(8) < 4, cell, cell * math.sqrt(2.0))
     iters = int(math.ceil(radius / cell)) + 1
     active = border
@@ -625,6 +637,48 @@ def _clearance(caster: _Caster, grid: _Grid, s: _Samples, links, radius, h_off) 
         active = np.unique(np.concatenate(changed)) if changed else np.zeros(0, np.int64)
         active = active[dist[active] < radius + cell * 1.5]
     return dist
+
+
+def _thin_parts(caster: _Caster, cell: float, slope: float):
+    """The steep triangles (walls, sides) narrower than THIN_POST cells in x and in z, as
+    (lo (K, 3), hi (K, 3)) bounding boxes. Link rays along the grid lines can pass on either
+    side of such a triangle, and of a thin part made of them (a stem, a post); a wider one
+    always crosses a grid line."""
+    steep = np.abs(caster.face_normals[:, 1]) < math.cos(slope) + 1e-9
+    tri = caster.vertices[caster.faces[steep]]
+    lo, hi = tri.min(axis=1), tri.max(axis=1)
+    ext = hi - lo
+    thin = (ext[:, 0] < THIN_POST * cell) & (ext[:, 2] < THIN_POST * cell)
+    return lo[thin], hi[thin]
+
+
+def _beside_posts(grid: _Grid, s: _Samples, posts, h_off: float, height: float):
+    """(samples, their horizontal distances to a post's box): the samples in the columns a
+    post's box covers whose agent space (h_off to height above the surface) the box reaches
+    into (the clearance grows from them over the links)."""
+    lo, hi = posts
+    cell = grid.cell
+    i0 = np.floor((lo[:, 0] - grid.x0) / cell).astype(np.int64)
+    j0 = np.floor((lo[:, 2] - grid.z0) / cell).astype(np.int64)
+    span = int(math.ceil(THIN_POST)) + 1           # columns a box can cover, per axis
+    di, dj = np.meshgrid(np.arange(span), np.arange(span), indexing="ij")
+    ci = (i0[:, None] + di.reshape(1, -1)).reshape(-1)
+    cj = (j0[:, None] + dj.reshape(1, -1)).reshape(-1)
+    k = np.repeat(np.arange(len(lo)), span * span)
+    i1 = np.floor((hi[k, 0] - grid.x0) / cell)
+    j1 = np.floor((hi[k, 2] - grid.z0) / cell)
+    ok = (ci >= 0) & (ci < grid.nx) & (cj >= 0) & (cj < grid.nz) & (ci <= i1) & (cj <= j1)
+    col, k = ci[ok] * grid.nz + cj[ok], k[ok]
+    n = s.counts[col]
+    first = np.repeat(s.col_start[col], n)
+    smp = first + (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n))
+    k = np.repeat(k, n)
+    y = s.y[smp]
+    reach = (lo[k, 1] < y + height) & (hi[k, 1] > y + h_off)
+    smp, k = smp[reach], k[reach]
+    dx = np.maximum(np.maximum(lo[k, 0] - s.px[smp], s.px[smp] - hi[k, 0]), 0.0)
+    dz = np.maximum(np.maximum(lo[k, 2] - s.pz[smp], s.pz[smp] - hi[k, 2]), 0.0)
+    return smp, np.hypot(dx, dz)
 
 
 def _islands(links, keep, cell, min_island_area, where):
