@@ -276,8 +276,9 @@ def _second_tries(sw: "_Swings", cost: np.ndarray) -> list:
     frame between it and the swing before or after it: the foot lands and lifts again in the
     next frame, reversing its joints within two frames) the two swings become one, from the
     hold before to the hold after; otherwise it lifts off EARLY_LIFT of its length sooner,
-    keeping MIN_STANCE planted frames. Tries of one leg never overlap."""
-    tries, last = [], {}
+    keeping MIN_STANCE planted frames. Tries of one leg never overlap: two broken swings on
+    either side of a tap share one."""
+    tries = []
     for i in np.nonzero(cost >= HARD)[0]:
         leg, a, b = sw.leg[i], sw.a[i], sw.b[i]
         # swings are ordered by leg, then time: the previous one of this leg lands at its b
@@ -290,10 +291,10 @@ def _second_tries(sw: "_Swings", cost: np.ndarray) -> list:
         old = cost[i] + (cost[i - 1] if tap_before else 0.0) + (cost[i + 1] if tap_after else 0.0)
         if not (tap_before or tap_after):
             s = max(a - max(2, int(np.ceil(EARLY_LIFT * (b - a)))), landed + MIN_STANCE)
-        if s < a or e > b:
-            if s >= last.get(leg, -1):
-                tries.append((leg, s, e, old))
-                last[leg] = e
+        if s >= a and e <= b:
+            continue
+        if not (tries and tries[-1][0] == leg and s < tries[-1][2]):
+            tries.append((leg, s, e, old))   # (a broken swing before a tap took this one in)
     return tries
 
 

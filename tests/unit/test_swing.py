@@ -161,3 +161,27 @@ def test_a_tap_between_two_swings_too_fast_for_the_limit_becomes_one_swing():
         assert np.degrees(quat_angle(q[1:], q[:-1])).max() <= 27.0 + 1e-6
     np.testing.assert_allclose(pose[3][~swing2[:, 0], 0], t[~swing2[:, 0]], atol=1e-9)
     assert np.all(pose[3][swing2[:, 0], 0, 1] > 0.0)
+
+
+def test_second_tries_merge_over_taps_and_lift_earlier_after_long_stances():
+    """Which longer swing a swing that still breaks a limit tries next (frames of one leg):
+    over a tap the two swings become one; after a long stance it lifts off sooner; two broken
+    swings on either side of a tap share one try; a clean swing tries nothing."""
+    from baker.locomotion.swing import HARD, _second_tries, _Swings
+
+    swing = np.zeros((40, 2), bool)
+    swing[10:14, 0] = swing[15:19, 0] = True      # leg 0: swings 9-14 and 14-19 (a tap at 14)
+    swing[30:33, 0] = True                        # leg 0: 29-33, after a long stance
+    swing[10:14, 1] = swing[15:19, 1] = True      # leg 1: the same tap, both swings broken
+    sw = _Swings(swing)
+    assert list(zip(sw.leg, sw.a, sw.b)) == [(0, 9, 14), (0, 14, 19), (0, 29, 33),
+                                             (1, 9, 14), (1, 14, 19)]
+    cost = np.array([0.5, HARD, HARD, HARD, HARD + 1.0])
+    tries = _second_tries(sw, cost)
+    assert tries[0] == (0, 9, 19, 0.5 + HARD)     # merged over the tap
+    leg, s, e, old = tries[1]
+    assert (leg, e, old) == (0, 33, HARD) and 19 + 2 <= s < 29      # lifts sooner
+    leg, s, e, old = tries[2]                     # leg 1: one try over both broken swings
+    assert (leg, s, e, old) == (1, 9, 19, 2 * HARD + 1.0)
+    assert len(tries) == 3
+    assert _second_tries(sw, np.zeros(5)) == []
