@@ -15,8 +15,8 @@ States
 Every `decision_interval` seconds a d10 (0-9) is rolled: with enough known shade spots and a
 roll <= shade_roll_max the centipede goes to a random known spot, or stays if it is already in
 shade; otherwise it wanders. Prey within detection range interrupts that with hunt -> strike ->
-feed, or gives up (back to wander) when the prey gets away. Every transition is
-logged and recorded in the timeline as (start, end, state, details).
+feed, or gives up (back to wander) when the prey has stayed out of range for GIVE_UP_TIME.
+Every transition is logged and recorded in the timeline as (start, end, state, details).
 """
 
 from __future__ import annotations
@@ -40,6 +40,11 @@ log = logging.getLogger(__name__)
 SETTLE_TIME = 1.0
 #: [s] longest cobra rearing at one obstacle (it may be pressing against one it cannot climb)
 COBRA_MAX_TIME = 3.0
+#: [s] a hunt gives up once the prey has stayed out of range this long (beyond 1.2 detection
+#: ranges); a prey out of cover bolts at about the detection range, faster than the hunter, and
+#: crossed that margin within its burst, so a hunt ended the moment it did, just before the
+#: prey tired
+GIVE_UP_TIME = 2.0
 #: [m] a remembered shade spot has shade this far around it (4 rays on the level)
 SPOT_MARGIN = 0.05
 
@@ -98,6 +103,7 @@ class Brain(IntentSource):
         self._scout_until = -1.0
         self._obstacle = False     # an obstacle worth rearing at is ahead (last perception)
         self._ignore: dict[str, float] = {}   # prey given up on, until this time
+        self._out_of_range = math.inf   # when the hunted prey last went out of range
         self._now = 0.0
         # two rings of points around the head where shade is noticed (8 at half the sense
         # radius, 16 at the full radius)
@@ -220,6 +226,7 @@ class Brain(IntentSource):
                     self.claims.take_prey(self.who, prey.name)
                 self._scout_until = s.t + self.b.scout_time
                 self._next_replan = s.t
+                self._out_of_range = math.inf
 
     def _deep_shade(self, p: np.ndarray, sun: np.ndarray) -> bool:
         """The shade around p reaches SPOT_MARGIN every way: a spot worth walking to, not a
@@ -333,7 +340,10 @@ class Brain(IntentSource):
     def _hunt(self, s: Senses, decide: bool) -> None:
         prey = self.prey
         d = float(np.linalg.norm(prey.position - s.head))
-        if d > 1.2 * self.b.detection_range:   # a margin, so a hunt does not flicker at the edge
+        # a margin, so a hunt does not flicker at the edge, and a time out of it
+        far = d > 1.2 * self.b.detection_range
+        self._out_of_range = min(self._out_of_range, s.t) if far else math.inf
+        if far and s.t - self._out_of_range >= GIVE_UP_TIME:
             self.events[-1]["details"]["outcome"] = "escaped"
             self._ignore[prey.name] = s.t + 2.0 * self.b.decision_interval
             self.prey = None

@@ -164,13 +164,13 @@ def open_ground(tmp_path_factory, nav_cache_dir):
     return tmp, write_scene(tmp, [flat_ground(12.0, 24)], (0.3, 1.0, 0.2), "open"), nav_cache_dir
 
 
-def hunt(open_ground, name, prey_at, seconds=40, seed=0, **kw):
+def hunt(open_ground, name, prey_at, seconds=40, seed=0, rig=SPINE_RIG, **kw):
     """A hunt of one prey from the origin, spine only (what is judged is where the head, the
     spine and the prey go)."""
     tmp, env, cache = open_ground
     return run(tmp, env, name, cache, seconds=seconds, seed=seed, behaviour="hunt",
                start=(0, 0, 0), start_heading=(0, 0, 1), prey_positions=(prey_at,),
-               rig=SPINE_RIG, **kw)
+               rig=rig, **kw)
 
 
 def test_onslaught_starts_fast_and_doubles_speed(open_ground):
@@ -204,7 +204,14 @@ def test_capture_then_feeding_holds_the_prey_at_the_head(open_ground):
 
 
 def test_prey_flees_and_can_escape_back_to_wander(open_ground):
-    r = hunt(open_ground, "escape", (0.0, 0.0, 0.9))
+    """A prey whose burst outlasts the hunter's patience (GIVE_UP_TIME out of range) escapes;
+    on open ground a prey of the default rig tires first and is caught."""
+    from baker.behaviour.brain import GIVE_UP_TIME
+
+    stamina = 10.0
+    assert stamina > 2.0 * GIVE_UP_TIME
+    rig = replace(SPINE_RIG, prey=replace(SPINE_RIG.prey, stamina=stamina))
+    r = hunt(open_ground, "escape", (0.0, 0.0, 0.9), rig=rig)
     traj = r.trajectory
     tl = r.report["timeline"]
     hunt_e = [e for e in tl if e["state"] == "hunt"][0]
@@ -216,6 +223,10 @@ def test_prey_flees_and_can_escape_back_to_wander(open_ground):
     d = np.linalg.norm(traj.prey_positions[f0:f1, 0] - traj.spine_positions[f0:f1, 0], axis=1)
     assert d[-1] > d[0]                                     # the gap grew while it fled
     assert r.report["metrics"]["behaviour"]["escapes"] == 1
+    out = d > 1.2 * RIG.behaviour.detection_range
+    assert out[-1] and out.sum() >= GIVE_UP_TIME * 30 - 2   # it stayed out of range that long
+    caught = hunt(open_ground, "escape_tires", (0.0, 0.0, 0.9))
+    assert caught.report["metrics"]["behaviour"]["captures"] == 1
 
 
 # ------------------------------------------------------------------------------------ cobra
