@@ -202,7 +202,9 @@ def seedling(name: str, ground: Ground, xz, height: float, n_leaves: int, leaf_l
 def bark_sheet(name: str, ground: Ground, centre, yaw: float, length: float, width: float,
                lift: float) -> rf.Part:
     """A fallen sheet of bark, curled across, one long edge on the ground and the other
-    propped `lift` up (on a stone): a low shelter."""
+    propped `lift` up (on a stone): a low shelter. The low edge sinks a little into the
+    ground, as lying bark does: a zero-thickness edge hovering above the ground left a slot a
+    foot could step into under it, and a leg then crossed the sheet to land on its top."""
     nu, nv = 12, 8
     u = np.linspace(-0.5, 0.5, nu)[:, None] * length
     s = np.linspace(0.0, 1.0, nv)[None, :]
@@ -211,7 +213,7 @@ def bark_sheet(name: str, ground: Ground, centre, yaw: float, length: float, wid
     xz = (np.asarray(centre, float)[None, None, :] + u[..., None] * d[[0, 2]]
           + ((s - 0.5) * width)[..., None] * w[[0, 2]])
     g = ground.height(xz[..., 0], xz[..., 1])
-    y = g + 0.004 + lift * s + 0.05 * np.sin(np.pi * s)   # curled up across
+    y = g - 0.004 + lift * s + 0.05 * np.sin(np.pi * s)   # curled up across
     p = np.stack([xz[..., 0], y, xz[..., 1]], -1).reshape(-1, 3)
     top = rf.piece(p, rf.grid_faces(nu, nv), np.array([0.0, 1.0, 0.0]))
     return rf.Part(name, "bark", *top)
