@@ -1200,7 +1200,9 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
         warn = gaussian_filter1d(np.clip(np.asarray(warning, float), 0.0, 1.0), 0.12 * fps,
                                  mode="nearest")
     names, pos, rot = [], [], []
-    raise_steps = np.radians([0.0, 6.0, 12.0, 20.0, 30.0, 45.0, 60.0, 80.0])
+    # raises first, then (under a ceiling, where no raise clears: inside a hollow log) dips
+    raise_steps = np.radians([0.0, 6.0, 12.0, 20.0, 30.0, 45.0, 60.0, 80.0, -8.0, -16.0, -24.0,
+                              -32.0])
     for ch in chains(cfg):
         if ch.kind == "forcipule":
             continue
@@ -1242,13 +1244,14 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
         for start, d, ln in ((o_k, w1, l1), (knee_k, w2, l2)):
             hits = rays.first_hit(start.reshape(-1, 3), d.reshape(-1, 3), max_distance=ln * 1.05)
             ok_all &= ~hits.hit.reshape(F, k)
-        choice = np.where(ok_all.any(1), np.argmax(ok_all, 1), k - 1)
-        raw = raise_steps[choice]
-        # eased in and out (at most CHAIN_RAISE_RATE per frame), never below what clears; a
-        # frame on the way up or down that touches something (a raise that clears below and
-        # above but not in between) takes the next clearing raise above it
+        # none clears: the chain as it is (raising it fully drove it into a ceiling)
+        raw = raise_steps[np.where(ok_all.any(1), np.argmax(ok_all, 1), 0)]
+        # eased in and out (at most CHAIN_RAISE_RATE per frame), never less raised or dipped
+        # than what clears; a frame on the way up or down that touches something (a raise
+        # that clears below and above but not in between) takes the next clearing one beyond
         for it in range(4):
-            lift = _ramp(raw[:, None], CHAIN_RAISE_RATE)[:, 0]
+            lift = _ramp(np.maximum(raw, 0.0)[:, None], CHAIN_RAISE_RATE)[:, 0]
+            lift -= _ramp(np.maximum(-raw, 0.0)[:, None], CHAIN_RAISE_RATE)[:, 0]
             pitch = base_pitch + lift
             d1 = quat_rotate(q, _chain_dirs(s, yaw1 + dyaw, pitch, back))
             d2 = quat_rotate(q, _chain_dirs(s, yaw2 + dyaw, pitch + (pit2 - pit1), back))
@@ -1259,9 +1262,12 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
                    | rays.first_hit(knee, d2, max_distance=l2 * 1.05).hit)
             if not bad.any():
                 break
-            above = ok_all & (raise_steps[None, :] > lift[:, None] + 1e-9)
-            nxt = np.where(above.any(1), raise_steps[np.argmax(above, 1)], raise_steps[-1])
-            raw = np.where(bad, np.maximum(raw, nxt), raw)
+            up = np.where(ok_all & (raise_steps > lift[:, None] + 1e-9), raise_steps, np.inf)
+            down = np.where(ok_all & (raise_steps < lift[:, None] - 1e-9), raise_steps, -np.inf)
+            nxt_up = np.where(np.isfinite(up.min(1)), up.min(1), raw)   # none: as it is
+            nxt_down = np.where(np.isfinite(down.max(1)), down.max(1), raw)
+            raw = np.where(bad, np.where(raw >= 0.0, np.maximum(raw, nxt_up),
+                                         np.minimum(raw, nxt_down)), raw)
         # the hinge is the yaw plane's normal, so it never flips however far the chain is
         # raised (a cross product with the segment's up degenerates at a vertical chain)
         yaw = yaw1 + dyaw

@@ -130,3 +130,27 @@ def test_warning_raises_the_ultimate_legs(rig_config, flat_env):
     assert pitch[-1] > 70.0                               # Posture 1: raised near vertical
     steps = np.abs(np.diff(pitch))
     assert steps.max() < 15.0                             # eased, not snapped
+
+
+def test_antennae_dip_under_a_low_ceiling(rig_config):
+    """Under a ceiling 14 mm up (the antennae reach 16 mm on open ground), no raise clears
+    and the chains dip instead; they used to be raised fully, straight into the ceiling
+    (every second antenna bone through it in every frame: inside the showcase's hollow log)."""
+    import trimesh
+
+    from baker.geometry.transforms import quat_angle
+    from baker.locomotion.legs import posed_chains
+    from baker.metrics import quat_rotate_y
+
+    v = np.array([[-1, 0.014, -3], [1, 0.014, -3], [1, 0.014, 3], [-1, 0.014, 3]], float)
+    ceiling = trimesh.Trimesh(v, [[0, 1, 2], [0, 2, 3]], process=False)
+    env = Environment(meshes=(flat_ground(size=8.0, n=8), ceiling), sun=Sun(direction=normalize(
+        np.array([0.3, 0.9, 0.2]))), source="", name="low ceiling")
+    bf, arc, t = _straight_body(rig_config, speed=0.1, seconds=4.0)
+    names, pos, rot = posed_chains(bf, t, env.rays, rig_config)
+    ant = [i for i, n in enumerate(names) if n.startswith("antenna_")]
+    d = quat_rotate_y(rot[:, ant])
+    hit = env.rays.first_hit(pos[:, ant].reshape(-1, 3), d.reshape(-1, 3),
+                             max_distance=rig_config.legs.antenna_length).hit
+    assert not hit.any()
+    assert np.degrees(quat_angle(rot[1:, ant], rot[:-1, ant])).max() < 30.0
