@@ -14,8 +14,7 @@ States
 
 Every `decision_interval` seconds a d10 (0-9) is rolled: with enough known shade spots and a
 roll <= shade_roll_max the centipede goes to a random known spot, or stays if it is already in
-shade; otherwise it wanders. A walk to a spot is not cut short by the rolls (for up to
-SEEK_PATIENCE intervals), and resting starts the next interval. Prey within detection range interrupts that with hunt -> strike ->
+shade; otherwise it wanders. Prey within detection range interrupts that with hunt -> strike ->
 feed, or gives up (back to wander) when the prey has stayed out of range for GIVE_UP_TIME.
 Every transition is logged and recorded in the timeline as (start, end, state, details).
 """
@@ -46,11 +45,6 @@ COBRA_MAX_TIME = 3.0
 #: crossed that margin within its burst, so a hunt ended the moment it did, just before the
 #: prey tired
 GIVE_UP_TIME = 2.0
-#: [decision intervals] the walk to a chosen shade spot is not cut short by the d10 (SEED: it
-#: goes to the spot); only after this long without arriving does it roll again (a roll every
-#: interval ended half the walks longer than one interval, and a spot a metre or two away was
-#: seldom reached)
-SEEK_PATIENCE = 3
 #: [m] a remembered shade spot has shade this far around it (4 rays on the level)
 SPOT_MARGIN = 0.05
 
@@ -310,13 +304,12 @@ class Brain(IntentSource):
             self._arrived_at = None
         elif self._arrived_at is None:
             self._arrived_at = s.t
-        if decide and s.t - self.since >= SEEK_PATIENCE * self.b.decision_interval:
+        if decide:
             self._roll(s)
         elif s.arrived and self.shaded and self._may_rest(s.head):
             self._enter("rest_in_shade", s.t, spot=_r(s.head))
             self._hold_spot(s.head)
             self._stop(s.head)
-            self._next_decision = s.t + self.b.decision_interval   # rests until a later roll
         elif s.arrived and s.t - self._arrived_at >= SETTLE_TIME:
             # arrived, but the head is not in shade (a sliver of shade the head cannot reach):
             # forget the spot and roll again
