@@ -245,9 +245,10 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, mid, end, swing, side, l1, l2
     Each swing's own faults are found once; crowding is judged against the neighbours' latest
     feet, and neighbours never change in the same pass (legs of odd and even segments take
     turns, `rounds` times). A swing that still breaks a limit then tries again longer
-    (_second_tries: merged with a swing next to it across a single planted frame, or lifting
-    off earlier): a longer swing turns its joints more slowly, so it can rise over what it
-    could not. The longer swing is kept where it costs less.
+    (_second_tries: merged with a swing next to it across a single planted frame or a stance
+    too short to lift off from sooner, or lifting off earlier, and if that is not enough,
+    merged with the swing before): a longer swing turns its joints more slowly, so it can rise
+    over what it could not. The longer swing is kept where it costs less.
     returns (q_u, q_t, mid, end, swing), each (F, L, ...); swing with the earlier lifts
     """
     args = (rays, hip, q_seg, side, l1, l2, lim, rounds)
@@ -255,6 +256,24 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, mid, end, swing, side, l1, l2
     tries = _second_tries(sw, cost)
     if not tries:
         return out + (swing,)
+    out, swing, still = _longer(args, out, swing, tries)
+    # a swing still broken after lifting off sooner: one swing with the swing before it, over
+    # the stance between (too short to help it)
+    first = {(lg, b): i for i, (lg, b) in enumerate(zip(sw.leg, sw.b))}
+    merges = []
+    for leg, s, e, now in still:
+        i = first.get((leg, e), 0)
+        if i > 0 and sw.leg[i - 1] == leg and sw.a[i - 1] < s and sw.a[i] > sw.b[i - 1]:
+            merges.append((leg, sw.a[i - 1], e, now + cost[i - 1]))
+    if merges:
+        out, swing, _ = _longer(args, out, swing, merges)
+    return out + (swing,)
+
+
+def _longer(args, out, swing, tries):
+    """Each try (leg, s, e, cost now) redone as one swing from planted frame s to planted frame
+    e, kept where it costs less. Returns (out, swing, the tries whose swing still breaks a
+    limit, with their cost)."""
     longer = np.zeros_like(swing)           # only the lengthened swings are redone
     for leg, s, e, _ in tries:
         longer[s + 1:e, leg] = True
@@ -262,21 +281,26 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, mid, end, swing, side, l1, l2
     by_end = dict(zip(zip(sw2.leg, sw2.b), cost2))
     final = swing.copy()
     merged = [x.copy() for x in out]
+    still = []
     for leg, s, e, old in tries:
-        if by_end.get((leg, e), np.inf) < old:
+        new = by_end.get((leg, e), np.inf)
+        if new < old:
             final[s + 1:e, leg] = True
             for x, y in zip(merged, out2):
                 x[s:e + 1, leg] = y[s:e + 1, leg]
-    return tuple(merged) + (final,)
+        if min(new, old) >= HARD:
+            still.append((leg, s, e, min(new, old)))
+    return tuple(merged), final, still
 
 
 def _second_tries(sw: "_Swings", cost: np.ndarray) -> list:
     """(leg, s, e, cost now) of the longer swing each swing that still breaks a limit tries
     next, from the planted frame s to the planted frame e: through a tap (a single planted
     frame between it and the swing before or after it: the foot lands and lifts again in the
-    next frame, reversing its joints within two frames) the two swings become one, from the
-    hold before to the hold after; otherwise it lifts off EARLY_LIFT of its length sooner,
-    keeping MIN_STANCE planted frames. Tries of one leg never overlap: two broken swings on
+    next frame, reversing its joints within two frames; or a stance before it too short to
+    lift off from any sooner) the two swings become one, from the hold before to the hold
+    after; otherwise it lifts off EARLY_LIFT of its length sooner, keeping MIN_STANCE planted
+    frames (joint_space_swings merges it with the swing before if that is not enough). Tries of one leg never overlap: two broken swings on
     either side of a tap share one."""
     tries = []
     for i in np.nonzero(cost >= HARD)[0]:
@@ -285,7 +309,9 @@ def _second_tries(sw: "_Swings", cost: np.ndarray) -> list:
         before = i > 0 and sw.leg[i - 1] == leg
         after = i + 1 < sw.n and sw.leg[i + 1] == leg
         landed = sw.b[i - 1] if before else 0
-        tap_before, tap_after = before and landed == a, after and sw.a[i + 1] == b
+        # a stance before it too short to lift off from any sooner counts as a tap
+        tap_before = before and a - landed <= MIN_STANCE
+        tap_after = after and sw.a[i + 1] == b
         s = sw.a[i - 1] if tap_before else a
         e = sw.b[i + 1] if tap_after else b
         old = cost[i] + (cost[i - 1] if tap_before else 0.0) + (cost[i + 1] if tap_after else 0.0)

@@ -4,6 +4,7 @@ in the leg's own joint space; stances are never touched and clean swings stay as
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import trimesh
 
 from baker.environment.rays import RayCaster
@@ -185,3 +186,31 @@ def test_second_tries_merge_over_taps_and_lift_earlier_after_long_stances():
     assert (leg, s, e, old) == (1, 9, 19, 2 * HARD + 1.0)
     assert len(tries) == 3
     assert _second_tries(sw, np.zeros(5)) == []
+
+
+@pytest.mark.parametrize("stance", [3, 4])
+def test_a_swing_after_a_short_stance_merges_with_the_swing_before(stance):
+    """As with a tap, but the stance between the two swings is a few frames long: lifting off
+    from it sooner is impossible (3 frames) or not enough (4 frames: one frame sooner), so the
+    swing that breaks the limit (52 deg a frame before) becomes one with the swing before it,
+    over the stance, and every joint keeps within 27 deg a frame."""
+    a, c, b = (np.array([0.1, 0.0, z]) for z in (-0.1, -0.05, 0.16))
+    n = 14 + stance
+    t = np.empty((n, 3))
+    t[:5], t[7:7 + stance], t[9 + stance:] = a, c, b
+    t[5:7] = a + (c - a) * np.array([1 / 3, 2 / 3])[:, None] + [0.0, 0.03, 0.0]
+    t[7 + stance:9 + stance] = c + (b - c) * np.array([1 / 3, 2 / 3])[:, None] + [0.0, 0.03, 0.0]
+    swing = np.zeros(n, bool)
+    swing[[5, 6, 7 + stance, 8 + stance]] = True
+    q_u, q_t, mid, end = leg(t)
+    q_seg = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1, 1))
+    *pose, swing2 = joint_space_swings(ground(), np.broadcast_to(HIP, (n, 1, 3)), q_seg,
+                                       q_u[:, None], q_t[:, None], mid[:, None], end[:, None],
+                                       swing[:, None], np.array([1.0]), L1, L2, LIM)
+    assert swing2[5:9 + stance, 0].all()                        # one swing over the stance
+    assert np.all(~swing2[:5, 0]) and np.all(~swing2[9 + stance:, 0])
+    qu, qt = pose[0][:, 0], pose[1][:, 0]
+    local_t = quat_mul(quat_conj(qu), qt)
+    for q in (qu, local_t):
+        assert np.degrees(quat_angle(q[1:], q[:-1])).max() <= 27.0 + 1e-6
+    np.testing.assert_allclose(pose[3][~swing2[:, 0], 0], t[~swing2[:, 0]], atol=1e-9)
