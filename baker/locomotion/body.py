@@ -40,6 +40,9 @@ RAISED_SMOOTH = 3.0
 RAISED_RISE = 0.75
 #: [deg/s] fastest turn of the head's facing (where its trail folds back)
 HEAD_TURN_RATE = 540.0
+#: [deg/s] fastest turn of a trunk joint's facing: 24 degrees a frame at 30 fps, above what
+#: walking and the bend slow-down ask for; only a fold of the trail reaches it
+TRUNK_TURN_RATE = 720.0
 #: [deg] a cobra ramp turning a spine joint more than this in a frame rises more slowly (the
 #: quality limit is 30 degrees; the legs' joints hang on the spine's)
 LIFT_TURN = 24.0
@@ -485,5 +488,9 @@ def _placed(trail: Trail, head_arc: np.ndarray, spacing: float, clearance: float
     # where the trail folds back on itself (a reversal in a dead end) the head swings round
     # over a few frames instead of flipping in one
     forward[:, 0] = limit_turn(forward[:, 0], normals[:, 0], np.radians(HEAD_TURN_RATE) / fps)
+    # ... and so does every joint behind it as it passes the fold (its chord to the joint ahead
+    # reverses there: 114-135 degrees in a frame where the head turned back at the start line)
+    for i in range(1, pos.shape[1]):
+        forward[:, i] = limit_turn(forward[:, i], normals[:, i], np.radians(TRUNK_TURN_RATE) / fps)
     rot = frames_to_quat(forward, normals)
     return BodyFrames(positions=pos, rotations=rot, normals=normals, ground=ground, lift=lift)

@@ -411,3 +411,28 @@ def test_a_hunt_rounds_a_hook_under_the_body_no_faster_than_the_bend_allows(wall
     path += list(run(f, 3.0))
     turn = segment_turns(np.array(path), 24)
     assert turn < np.degrees(follow_mod.BEND_TURN) + 1.0, turn
+
+
+def test_trunk_joints_swing_round_a_fold_of_the_trail_at_a_bounded_rate():
+    """The trail folds back on itself (the head turned back on the spot: at the start line, or
+    in a dead end). Every joint's chord to the joint ahead reverses as it passes the fold; each
+    trunk joint now swings round at most TRUNK_TURN_RATE instead of flipping in a frame (114-135
+    degrees on the showcase), and the joints stay on the trail at their spacing."""
+    from baker.geometry.transforms import quat_angle
+    from baker.locomotion.body import TRUNK_TURN_RATE, _placed
+
+    sp, S = RIG.body.spacing, RIG.body.segments
+    out = np.column_stack([np.linspace(0.0, 0.5, 251), np.zeros(251), np.zeros(251)])
+    back = np.column_stack([np.linspace(0.5, 0.1, 201), np.zeros(201), np.full(201, 0.002)])
+    pts = np.vstack([out, back[1:]])
+    cum = polyline.arc_lengths(pts)
+    n = len(pts)
+    trail = Trail(points=pts, normals=np.tile([0.0, 1.0, 0.0], (n, 1)), ground=np.zeros(n),
+                  cum=cum, cum_h=cum, high=None)
+    arcs = np.arange(0.45, 0.85, 0.006)               # 6 mm a frame at 30 fps
+    lift = np.zeros((len(arcs), S))
+    bf = _placed(trail, arcs, sp, RIG.body.clearance, lift, None, 30)
+    turn = np.degrees(quat_angle(bf.rotations[1:, 1:], bf.rotations[:-1, 1:]))
+    assert turn.max() <= TRUNK_TURN_RATE / 30.0 + 1e-6, turn.max()
+    gaps = np.linalg.norm(np.diff(bf.positions, axis=1), axis=2) / sp - 1.0
+    assert np.abs(gaps).max() < 0.02
