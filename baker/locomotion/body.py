@@ -490,7 +490,12 @@ def _placed(trail: Trail, head_arc: np.ndarray, spacing: float, clearance: float
     forward[:, 0] = limit_turn(forward[:, 0], normals[:, 0], np.radians(HEAD_TURN_RATE) / fps)
     # ... and so does every joint behind it as it passes the fold (its chord to the joint ahead
     # reverses there: 114-135 degrees in a frame where the head turned back at the start line)
-    for i in range(1, pos.shape[1]):
-        forward[:, i] = limit_turn(forward[:, i], normals[:, i], np.radians(TRUNK_TURN_RATE) / fps)
+    trunk_rate = np.radians(TRUNK_TURN_RATE) / fps
+    chords = forward[:, 1:].copy()
+    forward[:, 1:] = normalize(chords)
+    f = forward[:, 1:]
+    folding = np.any(np.einsum("fjk,fjk->fj", f[:-1], f[1:]) < math.cos(trunk_rate), axis=0)
+    for i in np.flatnonzero(folding) + 1:     # only the joints that pass a fold
+        forward[:, i] = limit_turn(chords[:, i - 1], normals[:, i], trunk_rate)
     rot = frames_to_quat(forward, normals)
     return BodyFrames(positions=pos, rotations=rot, normals=normals, ground=ground, lift=lift)

@@ -259,10 +259,10 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, mid, end, swing, side, l1, l2
     out, swing, still = _longer(args, out, swing, tries)
     # a swing still broken after lifting off sooner: one swing with the swing before it, over
     # the stance between (too short to help it)
-    first = {(lg, b): i for i, (lg, b) in enumerate(zip(sw.leg, sw.b))}
+    ending = {(lg, b): i for i, (lg, b) in enumerate(zip(sw.leg, sw.b))}
     merges = []
     for leg, s, e, now in still:
-        i = first.get((leg, e), 0)
+        i = ending.get((leg, e), 0)
         if i > 0 and sw.leg[i - 1] == leg and sw.a[i - 1] < s and sw.a[i] > sw.b[i - 1]:
             merges.append((leg, sw.a[i - 1], e, now + cost[i - 1]))
     if merges:
@@ -300,8 +300,8 @@ def _second_tries(sw: "_Swings", cost: np.ndarray) -> list:
     next frame, reversing its joints within two frames; or a stance before it too short to
     lift off from any sooner) the two swings become one, from the hold before to the hold
     after; otherwise it lifts off EARLY_LIFT of its length sooner, keeping MIN_STANCE planted
-    frames (joint_space_swings merges it with the swing before if that is not enough). Tries of one leg never overlap: two broken swings on
-    either side of a tap share one."""
+    frames (joint_space_swings merges it with the swing before if that is not enough). Tries
+    of one leg never overlap: two broken swings on either side of a tap share one."""
     tries = []
     for i in np.nonzero(cost >= HARD)[0]:
         leg, a, b = sw.leg[i], sw.a[i], sw.b[i]

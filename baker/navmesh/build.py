@@ -610,7 +610,7 @@ def _clearance(caster: _Caster, grid: _Grid, s: _Samples, links, radius, h_off,
     dist[border] = d0
     if posts is not None and len(posts[0]):
         near, dp = _beside_posts(grid, s, posts, h_off, height)
-        np.minimum.at(dist, near, dp)
+        dist = np.minimum(dist, _segment_min(near, dp, len(dist), np.inf))
         border = np.union1d(border, near)
     w = np.where(np.arange(8) < 4, cell, cell * math.sqrt(2.0))
     iters = int(math.ceil(radius / cell)) + 1

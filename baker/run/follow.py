@@ -75,7 +75,6 @@ class Follower:
         self.riser = ROUGH_RISER * navc.step_height   # a height jump this big is a riser
         self.gait_scale = 1.0       # the brain's speed factor
         self.terrain_scale = 1.0    # rough_speed on risers, else 1
-        self.bend_scale = 1.0       # < 1 while a sharp bend of the trail is under the body
         self.bend = math.inf        # [m] radius of the sharpest bend of the trail under the body
         self.bend_speed = BEND_TURN * fps    # [rad/s] a segment's largest turn rate
         self.spacing = body.spacing
@@ -147,8 +146,7 @@ class Follower:
         scale = self.gait_scale * self.terrain_scale
         # the bend bounds the speed itself, whatever the brain's and the terrain's factors (a
         # hunt's doubled speed would round the bend at twice bend_speed)
-        self.bend_scale = min(1.0, self.bend_speed * self.bend / max(self.max_speed * scale, 1e-12))
-        scale *= self.bend_scale
+        scale *= min(1.0, self.bend_speed * self.bend / max(self.max_speed * scale, 1e-12))
         self.agent.speed_scale = scale
         self.head.max_speed = self.max_speed * scale
 
