@@ -57,7 +57,7 @@ class Interrupted(BaseException):
 
 
 #: raised: the signal number once Interrupted was raised (0 before)
-_state = {"phase": "start", "defer": 0, "pending": 0, "raised": 0}
+_state = {"phase": "start", "defer": 0, "pending": 0, "raised": 0, "queued": 0}
 
 
 #: How long to wait before looking again when a signal arrives in the middle of an import.
@@ -83,12 +83,16 @@ def _again(signum: int) -> None:
 def _handler(signum, frame):
     if _state["raised"]:
         return                      # already stopping: let the cleanup finish
+    # the first signal wins, also over one that arrives while it waits for an import to end
+    # (Ctrl-C then a SIGTERM stopped the bake as SIGTERM)
+    signum, _state["queued"] = _state["queued"] or signum, 0
     if _state["defer"]:
         _state["pending"] = _state["pending"] or signum
         return
     if _importing():
         # Raising inside an import leaves half-imported modules, and some libraries catch
         # BaseException around their optional imports: come back once the import is done.
+        _state["queued"] = signum
         _again(signum)
         return
     _state["raised"] = signum
