@@ -78,7 +78,12 @@ class Follower:
         self.bend = math.inf        # [m] radius of the sharpest bend of the trail under the body
         self.bend_speed = BEND_TURN * fps    # [rad/s] a segment's largest turn rate
         self.spacing = body.spacing
-        self._trail = [(0.0, float(start[0]), float(start[2]))]   # (walked, x, z) under the body
+        # (walked, x, z) under the body: the straight start line behind the head first, so a
+        # turn back at the start is a bend under the body like any other
+        behind = BEND_SAMPLE * self.spacing * np.arange(
+            math.ceil((body.length + body.spacing) / (BEND_SAMPLE * body.spacing)), -1, -1)
+        self._trail = [(-d, float(start[0] - d * heading[0]), float(start[2] - d * heading[2]))
+                       for d in behind]
         self._walked = 0.0          # horizontal metres the head has walked
         self._riser_at = -np.inf    # ... when it last went up or down a riser
         self._steps = 0

@@ -13,8 +13,11 @@ from baker.streams import Streams
 def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None, heading=None,
                  spread: float = np.inf, extent_frac: float = 0.2, anchor=None):
     """A walkable start point near the middle of the scene (within `extent_frac` of its extent,
-    at most `spread` metres; or the one nearest to `at`), and a
-    heading (or `heading`) whose straight body line behind the head is as walkable as possible.
+    at most `spread` metres; or the one nearest to `at`), and a heading (or `heading`) whose
+    straight body line behind the head is as walkable as possible, with room ahead. A point
+    with no heading that has both (at an edge: the head would be deflected at once, and its
+    trail would kink against the straight start line) is drawn again, up to START_DRAWS times;
+    the best draw is kept.
 
     anchor : the scene's middle_anchor(nav, env) when the caller has it (a crowd's many draws)
     returns (position (3,), heading (3,) unit horizontal)
@@ -26,20 +29,44 @@ def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None
         anchor = middle_anchor(nav, env)
     if anchor is None:
         raise NavError("environment has no walkable surface")
-    extent = float(np.max(hi - lo))
-    start = (anchor if at is not None
-             else nav.random_point_near(anchor, min(extent_frac * extent, spread), rng))
-    if start is None:
-        start = anchor
-    if heading is not None:
-        h = np.array([heading[0], 0.0, heading[2]], dtype=np.float64)
-        return start, h / max(np.linalg.norm(h), 1e-12)
+    radius = min(extent_frac * float(np.max(hi - lo)), spread)
+    best = (-1, None, None)
+    for _ in range(1 if at is not None else START_DRAWS):
+        start = anchor if at is not None else nav.random_point_near(anchor, radius, rng)
+        if start is None:
+            start = anchor
+        if heading is not None:
+            h = np.array([heading[0], 0.0, heading[2]], dtype=np.float64)
+            return start, h / max(np.linalg.norm(h), 1e-12)
+        score, h = _best_heading(nav, start, body_length, rng)
+        if score > best[0]:
+            best = (score, start, h)
+        if score == _FULL:
+            break
+    return best[1], best[2]
+
+
+#: [body lengths] the room ahead of the head a start heading looks for: about two turning
+#: circles
+AHEAD = 0.25
+#: start points drawn at most until one has a full line behind and room ahead
+START_DRAWS = 8
+_BEHIND = np.linspace(0.0, 1.0, 9)
+_AHEAD = -AHEAD * np.arange(1, 5) / 4
+_FULL = len(_BEHIND) * 10 + len(_AHEAD)
+
+
+def _best_heading(nav, start: np.ndarray, body_length: float, rng) -> tuple[int, np.ndarray]:
+    """The best of 16 headings (a random first one) at `start`: the most walkable samples on
+    the body line behind, then ahead. returns (score, heading (3,))"""
     angles = rng.uniform(0, 2 * np.pi) + np.linspace(0, 2 * np.pi, 16, endpoint=False)
     dirs = np.stack([np.sin(angles), np.zeros_like(angles), np.cos(angles)], axis=1)
-    d = np.linspace(0, body_length, 9)
+    d = body_length * np.concatenate([_BEHIND, _AHEAD])
     pts = start[None, None, :] - dirs[:, None, :] * d[None, :, None]
-    ok = nav.is_walkable(pts.reshape(-1, 3)).reshape(len(dirs), len(d)).sum(axis=1)
-    return start, dirs[int(np.argmax(ok))]
+    ok = nav.is_walkable(pts.reshape(-1, 3)).reshape(len(dirs), len(d))
+    score = ok[:, :len(_BEHIND)].sum(axis=1) * 10 + ok[:, len(_BEHIND):].sum(axis=1)
+    i = int(np.argmax(score))
+    return int(score[i]), dirs[i]
 
 
 def middle_anchor(nav, env) -> np.ndarray | None:

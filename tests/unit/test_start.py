@@ -1,0 +1,71 @@
+"""Where a creature starts (run/start.py), on a scene built in code: a start point at an edge,
+where no heading has both a walkable body line behind and room ahead, is drawn again."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from baker.config import DEFAULT_RIG, load_rig_config
+from baker.navmesh import build
+from baker.run import start as start_mod
+from baker.run.start import AHEAD, choose_start
+from baker.streams import Streams
+from test_navmesh_scenes import env_of, floor
+
+RIG = load_rig_config(DEFAULT_RIG)
+RIG = replace(RIG, navigation=replace(RIG.navigation, radius=0.08 * RIG.body.length))
+L = RIG.body.length
+
+
+@pytest.fixture(scope="module")
+def patch():
+    """A floor a little over two body lengths square: many points lie within a body length
+    of an edge."""
+    env = env_of(floor(0.0, 0.6, 0.0, 0.6))
+    return env, build(env, RIG.navigation)
+
+
+def clear(nav, start, heading) -> tuple[bool, bool]:
+    """(the body line behind is walkable, the line AHEAD body lengths ahead is)"""
+    behind = start - heading * np.linspace(0.0, L, 9)[:, None]
+    ahead = start + heading * (AHEAD * L * np.arange(1, 5) / 4)[:, None]
+    return bool(nav.is_walkable(behind).all()), bool(nav.is_walkable(ahead).all())
+
+
+def starts(env, nav, seeds):
+    return [choose_start(nav, env, L, Streams(s).get("start"), spread=np.inf, extent_frac=1.0)
+            for s in seeds]
+
+
+def test_a_start_at_an_edge_is_drawn_again(patch, monkeypatch):
+    env, nav = patch
+    seeds = range(40)
+    for s, h in starts(env, nav, seeds):
+        assert clear(nav, s, h) == (True, True)
+    # with a single draw, some starts face an edge (or lie with the body off the surface)
+    monkeypatch.setattr(start_mod, "START_DRAWS", 1)
+    once = [clear(nav, s, h) for s, h in starts(env, nav, seeds)]
+    assert sum(c != (True, True) for c in once) >= 3
+
+
+def test_the_first_draw_is_kept_when_it_has_room(patch):
+    """A start with room is the one a single draw gives: bakes whose start has room are as
+    they were."""
+    env, nav = patch
+    for seed in range(10):
+        a = choose_start(nav, env, L, Streams(seed).get("start"), spread=np.inf, extent_frac=1.0)
+        rng = Streams(seed).get("start")
+        p = nav.random_point_near(start_mod.middle_anchor(nav, env), 0.6, rng)
+        if clear(nav, p, a[1]) == (True, True):
+            assert np.array_equal(a[0], p)
+
+
+def test_a_given_point_and_heading_are_kept(patch):
+    env, nav = patch
+    s, h = choose_start(nav, env, L, Streams(0).get("start"), at=[0.02, 0.0, 0.3],
+                        heading=[2.0, 0.0, 0.0])
+    assert np.allclose(h, [1.0, 0.0, 0.0])
+    assert np.linalg.norm((s - [0.02, 0.0, 0.3])[[0, 2]]) < 0.05
