@@ -164,15 +164,15 @@ def _axes(q: np.ndarray):
 
 def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarray,
                       hips: np.ndarray, reach: float, probe: float,
-                      min_out: np.ndarray | float = 0.0) -> np.ndarray:
+                      min_out: np.ndarray | float = 0.0, min_dist: float = 0.0) -> np.ndarray:
     """Footholds on the surface near `points`, all in one batch of ray casts.
 
     points, up, inward, hips : (n, 3); up = segment normal, inward = toward the body's centre line
     Candidates, in order of preference: a ray straight down (along -up) from `probe` above the
     point; rays tilted toward the body (the fan, for a log's or a ledge's edge); the same from
     origins pulled toward the body. A candidate counts when it hits a surface that faces up
-    (within FOOT_SLOPE of the segment's up) within `reach` of its hip and at least `min_out`
-    (scalar or (n,)) outward from it, and no steeper below it than MAX_DROP (a leg does not
+    (within FOOT_SLOPE of the segment's up) within `reach` of its hip, at least `min_dist` from
+    it and at least `min_out` (scalar or (n,)) outward from it, and no steeper below it than MAX_DROP (a leg does not
     reach straight down a ledge beside the body), and in sight of its hip. Without one, the
     first candidate that meets an upward face is taken (the foot stays on the surface, not in
     it), and without that the point itself is kept.
@@ -200,9 +200,10 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     facing = _faces_up(h.normals.reshape(k, n, 3), up[None])
     out_dist = -np.sum((pts - hips[None]) * inward[None], -1)
     drop = -np.sum((pts - hips[None]) * up[None], -1)
+    dist = np.linalg.norm(pts - hips[None], axis=-1)
     ok = (h.hit.reshape(k, n) & facing & (out_dist >= np.broadcast_to(min_out, (n,))[None])
           & (drop <= MAX_DROP * out_dist)
-          & (np.linalg.norm(pts - hips[None], axis=-1) < reach))
+          & (dist >= min_dist) & (dist < reach))
     # a hold is a top surface in the open: not a face inside another solid (a ray that starts
     # inside a step finds the step's own bottom, or a buried face)
     kk, nn = np.nonzero(ok)
@@ -398,7 +399,9 @@ def _anchors(rays, lf: _Frames, bf: BodyFrames) -> np.ndarray:
             o = hip + h * lf.up
             hw = rays.first_hit(o.reshape(-1, 3), out_dir.reshape(-1, 3),
                                 max_distance=lg.reach * 1.2)
-            free = np.minimum(free, np.where(hw.hit, hw.distance * np.cos(yaw), np.inf).reshape(F, L))
+            # a slope a foot can stand on (a log's foot) is ground to step onto, not a wall
+            wall = hw.hit & ~_faces_up(hw.normals, lf.up.reshape(-1, 3))
+            free = np.minimum(free, np.where(wall, hw.distance * np.cos(yaw), np.inf).reshape(F, L))
     free = -maximum_filter1d(-free, 9, axis=0, mode="nearest")
     free = np.where(np.isfinite(free), free, lg.reach * 2.0)
     free = gaussian_filter1d(free, 2.0, axis=0, mode="nearest")
@@ -489,7 +492,8 @@ def _footholds(rays, lf: _Frames, cfg: RigConfig, anchor: np.ndarray, st: _Steps
                              inward.reshape(-1, 3), lf.hip[fr, legs[None, :]].reshape(-1, 3),
                              PLAN_REACH * (lay.l1 + lay.l2),
                              probe=cfg.body.clearance + 2.0 * lg.lift,
-                             min_out=np.tile(lf.out_min, C1)
+                             min_out=np.tile(lf.out_min, C1),
+                             min_dist=MIN_REACH * (lay.l1 + lay.l2)
                              ).reshape(C1, L, 3)
 
 
