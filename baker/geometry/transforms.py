@@ -59,6 +59,30 @@ def quat_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return 2.0 * np.arccos(np.clip(d, 0.0, 1.0))
 
 
+def limit_rotation(q: np.ndarray, max_angle: float) -> np.ndarray:
+    """Unit quaternions (F, 4) that follow `q` but turn at most `max_angle` radians a frame:
+    where q turns faster, each frame slerps from the previous output toward q's by the most
+    it may. Frames are processed one by one only from the first too-fast turn until the output
+    has caught up again; elsewhere the output is q itself."""
+    F = len(q)
+    fast = np.flatnonzero(quat_angle(q[:-1], q[1:]) > max_angle)
+    if len(fast) == 0:
+        return q
+    out = q.copy()
+    f = int(fast[0]) + 1
+    while f < F:
+        a = float(quat_angle(out[f - 1], q[f]))
+        if a <= max_angle:
+            nxt = fast[fast >= f]
+            if len(nxt) == 0:
+                break
+            f = max(f + 1, int(nxt[0]) + 1)
+            continue
+        out[f] = quat_slerp(out[f - 1], q[f], max_angle / a)
+        f += 1
+    return out
+
+
 def quat_slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Spherical interpolation from unit quaternions a to b (..., 4) at t (...), the short way
     round; nearly equal rotations fall back to a normalized lerp."""

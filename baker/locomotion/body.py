@@ -19,7 +19,7 @@ from scipy.ndimage import gaussian_filter1d, label, maximum_filter1d
 from baker.environment.rays import RayCaster
 from baker.geometry import polyline
 from baker.geometry.conventions import UP
-from baker.geometry.transforms import frames_to_quat, normalize, quat_angle
+from baker.geometry.transforms import frames_to_quat, limit_rotation, normalize, quat_angle
 from baker.locomotion.cobra import limit_lift
 
 
@@ -46,6 +46,10 @@ TRUNK_TURN_RATE = 720.0
 #: [deg] a cobra ramp turning a spine joint more than this in a frame rises more slowly (the
 #: quality limit is 30 degrees; the legs' joints hang on the spine's)
 LIFT_TURN = 24.0
+#: [deg] the most any spine joint turns in a frame, whatever the trail does under it (a hook
+#: of the trail over a stone's edge turns, pitches and rolls the tail at once); above LIFT_TURN
+#: so a cobra ramp that turns a joint too fast is still found and slowed
+SPINE_FRAME_TURN = 26.0
 #: at most this many halvings of a ramp's rate
 LIFT_ROUNDS = 3
 
@@ -420,7 +424,7 @@ def body_frames(trail: Trail, head_arc: np.ndarray, spacing: float, segments: in
     ramp = 1.0 / max(ramp_time * fps, 1.0)
     if lift is None or lift.max(initial=0.0) <= 0.0:
         lift = np.zeros((F, segments))
-        return _placed(trail, head_arc, spacing, clearance, lift, None, fps)
+        return _turn_limited(_placed(trail, head_arc, spacing, clearance, lift, None, fps))
     s0 = head_arc[:, None] - spacing * np.arange(segments)[None, :]
     flat = polyline.sample(trail.points, trail.cum, s0) + clearance * UP
     lift = limit_lift(flat, lift, spacing, rays, ceiling_margin, int(round(ramp_time * fps)))
@@ -439,6 +443,16 @@ def body_frames(trail: Trail, head_arc: np.ndarray, spacing: float, segments: in
                         _raised(lift, ramp)[slow], fps)
         bf = BodyFrames(**{k: _spliced(getattr(bf, k), getattr(again, k), slow)
                            for k in ("positions", "rotations", "normals", "ground", "lift")})
+    return _turn_limited(bf)
+
+
+def _turn_limited(bf: BodyFrames) -> BodyFrames:
+    """The spine with no joint turning more than SPINE_FRAME_TURN in a frame (its positions
+    as they are)."""
+    lim = math.radians(SPINE_FRAME_TURN)
+    rot = bf.rotations
+    for j in np.flatnonzero((quat_angle(rot[:-1], rot[1:]) > lim).any(axis=0)):
+        rot[:, j] = limit_rotation(rot[:, j], lim)
     return bf
 
 

@@ -435,6 +435,30 @@ def test_a_turn_back_at_the_start_rounds_the_start_line_no_faster_than_the_bend_
     assert turn < np.degrees(follow_mod.BEND_TURN) + 1.0, turn
 
 
+def test_no_spine_joint_turns_faster_than_the_backstop_whatever_the_trail_does():
+    """The trail's normal rolls 90 degrees within a millimetre (a hook over a stone's edge
+    turns, pitches and rolls the tail at once: 31 degrees in a frame on the default scene).
+    Every spine joint turns at most SPINE_FRAME_TURN a frame and catches up; the positions are
+    the trail's."""
+    from baker.geometry.transforms import quat_angle, quat_rotate
+    from baker.locomotion.body import SPINE_FRAME_TURN, body_frames
+
+    sp, S = RIG.body.spacing, RIG.body.segments
+    n = 801
+    pts = np.column_stack([np.linspace(0.0, 0.8, n), np.zeros(n), np.zeros(n)])
+    roll = np.where(pts[:, 0] < 0.4, 0.0, np.pi / 2)
+    normals = np.column_stack([np.zeros(n), np.cos(roll), np.sin(roll)])
+    cum = polyline.arc_lengths(pts)
+    trail = Trail(points=pts, normals=normals, ground=np.zeros(n), cum=cum, cum_h=cum, high=None)
+    arcs = np.arange(0.3, 0.79, 0.006)
+    bf = body_frames(trail, arcs, sp, S, RIG.body.clearance, fps=30)
+    turn = np.degrees(quat_angle(bf.rotations[1:], bf.rotations[:-1]))
+    assert 0.0 < turn.max() <= SPINE_FRAME_TURN + 1e-6, turn.max()
+    # caught up: the last frame faces along the trail with the rolled normal
+    assert np.allclose(quat_rotate(bf.rotations[-1], np.tile([0.0, 1.0, 0.0], (S, 1))), [0.0, 0.0, 1.0],
+                       atol=1e-6)
+
+
 def test_trunk_joints_swing_round_a_fold_of_the_trail_at_a_bounded_rate():
     """The trail folds back on itself (the head turned back on the spot: at the start line, or
     in a dead end). Every joint's chord to the joint ahead reverses as it passes the fold; each
