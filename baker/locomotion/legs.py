@@ -86,6 +86,10 @@ MIN_DUTY = 0.4
 LIFT_WINDOW = 48
 #: a swinging foot's angle about its hip stays within this of straight out [rad]
 SWEEP_LIMIT = np.radians(80.0)
+#: a face beside the hips no steeper than this is ground the feet step onto; a steeper one is
+#: a wall the legs fold in against (stepping onto a steeper flank, the swings come down it too
+#: fast at touchdown) [rad]
+STEP_ONTO = np.radians(50.0)
 #: knee swivels about the hip->foot axis tried when a leg bone would go through something [rad]
 KNEE_SWIVELS = np.radians([20.0, -20.0, 40.0, -40.0, 60.0, -60.0, 85.0, -85.0])
 #: a knee swivel (clearing the environment) changes by at most this much per frame [rad]
@@ -399,8 +403,9 @@ def _anchors(rays, lf: _Frames, bf: BodyFrames) -> np.ndarray:
             o = hip + h * lf.up
             hw = rays.first_hit(o.reshape(-1, 3), out_dir.reshape(-1, 3),
                                 max_distance=lg.reach * 1.2)
-            # a slope a foot can stand on (a log's foot) is ground to step onto, not a wall
-            wall = hw.hit & ~_faces_up(hw.normals, lf.up.reshape(-1, 3))
+            # a slope up to STEP_ONTO (a log's foot) is ground to step onto, not a wall
+            wall = hw.hit & (np.sum(np.nan_to_num(hw.normals) * lf.up.reshape(-1, 3), -1)
+                             < np.cos(STEP_ONTO))
             free = np.minimum(free, np.where(wall, hw.distance * np.cos(yaw), np.inf).reshape(F, L))
     free = -maximum_filter1d(-free, 9, axis=0, mode="nearest")
     free = np.where(np.isfinite(free), free, lg.reach * 2.0)
