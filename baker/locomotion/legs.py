@@ -176,8 +176,9 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     point; rays tilted toward the body (the fan, for a log's or a ledge's edge); the same from
     origins pulled toward the body. A candidate counts when it hits a surface that faces up
     (within FOOT_SLOPE of the segment's up) within `reach` of its hip, at least `min_dist` from
-    it and at least `min_out` (scalar or (n,)) outward from it, and no steeper below it than MAX_DROP (a leg does not
-    reach straight down a ledge beside the body), and in sight of its hip. Without one, the
+    it (a nearer hold turns the leg round its hip too fast as the body moves on) and at least
+    `min_out` (scalar or (n,)) outward from it, and no steeper below it than MAX_DROP (a leg
+    does not reach straight down a ledge beside the body), and in sight of its hip. Without one, the
     first candidate that meets an upward face is taken (the foot stays on the surface, not in
     it), and without that the point itself is kept.
     """
@@ -406,7 +407,8 @@ def _anchors(rays, lf: _Frames, bf: BodyFrames) -> np.ndarray:
             # a slope up to STEP_ONTO (a log's foot) is ground to step onto, not a wall
             wall = hw.hit & (np.sum(np.nan_to_num(hw.normals) * lf.up.reshape(-1, 3), -1)
                              < np.cos(STEP_ONTO))
-            free = np.minimum(free, np.where(wall, hw.distance * np.cos(yaw), np.inf).reshape(F, L))
+            free = np.minimum(free, np.where(wall, hw.distance * np.cos(yaw),
+                                             np.inf).reshape(F, L))
     free = -maximum_filter1d(-free, 9, axis=0, mode="nearest")
     free = np.where(np.isfinite(free), free, lg.reach * 2.0)
     free = gaussian_filter1d(free, 2.0, axis=0, mode="nearest")

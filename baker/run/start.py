@@ -9,6 +9,15 @@ from baker.behaviour.prey import Prey
 from baker.errors import NavError
 from baker.streams import Streams
 
+#: [body lengths] the room ahead of the head a start heading looks for: about two turning
+#: circles
+AHEAD = 0.25
+#: start points drawn at most until one has a full line behind and room ahead
+START_DRAWS = 8
+_BEHIND = np.linspace(0.0, 1.0, 9)
+_AHEAD = -AHEAD * np.arange(1, 5) / 4
+_FULL = len(_BEHIND) * 10 + len(_AHEAD)
+
 
 def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None, heading=None,
                  spread: float = np.inf, extent_frac: float = 0.2, anchor=None):
@@ -30,30 +39,23 @@ def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None
     if anchor is None:
         raise NavError("environment has no walkable surface")
     radius = min(extent_frac * float(np.max(hi - lo)), spread)
-    best = (-1, None, None)
-    for _ in range(1 if at is not None else START_DRAWS):
+    if at is not None or heading is not None:
         start = anchor if at is not None else nav.random_point_near(anchor, radius, rng)
-        if start is None:
-            start = anchor
-        if heading is not None:
-            h = np.array([heading[0], 0.0, heading[2]], dtype=np.float64)
-            return start, h / max(np.linalg.norm(h), 1e-12)
+        start = anchor if start is None else start
+        if heading is None:
+            return start, _best_heading(nav, start, body_length, rng)[1]
+        h = np.array([heading[0], 0.0, heading[2]], dtype=np.float64)
+        return start, h / max(np.linalg.norm(h), 1e-12)
+    best = (-1, None, None)
+    for _ in range(START_DRAWS):
+        start = nav.random_point_near(anchor, radius, rng)
+        start = anchor if start is None else start
         score, h = _best_heading(nav, start, body_length, rng)
         if score > best[0]:
             best = (score, start, h)
         if score == _FULL:
             break
     return best[1], best[2]
-
-
-#: [body lengths] the room ahead of the head a start heading looks for: about two turning
-#: circles
-AHEAD = 0.25
-#: start points drawn at most until one has a full line behind and room ahead
-START_DRAWS = 8
-_BEHIND = np.linspace(0.0, 1.0, 9)
-_AHEAD = -AHEAD * np.arange(1, 5) / 4
-_FULL = len(_BEHIND) * 10 + len(_AHEAD)
 
 
 def _best_heading(nav, start: np.ndarray, body_length: float, rng) -> tuple[int, np.ndarray]:
