@@ -86,10 +86,6 @@ MIN_DUTY = 0.4
 LIFT_WINDOW = 48
 #: a swinging foot's angle about its hip stays within this of straight out [rad]
 SWEEP_LIMIT = np.radians(80.0)
-#: a face beside the hips no steeper than this is ground the feet step onto; a steeper one is
-#: a wall the legs fold in against (stepping onto a steeper flank, the swings come down it too
-#: fast at touchdown) [rad]
-STEP_ONTO = np.radians(50.0)
 #: knee swivels about the hip->foot axis tried when a leg bone would go through something [rad]
 KNEE_SWIVELS = np.radians([20.0, -20.0, 40.0, -40.0, 60.0, -60.0, 85.0, -85.0])
 #: a knee swivel (clearing the environment) changes by at most this much per frame [rad]
@@ -168,17 +164,16 @@ def _axes(q: np.ndarray):
 
 def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarray,
                       hips: np.ndarray, reach: float, probe: float,
-                      min_out: np.ndarray | float = 0.0, min_dist: float = 0.0) -> np.ndarray:
+                      min_out: np.ndarray | float = 0.0) -> np.ndarray:
     """Footholds on the surface near `points`, all in one batch of ray casts.
 
     points, up, inward, hips : (n, 3); up = segment normal, inward = toward the body's centre line
     Candidates, in order of preference: a ray straight down (along -up) from `probe` above the
     point; rays tilted toward the body (the fan, for a log's or a ledge's edge); the same from
     origins pulled toward the body. A candidate counts when it hits a surface that faces up
-    (within FOOT_SLOPE of the segment's up) within `reach` of its hip, at least `min_dist` from
-    it (a nearer hold turns the leg round its hip too fast as the body moves on) and at least
-    `min_out` (scalar or (n,)) outward from it, and no steeper below it than MAX_DROP (a leg
-    does not reach straight down a ledge beside the body), and in sight of its hip. Without one, the
+    (within FOOT_SLOPE of the segment's up) within `reach` of its hip and at least `min_out`
+    (scalar or (n,)) outward from it, and no steeper below it than MAX_DROP (a leg does not
+    reach straight down a ledge beside the body), and in sight of its hip. Without one, the
     first candidate that meets an upward face is taken (the foot stays on the surface, not in
     it), and without that the point itself is kept.
     """
@@ -205,10 +200,9 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     facing = _faces_up(h.normals.reshape(k, n, 3), up[None])
     out_dist = -np.sum((pts - hips[None]) * inward[None], -1)
     drop = -np.sum((pts - hips[None]) * up[None], -1)
-    dist = np.linalg.norm(pts - hips[None], axis=-1)
     ok = (h.hit.reshape(k, n) & facing & (out_dist >= np.broadcast_to(min_out, (n,))[None])
           & (drop <= MAX_DROP * out_dist)
-          & (dist >= min_dist) & (dist < reach))
+          & (np.linalg.norm(pts - hips[None], axis=-1) < reach))
     # a hold is a top surface in the open: not a face inside another solid (a ray that starts
     # inside a step finds the step's own bottom, or a buried face)
     kk, nn = np.nonzero(ok)
@@ -404,11 +398,7 @@ def _anchors(rays, lf: _Frames, bf: BodyFrames) -> np.ndarray:
             o = hip + h * lf.up
             hw = rays.first_hit(o.reshape(-1, 3), out_dir.reshape(-1, 3),
                                 max_distance=lg.reach * 1.2)
-            # a slope up to STEP_ONTO (a log's foot) is ground to step onto, not a wall
-            wall = hw.hit & (np.sum(np.nan_to_num(hw.normals) * lf.up.reshape(-1, 3), -1)
-                             < np.cos(STEP_ONTO))
-            free = np.minimum(free, np.where(wall, hw.distance * np.cos(yaw),
-                                             np.inf).reshape(F, L))
+            free = np.minimum(free, np.where(hw.hit, hw.distance * np.cos(yaw), np.inf).reshape(F, L))
     free = -maximum_filter1d(-free, 9, axis=0, mode="nearest")
     free = np.where(np.isfinite(free), free, lg.reach * 2.0)
     free = gaussian_filter1d(free, 2.0, axis=0, mode="nearest")
@@ -499,8 +489,7 @@ def _footholds(rays, lf: _Frames, cfg: RigConfig, anchor: np.ndarray, st: _Steps
                              inward.reshape(-1, 3), lf.hip[fr, legs[None, :]].reshape(-1, 3),
                              PLAN_REACH * (lay.l1 + lay.l2),
                              probe=cfg.body.clearance + 2.0 * lg.lift,
-                             min_out=np.tile(lf.out_min, C1),
-                             min_dist=MIN_REACH * (lay.l1 + lay.l2)
+                             min_out=np.tile(lf.out_min, C1)
                              ).reshape(C1, L, 3)
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from baker.environment.model import EnvMesh, Environment, Sun
+from baker.environment.model import Environment, Sun
 from baker.geometry.transforms import normalize
 from baker.locomotion.body import BodyFrames
 from baker.locomotion.gait import gait_clock, stance_mask, stride_length
@@ -104,37 +104,6 @@ def test_feet_settle_when_the_body_stops(rig_config, flat_env):
     assert w["contacts"][after].all()                     # every foot is down ...
     f = w["feet"][after]
     assert np.abs(np.diff(f, axis=0)).max() < 1e-12       # ... and stays put
-
-
-def _longest_run(mask: np.ndarray) -> int:
-    """The longest run of True in a 1-D bool array."""
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return int((np.nonzero(edges == -1)[0] - np.nonzero(edges == 1)[0]).max(initial=0))
-
-
-def _beside_a_slope(x0: float, deg: float) -> Environment:
-    """Flat ground and, along the walk (+Z), a plane rising at `deg` from x = x0 on the left."""
-    x1 = x0 + 0.08 / np.tan(np.radians(deg))
-    v = np.array([[x0, 0, -3], [x0, 0, 5], [x1, 0.08, 5], [x1, 0.08, -3]], np.float32)
-    slope = EnvMesh(name="slope", vertices=v, faces=np.array([[0, 1, 2], [0, 2, 3]], np.uint32))
-    return Environment(meshes=(flat_ground(size=8.0, n=8), slope),
-                       sun=Sun(direction=np.array([0.0, 1.0, 0.0])), source="", name="slope")
-
-
-@pytest.mark.parametrize("x0, deg", [(0.012, 45.0), (0.015, 48.0), (0.02, 40.0), (0.025, 40.0)])
-def test_legs_beside_a_slope_step_onto_it(rig_config, x0, deg):
-    """The body walks at full speed along the foot of a 40-48 degree slope (a log's foot) a
-    centimetre or two beside its hips. A slope up to STEP_ONTO is ground to step onto, not a
-    wall to fold the legs in against, and a hold never lies nearer its hip than a swinging
-    foot may come: the legs on the slope's side keep stepping as the others do. (Folded in,
-    their holds fell so near the hips that the body turned each leg too fast to stay planted:
-    6-13% of their frames planted, swings of 22-33 frames, the legs skimming the slope.)"""
-    bf, arc, t = _straight_body(rig_config, speed=0.2, seconds=4.0)
-    w = walking_legs(bf, arc, t, _beside_a_slope(x0, deg).rays, rig_config)
-    c = w["contacts"][30:]
-    left, right = c[:, 0::2], c[:, 1::2]
-    assert left.mean() > 0.3 and right.mean() > 0.45
-    assert max(_longest_run(col) for col in (~left).T) <= 15
 
 
 def test_leg_frames_names_and_shapes(rig, rig_config, flat_env):
