@@ -80,8 +80,8 @@ class Follower:
         self.spacing = body.spacing
         # (walked, x, z) under the body: the straight start line behind the head first, so a
         # turn back at the start is a bend under the body like any other
-        behind = BEND_SAMPLE * self.spacing * np.arange(
-            math.ceil((body.length + body.spacing) / (BEND_SAMPLE * body.spacing)), -1, -1)
+        step = BEND_SAMPLE * body.spacing
+        behind = step * np.arange(math.ceil((body.length + body.spacing) / step), -1, -1)
         self._trail = [(-d, float(start[0] - d * heading[0]), float(start[2] - d * heading[2]))
                        for d in behind]
         self._walked = 0.0          # horizontal metres the head has walked
