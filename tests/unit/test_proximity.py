@@ -8,14 +8,15 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from baker.environment.rays import RayCaster
-from baker.geometry.proximity import TriangleSet, closest_on_triangles
+from baker.geometry.proximity import TriangleSet
 
 
 def brute_force(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """(n,) distance to the nearest of the triangles (m, 3, 3), one triangle at a time."""
+    """(n,) distance to the nearest of the triangles (m, 3, 3), one triangle at a time
+    (trimesh's closest point on a triangle as the reference)."""
     best = np.full(len(points), np.inf)
     for t in tri:
-        q = closest_on_triangles(points, *(np.broadcast_to(v, points.shape) for v in t))
+        q = trimesh.triangles.closest_point(np.broadcast_to(t, (len(points), 3, 3)), points)
         best = np.minimum(best, np.linalg.norm(q - points, axis=1))
     return best
 
@@ -28,9 +29,21 @@ def test_closest_point_on_a_triangle_is_never_beaten_by_a_dense_sample():
     for _ in range(100):
         a, b, c = rng.normal(size=(3, 3))
         p = rng.normal(size=3) * 2
-        q = closest_on_triangles(p[None], a[None], b[None], c[None])[0]
+        d, q, face = TriangleSet(np.stack([a, b, c]), [[0, 1, 2]]).closest(p[None], 100.0)
         dense = a + np.outer(u, b - a) + np.outer(v, c - a)
-        assert np.linalg.norm(q - p) <= np.linalg.norm(dense - p, axis=1).min() + 1e-12
+        assert face[0] == 0 and abs(np.linalg.norm(q[0] - p) - d[0]) < 1e-12
+        assert d[0] <= np.linalg.norm(dense - p, axis=1).min() + 1e-12
+
+
+def test_degenerate_triangles_and_empty_queries():
+    """A triangle collapsed to a segment or a point is measured as one; no points, no faces."""
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [5, 5, 5]])
+    d, q, face = TriangleSet(v, [[0, 1, 2], [3, 3, 3]]).closest(
+        np.array([[1.0, 1.0, 0.0], [5.0, 5.0, 5.5], [9.0, 9.0, 9.0]]), 2.0)
+    np.testing.assert_allclose(d[:2], [1.0, 0.5], atol=1e-12)
+    assert face.tolist() == [0, 1, -1] and np.isinf(d[2]) and np.isnan(q[2]).all()
+    assert len(TriangleSet(v, [[0, 1, 2]]).closest(np.zeros((0, 3)), 1.0)[0]) == 0
+    assert np.isinf(TriangleSet(v, np.zeros((0, 3), int)).closest(np.zeros((2, 3)), 1.0)[0]).all()
 
 
 @settings(max_examples=25)
