@@ -71,6 +71,8 @@ MAX_DROP = 1.2
 FOOT_SLOPE = np.radians(65.0)
 #: next to a wall, feet stay within this fraction of the free distance from hip to wall
 WALL_FOLD = 0.7
+#: ... but never nearer its hip than this share of the leg's open-ground lever
+FOLD_MIN = 0.35
 #: inside a bend of radius R, feet stay within INNER_REACH * R of the centre line
 INNER_REACH = 0.6
 #: swing progress peak rate relative to its mean (see _swing_shape)
@@ -378,6 +380,16 @@ def _leg_frames(bf: BodyFrames, cfg: RigConfig) -> _Frames:
                    hip, span, a_back, out_min, lever)
 
 
+def folded_lever(cfg: RigConfig, free: np.ndarray) -> np.ndarray:
+    """[m] the shortest walking-leg lever (hip to neutral foot, across the body) with `free`
+    metres clear outward of the hips (inf in the open): next to a wall the anchors fold in as
+    in `_anchors`, and a planted foot then sweeps round its hip faster at the same speed."""
+    lay, reach = leg_layout(cfg), cfg.legs.reach
+    h = float(np.max(np.abs(lay.hip[:, 0])))
+    return np.clip(WALL_FOLD * np.asarray(free, dtype=np.float64), FOLD_MIN * (reach - h),
+                   reach - h)
+
+
 def _anchors(rays, lf: _Frames, bf: BodyFrames) -> np.ndarray:
     """(F, L, 3) each leg's neutral foot spot, pulled in on the inside of tight bends and next
     to walls."""
@@ -388,7 +400,7 @@ def _anchors(rays, lf: _Frames, bf: BodyFrames) -> np.ndarray:
     kappa = spine_curvature(bf.positions, bf.rotations)[:, lay.segment]       # (F, L) 1/m, +left
     inner = kappa * lay.side[None, :] > 0
     lat_max = np.where(inner, INNER_REACH / np.maximum(np.abs(kappa), 1e-9), np.inf)
-    lat_min = np.abs(lay.hip[:, 0]) + 0.35 * (lg.reach - np.abs(lay.hip[:, 0]))
+    lat_min = np.abs(lay.hip[:, 0]) + FOLD_MIN * (lg.reach - np.abs(lay.hip[:, 0]))
     # ... and next to a wall they fold in: the free distance from each hip outward (one batch
     # of rays at hip and at knee height), eased over time
     free = np.full((F, L), np.inf)

@@ -14,7 +14,11 @@ Every step:
 - while a sharp bend of the trail lies under the body (a hook the head made in a dead end),
   the whole creature slows so that no segment turns more than BEND_TURN in an exported frame
   as it rounds the bend: the body moves at the head's speed along the trail, and a segment
-  turns at speed / radius.
+  turns at speed / radius;
+- while the body passes a wall (or a slope too steep to stand on) beside it, it slows so that
+  no planted foot is swept round its hip faster than the gait's STANCE_TURN in an exported
+  frame: the legs on that side fold in toward the body (locomotion.legs.folded_lever), and a
+  foot planted beside its hip turns at speed / lever.
 """
 
 from __future__ import annotations
@@ -29,6 +33,8 @@ from baker.geometry import polyline
 from baker.locomotion.agent import PathAgent
 from baker.locomotion.body import project_to_surface
 from baker.locomotion.head import HeadSteer
+from baker.locomotion.legs import STANCE_TURN, folded_lever
+from baker.rig.limbs import leg_layout
 
 #: steps between checks of what the head can see of the agent's path
 AIM_EVERY = 4
@@ -45,6 +51,9 @@ REPLAN_AFTER = 1.5
 BEND_TURN = math.radians(20.0)
 #: [spacings] the trail under the body is kept at this spacing to measure its bends
 BEND_SAMPLE = 0.25
+#: [rad] directions of the rays that measure the room beside the hips (as the legs' anchors
+#: do): straight out, ahead and behind
+WALL_YAWS = np.radians([0.0, 40.0, -40.0])
 
 
 class Follower:
@@ -78,12 +87,19 @@ class Follower:
         self.bend = math.inf        # [m] radius of the sharpest bend of the trail under the body
         self.bend_speed = BEND_TURN * fps    # [rad/s] a segment's largest turn rate
         self.spacing = body.spacing
+        self.rig = rig
+        self.lever = math.inf       # [m] the shortest legs' lever on the trail under the body
+        self.stance_speed = STANCE_TURN * fps   # [rad/s] a planted foot's largest turn rate
+        lay = leg_layout(rig)
+        self._hip = (float(np.max(np.abs(lay.hip[:, 0]))),
+                     body.clearance + float(np.mean(lay.hip[:, 1])), lay.l1, rig.legs.reach)
         # (walked, x, z) under the body: the straight start line behind the head first, so a
         # turn back at the start is a bend under the body like any other
         step = BEND_SAMPLE * body.spacing
         behind = step * np.arange(math.ceil((body.length + body.spacing) / step), -1, -1)
         self._trail = [(-d, float(start[0] - d * heading[0]), float(start[2] - d * heading[2]))
                        for d in behind]
+        self._levers = [math.inf] * len(self._trail)    # the legs' lever at each trail point
         self._walked = 0.0          # horizontal metres the head has walked
         self._riser_at = -np.inf    # ... when it last went up or down a riser
         self._steps = 0
@@ -152,6 +168,7 @@ class Follower:
         # the bend bounds the speed itself, whatever the brain's and the terrain's factors (a
         # hunt's doubled speed would round the bend at twice bend_speed)
         scale *= min(1.0, self.bend_speed * self.bend / max(self.max_speed * scale, 1e-12))
+        scale *= min(1.0, self.stance_speed * self.lever / max(self.max_speed * scale, 1e-12))
         self.agent.speed_scale = scale
         self.head.max_speed = self.max_speed * scale
 
@@ -193,16 +210,51 @@ class Follower:
 
     def _bends(self) -> None:
         """Keep the trail under the body (every BEND_SAMPLE spacings of walked distance) and
-        slow while its sharpest bend there would turn a segment faster than bend_speed."""
+        slow while its sharpest bend there would turn a segment faster than bend_speed, or a
+        wall beside it folds the legs so that a planted foot would turn faster than
+        stance_speed."""
         p = self.head.position
         if self._walked - self._trail[-1][0] >= BEND_SAMPLE * self.spacing:
+            back = self._trail[-int(round(1.0 / BEND_SAMPLE))]
             self._trail.append((self._walked, float(p[0]), float(p[2])))
+            self._levers.append(self._leg_lever(p, p[0] - back[1], p[2] - back[2]))
             while self._walked - self._trail[0][0] > self.body_length + self.spacing:
                 self._trail.pop(0)
+                self._levers.pop(0)
         radius = bend_radius(np.array(self._trail)[:, 1:], int(round(0.5 / BEND_SAMPLE)))
-        if radius != self.bend:
-            self.bend = radius
+        lever = min(self._levers)
+        if radius != self.bend or lever != self.lever:
+            self.bend, self.lever = radius, lever
             self._apply_speed()
+
+    def _leg_lever(self, p: np.ndarray, dx: float, dz: float) -> float:
+        """[m] the legs' lever (folded_lever) where the hips pass the head's point p, the
+        trail heading (dx, dz) there: one batch of rays outward from both hips, along the
+        surface, straight out, ahead and behind, at hip and knee height, as the legs' anchors
+        measure the room beside them."""
+        hip_x, hip_y, l1, reach = self._hip
+        down = self.rays.cast_down(np.array([[p[0], self.height, p[2]]]), self.probe,
+                                   2.0 * self.probe)
+        n = down.normals[0] if down.hit[0] else np.array([0.0, 1.0, 0.0])
+        if n[1] < 0.0:
+            n = -n
+        f = np.array([dx, 0.0, dz])
+        f = f - (f @ n) * n
+        if np.linalg.norm(f) < 1e-9:
+            f = self.head.heading - (self.head.heading @ n) * n
+        f = f / max(np.linalg.norm(f), 1e-12)
+        left = np.cross(n, f)
+        ground = np.array([p[0], self.height, p[2]])
+        origins, dirs, cos = [], [], []
+        for side in (1.0, -1.0):
+            for h in (hip_y, hip_y + 0.5 * l1):
+                for yaw in WALL_YAWS:
+                    origins.append(ground + h * n + side * hip_x * left)
+                    dirs.append(math.cos(yaw) * side * left + math.sin(yaw) * f)
+                    cos.append(math.cos(yaw))
+        hits = self.rays.first_hit(np.array(origins), np.array(dirs), max_distance=1.2 * reach)
+        free = np.where(hits.hit, hits.distance * np.array(cos), np.inf)
+        return float(folded_lever(self.rig, free.min()))
 
     def _avoiding(self, others: np.ndarray):
         """The head's surface test in a crowd: on its layer, and at least `separation` from
