@@ -482,3 +482,37 @@ def test_trunk_joints_swing_round_a_fold_of_the_trail_at_a_bounded_rate():
     assert turn.max() <= TRUNK_TURN_RATE / 30.0 + 1e-6, turn.max()
     gaps = np.linalg.norm(np.diff(bf.positions, axis=1), axis=2) / sp - 1.0
     assert np.abs(gaps).max() < 0.02
+
+
+def test_a_hunt_beside_a_wall_slows_so_that_the_folded_legs_keep_up():
+    """A hunt along a wall: the legs on the wall's side fold in toward the body
+    (locomotion.legs.folded_lever), and a foot planted beside its hip turns round it at
+    speed / lever. The body slows so that none turns more than STANCE_TURN in an exported
+    frame (at the hunt's full speed they turned about 50 degrees a frame and never stayed
+    planted: showcase 91003's feet skimmed the hollow log's flank, a foot 0.99 % BL in it);
+    the same hunt in the open runs at full speed."""
+    from baker.locomotion.legs import STANCE_TURN, folded_lever
+    from baker.rig.limbs import leg_layout
+
+    env = env_of(floor(), box((0.5, 0.0, 0.0), (0.6, 0.1, 1.0)))
+    nav = build(env, RIG.navigation)
+    hip = float(np.max(np.abs(leg_layout(RIG).hip[:, 0])))
+    hunt = 2.0 * RIG.locomotion.max_speed
+
+    def speeds(x: float) -> tuple[np.ndarray, np.ndarray]:
+        f = Follower(nav, env.rays, nav.nearest([x, 0.0, 0.1]), np.array([0.0, 0.0, 1.0]), RIG)
+        f.go(nav.nearest([x, 0.0, 0.9]))
+        f.drive(2.0, 0.01, 2.0)
+        base = run(f, 5.0)
+        v = np.linalg.norm(np.diff(base[:, [0, 2]], axis=0), axis=1) / DT
+        mid = (base[1:, 2] > 0.4) & (base[1:, 2] < 0.6)
+        return v[mid], base[1:][mid]
+
+    v_open, _ = speeds(0.2)
+    assert np.median(v_open) > 0.95 * hunt
+    v_wall, base = speeds(0.47)
+    free = 0.5 - base[:, 0] - hip             # room beside the wall-side hips
+    assert free.max() < RIG.legs.reach        # the legs fold
+    bound = STANCE_TURN * 30 * folded_lever(RIG, free)
+    assert np.all(v_wall <= bound * 1.02), (v_wall.max(), bound.min())
+    assert np.median(v_wall) < 0.6 * hunt, (np.median(v_wall), bound.min(), free.min())
