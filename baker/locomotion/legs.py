@@ -1192,6 +1192,37 @@ def whole_cycles(freq: float, period: float | None) -> float:
     return round(freq * period) / period
 
 
+#: shares of the warning's raise tried under an overhang, highest first
+WARN_SHARES = (1.0, 0.8, 0.6, 0.4, 0.2, 0.0)
+#: the warning's raise gives way to an overhang at most this share of it per frame
+WARN_GIVE_RATE = 0.1
+
+
+def _warning_room(rays, q, o, side, yaw, pitch, bend, lengths, rise) -> np.ndarray:
+    """(F,) the share of the warning's raise (rise (F,) rad, on top of pitch (F,)) an ultimate
+    leg takes: the largest of WARN_SHARES whose two bones clear the environment (resting under
+    a low overhang, a full raise drives the tip into it), eased so it gives way at most
+    WARN_GIVE_RATE of the raise per frame. q, o : (F, 4), (F, 3) the segment's rotation and the
+    chain's base; bend: the tip bone's pitch over the upper one's."""
+    F = len(rise)
+    full = np.where(np.abs(rise) > 1e-12, 1.0, 0.0)
+    if not full.any():
+        return full
+    shares = np.asarray(WARN_SHARES)
+    p = pitch[:, None] + shares[None, :] * rise[:, None]                    # (F, k)
+    qk = np.broadcast_to(q[:, None], (F, len(shares), 4))
+    d1 = quat_rotate(qk, _chain_dirs(side, yaw[:, None], p, True))
+    d2 = quat_rotate(qk, _chain_dirs(side, yaw[:, None], p + bend, True))
+    o_k = np.broadcast_to(o[:, None], d1.shape)
+    l1, l2 = lengths
+    clear = ~(rays.first_hit(o_k.reshape(-1, 3), d1.reshape(-1, 3), max_distance=l1 * 1.05).hit
+              | rays.first_hit((o_k + d1 * l1).reshape(-1, 3), d2.reshape(-1, 3),
+                               max_distance=l2 * 1.05).hit).reshape(F, -1)
+    room = np.where(clear.any(1), shares[np.argmax(clear, 1)], 0.0)
+    give = _ramp((full * (1.0 - room))[:, None], WARN_GIVE_RATE)[:, 0]
+    return np.clip(full - give, 0.0, 1.0)
+
+
 def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
                  warning: np.ndarray | None = None, chain_period: float | None = None):
     """Ultimate legs and antennae: angle-driven two-bone chains, lifted clear of the surface.
@@ -1240,7 +1271,9 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
             dpitch = -np.radians(22.0) * grope ** 3
         base_pitch = pit1 + dpitch
         if back:                       # Posture 1: raised in proportion to the warning
-            base_pitch = base_pitch + warn * (lg.ultimate_warning_raise - pit1)
+            w = _warning_room(rays, q, o, s, yaw1 + dyaw, base_pitch, pit2 - pit1, ch.lengths,
+                              warn * (lg.ultimate_warning_raise - pit1))
+            base_pitch = base_pitch + w * warn * (lg.ultimate_warning_raise - pit1)
         # candidates: raise the chain until both bones clear the environment
         k = len(raise_steps)
         pitch = base_pitch[:, None] + raise_steps[None, :]            # (F, k)

@@ -154,3 +154,35 @@ def test_antennae_dip_under_a_low_ceiling(rig_config):
                              max_distance=rig_config.legs.antenna_length).hit
     assert not hit.any()
     assert np.degrees(quat_angle(rot[1:, ant], rot[:-1, ant])).max() < 30.0
+
+
+def test_a_warning_under_a_low_overhang_raises_the_ultimate_legs_only_as_far_as_it_clears(
+        rig_config):
+    """Posture 1 under a ceiling 45 mm up (a rest under the showcase's bark sheet): the full
+    warning raise, near vertical, drove both ultimate tips into it (showcase 94033, 5 tip-bone
+    hits), and no dip from the raised pitch cleared. The raise now stops where the legs clear
+    it, eased in, and is still a raise."""
+    import trimesh
+
+    from baker.geometry.transforms import quat_angle
+    from baker.locomotion.legs import posed_chains
+    from baker.metrics import quat_rotate_y
+
+    v = np.array([[-1, 0.045, -3], [1, 0.045, -3], [1, 0.045, 3], [-1, 0.045, 3]], float)
+    ceiling = trimesh.Trimesh(v, [[0, 1, 2], [0, 2, 3]], process=False)
+    env = Environment(meshes=(flat_ground(size=8.0, n=8), ceiling), sun=Sun(direction=normalize(
+        np.array([0.3, 0.9, 0.2]))), source="", name="low overhang")
+    bf, arc, t = _straight_body(rig_config, speed=0.0, seconds=3.0)
+    warning = (t >= 1.0).astype(float)
+    names, pos, rot = posed_chains(bf, t, env.rays, rig_config, warning=warning)
+    ult = [i for i, n in enumerate(names) if n.startswith("ultimate_")]
+    d = quat_rotate_y(rot[:, ult])
+    lengths = np.array([rig_config.legs.ultimate_upper if n.endswith("upper")
+                        else rig_config.legs.ultimate_tip for n in np.array(names)[ult]])
+    hit = env.rays.first_hit(pos[:, ult].reshape(-1, 3), d.reshape(-1, 3),
+                             max_distance=np.tile(lengths, len(t))).hit
+    assert not hit.any()
+    assert np.degrees(quat_angle(rot[1:, ult], rot[:-1, ult])).max() < 30.0
+    up = quat_rotate_y(rot[:, names.index("ultimate_L_upper")])[:, 1]
+    pitch = np.degrees(np.arcsin(np.clip(up, -1, 1)))
+    assert pitch[-1] > np.degrees(rig_config.legs.ultimate_raise) + 10.0    # still raised
