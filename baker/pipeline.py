@@ -372,8 +372,11 @@ def limbs_near(cfg: BakeConfig, skel, traj, env, tol: float):
     if env is None or tol <= 0 or not cfg.rig.legs.enabled or cfg.root_motion == "in-place":
         return None
     starts, ends, names = leg_bones(traj, cfg.rig.legs)
+    # the rays reach 2 tolerances past the part of the bone that is judged (all but its last
+    # LIMB_END_GAP), as the reduced pose may move the bone's end by up to the tolerance (a
+    # swinging foot grazing the ground just inside the judged part was moved into it)
     hit = bones_near(starts, ends, env.rays, tol,
-                     end_gap=LIMB_END_GAP * cfg.rig.body.length + 2.0 * tol)
+                     end_gap=max(LIMB_END_GAP * cfg.rig.body.length - 2.0 * tol, 0.0))
     # a bone is named by its start joint; an upper bone ends at its tip joint, a tip bone at
     # its foot end joint
     first = [skel.index(n) for n in names]
