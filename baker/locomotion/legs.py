@@ -380,14 +380,13 @@ def _leg_frames(bf: BodyFrames, cfg: RigConfig) -> _Frames:
                    hip, span, a_back, out_min, lever)
 
 
-def folded_lever(cfg: RigConfig, free: np.ndarray) -> np.ndarray:
-    """[m] the shortest walking-leg lever (hip to neutral foot, across the body) with `free`
-    metres clear outward of the hips (inf in the open): next to a wall the anchors fold in as
-    in `_anchors`, and a planted foot then sweeps round its hip faster at the same speed."""
-    lay, reach = leg_layout(cfg), cfg.legs.reach
-    h = float(np.max(np.abs(lay.hip[:, 0])))
-    return np.clip(WALL_FOLD * np.asarray(free, dtype=np.float64), FOLD_MIN * (reach - h),
-                   reach - h)
+def folded_lever(free, reach: float, hip: float):
+    """[m] the lever (hip to neutral foot, across the body) of a walking leg whose hip sits
+    `hip` metres out from the spine, with `free` metres clear outward of it (inf in the open):
+    next to a wall the anchors fold in as in `_anchors` (reach: legs.reach), and a planted
+    foot then sweeps round its hip faster at the same speed."""
+    return np.clip(WALL_FOLD * np.asarray(free, dtype=np.float64), FOLD_MIN * (reach - hip),
+                   reach - hip)
 
 
 def _anchors(rays, lf: _Frames, bf: BodyFrames) -> np.ndarray:

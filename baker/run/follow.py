@@ -33,8 +33,7 @@ from baker.geometry import polyline
 from baker.locomotion.agent import PathAgent
 from baker.locomotion.body import project_to_surface
 from baker.locomotion.head import HeadSteer
-from baker.locomotion.legs import STANCE_TURN, folded_lever
-from baker.rig.limbs import leg_layout
+from baker.locomotion.legs import STANCE_TURN, folded_lever, hip_extent
 
 #: steps between checks of what the head can see of the agent's path
 AIM_EVERY = 4
@@ -89,10 +88,10 @@ class Follower:
         self.spacing = body.spacing
         self.rig = rig
         self.lever = math.inf       # [m] the shortest legs' lever on the trail under the body
-        self.stance_speed = STANCE_TURN * fps   # [rad/s] a planted foot's largest turn rate
-        lay = leg_layout(rig)
-        self._hip = (float(np.max(np.abs(lay.hip[:, 0]))),
-                     body.clearance + float(np.mean(lay.hip[:, 1])), lay.l1, rig.legs.reach)
+        # [rad/s] a planted foot's largest turn rate (no legs: no bound)
+        self.stance_speed = STANCE_TURN * fps if rig.legs.enabled else math.inf
+        hip_x, hip_drop = hip_extent(rig)
+        self._hip = (hip_x, body.clearance - hip_drop, rig.legs.upper_length, rig.legs.reach)
         # (walked, x, z) under the body: the straight start line behind the head first, so a
         # turn back at the start is a bend under the body like any other
         step = BEND_SAMPLE * body.spacing
@@ -217,7 +216,8 @@ class Follower:
         if self._walked - self._trail[-1][0] >= BEND_SAMPLE * self.spacing:
             back = self._trail[-int(round(1.0 / BEND_SAMPLE))]
             self._trail.append((self._walked, float(p[0]), float(p[2])))
-            self._levers.append(self._leg_lever(p, p[0] - back[1], p[2] - back[2]))
+            self._levers.append(self._leg_lever(p, p[0] - back[1], p[2] - back[2])
+                                if self.rig.legs.enabled else math.inf)
             while self._walked - self._trail[0][0] > self.body_length + self.spacing:
                 self._trail.pop(0)
                 self._levers.pop(0)
@@ -254,7 +254,7 @@ class Follower:
                     cos.append(math.cos(yaw))
         hits = self.rays.first_hit(np.array(origins), np.array(dirs), max_distance=1.2 * reach)
         free = np.where(hits.hit, hits.distance * np.array(cos), np.inf)
-        return float(folded_lever(self.rig, free.min()))
+        return float(folded_lever(free.min(), reach, hip_x))
 
     def _avoiding(self, others: np.ndarray):
         """The head's surface test in a crowd: on its layer, and at least `separation` from

@@ -499,8 +499,8 @@ def test_a_hunt_beside_a_wall_slows_so_that_the_folded_legs_keep_up():
     hip = float(np.max(np.abs(leg_layout(RIG).hip[:, 0])))
     hunt = 2.0 * RIG.locomotion.max_speed
 
-    def speeds(x: float) -> tuple[np.ndarray, np.ndarray]:
-        f = Follower(nav, env.rays, nav.nearest([x, 0.0, 0.1]), np.array([0.0, 0.0, 1.0]), RIG)
+    def speeds(x: float, rig=RIG) -> tuple[np.ndarray, np.ndarray]:
+        f = Follower(nav, env.rays, nav.nearest([x, 0.0, 0.1]), np.array([0.0, 0.0, 1.0]), rig)
         f.go(nav.nearest([x, 0.0, 0.9]))
         f.drive(2.0, 0.01, 2.0)
         base = run(f, 5.0)
@@ -513,6 +513,8 @@ def test_a_hunt_beside_a_wall_slows_so_that_the_folded_legs_keep_up():
     v_wall, base = speeds(0.47)
     free = 0.5 - base[:, 0] - hip             # room beside the wall-side hips
     assert free.max() < RIG.legs.reach        # the legs fold
-    bound = STANCE_TURN * 30 * folded_lever(RIG, free)
+    bound = STANCE_TURN * 30 * folded_lever(free, RIG.legs.reach, hip)
     assert np.all(v_wall <= bound * 1.02), (v_wall.max(), bound.min())
     assert np.median(v_wall) < 0.6 * hunt, (np.median(v_wall), bound.min(), free.min())
+    legless = replace(RIG, legs=replace(RIG.legs, enabled=False))   # nothing to fold
+    assert np.median(speeds(0.47, legless)[0]) > 0.95 * hunt
