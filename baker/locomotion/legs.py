@@ -1331,6 +1331,15 @@ def hip_extent(cfg: RigConfig) -> tuple[float, float]:
     return float(np.abs(lay.hip[:, 0]).max()), float(-lay.hip[:, 1].min())
 
 
+def hip_line(cfg: RigConfig) -> tuple[float, float]:
+    """(largest lateral offset, mean height above the spine) of the walking legs' hips [m]:
+    where the run stage measures the room beside them (no legs: 0, 0)."""
+    if not cfg.legs.enabled:
+        return 0.0, 0.0
+    lay = leg_layout(cfg)
+    return float(np.abs(lay.hip[:, 0]).max()), float(np.mean(lay.hip[:, 1]))
+
+
 def _planned_with_margins(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays,
                           cfg: RigConfig) -> dict:
     """walking_legs over the bake's frames with margins it then drops: before frame 0 the body

@@ -33,7 +33,7 @@ from baker.geometry import polyline
 from baker.locomotion.agent import PathAgent
 from baker.locomotion.body import project_to_surface
 from baker.locomotion.head import HeadSteer
-from baker.locomotion.legs import STANCE_TURN, folded_lever, hip_extent
+from baker.locomotion.legs import STANCE_TURN, folded_lever, hip_line
 
 #: steps between checks of what the head can see of the agent's path
 AIM_EVERY = 4
@@ -90,8 +90,8 @@ class Follower:
         self.lever = math.inf       # [m] the shortest legs' lever on the trail under the body
         # [rad/s] a planted foot's largest turn rate (no legs: no bound)
         self.stance_speed = STANCE_TURN * fps if rig.legs.enabled else math.inf
-        hip_x, hip_drop = hip_extent(rig)
-        self._hip = (hip_x, body.clearance - hip_drop, rig.legs.upper_length, rig.legs.reach)
+        hip_x, hip_y = hip_line(rig)
+        self._hip = (hip_x, body.clearance + hip_y, rig.legs.upper_length, rig.legs.reach)
         # (walked, x, z) under the body: the straight start line behind the head first, so a
         # turn back at the start is a bend under the body like any other
         step = BEND_SAMPLE * body.spacing
