@@ -137,7 +137,8 @@ STORY_SEEDS = range(1, 7)
 @pytest.mark.slow
 def test_other_seeds_show_every_behaviour_often(tmp_path, nav_cache_dir):
     """On other seeds some bakes show every behaviour too, and each required behaviour shows
-    in a good share of them (baked without legs: the timeline does not depend on them)."""
+    in a good share of them (baked without legs, which is faster: the paths then differ a
+    little, as a legless creature does not slow beside walls for its folded legs)."""
     from baker.pipeline import bake
 
     rig = load_rig_config(DEFAULT_RIG)
