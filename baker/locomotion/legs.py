@@ -92,6 +92,8 @@ SWEEP_LIMIT = np.radians(80.0)
 KNEE_SWIVELS = np.radians([20.0, -20.0, 40.0, -40.0, 60.0, -60.0, 85.0, -85.0])
 #: a knee swivel (clearing the environment) changes by at most this much per frame [rad]
 SWIVEL_RATE = np.radians(8.0)
+#: rounds in which eased frames whose partial swivel hits something take their run's full one
+KNEE_EASE_ROUNDS = 4
 #: a planted foot lifts before the body turns its leg by more than this in one frame [rad]
 STANCE_TURN = np.radians(24.0)
 #: an ultimate leg or antenna raised clear of the environment rises and falls at most this much
@@ -1045,11 +1047,41 @@ def _clear_knees(rays, hip, mid, end, hinge, l1, l2, tol):
             break
     angle = np.zeros((F, L))
     angle[f, l] = angle_run[r]
-    # the swivel eases in and out at most SWIVEL_RATE per frame (full swivel on the run itself)
-    angle = _ramp(np.maximum(angle, 0.0), SWIVEL_RATE) - _ramp(np.maximum(-angle, 0.0), SWIVEL_RATE)
+    # the swivel eases in and out at most SWIVEL_RATE per frame (full swivel on the run itself);
+    # an eased frame whose partial swivel puts a bone through something takes its run's full
+    # swivel instead, and the easing moves out
+    for _ in range(KNEE_EASE_ROUNDS):
+        eased = _eased(angle)
+        fi, li = np.nonzero((angle == 0.0) & (eased != 0.0))
+        bad = _bones_hit(rays, hip[fi, li], _swivel(mid[fi, li], hip[fi, li], axis[fi, li],
+                                                     eased[fi, li]), end[fi, li], l1, l2, tol)
+        if not bad.any():
+            break
+        angle[fi[bad], li[bad]] = _nearest_nonzero(angle)[fi[bad], li[bad]]
+    angle = _eased(angle)
     new_mid = _swivel(mid, hip, axis, angle)
     new_hinge = _swivel(hinge, np.zeros_like(hinge), axis, angle)
     return new_mid, new_hinge
+
+
+def _eased(angle: np.ndarray) -> np.ndarray:
+    """(F, L) the knees' swivel angles eased in and out at most SWIVEL_RATE per frame."""
+    return (_ramp(np.maximum(angle, 0.0), SWIVEL_RATE)
+            - _ramp(np.maximum(-angle, 0.0), SWIVEL_RATE))
+
+
+def _nearest_nonzero(a: np.ndarray) -> np.ndarray:
+    """(F, L) each frame's value of the nearest frame (along axis 0) where `a` is nonzero (0
+    where a column has none; the earlier one on a tie)."""
+    F = len(a)
+    idx = np.arange(F)[:, None]
+    nz = a != 0.0
+    before = np.maximum.accumulate(np.where(nz, idx, -1), axis=0)
+    after = np.minimum.accumulate(np.where(nz, idx, F)[::-1], axis=0)[::-1]
+    use_after = (after < F) & ((before < 0) | (after - idx < idx - before))
+    pick = np.where(use_after, after, np.maximum(before, 0))
+    out = np.take_along_axis(a, pick, axis=0)
+    return np.where((before >= 0) | (after < F), out, 0.0)
 
 
 def _ramp(a: np.ndarray, rate: float) -> np.ndarray:

@@ -186,3 +186,15 @@ def test_a_warning_under_a_low_overhang_raises_the_ultimate_legs_only_as_far_as_
     up = quat_rotate_y(rot[:, names.index("ultimate_L_upper")])[:, 1]
     pitch = np.degrees(np.arcsin(np.clip(up, -1, 1)))
     assert pitch[-1] > np.degrees(rig_config.legs.ultimate_raise) + 10.0    # still raised
+
+
+def test_nearest_nonzero_takes_each_frames_nearest_run_value():
+    """The knees' eased frames take the full swivel of their nearest run (legs._clear_knees)."""
+    from baker.locomotion.legs import _nearest_nonzero
+
+    a = np.zeros((7, 3))
+    a[1, 0], a[5, 0], a[3, 1] = 1.0, 5.0, -2.0
+    got = _nearest_nonzero(a)
+    assert got[:, 0].tolist() == [1, 1, 1, 1, 5, 5, 5]      # a tie (frame 3) takes the earlier
+    assert got[:, 1].tolist() == [-2] * 7
+    assert got[:, 2].tolist() == [0] * 7
