@@ -92,7 +92,8 @@ SWEEP_LIMIT = np.radians(80.0)
 KNEE_SWIVELS = np.radians([20.0, -20.0, 40.0, -40.0, 60.0, -60.0, 85.0, -85.0])
 #: a knee swivel (clearing the environment) changes by at most this much per frame [rad]
 SWIVEL_RATE = np.radians(8.0)
-#: rounds in which eased frames whose partial swivel hits something take their run's full one
+#: rounds in which eased frames whose partial swivel hits something join their run, whose swivel
+#: is chosen again
 KNEE_EASE_ROUNDS = 4
 #: a planted foot lifts before the body turns its leg by more than this in one frame [rad]
 STANCE_TURN = np.radians(24.0)
@@ -1014,7 +1015,9 @@ def _clear_knees(rays, hip, mid, end, hinge, l1, l2, tol):
     """Swivel knees about the hip->foot axis where a leg bone would pass through the
     environment (the foot stays where it is). Each run of consecutive offending frames of a leg
     gets one swivel angle: the smallest candidate that clears the most of its frames; the angle
-    eases in and out over neighbouring frames so the knee glides rather than jumps.
+    eases in and out over neighbouring frames so the knee glides rather than jumps. An eased
+    frame whose partial swivel puts a bone through something joins its run (with the frames
+    between), whose angle is then chosen again (up to KNEE_EASE_ROUNDS times).
 
     hip, mid, end, hinge : (F, L, 3). Returns (mid, hinge) adjusted.
     """
@@ -1026,16 +1029,50 @@ def _clear_knees(rays, hip, mid, end, hinge, l1, l2, tol):
     axis = normalize(end - hip)
     # runs of offending frames per leg (bridging gaps of up to 4 frames)
     near = maximum_filter1d(hit.astype(np.uint8), 5, axis=0, mode="constant").astype(bool)
+    for _ in range(KNEE_EASE_ROUNDS):
+        # the swivel eases in and out at most SWIVEL_RATE per frame (full swivel on the runs)
+        angle = _eased(_run_swivels(rays, hip, mid, end, axis, hit, near, l1, l2, tol))
+        fi, li = np.nonzero(~near & (angle != 0.0))
+        bad = _bones_hit(rays, hip[fi, li], _swivel(mid[fi, li], hip[fi, li], axis[fi, li],
+                                                     angle[fi, li]), end[fi, li], l1, l2, tol)
+        if not bad.any():
+            break
+        near = _joined(near, fi[bad], li[bad])
+    new_mid = _swivel(mid, hip, axis, angle)
+    new_hinge = _swivel(hinge, np.zeros_like(hinge), axis, angle)
+    return new_mid, new_hinge
+
+
+def _joined(near: np.ndarray, fi: np.ndarray, li: np.ndarray) -> np.ndarray:
+    """`near` (F, L) bool with frames fi of legs li joined to their leg's nearest run of True
+    frames (the frames between them set too)."""
+    F = len(near)
+    idx = np.arange(F)[:, None]
+    before = np.maximum.accumulate(np.where(near, idx, -1), axis=0)[fi, li]
+    after = np.minimum.accumulate(np.where(near, idx, F)[::-1], axis=0)[::-1][fi, li]
+    to = np.where((before < 0) | ((after < F) & (after - fi < fi - before)), after, before)
+    out = near.copy()
+    for f, l, t in zip(fi, li, to):
+        if 0 <= t < F:
+            out[min(f, t):max(f, t) + 1, l] = True
+        else:
+            out[f, l] = True
+    return out
+
+
+def _run_swivels(rays, hip, mid, end, axis, hit, near, l1, l2, tol) -> np.ndarray:
+    """(F, L) the swivel of every frame of the runs of `near` (F, L) bool frames of each leg,
+    0 elsewhere: per run, the first of KNEE_SWIVELS with the fewest bone hits over its frames
+    (no swivel unless one has fewer than `hit` (F, L), the hits unswivelled)."""
+    F, L = near.shape
     lt = near.T                                           # (L, F)
     start = lt & ~np.concatenate([np.zeros((L, 1), bool), lt[:, :-1]], 1)
     run_id = np.cumsum(start.ravel()).reshape(L, F).T - 1  # (F, L), valid where near
     n_runs = int(start.sum())
     f, l = np.nonzero(near)
     r = run_id[f, l]
-    best = np.full(n_runs, -1.0)                          # fewest hits per run so far
     angle_run = np.zeros(n_runs)
-    bad0 = np.bincount(r, weights=hit[f, l], minlength=n_runs)
-    best[:] = bad0
+    best = np.bincount(r, weights=hit[f, l], minlength=n_runs)   # fewest hits per run so far
     for a in KNEE_SWIVELS:
         m = _swivel(mid[f, l], hip[f, l], axis[f, l], a)
         bad = _bones_hit(rays, hip[f, l], m, end[f, l], l1, l2, tol)
@@ -1047,41 +1084,13 @@ def _clear_knees(rays, hip, mid, end, hinge, l1, l2, tol):
             break
     angle = np.zeros((F, L))
     angle[f, l] = angle_run[r]
-    # the swivel eases in and out at most SWIVEL_RATE per frame (full swivel on the run itself);
-    # an eased frame whose partial swivel puts a bone through something takes its run's full
-    # swivel instead, and the easing moves out
-    for _ in range(KNEE_EASE_ROUNDS):
-        eased = _eased(angle)
-        fi, li = np.nonzero((angle == 0.0) & (eased != 0.0))
-        bad = _bones_hit(rays, hip[fi, li], _swivel(mid[fi, li], hip[fi, li], axis[fi, li],
-                                                     eased[fi, li]), end[fi, li], l1, l2, tol)
-        if not bad.any():
-            break
-        angle[fi[bad], li[bad]] = _nearest_nonzero(angle)[fi[bad], li[bad]]
-    angle = _eased(angle)
-    new_mid = _swivel(mid, hip, axis, angle)
-    new_hinge = _swivel(hinge, np.zeros_like(hinge), axis, angle)
-    return new_mid, new_hinge
+    return angle
 
 
 def _eased(angle: np.ndarray) -> np.ndarray:
     """(F, L) the knees' swivel angles eased in and out at most SWIVEL_RATE per frame."""
     return (_ramp(np.maximum(angle, 0.0), SWIVEL_RATE)
             - _ramp(np.maximum(-angle, 0.0), SWIVEL_RATE))
-
-
-def _nearest_nonzero(a: np.ndarray) -> np.ndarray:
-    """(F, L) each frame's value of the nearest frame (along axis 0) where `a` is nonzero (0
-    where a column has none; the earlier one on a tie)."""
-    F = len(a)
-    idx = np.arange(F)[:, None]
-    nz = a != 0.0
-    before = np.maximum.accumulate(np.where(nz, idx, -1), axis=0)
-    after = np.minimum.accumulate(np.where(nz, idx, F)[::-1], axis=0)[::-1]
-    use_after = (after < F) & ((before < 0) | (after - idx < idx - before))
-    pick = np.where(use_after, after, np.maximum(before, 0))
-    out = np.take_along_axis(a, pick, axis=0)
-    return np.where((before >= 0) | (after < F), out, 0.0)
 
 
 def _ramp(a: np.ndarray, rate: float) -> np.ndarray:

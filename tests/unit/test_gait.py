@@ -188,13 +188,15 @@ def test_a_warning_under_a_low_overhang_raises_the_ultimate_legs_only_as_far_as_
     assert pitch[-1] > np.degrees(rig_config.legs.ultimate_raise) + 10.0    # still raised
 
 
-def test_nearest_nonzero_takes_each_frames_nearest_run_value():
-    """The knees' eased frames take the full swivel of their nearest run (legs._clear_knees)."""
-    from baker.locomotion.legs import _nearest_nonzero
 
-    a = np.zeros((7, 3))
-    a[1, 0], a[5, 0], a[3, 1] = 1.0, 5.0, -2.0
-    got = _nearest_nonzero(a)
-    assert got[:, 0].tolist() == [1, 1, 1, 1, 5, 5, 5]      # a tie (frame 3) takes the earlier
-    assert got[:, 1].tolist() == [-2] * 7
-    assert got[:, 2].tolist() == [0] * 7
+def test_an_eased_knee_frame_that_hits_joins_its_run_with_the_frames_between():
+    """legs._joined: the knees' swivel is chosen per run of frames; an eased frame whose partial
+    swivel hits something joins its leg's nearest run, with the frames between (alone it would
+    be a run of its own, keep no swivel, and the easing would put it back)."""
+    from baker.locomotion.legs import _joined
+
+    near = np.zeros((12, 2), bool)
+    near[5:8, 0] = True
+    got = _joined(near, np.array([2, 10, 4]), np.array([0, 0, 1]))
+    assert np.flatnonzero(got[:, 0]).tolist() == [2, 3, 4, 5, 6, 7, 8, 9, 10]
+    assert np.flatnonzero(got[:, 1]).tolist() == [4]        # no run on that leg: the frame alone
