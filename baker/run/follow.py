@@ -88,9 +88,11 @@ class Follower:
         self.spacing = body.spacing
         self.rig = rig
         self.lever = math.inf       # [m] the shortest legs' lever on the trail under the body
-        # [rad/s] a planted foot's largest turn rate (no legs: no bound)
-        self.stance_speed = STANCE_TURN * fps if rig.legs.enabled else math.inf
+        # [rad/s] a planted foot's largest turn rate (no legs, or feet that reach no farther
+        # out than the hips, so nothing to fold: no bound)
         hip_x, hip_y = hip_line(rig)
+        legged = rig.legs.enabled and rig.legs.reach > hip_x
+        self.stance_speed = STANCE_TURN * fps if legged else math.inf
         self._hip = (hip_x, body.clearance + hip_y, rig.legs.upper_length, rig.legs.reach)
         # (walked, x, z) under the body: the straight start line behind the head first, so a
         # turn back at the start is a bend under the body like any other
@@ -217,7 +219,7 @@ class Follower:
             back = self._trail[-int(round(1.0 / BEND_SAMPLE))]
             self._trail.append((self._walked, float(p[0]), float(p[2])))
             self._levers.append(self._leg_lever(p, p[0] - back[1], p[2] - back[2])
-                                if self.rig.legs.enabled else math.inf)
+                                if math.isfinite(self.stance_speed) else math.inf)
             while self._walked - self._trail[0][0] > self.body_length + self.spacing:
                 self._trail.pop(0)
                 self._levers.pop(0)

@@ -518,3 +518,5 @@ def test_a_hunt_beside_a_wall_slows_so_that_the_folded_legs_keep_up():
     assert np.median(v_wall) < 0.6 * hunt, (np.median(v_wall), bound.min(), free.min())
     legless = replace(RIG, legs=replace(RIG.legs, enabled=False))   # nothing to fold
     assert np.median(speeds(0.47, legless)[0]) > 0.95 * hunt
+    stubby = replace(RIG, legs=replace(RIG.legs, reach=0.5 * hip))  # feet inside the hips
+    assert np.median(speeds(0.47, stubby)[0]) > 0.95 * hunt
