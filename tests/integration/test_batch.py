@@ -263,14 +263,18 @@ def _read_until(proc, want: int, lines: list[str]) -> None:
 
 @pytest.mark.slow
 def test_sigterm_half_way_then_run_again(first, tmp_path, nav_cache_dir):
-    """The small level's 6 jobs (of the 12), stopped once 2 are baked."""
+    """The small level's 6 jobs (of the 12), stopped once 2 are baked. One worker, so the jobs
+    run one after another and the signal comes with four still to do. With two workers it
+    failed once in a fresh clone's third full run (not reproduced in 8 runs alone, 5 of them
+    beside 3 busy processes); the likely cause: the 1 s bakes of two workers can finish the
+    batch while a loaded machine delays the test's reading of the progress lines."""
     folder, _, _, _, local = first
     text = (folder / "jobs.toml").read_text()
     jobs = folder / "small.toml"
     jobs.write_text(text[:text.index("[[job]]")] + text[text.index('[[job]]\nname = "small"'):])
     names = [n for n in NAMES_12 if n.startswith("small")]
     out = tmp_path / "out"
-    args = [sys.executable, "-m", "baker", "batch", jobs, "--out", out, "--workers", "2",
+    args = [sys.executable, "-m", "baker", "batch", jobs, "--out", out, "--workers", "1",
             "--cache-dir", nav_cache_dir]
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     lines: list[str] = []
