@@ -53,16 +53,6 @@ class TriangleSet:
         return out, near_pt, face
 
 
-def distance_to_mesh(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray,
-                     cap: float) -> np.ndarray:
-    """(n,) float64 distance from each point to the nearest triangle, exact where it is at
-    most `cap` metres; inf where no triangle is that close.
-
-    points : (n, 3) float; vertices : (v, 3) float; faces : (m, 3) int
-    """
-    return TriangleSet(vertices, faces).closest(points, cap)[0]
-
-
 def segment_distances(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray,
                       q2: np.ndarray) -> np.ndarray:
     """(m,) metres: the closest distance between segments p1-q1 and p2-q2 (each (m, 3)),

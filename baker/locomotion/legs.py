@@ -1232,6 +1232,23 @@ def whole_cycles(freq: float, period: float | None) -> float:
     return round(freq * period) / period
 
 
+def _chain_clear(rays, q, o, side, yaw1, yaw2, pitch, bend, lengths, back) -> np.ndarray:
+    """(F, k) bool: a two-bone chain from o (F, 3) in its segment's frame q (F, 4), its upper
+    bone at yaw1 and pitch (F, k), its tip bone at yaw2 and pitch + bend (yaws (F, 1) or
+    (F, k)), keeps both bones (and 5 % past them) clear of the environment."""
+    F, k = pitch.shape
+    qk = np.broadcast_to(q[:, None], (F, k, 4))
+    w1 = quat_rotate(qk, _chain_dirs(side, yaw1, pitch, back))
+    w2 = quat_rotate(qk, _chain_dirs(side, yaw2, pitch + bend, back))
+    l1, l2 = lengths
+    o_k = np.broadcast_to(o[:, None], (F, k, 3))
+    ok = np.ones((F, k), bool)
+    for start, d, ln in ((o_k, w1, l1), (o_k + w1 * l1, w2, l2)):
+        ok &= ~rays.first_hit(start.reshape(-1, 3), d.reshape(-1, 3),
+                              max_distance=ln * 1.05).hit.reshape(F, k)
+    return ok
+
+
 #: shares of the warning's raise tried under an overhang, highest first
 WARN_SHARES = (1.0, 0.8, 0.6, 0.4, 0.2, 0.0)
 #: the warning's raise gives way to an overhang at most this share of it per frame
@@ -1250,14 +1267,7 @@ def _warning_room(rays, q, o, side, yaw, pitch, bend, lengths, rise) -> np.ndarr
         return full
     shares = np.asarray(WARN_SHARES)
     p = pitch[:, None] + shares[None, :] * rise[:, None]                    # (F, k)
-    qk = np.broadcast_to(q[:, None], (F, len(shares), 4))
-    d1 = quat_rotate(qk, _chain_dirs(side, yaw[:, None], p, True))
-    d2 = quat_rotate(qk, _chain_dirs(side, yaw[:, None], p + bend, True))
-    o_k = np.broadcast_to(o[:, None], d1.shape)
-    l1, l2 = lengths
-    clear = ~(rays.first_hit(o_k.reshape(-1, 3), d1.reshape(-1, 3), max_distance=l1 * 1.05).hit
-              | rays.first_hit((o_k + d1 * l1).reshape(-1, 3), d2.reshape(-1, 3),
-                               max_distance=l2 * 1.05).hit).reshape(F, -1)
+    clear = _chain_clear(rays, q, o, side, yaw[:, None], yaw[:, None], p, bend, lengths, True)
     room = np.where(clear.any(1), shares[np.argmax(clear, 1)], 0.0)
     give = _ramp((full * (1.0 - room))[:, None], WARN_GIVE_RATE)[:, 0]
     return np.clip(full - give, 0.0, 1.0)
@@ -1315,20 +1325,10 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
                               warn * (lg.ultimate_warning_raise - pit1))
             base_pitch = base_pitch + w * warn * (lg.ultimate_warning_raise - pit1)
         # candidates: raise the chain until both bones clear the environment
-        k = len(raise_steps)
         pitch = base_pitch[:, None] + raise_steps[None, :]            # (F, k)
-        d1 = _chain_dirs(s, yaw1 + dyaw[:, None], pitch, back)        # (F, k, 3) segment frame
-        d2 = _chain_dirs(s, yaw2 + dyaw[:, None], pitch + (pit2 - pit1), back)
-        qk = np.broadcast_to(q[:, None], (F, k, 4))
-        w1 = quat_rotate(qk, d1)
-        w2 = quat_rotate(qk, d2)
+        ok_all = _chain_clear(rays, q, o, s, yaw1 + dyaw[:, None], yaw2 + dyaw[:, None], pitch,
+                              pit2 - pit1, ch.lengths, back)
         l1, l2 = ch.lengths
-        ok_all = np.ones((F, k), bool)
-        o_k = np.broadcast_to(o[:, None], (F, k, 3))
-        knee_k = o_k + w1 * l1
-        for start, d, ln in ((o_k, w1, l1), (knee_k, w2, l2)):
-            hits = rays.first_hit(start.reshape(-1, 3), d.reshape(-1, 3), max_distance=ln * 1.05)
-            ok_all &= ~hits.hit.reshape(F, k)
         # none clears: the chain as it is (raising it fully drove it into a ceiling)
         raw = raise_steps[np.where(ok_all.any(1), np.argmax(ok_all, 1), 0)]
         # eased in and out (at most CHAIN_RAISE_RATE per frame), never less raised or dipped

@@ -86,7 +86,6 @@ class Follower:
         self.bend = math.inf        # [m] radius of the sharpest bend of the trail under the body
         self.bend_speed = BEND_TURN * fps    # [rad/s] a segment's largest turn rate
         self.spacing = body.spacing
-        self.rig = rig
         self.lever = math.inf       # [m] the shortest legs' lever on the trail under the body
         # [rad/s] a planted foot's largest turn rate (no legs, or feet that reach no farther
         # out than the hips, so nothing to fold: no bound)
@@ -94,13 +93,12 @@ class Follower:
         legged = rig.legs.enabled and rig.legs.reach > hip_x
         self.stance_speed = STANCE_TURN * fps if legged else math.inf
         self._hip = (hip_x, body.clearance + hip_y, rig.legs.upper_length, rig.legs.reach)
-        # (walked, x, z) under the body: the straight start line behind the head first, so a
-        # turn back at the start is a bend under the body like any other
+        # (walked, x, z, the legs' lever there) under the body: the straight start line behind
+        # the head first, so a turn back at the start is a bend under the body like any other
         step = BEND_SAMPLE * body.spacing
         behind = step * np.arange(math.ceil((body.length + body.spacing) / step), -1, -1)
-        self._trail = [(-d, float(start[0] - d * heading[0]), float(start[2] - d * heading[2]))
-                       for d in behind]
-        self._levers = [math.inf] * len(self._trail)    # the legs' lever at each trail point
+        self._trail = [(-d, float(start[0] - d * heading[0]), float(start[2] - d * heading[2]),
+                        math.inf) for d in behind]
         self._walked = 0.0          # horizontal metres the head has walked
         self._riser_at = -np.inf    # ... when it last went up or down a riser
         self._steps = 0
@@ -217,14 +215,13 @@ class Follower:
         p = self.head.position
         if self._walked - self._trail[-1][0] >= BEND_SAMPLE * self.spacing:
             back = self._trail[-int(round(1.0 / BEND_SAMPLE))]
-            self._trail.append((self._walked, float(p[0]), float(p[2])))
-            self._levers.append(self._leg_lever(p, p[0] - back[1], p[2] - back[2])
-                                if math.isfinite(self.stance_speed) else math.inf)
+            lever = (self._leg_lever(p, p[0] - back[1], p[2] - back[2])
+                     if math.isfinite(self.stance_speed) else math.inf)
+            self._trail.append((self._walked, float(p[0]), float(p[2]), lever))
             while self._walked - self._trail[0][0] > self.body_length + self.spacing:
                 self._trail.pop(0)
-                self._levers.pop(0)
-        radius = bend_radius(np.array(self._trail)[:, 1:], int(round(0.5 / BEND_SAMPLE)))
-        lever = min(self._levers)
+        radius = bend_radius(np.array(self._trail)[:, 1:3], int(round(0.5 / BEND_SAMPLE)))
+        lever = min(t[3] for t in self._trail)
         if radius != self.bend or lever != self.lever:
             self.bend, self.lever = radius, lever
             self._apply_speed()
