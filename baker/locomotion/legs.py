@@ -1255,19 +1255,21 @@ WARN_SHARES = (1.0, 0.8, 0.6, 0.4, 0.2, 0.0)
 WARN_GIVE_RATE = 0.1
 
 
-def _warning_room(rays, q, o, side, yaw, pitch, bend, lengths, rise) -> np.ndarray:
+def _warning_room(rays, q, o, side, yaws, pitch, bend, lengths, rise) -> np.ndarray:
     """(F,) the share of the warning's raise (rise (F,) rad, on top of pitch (F,)) an ultimate
     leg takes: the largest of WARN_SHARES whose two bones clear the environment (resting under
     a low overhang, a full raise drives the tip into it), eased so it gives way at most
     WARN_GIVE_RATE of the raise per frame. q, o : (F, 4), (F, 3) the segment's rotation and the
-    chain's base; bend: the tip bone's pitch over the upper one's."""
+    chain's base; yaws: the upper and the tip bone's yaws (F,) each; bend: the tip bone's pitch
+    over the upper one's."""
     F = len(rise)
     full = np.where(np.abs(rise) > 1e-12, 1.0, 0.0)
     if not full.any():
         return full
     shares = np.asarray(WARN_SHARES)
     p = pitch[:, None] + shares[None, :] * rise[:, None]                    # (F, k)
-    clear = _chain_clear(rays, q, o, side, yaw[:, None], yaw[:, None], p, bend, lengths, True)
+    clear = _chain_clear(rays, q, o, side, yaws[0][:, None], yaws[1][:, None], p, bend, lengths,
+                         True)
     room = np.where(clear.any(1), shares[np.argmax(clear, 1)], 0.0)
     give = _ramp((full * (1.0 - room))[:, None], WARN_GIVE_RATE)[:, 0]
     return np.clip(full - give, 0.0, 1.0)
@@ -1321,8 +1323,8 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
             dpitch = -np.radians(22.0) * grope ** 3
         base_pitch = pit1 + dpitch
         if back:                       # Posture 1: raised in proportion to the warning
-            w = _warning_room(rays, q, o, s, yaw1 + dyaw, base_pitch, pit2 - pit1, ch.lengths,
-                              warn * (lg.ultimate_warning_raise - pit1))
+            w = _warning_room(rays, q, o, s, (yaw1 + dyaw, yaw2 + dyaw), base_pitch, pit2 - pit1,
+                              ch.lengths, warn * (lg.ultimate_warning_raise - pit1))
             base_pitch = base_pitch + w * warn * (lg.ultimate_warning_raise - pit1)
         # candidates: raise the chain until both bones clear the environment
         pitch = base_pitch[:, None] + raise_steps[None, :]            # (F, k)
