@@ -84,7 +84,7 @@ def cli(verbose: int):
 
 @cli.command()
 @click.argument("environment", required=False, type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--seconds", type=float, default=20.0, show_default=True, help="Simulated duration.")
+@click.option("--seconds", type=float, default=60.0, show_default=True, help="Simulated duration.")
 @click.option("--fps", type=int, default=30, show_default=True,
               help="Export frame rate; must divide the 240 Hz simulation rate.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
@@ -112,7 +112,7 @@ def cli(verbose: int):
                    "around where the creatures go (auto: lazily on levels over 6 million columns).")
 @click.option("--behaviour", type=click.Choice(["auto", "wander", "shade", "hunt"]), default="auto",
               show_default=True, help="auto lets the brain choose; the others force one drive.")
-@click.option("--prey", type=int, default=0, show_default=True, help="Number of prey capsules (0-16).")
+@click.option("--prey", type=int, default=2, show_default=True, help="Number of prey capsules (0-16).")
 @click.option("--creatures", type=int, default=1, show_default=True,
               help="Number of centipedes baked together (1-1000): each its own skinned "
                    "skeleton, sharing one mesh, keeping apart from the others.")
@@ -150,10 +150,9 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
          **rig_overrides):
     """Bake a centipede on ENVIRONMENT (glTF/GLB, OBJ, PLY, STL or USD).
 
-    With no ENVIRONMENT, the bundled rainforest floor is used. `baker bake
-    environments/showcase.glb --seconds 60 --prey 2` bakes the showcase, under its slowly
-    turning sun: the centipede wanders, seeks and rests in shade, rears up (cobra), hunts and
-    feeds."""
+    With no ENVIRONMENT, the bundled showcase (environments/showcase.glb) is used: with no
+    option at all, a 60 s bake with 2 prey under the showcase's slowly turning sun, in which
+    the centipede wanders, seeks and rests in shade, rears up (cobra), hunts and feeds."""
     from baker.config import BakeConfig, validate_bake
 
     t0 = time.perf_counter()

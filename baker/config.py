@@ -23,10 +23,11 @@ from baker.geometry.transforms import direction_from_angles
 PACKAGE_ROOT = Path(__file__).resolve().parent
 REPO_ROOT = PACKAGE_ROOT.parent
 DEFAULT_RIG = REPO_ROOT / "rigs" / "scolopendra.toml"
-DEFAULT_ENVIRONMENT = REPO_ROOT / "environments" / "rainforest_floor.glb"
-#: the bundled scene that shows every behaviour (issue 14); not yet the default: the legs still
-#: break the quality limits on some of its seeds
-SHOWCASE_ENVIRONMENT = REPO_ROOT / "environments" / "showcase.glb"
+#: the default scene: the bundled showcase, a rainforest floor patch laid out so that the
+#: default minute (60 s, 2 prey, a slowly turning sun) meets every behaviour
+DEFAULT_ENVIRONMENT = REPO_ROOT / "environments" / "showcase.glb"
+#: the other bundled scene: a plainer 22.5 m rainforest floor (boxes, rocks, a log, ferns)
+FLOOR_ENVIRONMENT = REPO_ROOT / "environments" / "rainforest_floor.glb"
 MAX_FPS = 240  # [Limit] export fps must divide SIM_RATE_HZ and be at most this
 
 
@@ -67,6 +68,8 @@ class LocomotionConfig:
 class WanderConfig:
     interval: float = 5.0   # [>0] [s] time between new targets
     radius: float = 5.0     # [>0] [m] target sphere radius around the head
+    keep_target: float = 0.0  # [>=0] [s] a target not yet reached is kept this long at most
+                            # when the d10 says wander again (0: a new one at every roll, SEED)
 
 
 @dataclass(frozen=True)
@@ -185,7 +188,7 @@ PREVIEW_SUFFIXES = {"map": "_map.png", "sheet": "_sheet.png", "gif": ".gif"}
 @dataclass(frozen=True)
 class BakeConfig:
     environment: Path = DEFAULT_ENVIRONMENT  # file to load
-    seconds: float = 20.0        # [>0, <=3600] [s] simulated duration
+    seconds: float = 60.0        # [>0, <=3600] [s] simulated duration
     fps: int = 30                # [1..240, divides 240] [Hz] export frame rate
     seed: int = 0                # [>=0] random seed
     rig: RigConfig = field(default_factory=RigConfig)
@@ -196,7 +199,7 @@ class BakeConfig:
     debug_navmesh: bool = False
     behaviour: str = "auto"      # auto | wander | shade | hunt: which drives the brain may use
     cobra: str = "auto"          # auto | always | never
-    prey: int = 0                # [0..16] prey capsules
+    prey: int = 2                # [0..16] prey capsules
     creatures: int = 1           # [1..1000] centipedes baked together (run.crowd); 1 is the
                                  # lone creature, byte-identical to a bake without the option
     sun_path: str | None = None  # "AZ,EL;AZ,EL;..." degrees, evenly spaced over the bake

@@ -74,6 +74,8 @@ class LocomotionTable(_Table):
 class WanderTable(_Table):
     interval: Num | None = key("s", "time between new targets", gt=0, le=3600)
     radius: Num | None = key("BL", "targets drawn within this radius of the head", gt=0, le=1e4)
+    keep_target: Num | None = key("s", "a target not yet reached is kept this long at most",
+                                  ge=0, le=3600)
 
 
 class NavigationTable(_Table):

@@ -3,11 +3,11 @@ its files (baker.inspect: the GLB and USD read back, the Khronos glTF validator 
 pxr.UsdValidation), then print per-limit pass rates per scene and the worst bakes with the joint
 and frame of each worst value.
 
-Scenes: the bundled default scene (environments/rainforest_floor.glb, 60 s); the showcase
-(environments/showcase.glb, 60 s, 2 prey, its turning sun); ../shared/fixtures/nav_test.obj with the 2 m rig
-(--scale 8, 120 s; skipped when ../shared is absent); the generated multi-storey level
-(environments/multistorey.glb, 2 m rig, 120 s); the default scene moved 10 km from the origin
-(60 s).
+Scenes: the default bake (`default`: the bundled showcase, environments/showcase.glb, 60 s,
+2 prey, its turning sun); ../shared/fixtures/nav_test.obj with the 2 m rig (--scale 8, 120 s;
+skipped when ../shared is absent); the generated multi-storey level (environments/
+multistorey.glb, 2 m rig, 120 s); the default bake moved 10 km from the origin (`far`); the
+other bundled scene (`floor`: environments/rainforest_floor.glb, 60 s, no prey).
 
     python benchmarks/quality_sweep.py                      # 50 default seeds, 10 per other scene
     python benchmarks/quality_sweep.py --scenes default --default-seeds 8 --seed-base 5000
@@ -42,11 +42,11 @@ DIAGNOSTICS = tuple(f"rotation_{kind}_{group}_deg" for group in
     "antenna_bone_hits", "foot_near_ground_fraction", "head_unsupported_frames")
 
 SCENES = {
-    "default": dict(env="environments/rainforest_floor.glb", scale=None, seconds=60.0),
-    "showcase": dict(env="environments/showcase.glb", scale=None, seconds=60.0, prey=2),
+    "default": dict(env="environments/showcase.glb", scale=None, seconds=60.0, prey=2),
     "nav_test": dict(env=str(SHARED / "nav_test.obj"), scale=8.0, seconds=120.0),
     "multistorey": dict(env="environments/multistorey.glb", scale=8.0, seconds=120.0),
-    "far": dict(env="far", scale=None, seconds=60.0),
+    "far": dict(env="far", scale=None, seconds=60.0, prey=2),
+    "floor": dict(env="environments/rainforest_floor.glb", scale=None, seconds=60.0),
 }
 
 
@@ -71,7 +71,7 @@ def moved_glb(src: Path, dst: Path, offset) -> Path:
 def scene_environment(scene: str, work: Path) -> Path | None:
     """The environment file of a sweep scene (None when it is not available here)."""
     if scene == "far":
-        path = work / "rainforest_floor_far.glb"
+        path = work / "showcase_far.glb"
         if not path.exists():
             moved_glb(ROOT / SCENES["default"]["env"], path, FAR_OFFSET)
         return path
@@ -235,7 +235,7 @@ def print_worst(rows: list[dict], top: int) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--scenes", default="default,nav_test,multistorey,far")
+    ap.add_argument("--scenes", default="default,nav_test,multistorey,far,floor")
     ap.add_argument("--default-seeds", type=int, default=50)
     ap.add_argument("--other-seeds", type=int, default=10)
     ap.add_argument("--seed-base", type=int, default=1000)

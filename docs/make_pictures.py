@@ -1,8 +1,9 @@
-"""Regenerate the README's pictures of the showcase bake: docs/preview_map.png and
+"""Regenerate the README's pictures of the default bake: docs/preview_map.png and
 docs/preview_sheet.png.
 
-Bakes `baker bake environments/showcase.glb --seconds 60 --prey 2` (seed 0, the showcase's
-turning sun) into a temporary folder, then draws its map and contact sheet
+Bakes `baker bake` with no options (the default scene, seconds, seed, prey and sun, whatever
+they are in the current code: the showcase's minute with 2 prey) into a temporary folder,
+then draws its map and contact sheet
 with `baker preview`'s code. The sheet is stored with a 256-colour palette to keep it small
 (< 400 kB); otherwise both are the pictures `baker preview` writes. Run from the repo root:
 
@@ -26,10 +27,6 @@ DOCS = Path(__file__).resolve().parent
 LIMIT = 400 * 1024
 
 
-#: the bake the pictures show: the showcase's minute with 2 prey (every behaviour in one bake)
-BAKE = ["environments/showcase.glb", "--seconds", "60", "--prey", "2"]
-
-
 def small_png(png: bytes) -> bytes:
     """The same picture with a 256-colour palette (median cut, no dithering: deterministic)."""
     img = Image.open(io.BytesIO(png)).convert("RGB")
@@ -42,7 +39,7 @@ def small_png(png: bytes) -> bytes:
 def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "centipede"
-        subprocess.run([sys.executable, "-m", "baker", "bake", *BAKE, "--format", "glb",
+        subprocess.run([sys.executable, "-m", "baker", "bake", "--format", "glb",
                         "--out", str(out)], check=True)
         pictures = preview_images(out.with_suffix(".glb"))
     files = {DOCS / "preview_map.png": pictures["map"],

@@ -1,7 +1,8 @@
 """The brain: a state machine that picks what the centipede does, from SEED.md's behaviours.
 
 States
-    wander         walk to a random reachable point; a new one every decision interval
+    wander         walk to a random reachable point; a new one at every decision (with
+                   wander.keep_target > 0: once it is reached, or kept that long)
     seek_shade     walk to a remembered shaded spot
     rest_in_shade  stay put in shade
     cobra          scout: rear the front third up for a look over an obstacle ahead (taller than
@@ -117,6 +118,7 @@ class Brain(IntentSource):
         self.shaded = False
         self._sought = None        # the remembered shade spot being walked to
         self._arrived_at = None    # when the agent reached it
+        self._target_at = -math.inf  # when the wander target was drawn
         self.prey: Prey | None = None
         self.target: np.ndarray | None = None
         self.new_target = False
@@ -273,8 +275,12 @@ class Brain(IntentSource):
             self._sought = spot
             self._go(spot.copy())
             return
+        if (self.state == "wander" and self.target is not None and not s.arrived
+                and s.t - self._target_at < self.rig.wander.keep_target):
+            return       # keep walking to the target: a walk to another room outlasts a roll
         target = self.nav.random_point_near(s.head, self.rig.wander.radius, self.rng)
         self._enter("wander", s.t, roll=roll, target=_r(target) if target is not None else None)
+        self._target_at = s.t
         self._go(target)
 
     def _free_spots(self) -> list[np.ndarray]:

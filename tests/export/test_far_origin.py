@@ -19,7 +19,7 @@ from glb_read import Glb
 from sweep import moved_glb
 from validator import gltf_validate, issues_summary, usd_validate
 
-from baker.config import DEFAULT_ENVIRONMENT, DEFAULT_RIG, BakeConfig, load_rig_config
+from baker.config import FLOOR_ENVIRONMENT, DEFAULT_RIG, BakeConfig, load_rig_config
 from baker.geometry.transforms import quat_mul, quat_rotate
 
 pxr = pytest.importorskip("pxr")
@@ -90,10 +90,10 @@ def bakes(tmp_path_factory, nav_cache_dir):
     from baker.pipeline import bake
 
     tmp = tmp_path_factory.mktemp("far")
-    far_env = moved_glb(DEFAULT_ENVIRONMENT, tmp / "far_floor.glb", OFFSET)
+    far_env = moved_glb(FLOOR_ENVIRONMENT, tmp / "far_floor.glb", OFFSET)
     rig = load_rig_config(DEFAULT_RIG)
     out = {}
-    for name, env, o in (("near", DEFAULT_ENVIRONMENT, np.zeros(3)), ("far", far_env, OFFSET)):
+    for name, env, o in (("near", FLOOR_ENVIRONMENT, np.zeros(3)), ("far", far_env, OFFSET)):
         out[name] = bake(BakeConfig(environment=env, seconds=SECONDS, seed=1, rig=rig,
                                     out=tmp / name, nav_cache_dir=nav_cache_dir,
                                     start=tuple(START + o), prey_positions=(tuple(PREY + o),),

@@ -186,7 +186,7 @@ def test_in_place_bake_is_previewed_where_it_walked(tmp_path, nav_cache_dir):
     pos = {}
     for mode in ("world", "in-place"):
         cfg = BakeConfig(environment=env, rig=load_rig_config(DEFAULT_RIG), out=tmp_path / mode,
-                         seconds=1.0, seed=2, formats=("glb",), nav_cache_dir=nav_cache_dir,
+                         seconds=1.0, seed=2, prey=0, formats=("glb",), nav_cache_dir=nav_cache_dir,
                          root_motion=mode, tolerance=0.0)   # the same keys in both
         scene = load_bake(bake(cfg).outputs["glb"])
         pos[mode] = {n: scene.baked.positions[:, i] for i, n in enumerate(scene.baked.names)}
@@ -300,7 +300,7 @@ def test_bake_preview_writes_the_pictures_of_its_glb(tmp_path, capsys, nav_cache
 
 @pytest.mark.slow
 def test_readme_pictures_are_what_the_code_draws(tmp_path, capsys, nav_cache_dir):
-    """docs/preview_map.png and docs/preview_sheet.png (the README's) are the showcase bake's
+    """docs/preview_map.png and docs/preview_sheet.png (the README's) are the default bake's
     pictures as the current code draws them: `python docs/make_pictures.py` after a change that
     moves them. Compared pixel by pixel (99.5 % equal), not byte by byte, so that another CPU's
     Embree may round an edge differently."""
@@ -310,11 +310,10 @@ def test_readme_pictures_are_what_the_code_draws(tmp_path, capsys, nav_cache_dir
     docs = Path(__file__).resolve().parents[2] / "docs"
     sys.path.insert(0, str(docs))
     try:
-        from make_pictures import BAKE, small_png
+        from make_pictures import small_png
     finally:
         sys.path.remove(str(docs))
-    showcase = [str(docs.parent / BAKE[0]), *BAKE[1:]]
-    code, _, err = _run(["bake", *showcase, "--format", "glb", "--out", str(tmp_path / "centipede"),
+    code, _, err = _run(["bake", "--format", "glb", "--out", str(tmp_path / "centipede"),
                          "--cache-dir", str(nav_cache_dir)], capsys)
     assert code == 0, err
     now = pv.preview_images(tmp_path / "centipede.glb")

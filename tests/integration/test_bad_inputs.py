@@ -23,7 +23,7 @@ import pytest
 
 import bad_inputs
 from baker.cli import main
-from baker.config import DEFAULT_ENVIRONMENT
+from baker.config import FLOOR_ENVIRONMENT
 
 CASES = {c.id: c for c in bad_inputs.all_cases()}
 PEAK_RSS = Path(__file__).resolve().parents[1] / "tools" / "peak_rss.py"
@@ -47,7 +47,7 @@ SUBPROCESS = [
 def bake_args(case, folder: Path, out: Path) -> list[str]:
     extra = [str(a) for a in case.make(folder)]
     if extra and extra[0] == "navmesh":
-        return ["navmesh", str(DEFAULT_ENVIRONMENT), "--no-cache", *extra[1:]]
+        return ["navmesh", str(FLOOR_ENVIRONMENT), "--no-cache", *extra[1:]]
     env = []
     if extra and not extra[0].startswith("--"):
         env, extra = [extra[0]], extra[1:]

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from pxr import Usd, UsdSkel
 
-from baker.config import DEFAULT_RIG, BakeConfig, load_rig_config
+from baker.config import DEFAULT_RIG, FLOOR_ENVIRONMENT, BakeConfig, load_rig_config
 from baker.geometry.transforms import trs_to_matrix
 from baker.pipeline import bake
 from glb_read import Glb
@@ -20,7 +20,8 @@ pytestmark = pytest.mark.slow
 
 
 def run(tmp: Path, cache: Path, name: str, seconds: float, seed: int = 0, **kw):
-    cfg = BakeConfig(seconds=seconds, seed=seed, rig=load_rig_config(DEFAULT_RIG),
+    cfg = BakeConfig(environment=FLOOR_ENVIRONMENT, prey=0, seconds=seconds, seed=seed,
+                     rig=load_rig_config(DEFAULT_RIG),
                      out=tmp / name, nav_cache_dir=cache, **kw)
     return bake(cfg)
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 from baker.cli import main
-from baker.config import DEFAULT_ENVIRONMENT
+from baker.config import FLOOR_ENVIRONMENT
 from batch_jobs import NAMES_12, digests, manifest, stray_files, write_jobs
 
 #: A line that never comes within this long means the batch is broken (not a time limit on
@@ -134,10 +134,11 @@ def test_a_broken_job_fails_and_the_other_11_bake(tmp_path, capsys, nav_cache_di
     jobs.write_text(f"""
 [defaults]
 seconds = 1
+prey = 0
 
 [[job]]
 name = "forest"
-environment = "{DEFAULT_ENVIRONMENT.as_posix()}"
+environment = "{FLOOR_ENVIRONMENT.as_posix()}"
 [job.matrix]
 seed = [0, 1, 2]
 behaviour = ["wander", "hunt"]

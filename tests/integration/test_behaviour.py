@@ -62,6 +62,7 @@ def shaded_share(env_path: Path, sun_dir) -> float:
 
 
 def run(tmp: Path, env: Path, name: str, cache: Path, **kw):
+    kw.setdefault("prey", 0)
     cfg = BakeConfig(environment=env, rig=kw.pop("rig", RIG), out=tmp / name,
                      nav_cache_dir=cache, formats=kw.pop("formats", ("glb",)), **kw)
     return bake(cfg)
@@ -92,9 +93,9 @@ def test_shade_seeking_spends_time_in_shade(shelter, nav_cache_dir):
 
     rays = load_environment(env).rays
     for seed in range(6):
-        traj, on = simulated(BakeConfig(environment=env, rig=SPINE_RIG, nav_cache_dir=nav_cache_dir,
+        traj, on = simulated(BakeConfig(environment=env, rig=SPINE_RIG, nav_cache_dir=nav_cache_dir, prey=0,
                                         seconds=180, seed=seed, behaviour="shade", **start))
-        _, off = simulated(BakeConfig(environment=env, rig=SPINE_RIG, nav_cache_dir=nav_cache_dir,
+        _, off = simulated(BakeConfig(environment=env, rig=SPINE_RIG, nav_cache_dir=nav_cache_dir, prey=0,
                                       seconds=180, seed=seed, behaviour="wander", **start))
         f_on = on["behaviour"]["shade_fraction"]
         f_off = off["behaviour"]["shade_fraction"]

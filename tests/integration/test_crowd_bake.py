@@ -15,7 +15,7 @@ from scipy.spatial.distance import cdist
 
 from baker import batch
 from baker.cli import main
-from baker.config import DEFAULT_RIG, BakeConfig, load_rig_config
+from baker.config import DEFAULT_RIG, FLOOR_ENVIRONMENT, BakeConfig, load_rig_config
 from baker.inspect import judge_creatures, read_glb, read_usd
 from baker.pipeline import bake
 from glb_read import Glb
@@ -31,6 +31,7 @@ N = 3
 def crowd(tmp_path_factory, nav_cache_dir):
     out = tmp_path_factory.mktemp("crowd") / "crowd"
     cfg = BakeConfig(seconds=4.0, seed=0, creatures=N, rig=load_rig_config(DEFAULT_RIG),
+                     environment=FLOOR_ENVIRONMENT, prey=0,
                      out=out, nav_cache_dir=nav_cache_dir)
     return bake(cfg)
 
@@ -175,6 +176,7 @@ def test_every_creature_is_judged(crowd):
 
 def test_a_crowd_with_clips_and_in_place_root_motion(tmp_path, nav_cache_dir):
     cfg = BakeConfig(seconds=2.0, seed=1, creatures=2, rig=load_rig_config(DEFAULT_RIG),
+                     environment=FLOOR_ENVIRONMENT, prey=0,
                      out=tmp_path / "c2", nav_cache_dir=nav_cache_dir, clips=True,
                      root_motion="in-place")
     res = bake(cfg)
@@ -228,6 +230,7 @@ def test_an_unreduced_crowd_with_a_root_joint(tmp_path, nav_cache_dir):
     """--tolerance 0 writes every key of every creature; --root-motion root gives each its
     own `root` joint (`c01_root`)."""
     cfg = BakeConfig(seconds=1.0, seed=2, creatures=2, rig=load_rig_config(DEFAULT_RIG),
+                     environment=FLOOR_ENVIRONMENT, prey=0,
                      out=tmp_path / "t0", nav_cache_dir=nav_cache_dir, tolerance=0.0,
                      root_motion="root", formats=("glb",))
     res = bake(cfg)

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from baker.cli import main
+from baker.config import FLOOR_ENVIRONMENT
 from baker.inspect_file import LOOP_RULE, inspect_file, khronos_validate, loops_by_name
 from glb_read import Glb
 
@@ -21,12 +22,13 @@ SECONDS = 3
 
 @pytest.fixture(scope="module")
 def bakes(tmp_path_factory, nav_cache_dir):
-    """A bake with prey and per-behaviour clips (GLB + USD + JSON) and one written as USDA,
+    """On the bundled rainforest floor: a bake with prey and per-behaviour clips (GLB + USD + JSON) and one written as USDA,
     every frame keyed (--tolerance 0: the tests below edit and count keys; reduced files are
     inspected in test_a_reduced_bake_is_inspected)."""
     d = tmp_path_factory.mktemp("inspect_cli")
-    for name, extra in (("c", ["--prey", "1", "--clips"]), ("t", ["--usda", "--format", "usd"])):
-        code = main(["bake", "--seconds", str(SECONDS), "--seed", "2", "--out", str(d / name),
+    for name, extra in (("c", ["--prey", "1", "--clips"]),
+                        ("t", ["--prey", "0", "--usda", "--format", "usd"])):
+        code = main(["bake", str(FLOOR_ENVIRONMENT), "--seconds", str(SECONDS), "--seed", "2", "--out", str(d / name),
                      "--cache-dir", str(nav_cache_dir), "--tolerance", "0", *extra])
         assert code == 0
     return d
@@ -72,8 +74,9 @@ def test_glb_report_matches_the_file(bakes, capsys, rig):
             c["target"]["node"] in joints and c["target"]["path"] == p for c in anim["channels"])
     assert 0 < bake["joint_channels"]["rotation"] <= sk["joints"]
     prey = doc["nodes"].index(next(n for n in doc["nodes"] if n["name"] == "prey_01"))
-    assert bake["node_channels"] == sum(c["target"]["node"] == prey           # the prey's
-                                        for c in doc["animations"][0]["channels"]) >= 2
+    # the channels of nodes that are not joints: the prey's, and the sun's when it turns
+    assert bake["node_channels"] == sum(c["target"]["node"] not in joints for c in anim["channels"])
+    assert sum(c["target"]["node"] == prey for c in anim["channels"]) >= 2
     assert not any(c["loop"] for c in r["clips"])
     # sizes: exact, they add up to the file, and the animation share is its accessors' views
     s = r["sizes"]

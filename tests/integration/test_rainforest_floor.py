@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from baker.config import DEFAULT_ENVIRONMENT
+from baker.config import DEFAULT_ENVIRONMENT, FLOOR_ENVIRONMENT
 from baker.environment import load_environment
 
 REPO = Path(__file__).resolve().parents[2]
@@ -72,9 +72,11 @@ def _log_frame(mesh):
     return c, axis, across, half
 
 
-def test_bundled_floor_is_small_and_the_default():
-    """The default scene; the showcase (tests/integration/test_showcase.py) is bundled beside it."""
-    assert Path(DEFAULT_ENVIRONMENT).resolve() == GLB.resolve()
+def test_bundled_floor_is_small_and_not_the_default():
+    """Bundled beside the default scene (environments/showcase.glb, tests/integration/
+    test_showcase.py)."""
+    assert Path(FLOOR_ENVIRONMENT).resolve() == GLB.resolve()
+    assert Path(DEFAULT_ENVIRONMENT).resolve() != GLB.resolve()
     assert GLB.stat().st_size < 2_000_000
 
 

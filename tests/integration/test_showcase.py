@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from baker.behaviour.sun import sun_path
-from baker.config import SHOWCASE_ENVIRONMENT, DEFAULT_RIG, BakeConfig, load_rig_config
+from baker.config import DEFAULT_ENVIRONMENT, DEFAULT_RIG, BakeConfig, load_rig_config
 from baker.environment import load_environment
 from baker.navmesh.cache import load_or_build
 from validator import gltf_validate
@@ -45,8 +45,8 @@ def shaded_share(env, nav, sun_dir) -> float:
     return float(env.rays.occluded(p, np.tile(sun_dir, (len(p), 1))).mean())
 
 
-def test_showcase_is_bundled_and_small():
-    assert Path(SHOWCASE_ENVIRONMENT).resolve() == GLB.resolve()
+def test_default_environment_is_the_showcase():
+    assert Path(DEFAULT_ENVIRONMENT).resolve() == GLB.resolve()
     assert GLB.stat().st_size < 1_500_000
 
 
@@ -117,10 +117,10 @@ def test_default_bake_shows_every_behaviour(tmp_path, nav_cache_dir):
     from baker.cli import main
 
     out = tmp_path / "centipede"
-    assert main(["bake", str(GLB), "--seconds", "60", "--prey", "2", "--out", str(out),
-                 "--cache-dir", str(nav_cache_dir)]) == 0
+    assert main(["bake", "--out", str(out), "--cache-dir", str(nav_cache_dir)]) == 0
     report = json.loads(out.with_suffix(".json").read_text())
     assert report["parameters"]["seconds"] == 60.0 and report["seed"] == 0
+    assert report["parameters"]["prey"] == 2
     states = {e["state"] for e in report["timeline"]}
     assert len(states) >= 5 and REQUIRED <= states, sorted(states)
     feed = [e for e in report["timeline"] if e["state"] == "feed"]

@@ -7,12 +7,14 @@ import hashlib
 import json
 from pathlib import Path
 
-from baker.config import DEFAULT_ENVIRONMENT
+from baker.config import FLOOR_ENVIRONMENT
 
-#: the 12-job batch: 3 seeds x 2 environments x 2 behaviours, 1 s bakes
+#: the 12-job batch: 3 seeds x 2 environments (the bundled rainforest floor and a small level)
+#: x 2 behaviours, 1 s bakes without prey
 JOBS_12 = """\
 [defaults]
 seconds = 1
+prey = 0
 
 [[job]]
 name = "forest"
@@ -55,7 +57,7 @@ def write_jobs(folder: Path, name: str = "jobs.toml", small_seconds: float = 1,
     if not (folder / "small.obj").exists():
         write_small_level(folder / "small.obj")
     path = folder / name
-    path.write_text(JOBS_12.format(forest=DEFAULT_ENVIRONMENT.as_posix(),
+    path.write_text(JOBS_12.format(forest=FLOOR_ENVIRONMENT.as_posix(),
                                    small_seconds=small_seconds) + extra)
     return path
 

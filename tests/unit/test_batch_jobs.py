@@ -15,7 +15,7 @@ import pytest
 
 from baker import batch
 from baker.cli import main
-from baker.config import DEFAULT_ENVIRONMENT, DEFAULT_RIG, BakeConfig, load_rig_config
+from baker.config import DEFAULT_RIG, FLOOR_ENVIRONMENT, BakeConfig, load_rig_config
 from baker.errors import ConfigError, JobsFileError
 from batch_jobs import NAMES_12, write_jobs, write_small_level
 
@@ -35,7 +35,7 @@ def test_matrix_expands_to_named_jobs(tmp_path):
     assert (cfg.seed, cfg.behaviour, cfg.seconds) == (2, "hunt", 1.0)
     assert cfg.environment == (tmp_path / "small.obj").resolve()
     assert cfg.out == (tmp_path / "out" / "small-seed2-hunt").resolve()
-    assert by_name["forest-seed0-wander"].environment == DEFAULT_ENVIRONMENT
+    assert by_name["forest-seed0-wander"].environment == FLOOR_ENVIRONMENT
     # one navigation group per environment (same rig and agent)
     assert len(plan.nav_groups) == 2
     assert {j.nav for j in plan.jobs if j.name.startswith("small")} == {1}

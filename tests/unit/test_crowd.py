@@ -53,7 +53,7 @@ def plane():
 def test_five_creatures_on_a_small_plane_never_interpenetrate():
     env = env_of(floor(-1.0, 1.0, -1.0, 1.0))
     nav = nav_of(env)
-    cfg = BakeConfig(seconds=8.0, rig=RIG, behaviour="wander")
+    cfg = BakeConfig(seconds=8.0, prey=0, rig=RIG, behaviour="wander")
     trajs = simulate_crowd(cfg, env, nav, 3, 5, Context())
     assert len(trajs) == 5 and all(t.n_frames == 241 for t in trajs)
     gap = min_spine_gap(trajs)
@@ -95,7 +95,7 @@ def test_a_shade_spot_holds_one_creature():
     rig = replace(RIG, behaviour=replace(RIG.behaviour, shade_min_spots=1, shade_roll_max=9,
                                          decision_interval=2.0, shade_memory_interval=0.5,
                                          shade_sense_radius=0.12))
-    cfg = BakeConfig(seconds=20.0, rig=rig, behaviour="shade")
+    cfg = BakeConfig(seconds=20.0, prey=0, rig=rig, behaviour="shade")
     recs, _ = run_crowd(cfg, env, nav_of(env), 1, 2, Context())
     rests = [[e for e in r.events if e["state"] == "rest_in_shade"] for r in recs]
     assert all(rests), "both creatures rest in the spot, one after the other"

@@ -133,7 +133,7 @@ def test_five_creatures_on_a_small_plane_keep_their_spines_apart():
 
     env = env_of(floor(-1.0, 1.0, -1.0, 1.0))
     rig = replace(RIG, legs=replace(RIG.legs, enabled=False))
-    cfg = BakeConfig(seconds=6.0, rig=rig, behaviour="wander")
+    cfg = BakeConfig(seconds=6.0, prey=0, rig=rig, behaviour="wander")
     trajs = simulate_crowd(cfg, env, nav_of(env), 3, 5, Context())
     m = crowd_metrics(trajs, rig.legs, RADIUS)
     assert m["spines_apart"] and m["min_spine_gap_m"] >= 2.0 * RADIUS

@@ -22,7 +22,7 @@ RIG = replace(RIG, legs=replace(RIG.legs, enabled=False))
 def test_the_trail_reaches_well_behind_the_tail_at_the_start():
     env = env_of(floor(-1.0, 1.0, -1.0, 1.0))
     nav = build(env, RIG.navigation)
-    cfg = BakeConfig(seconds=1.0, rig=RIG, behaviour="wander", start=(0.3, 0.0, 0.0),
+    cfg = BakeConfig(seconds=1.0, prey=0, rig=RIG, behaviour="wander", start=(0.3, 0.0, 0.0),
                      start_heading=(1.0, 0.0, 0.0))
     traj = simulate(cfg, env, nav, Streams(5), Context())
     body = RIG.body
