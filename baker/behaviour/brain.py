@@ -46,6 +46,12 @@ COBRA_MAX_TIME = 3.0
 #: crossed that margin within its burst, so a hunt ended the moment it did, just before the
 #: prey tired
 GIVE_UP_TIME = 2.0
+#: a hunt that is gaining on its prey goes on out of range (the prey's burst has tired), while
+#: the gap shrinks by at least GAIN_BL body lengths every GAP_INTERVAL seconds and is within
+#: GAIN_RANGE detection ranges
+GAP_INTERVAL = 0.25
+GAIN_BL = 0.02
+GAIN_RANGE = 2.0
 #: [m] a remembered shade spot has shade this far around it (4 rays on the level)
 SPOT_MARGIN = 0.05
 
@@ -105,6 +111,7 @@ class Brain(IntentSource):
         self._obstacle = False     # an obstacle worth rearing at is ahead (last perception)
         self._ignore: dict[str, float] = {}   # prey given up on, until this time
         self._out_of_range = math.inf   # when the hunted prey last went out of range
+        self._gap, self._next_gap, self._gaining = math.inf, 0.0, False  # gaining on the prey
         self._now = 0.0
         # two rings of points around the head where shade is noticed (8 at half the sense
         # radius, 16 at the full radius)
@@ -229,6 +236,7 @@ class Brain(IntentSource):
                 self._scout_until = s.t + self.b.scout_time
                 self._next_replan = s.t
                 self._out_of_range = math.inf
+                self._gap, self._next_gap, self._gaining = math.inf, s.t, False
 
     def _deep_shade(self, p: np.ndarray, sun: np.ndarray) -> bool:
         """The shade around p reaches SPOT_MARGIN every way: a spot worth walking to, not a
@@ -346,8 +354,14 @@ class Brain(IntentSource):
     def _hunt(self, s: Senses, decide: bool) -> None:
         prey = self.prey
         d = float(np.linalg.norm(prey.position - s.head))
-        # a margin, so a hunt does not flicker at the edge, and a time out of it
-        far = d > 1.2 * self.b.detection_range
+        if s.t >= self._next_gap:
+            self._gaining = d <= self._gap - GAIN_BL * self.rig.body.length  # (inf: first)
+            self._gaining &= math.isfinite(self._gap)
+            self._gap, self._next_gap = d, s.t + GAP_INTERVAL
+        # a margin, so a hunt does not flicker at the edge, and a time out of it (unless the
+        # hunter is gaining on a prey that has tired)
+        far = d > 1.2 * self.b.detection_range and not (
+            self._gaining and d <= GAIN_RANGE * self.b.detection_range)
         self._out_of_range = min(self._out_of_range, s.t) if far else math.inf
         if far and s.t - self._out_of_range >= GIVE_UP_TIME:
             self.events[-1]["details"]["outcome"] = "escaped"
