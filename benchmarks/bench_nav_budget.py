@@ -13,12 +13,12 @@ import sys
 CHILD = r"""
 import json, sys, time
 from dataclasses import replace
-from baker.config import DEFAULT_ENVIRONMENT, DEFAULT_RIG, load_rig_config
+from baker.config import DEFAULT_RIG, FLOOR_ENVIRONMENT, load_rig_config
 from baker.environment import load_environment
 from baker.navmesh import budget
 from baker.navmesh.build import build, _grid
 cell = float(sys.argv[1])
-env = load_environment(DEFAULT_ENVIRONMENT)
+env = load_environment(FLOOR_ENVIRONMENT)
 agent = replace(load_rig_config(DEFAULT_RIG).navigation, cell_size=cell)
 x0, z0, nx, nz, _ = _grid(env, None, cell)
 est = budget.estimate(nx * nz, len(env.mesh.faces))

@@ -1,5 +1,5 @@
 """Navigation cache entry (navmesh/cache.py): size, save time and the median load time against
-the 50 ms target (issue 15), for the default scene and a big level (the ~1M-triangle generated
+the 50 ms target (issue 15), for the rainforest floor and a big level (the ~1M-triangle generated
 200 x 200 m level of bench_navmesh.py, agent cell 0.1 m).
 
 An entry is memory-mapped on load (its arrays are read-only views of the file) after its
@@ -26,7 +26,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from baker.config import DEFAULT_ENVIRONMENT, DEFAULT_RIG, NavAgentConfig, load_rig_config  # noqa: E402
+from baker.config import DEFAULT_RIG, FLOOR_ENVIRONMENT, NavAgentConfig, load_rig_config  # noqa: E402
 from baker.environment import load_environment  # noqa: E402
 from baker.navmesh import build, cache  # noqa: E402
 
@@ -48,7 +48,7 @@ def drop_page_cache(path: Path) -> bool:
 
 def scenes(which: str):
     if which in ("default", "both"):
-        yield "default scene", load_environment(DEFAULT_ENVIRONMENT), \
+        yield "rainforest floor", load_environment(FLOOR_ENVIRONMENT), \
             load_rig_config(DEFAULT_RIG).navigation
     if which in ("big", "both"):
         from bench_navmesh import generated_scene
