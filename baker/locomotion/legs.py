@@ -346,7 +346,8 @@ class _Frames:
             # ... or turn one of its bones too fast in a frame (near a straight or folded knee)
             bad |= _stance_turns(hip[fw_ext, ll[:, None]], hold[open_],
                                  self.fwd[fw_ext, ll[:, None]], self.left[fw_ext, ll[:, None]],
-                                 lay, ll, self.lg.knee_out) > SWING_TURN
+                                 self.q_inv[fw_ext, ll[:, None]], lay, ll,
+                                 self.lg.knee_out) > SWING_TURN
             if sight:
                 hp = hip[fw, ll[:, None]].reshape(-1, 3)
                 v = np.broadcast_to(hold[open_, None, :], fw.shape + (3,)).reshape(-1, 3) - hp
@@ -875,19 +876,22 @@ def _even_swings(target, hip, q, q_inv, cidx, LOs, Ts, sw, limit):
     return out
 
 
-def _stance_turns(hip, hold, fwd, left, lay, legs, knee_out) -> np.ndarray:
+def _stance_turns(hip, hold, fwd, left, q_inv, lay, legs, knee_out) -> np.ndarray:
     """(n, W-1) degrees the bones of legs `legs` (n,) with their feet planted at `hold` (n, 3)
-    turn between consecutive frames of a window (hip, fwd, left: (n, W, 3)), in the world."""
+    turn between consecutive frames of a window (hip, fwd, left: (n, W, 3); q_inv (n, W, 4) the
+    segments' inverse rotations), in the world and the upper bone in its segment's own space
+    (a segment turning one way while the planted leg turns the other adds the two)."""
     n, W, _ = hip.shape
     target = np.broadcast_to(hold[:, None, :], hip.shape)
     u = normalize(target - hip)
     s = lay.side[legs][:, None, None]
     pole = s * np.cross(fwd, u) + knee_out * s * left
     sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
-    steps = np.maximum(_frame_steps(np.swapaxes(hip, 0, 1), np.swapaxes(sol.mid, 0, 1),
-                                    np.swapaxes(sol.hinge, 0, 1)),
-                       _frame_steps(np.swapaxes(sol.mid, 0, 1), np.swapaxes(sol.end, 0, 1),
-                                    np.swapaxes(sol.hinge, 0, 1)))
+    sw = (lambda a: np.swapaxes(a, 0, 1))
+    m, hg = quat_rotate(q_inv, sol.mid - hip), quat_rotate(q_inv, sol.hinge)
+    steps = np.maximum.reduce([_frame_steps(sw(hip), sw(sol.mid), sw(sol.hinge)),
+                               _frame_steps(sw(sol.mid), sw(sol.end), sw(sol.hinge)),
+                               _frame_steps(np.zeros_like(sw(m)), sw(m), sw(hg))])
     return steps.T
 
 

@@ -97,6 +97,9 @@ def bakes(tmp_path_factory, nav_cache_dir):
         out[name] = bake(BakeConfig(environment=env, seconds=SECONDS, seed=1, rig=rig,
                                     out=tmp / name, nav_cache_dir=nav_cache_dir,
                                     start=tuple(START + o), prey_positions=(tuple(PREY + o),),
+                                    # wander (the prey is there, not hunted): the timeline
+                                    # holds targets, world positions to compare
+                                    behaviour="wander",
                                     tolerance=0.0))        # every key: exact to the simulation
     return out
 
