@@ -355,8 +355,9 @@ class Brain(IntentSource):
         prey = self.prey
         d = float(np.linalg.norm(prey.position - s.head))
         if s.t >= self._next_gap:
-            self._gaining = d <= self._gap - GAIN_BL * self.rig.body.length  # (inf: first)
-            self._gaining &= math.isfinite(self._gap)
+            # (the first sample of a hunt has nothing to compare with)
+            self._gaining = (math.isfinite(self._gap)
+                             and d <= self._gap - GAIN_BL * self.rig.body.length)
             self._gap, self._next_gap = d, s.t + GAP_INTERVAL
         # a margin, so a hunt does not flicker at the edge, and a time out of it (unless the
         # hunter is gaining on a prey that has tired)
