@@ -57,7 +57,8 @@ class Interrupted(BaseException):
 
 
 #: raised: the signal number once Interrupted was raised (0 before)
-_state = {"phase": "start", "defer": 0, "pending": 0, "raised": 0, "queued": 0}
+_state = {"phase": "start", "defer": 0, "pending": 0, "raised": 0, "first": 0, "wakeup": -1,
+          "pid": 0}
 
 
 #: How long to wait before looking again when a signal arrives in the middle of an import.
@@ -80,19 +81,36 @@ def _again(signum: int) -> None:
     t.start()
 
 
+def _first(signum: int) -> int:
+    """The first SIGINT or SIGTERM this process received. Python runs its handlers after the
+    fact, in an order of its own: a signal that arrives while another's handler runs has its
+    handler run inside that one, first (Ctrl-C then a SIGTERM at once stopped a bake as
+    SIGTERM). The C-level handler writes each signal's number to the wakeup pipe as it arrives;
+    the first handler to run reads what is there. Signals that arrived together (all there at
+    that read, in whatever order the kernel gave them to the process's threads) count as one
+    moment, and SIGINT, the user's Ctrl-C, wins it. `signum` when there is no pipe."""
+    if not _state["first"] and _state["wakeup"] >= 0 and _state["pid"] == os.getpid():
+        try:
+            arrived = os.read(_state["wakeup"], 4096)
+        except OSError:                 # nothing there (non-blocking), or closed
+            arrived = b""
+        _state["first"] = min((int(b) for b in arrived if b in HANDLED), default=0)
+    _state["first"] = _state["first"] or int(signum)
+    return _state["first"]
+
+
 def _handler(signum, frame):
     if _state["raised"]:
         return                      # already stopping: let the cleanup finish
-    # the first signal wins, also over one that arrives while it waits for an import to end
-    # (Ctrl-C then a SIGTERM stopped the bake as SIGTERM)
-    signum, _state["queued"] = _state["queued"] or signum, 0
+    # the first signal wins: over one that arrives while its handler runs, or while it waits
+    # for an import to end
+    signum = _first(signum)
     if _state["defer"]:
         _state["pending"] = _state["pending"] or signum
         return
     if _importing():
         # Raising inside an import leaves half-imported modules, and some libraries catch
         # BaseException around their optional imports: come back once the import is done.
-        _state["queued"] = signum
         _again(signum)
         return
     _state["raised"] = signum
@@ -110,6 +128,12 @@ def install() -> None:
 
     if threading.current_thread() is not threading.main_thread():
         return
+    if _state["pid"] != os.getpid():
+        r, w = os.pipe()
+        os.set_blocking(r, False)
+        os.set_blocking(w, False)
+        signal.set_wakeup_fd(w, warn_on_full_buffer=False)
+        _state.update(wakeup=r, pid=os.getpid(), first=0)
     for s in HANDLED:
         signal.signal(s, _handler)
 
