@@ -102,6 +102,7 @@ class Follower:
         self._walked = 0.0          # horizontal metres the head has walked
         self._riser_at = -np.inf    # ... when it last went up or down a riser
         self._steps = 0
+        self._measured = False      # the bend and lever of the trail as it is are measured
         self._back = 0.0
         self._backs = self.turn_radius * np.arange(0.0, 4.01, 0.25)
         self.target: np.ndarray | None = None
@@ -220,6 +221,9 @@ class Follower:
             self._trail.append((self._walked, float(p[0]), float(p[2]), lever))
             while self._walked - self._trail[0][0] > self.body_length + self.spacing:
                 self._trail.pop(0)
+        elif self._measured:
+            return            # the trail is as it was: so are its bend and lever
+        self._measured = True
         radius = bend_radius(np.array(self._trail)[:, 1:3], int(round(0.5 / BEND_SAMPLE)))
         lever = min(t[3] for t in self._trail)
         if radius != self.bend or lever != self.lever:
