@@ -14,8 +14,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-#: Turn angles tried, in order, when a step would leave the walkable surface (radians added to
-#: the wanted turn, toward the agent's side first): up to a right angle, in 7.5 degree steps.
+#: The head walks up to this multiple of its top speed to close the gap to the agent
+CATCH_UP = 1.25
+#: Directions tried when the head is cornered (radians off the wanted turn, toward the agent's
+#: side first): up to a right angle, in 7.5 degree steps; it turns on the spot toward the first
+#: free one
 _DEFLECT = np.radians(7.5) * np.arange(1, 13)
 #: Points along half a turning circle when a U-turn chooses its side (about an eighth of the
 #: turning radius apart: finer than the gap the agent radius leaves round a wall), and their
@@ -23,6 +26,12 @@ _DEFLECT = np.radians(7.5) * np.arange(1, 13)
 _ARC_STEPS = 26
 _ARC_COS = np.cos(np.linspace(0.0, math.pi, _ARC_STEPS + 1)).tolist()
 _ARC_SIN = np.sin(np.linspace(0.0, math.pi, _ARC_STEPS + 1)).tolist()
+#: Turns tried, as fractions of the tightest turn a step may make, when the wanted one would
+#: leave the walkable surface (toward the agent's side first)
+_TIGHT = (0.25, 0.5, 0.75, 1.0)
+#: such a turn's largest yaw rate, in multiples of the head's yaw-rate limit (about the rate of
+#: its usual turning circle at full speed)
+CONTAIN_YAW = 2.0
 
 
 class HeadSteer:
@@ -35,7 +44,8 @@ class HeadSteer:
 
     def __init__(self, position: np.ndarray, heading: np.ndarray, *, max_speed: float,
                  turn_radius: float, lead: float, turn_rate: float, amplitude: float,
-                 max_offset: float, max_yaw_rate: float = math.pi):
+                 max_offset: float, max_yaw_rate: float = math.pi,
+                 min_radius: float | None = None):
         self.base = np.asarray(position, dtype=np.float64).copy()
         h = np.asarray(heading, dtype=np.float64).copy()
         h[1] = 0.0
@@ -47,12 +57,17 @@ class HeadSteer:
         self.amplitude = float(amplitude)      # rad of heading swing at max speed
         self.max_offset = float(max_offset)    # metres, lateral offset cap
         self.max_yaw_rate = float(max_yaw_rate)  # rad/s, heading change limit
+        # metres, the tightest turn, where the walkable surface leaves no room for turn_radius
+        # (a reversal in a dead end is a loop this wide, never a cusp the body cannot follow)
+        self.min_radius = float(turn_radius if min_radius is None else min_radius)
         self.turn_rate_scale = 1.0
+        self.speed_cap = math.inf   # m/s, a hard bound (the body's bends), catching up included
         self.phase = 0.0
         self.lateral_amp = 0.0
         self.speed = 0.0
         self.position = self.base.copy()
         self._u_side = 0.0   # the side a U-turn in progress turns to (+1 left, -1 right)
+        self._creep = 0.0    # metres still to walk slowly after a turn on the spot
         # the direction the slither offset is measured across: the heading, followed only as
         # the base travels (a turn on the spot does not swing the head round the base)
         self.sway_dir = self.heading.copy()
@@ -64,8 +79,8 @@ class HeadSteer:
 
         allowed : optional test of a base position (x, z) -> on the walkable surface. While the
                   base is on it, a step that would leave it turns instead (tighter toward the
-                  agent, else sliding along the edge), or, when no direction is free, turns on
-                  the spot: Detour's move-along-surface for the head.
+                  agent, else sliding along the edge: Detour's move-along-surface for the head),
+                  at most on a circle of min_radius, or on the spot at the very edge.
         aim     : optional point to steer toward instead of the agent (a point of the agent's
                   path the head can see); the speed still keeps the head a lead behind the agent
         """
@@ -80,12 +95,16 @@ class HeadSteer:
                                                          agent_pos[2] - aim[2])
         # Speed: match the agent, plus a gain that closes the gap to the lead distance.
         gain = 4.0
-        u = max(0.0, min(agent_speed + gain * (dist - self.lead), 1.25 * self.max_speed))
+        u = max(0.0, min(agent_speed + gain * (dist - self.lead), CATCH_UP * self.max_speed, self.speed_cap))
         if dist < 1e-9:
             u = 0.0
         if u > 0.0 and dist > 1e-9:
             # Don't overshoot the agent when it has stopped.
             step = min(u * dt, max(dist - 0.25 * self.lead, 0.0)) if agent_speed == 0.0 else u * dt
+            if self._creep > 0.0:
+                # just out of a turn on the spot: walk away from the corner it leaves in the
+                # trail at the tight turns' speed, until the body's slow-down can see it
+                step = min(step, CONTAIN_YAW * self.max_yaw_rate * self.min_radius * dt)
             want = to / max(math.hypot(to[0], to[2]), 1e-12)
             # Turn toward the agent by at most step / turn_radius: the path's curvature is bounded.
             cross = self.heading[2] * want[0] - self.heading[0] * want[2]
@@ -100,6 +119,7 @@ class HeadSteer:
             a = max(-lim, min(lim, ang))
             if allowed is not None and allowed(self.base[0], self.base[2]):
                 a, step = self._contain(a, ang, step, dt, allowed)
+            self._creep = max(0.0, self._creep - step)
             c, s = math.cos(a), math.sin(a)
             hx, hz = self.heading[0], self.heading[2]
             self.heading = np.array([c * hx + s * hz, 0.0, -s * hx + c * hz])
@@ -148,8 +168,9 @@ class HeadSteer:
         """The agent has a new path: a U-turn in progress chooses its side afresh."""
         self._u_side = 0.0
 
-    def _circle_room(self, side: float, allowed) -> int:
+    def _circle_room(self, side: float, allowed, radius: float | None = None) -> int:
         """How many of _ARC_STEPS points round the first half of the turning circle on `side`
+        (of `radius`, else turn_radius)
         the head reaches walking the circle from its base: from the last point reached, the
         straight line to the next point must stay on the walkable surface (tested every arc
         step), so where the circle only grazes an edge the head cuts inside it, but ground
@@ -158,7 +179,7 @@ class HeadSteer:
         meets the gap the agent radius leaves round the wall."""
         hx, hz = self.heading[0], self.heading[2]
         lx, lz = side * hz, -side * hx
-        r = self.turn_radius
+        r = self.turn_radius if radius is None else radius
         cx, cz = self.base[0] + r * lx, self.base[2] + r * lz
         px, pz = self.base[0], self.base[2]
         d = math.pi * r / _ARC_STEPS
@@ -176,23 +197,52 @@ class HeadSteer:
     def _contain(self, a: float, ang: float, step: float, dt: float, allowed) -> tuple[float, float]:
         """The turn angle and step length that keep the base on the walkable surface.
 
-        a : wanted turn this step; ang : full angle to the agent. Returns (a, step), or a turn
-        on the spot (step 0) toward the agent at the yaw-rate limit when no direction is free.
+        a : wanted turn this step; ang : full angle to the agent. Returns (a, step), or a
+        sharper turn, slowed to at most CONTAIN_YAW yaw-rate limits on a circle of at least
+        min_radius, that keeps the base on the surface (toward the agent first); else (at the
+        very edge) a turn on the spot toward the nearest free direction. Sharp turns a few
+        steps apart, or turns on the spot, fold the trail back on itself in a cusp that the
+        body's chord placement cannot follow (joints jump across it); a reversal on circles of
+        min_radius is a loop it follows.
         """
         hx, hz = self.heading[0], self.heading[2]
         bx, bz = self.base[0], self.base[2]
         side = 1.0 if ang >= a else -1.0
-        # look a quarter turning radius ahead first, so an edge is met with a few small turns
-        # rather than one sharp one; then just the step itself
-        def free(t: float, reach: float) -> bool:
-            c, s = math.cos(t), math.sin(t)
-            dx, dz = c * hx + s * hz, -s * hx + c * hz
-            return (allowed(bx + dx * step, bz + dz * step)
-                    and (reach == step or allowed(bx + dx * reach, bz + dz * reach)))
+        # a turn sharper than the wanted one is slowed so that the heading turns no faster
+        # than CONTAIN_YAW times the yaw-rate limit, on circles of at least min_radius
+        slow = min(step, CONTAIN_YAW * self.max_yaw_rate * self.min_radius * dt)
+        tight = slow / self.min_radius
 
-        for reach in (max(0.25 * self.turn_radius, step), step):
-            for t in (a, *(a + sd * d for d in _DEFLECT for sd in (side, -side))):
-                if free(t, reach):
-                    return t, step
+        def free(t: float, s: float, reach: float) -> bool:
+            c, sn = math.cos(t), math.sin(t)
+            dx, dz = c * hx + sn * hz, -sn * hx + c * hz
+            return allowed(bx + dx * s, bz + dz * s) and allowed(bx + dx * reach, bz + dz * reach)
+
+        turns = ((a, step), *((max(-tight, min(tight, a + sd * f * tight)), slow)
+                              for f in _TIGHT for sd in (side, -side)))
+        # look a quarter turning radius ahead (and far enough to turn away on the tightest
+        # circle), so an edge is met with a few small turns rather than one sharp one
+        reach = max(0.25 * self.turn_radius, 2.0 * self.min_radius, step)
+        for t, s in turns:
+            if free(t, s, reach):
+                return t, s
+        # nothing clear that far ahead: the tightest turn to the side with more room round its
+        # circle (the agent's first; a U-turn goes on that way), else any turn whose step stays
+        # on; on the spot only at the very edge
+        sides = (side, -side)
+        room = [self._circle_room(sd, allowed, self.min_radius) for sd in sides]
+        sd = sides[int(room[1] > room[0])]
+        if free(sd * tight, slow, slow):
+            if self._u_side != 0.0:
+                self._u_side = sd
+            return sd * tight, slow
+        for t, s in turns:
+            if free(t, s, s):
+                return t, s
+        # cornered: turn on the spot toward the nearest free direction up to a right angle off
+        # (toward the agent's side first), else toward the agent
         turn = self.max_yaw_rate * dt
-        return max(-turn, min(turn, ang)), 0.0
+        want = next((t for t in (a + sd * d for d in _DEFLECT for sd in (side, -side))
+                     if free(t, step, step)), ang)
+        self._creep = 2.0 * self.min_radius
+        return max(-turn, min(turn, want)), 0.0

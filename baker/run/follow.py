@@ -50,6 +50,11 @@ REPLAN_AFTER = 1.5
 BEND_TURN = math.radians(20.0)
 #: [spacings] the trail under the body is kept at this spacing to measure its bends
 BEND_SAMPLE = 0.25
+#: [spacings] the head's tightest turning radius, where the walkable surface leaves no room for
+#: its usual one (a dead end): a reversal is then a loop 1.5 spacings wide, which the spine's
+#: chord placement follows without a joint jumping across it (it jumps on a loop under one
+#: spacing wide)
+MIN_TURN = 0.75
 #: [rad] directions of the rays that measure the room beside the hips (as the legs' anchors
 #: do): straight out, ahead and behind
 WALL_YAWS = np.radians([0.0, 40.0, -40.0])
@@ -76,7 +81,8 @@ class Follower:
         self.head = HeadSteer(start, heading, max_speed=loco.max_speed,
                               turn_radius=self.turn_radius, lead=self.turn_radius,
                               turn_rate=loco.head_turn_rate, amplitude=loco.slither_amplitude,
-                              max_offset=SLITHER_OFFSET * body.length)
+                              max_offset=SLITHER_OFFSET * body.length,
+                              min_radius=MIN_TURN * body.spacing)
         self.height = float(start[1])
         self.body_length = body.length
         self.rough_speed = loco.rough_speed
@@ -171,6 +177,8 @@ class Follower:
         scale *= min(1.0, self.stance_speed * self.lever / max(self.max_speed * scale, 1e-12))
         self.agent.speed_scale = scale
         self.head.max_speed = self.max_speed * scale
+        # ... and the head's catching up with the agent too
+        self.head.speed_cap = min(self.bend_speed * self.bend, self.stance_speed * self.lever)
 
     def step(self, dt: float) -> None:
         agent, head = self.agent, self.head

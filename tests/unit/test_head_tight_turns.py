@@ -1,0 +1,104 @@
+"""The head's turns where the walkable surface leaves no room for its turning circle
+(locomotion/head.py HeadSteer._contain): on circles of at least min_radius, slowed, never a sharp
+deflection at full speed or a turn on the spot while a tight circle fits. The trail of such a
+reversal is a loop the spine's chord placement (locomotion/body.py place_chain) follows. Sharp
+deflections a few steps apart folded the trail into a cusp narrower than a spacing: the chord
+found the joint behind on the far side of the fold one frame and at its tip the next (showcase
+103049: a trunk joint jumped two spacings in a frame, the next turned 46 degrees).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from baker.config import SIM_RATE_HZ
+from baker.geometry import polyline
+from baker.locomotion.body import Trail, place_chain
+from baker.locomotion.head import HeadSteer
+
+DT = 1.0 / SIM_RATE_HZ
+TURN_RADIUS = 0.0375     # the default rig's: 3 spacings
+MIN_RADIUS = 0.009375    # 0.75 spacings
+SPACING, SEGMENTS = 0.0125, 21
+
+
+def corridor(width: float, length: float = 0.3):
+    """A dead-end strip 0 <= x <= length, |z| <= width / 2 (the eroded walkable surface)."""
+    def allowed(x: float, z: float) -> bool:
+        return 0.0 <= x <= length and abs(z) <= 0.5 * width
+    return allowed
+
+
+def u_turn(width: float, min_radius: float | None = MIN_RADIUS, seconds: float = 2.0,
+           z0: float = 0.0, heads: list | None = None):
+    """A head walking +x down the strip from (0.2, z0) toward its dead end, with the agent
+    behind it: returns (base positions, headings, step lengths) per step, and appends the
+    head's positions (slither included) to `heads`."""
+    head = HeadSteer(np.array([0.2, 0.0, z0]), np.array([1.0, 0.0, 0.0]), max_speed=0.2,
+                     turn_radius=TURN_RADIUS, lead=TURN_RADIUS, turn_rate=4.0,
+                     amplitude=math.radians(25.0), max_offset=0.008, min_radius=min_radius)
+    allowed = corridor(width)
+    agent = np.array([0.05, 0.0, 0.0])
+    base, heading = [head.base.copy()], [head.heading.copy()]
+    for _ in range(int(seconds / DT)):
+        head.step(DT, agent, 0.2, allowed=allowed)
+        if heads is not None:
+            heads.append(head.position.copy())
+        base.append(head.base.copy())
+        heading.append(head.heading.copy())
+    base, heading = np.array(base), np.array(heading)
+    steps = np.linalg.norm(np.diff(base, axis=0), axis=1)
+    return base, heading, steps
+
+
+@pytest.mark.parametrize("width", [0.025, 0.03, 0.05, 0.07])
+def test_a_reversal_in_a_narrow_dead_end_turns_on_circles_of_at_least_min_radius(width):
+    allowed = corridor(width)
+    base, heading, steps = u_turn(width)
+    assert all(allowed(x, z) for x, z in base[:, [0, 2]])         # on the surface throughout
+    assert heading[:, 0].min() < -0.9                             # turned back
+    turn = np.arccos(np.clip(np.einsum("ij,ij->i", heading[:-1], heading[1:]), -1.0, 1.0))
+    moving = steps > 1e-12
+    # every step turns no more sharply than the tight circle allows ...
+    assert np.all(turn[moving] <= steps[moving] / MIN_RADIUS + 1e-9)
+    # ... and the head never turns on the spot while the tight circle fits the strip
+    assert not np.any(turn[~moving] > 1e-12)
+
+
+def test_without_a_tight_circle_the_same_reversal_turns_sharper():
+    """The bound is what the head does, not what the strip allows: a head whose tightest
+    circle is its usual one cannot turn round in a 3 cm strip without turning on the spot."""
+    base, heading, steps = u_turn(0.03, min_radius=None)
+    turn = np.arccos(np.clip(np.einsum("ij,ij->i", heading[:-1], heading[1:]), -1.0, 1.0))
+    assert np.any(turn[steps <= 1e-12] > 1e-12)
+
+
+def chain_jumps(path: np.ndarray, start: np.ndarray, fps: int = 30) -> float:
+    """The largest per-frame move of any trunk joint beyond the head's own [spacings], for a
+    spine placed by chord (place_chain) on the head's path (n, 3) stepped at SIM_RATE_HZ, on
+    flat ground, behind a straight start line ending at `start` along +x."""
+    line = start - np.array([1.0, 0.0, 0.0]) * np.linspace(0.3, 0.0, 200)[:-1, None]
+    pts = np.vstack([line, path])
+    pts[:, 1] = 0.0
+    cum = polyline.arc_lengths(pts)
+    keep = np.r_[True, np.diff(cum) > 1e-9]
+    n = int(keep.sum())
+    trail = Trail(points=pts[keep], normals=np.tile([0.0, 1.0, 0.0], (n, 1)),
+                  ground=np.zeros(n), cum=cum[keep], cum_h=cum[keep].copy())
+    head = cum[len(line):][:: SIM_RATE_HZ // fps]
+    pos, _ = place_chain(trail, head, np.zeros((len(head), SEGMENTS)), SPACING)
+    move = np.linalg.norm(np.diff(pos, axis=0), axis=2)
+    return float((move[:, 1:] - move[:, :1]).max() / SPACING)
+
+
+@pytest.mark.parametrize("width", [0.02, 0.025, 0.03, 0.04, 0.05, 0.07])
+@pytest.mark.parametrize("z0", [-0.3, 0.0, 0.3])
+def test_the_spine_follows_a_reversal_in_a_narrow_dead_end_without_a_joint_jumping(width, z0):
+    """(Before the tight circles, 15 of these 18 reversals made a trunk joint jump 0.5 to 1.5
+    spacings more than the head moved in a frame; now the most is 0.09.)"""
+    heads: list = []
+    u_turn(width, seconds=1.5, z0=z0 * width, heads=heads)
+    assert chain_jumps(np.array(heads), np.array([0.2, 0.0, z0 * width])) < 0.25
