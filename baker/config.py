@@ -133,6 +133,7 @@ class BehaviourConfig:
     feed_time: float = 8.0            # [>0] [s] holding and eating the prey
     scout_time: float = 0.8           # [>=0] [s] cobra-raised look when prey is first detected
     warning_time: float = 2.0         # [>=0] [s] Posture 1 when its shade is lost
+    sated_time: float = 20.0          # [>=0] [s] after a meal: prey ignored, rolls go to shade
 
 
 @dataclass(frozen=True)

@@ -137,6 +137,8 @@ class BehaviourTable(_Table):
     feed_time: Num | None = key("s", "holding and eating the prey", gt=0, le=3600)
     scout_time: Num | None = key("s", "cobra look when prey is first detected", ge=0, le=3600)
     warning_time: Num | None = key("s", "Posture 1 when its shade is lost", ge=0, le=3600)
+    sated_time: Num | None = key("s", "after a meal: prey ignored, every roll goes to shade",
+                                 ge=0, le=3600)
 
 
 class CobraTable(_Table):

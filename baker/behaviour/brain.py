@@ -17,6 +17,8 @@ Every `decision_interval` seconds a d10 (0-9) is rolled: with enough known shade
 roll <= shade_roll_max the centipede goes to a random known spot, or stays if it is already in
 shade; otherwise it wanders. Prey within detection range interrupts that with hunt -> strike ->
 feed, or gives up (back to wander) when the prey has stayed out of range for GIVE_UP_TIME.
+After a meal it is sated for `sated_time` seconds: it hunts no more, and every roll in that time
+goes to shade (it digests in a shaded spot, where its kind shelter).
 Every transition is logged and recorded in the timeline as (start, end, state, details).
 """
 
@@ -110,6 +112,7 @@ class Brain(IntentSource):
         self._scout_until = -1.0
         self._obstacle = False     # an obstacle worth rearing at is ahead (last perception)
         self._ignore: dict[str, float] = {}   # prey given up on, until this time
+        self._sated_until = -math.inf   # after a meal: no hunting, and it digests in shade
         self._out_of_range = math.inf   # when the hunted prey last went out of range
         self._gap, self._next_gap, self._gaining = math.inf, 0.0, False  # gaining on the prey
         self._now = 0.0
@@ -245,6 +248,8 @@ class Brain(IntentSource):
         return bool(perception.in_shade(self.rays, ring, sun, self.rig.body.clearance).all())
 
     def _closest_prey(self, head: np.ndarray) -> Prey | None:
+        if self._now < self._sated_until:
+            return None
         free = [p for p in self.preys
                 if p.mode == FREE and self._ignore.get(p.name, -1.0) < self._now
                 and (self.claims is None or self.claims.hunter(p.name) in (None, self.who))]
@@ -267,7 +272,8 @@ class Brain(IntentSource):
         self._recheck_spots(s.t)
         roll = int(self.rng.integers(0, 10))
         spots = self._free_spots()
-        if self.shade_on and len(spots) >= self.b.shade_min_spots and roll <= self.b.shade_roll_max:
+        shade = roll <= self.b.shade_roll_max or s.t < self._sated_until
+        if self.shade_on and len(spots) >= self.b.shade_min_spots and shade:
             if self.shaded and self._may_rest(s.head):
                 if self.state != "rest_in_shade":
                     self._enter("rest_in_shade", s.t, roll=roll, spot=_r(s.head))
@@ -390,6 +396,8 @@ class Brain(IntentSource):
         if s.t - self.since >= self.b.feed_time:
             self.prey.mode = HIDDEN
             self.prey = None
+            # sated: it hunts no more for a while and digests in shade (its rolls go to shade)
+            self._sated_until = s.t + self.b.sated_time
             self._roll(s)
 
 
