@@ -63,6 +63,8 @@ _state = {"phase": "start", "defer": 0, "pending": 0, "raised": 0, "first": 0, "
 
 #: How long to wait before looking again when a signal arrives in the middle of an import.
 RETRY_S = 0.05
+#: [s] signals this close together count as one moment (SIGINT, the user's Ctrl-C, wins it)
+TOGETHER_S = 0.05
 
 
 def _importing() -> bool:
@@ -86,17 +88,38 @@ def _first(signum: int) -> int:
     fact, in an order of its own: a signal that arrives while another's handler runs has its
     handler run inside that one, first (Ctrl-C then a SIGTERM at once stopped a bake as
     SIGTERM). The C-level handler writes each signal's number to the wakeup pipe as it arrives;
-    the first handler to run reads what is there. Signals that arrived together (all there at
-    that read, in whatever order the kernel gave them to the process's threads) count as one
-    moment, and SIGINT, the user's Ctrl-C, wins it. `signum` when there is no pipe."""
+    the first handler to run reads what is there. Signals that arrived together (there at that
+    read, or within TOGETHER_S of it when no SIGINT is, in whatever order the kernel gave them
+    to the process's threads) count as one moment, and SIGINT, the user's Ctrl-C, wins it.
+    `signum` when there is no pipe."""
     if not _state["first"] and _state["wakeup"] >= 0 and _state["pid"] == os.getpid():
-        try:
-            arrived = os.read(_state["wakeup"], 4096)
-        except OSError:                 # nothing there (non-blocking), or closed
-            arrived = b""
-        _state["first"] = min((int(b) for b in arrived if b in HANDLED), default=0)
+        arrived = _read_wakeup()
+        # a Ctrl-C sent just before may still be on its way: the kernel hands each signal to
+        # one of the process's threads, and the one carrying it can write its byte after
+        # another thread has written the later signal's
+        end = time.monotonic() + TOGETHER_S
+        while signal.SIGINT not in arrived and time.monotonic() < end:
+            arrived += _read_wakeup(end - time.monotonic())
+        # (a handler run inside this one, while it waited, may have decided already)
+        _state["first"] = _state["first"] or min((b for b in arrived if b in HANDLED), default=0)
     _state["first"] = _state["first"] or int(signum)
     return _state["first"]
+
+
+def _read_wakeup(wait: float = 0.0) -> bytes:
+    """What the wakeup pipe holds, after waiting up to `wait` seconds for something to come."""
+    fd = _state["wakeup"]
+    if wait > 0.0:
+        import select
+
+        try:
+            select.select([fd], [], [], wait)
+        except (OSError, ValueError):
+            return b""
+    try:
+        return os.read(fd, 4096)
+    except OSError:                     # nothing there (non-blocking), or closed
+        return b""
 
 
 def _handler(signum, frame):

@@ -130,6 +130,6 @@ def test_console_entry_point_installs_the_handlers_first():
             for n in names:
                 top = n.split(".")[0]
                 assert top in ("__future__", "os", "signal", "sys", "time", "contextlib",
-                               "threading", "baker"), (mod, n)
+                               "threading", "select", "baker"), (mod, n)
                 if top == "baker":
                     assert n in ("baker", "baker.signals", "baker.cli"), (mod, n)

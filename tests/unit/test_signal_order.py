@@ -80,3 +80,28 @@ def test_a_sigterm_alone_in_the_pipe_is_its_own(fresh_state, wakeup_pipe, monkey
     with pytest.raises(signals.Interrupted) as stop:
         signals._handler(signal.SIGTERM, None)
     assert stop.value.exit_code == 143
+
+
+def test_a_ctrl_c_whose_byte_comes_just_after_the_sigterm_still_wins(fresh_state, monkeypatch):
+    """SIGINT then SIGTERM sent back to back: the thread the kernel gave the SIGINT to wrote its
+    byte after the SIGTERM's, and after the SIGTERM's handler first read the pipe (a fresh
+    clone's CI run stopped the bake as SIGTERM). A byte that comes within TOGETHER_S counts as
+    the same moment."""
+    import threading
+
+    r, w = os.pipe()
+    os.set_blocking(r, False)
+    monkeypatch.setitem(signals._state, "wakeup", r)
+    monkeypatch.setitem(signals._state, "pid", os.getpid())
+    monkeypatch.setattr(signals, "_importing", lambda: False)
+    os.write(w, bytes([signal.SIGTERM]))
+    late = threading.Timer(0.2 * signals.TOGETHER_S, os.write, (w, bytes([signal.SIGINT])))
+    late.start()
+    try:
+        with pytest.raises(signals.Interrupted) as stop:
+            signals._handler(signal.SIGTERM, None)
+    finally:
+        late.join()
+        os.close(w)
+        os.close(r)
+    assert stop.value.exit_code == 130
