@@ -95,7 +95,8 @@ class HeadSteer:
                                                          agent_pos[2] - aim[2])
         # Speed: match the agent, plus a gain that closes the gap to the lead distance.
         gain = 4.0
-        u = max(0.0, min(agent_speed + gain * (dist - self.lead), CATCH_UP * self.max_speed, self.speed_cap))
+        u = max(0.0, min(agent_speed + gain * (dist - self.lead), CATCH_UP * self.max_speed,
+                         self.speed_cap))
         if dist < 1e-9:
             u = 0.0
         if u > 0.0 and dist > 1e-9:
