@@ -60,6 +60,8 @@ class HeadSteer:
         # metres, the tightest turn, where the walkable surface leaves no room for turn_radius
         # (a reversal in a dead end is a loop this wide, never a cusp the body cannot follow)
         self.min_radius = float(turn_radius if min_radius is None else min_radius)
+        # m/s, the speed of a turn on that circle (CONTAIN_YAW yaw-rate limits)
+        self.tight_speed = CONTAIN_YAW * self.max_yaw_rate * self.min_radius
         self.turn_rate_scale = 1.0
         self.speed_cap = math.inf   # m/s, a hard bound (the body's bends), catching up included
         self.phase = 0.0
@@ -105,7 +107,7 @@ class HeadSteer:
             if self._creep > 0.0:
                 # just out of a turn on the spot: walk away from the corner it leaves in the
                 # trail at the tight turns' speed, until the body's slow-down can see it
-                step = min(step, CONTAIN_YAW * self.max_yaw_rate * self.min_radius * dt)
+                step = min(step, self.tight_speed * dt)
             want = to / max(math.hypot(to[0], to[2]), 1e-12)
             # Turn toward the agent by at most step / turn_radius: the path's curvature is bounded.
             cross = self.heading[2] * want[0] - self.heading[0] * want[2]
@@ -211,13 +213,14 @@ class HeadSteer:
         side = 1.0 if ang >= a else -1.0
         # a turn sharper than the wanted one is slowed so that the heading turns no faster
         # than CONTAIN_YAW times the yaw-rate limit, on circles of at least min_radius
-        slow = min(step, CONTAIN_YAW * self.max_yaw_rate * self.min_radius * dt)
+        slow = min(step, self.tight_speed * dt)
         tight = slow / self.min_radius
 
         def free(t: float, s: float, reach: float) -> bool:
             c, sn = math.cos(t), math.sin(t)
             dx, dz = c * hx + sn * hz, -sn * hx + c * hz
-            return allowed(bx + dx * s, bz + dz * s) and allowed(bx + dx * reach, bz + dz * reach)
+            return (allowed(bx + dx * s, bz + dz * s)
+                    and (reach == s or allowed(bx + dx * reach, bz + dz * reach)))
 
         turns = ((a, step), *((max(-tight, min(tight, a + sd * f * tight)), slow)
                               for f in _TIGHT for sd in (side, -side)))

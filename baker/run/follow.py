@@ -172,13 +172,14 @@ class Follower:
     def _apply_speed(self) -> None:
         scale = self.gait_scale * self.terrain_scale
         # the bend bounds the speed itself, whatever the brain's and the terrain's factors (a
-        # hunt's doubled speed would round the bend at twice bend_speed)
-        scale *= min(1.0, self.bend_speed * self.bend / max(self.max_speed * scale, 1e-12))
-        scale *= min(1.0, self.stance_speed * self.lever / max(self.max_speed * scale, 1e-12))
+        # hunt's doubled speed would round the bend at twice bend_speed), and so does the
+        # legs' lever; the head's catching up with the agent included
+        bend, lever = self.bend_speed * self.bend, self.stance_speed * self.lever
+        scale *= min(1.0, bend / max(self.max_speed * scale, 1e-12))
+        scale *= min(1.0, lever / max(self.max_speed * scale, 1e-12))
         self.agent.speed_scale = scale
         self.head.max_speed = self.max_speed * scale
-        # ... and the head's catching up with the agent too
-        self.head.speed_cap = min(self.bend_speed * self.bend, self.stance_speed * self.lever)
+        self.head.speed_cap = min(bend, lever)
 
     def step(self, dt: float) -> None:
         agent, head = self.agent, self.head
