@@ -70,6 +70,10 @@ class WanderConfig:
     radius: float = 5.0     # [>0] [m] target sphere radius around the head
     keep_target: float = 0.0  # [>=0] [s] a target not yet reached is kept this long at most
                             # when the d10 says wander again (0: a new one at every roll, SEED)
+    journey_rise: float = 0.25  # [>0] [m] a target this far above or below the head is on
+                                # another floor: walking there is a journey
+    journey_time: float = 45.0  # [>=0] [s] a journey is not interrupted by the d10 until it
+                                # arrives or has lasted this long (0: no journeys)
 
 
 @dataclass(frozen=True)
@@ -371,7 +375,7 @@ def scale_rig(rig: RigConfig, factor: float) -> RigConfig:
         rig,
         body=sc(rig.body, ["length", "width_profile", "clearance", "leg_stub_length"]),
         locomotion=sc(rig.locomotion, ["max_speed", "acceleration", "stopping_distance"]),
-        wander=sc(rig.wander, ["radius"]),
+        wander=sc(rig.wander, ["radius", "journey_rise"]),
         navigation=sc(rig.navigation, ["radius", "height", "step_height", "cell_size"]),
         legs=sc(rig.legs, list(_LEG_LENGTHS)),
         behaviour=sc(rig.behaviour, ["shade_spot_spacing", "shade_sense_radius", "detection_range",

@@ -2,7 +2,10 @@
 
 States
     wander         walk to a random reachable point; a new one at every decision (with
-                   wander.keep_target > 0: once it is reached, or kept that long)
+                   wander.keep_target > 0: once it is reached, or kept that long). A target
+                   on another floor (wander.journey_rise above or below the head, on a floor
+                   stacked over or under the head's) is a journey: no d10 is rolled until it
+                   arrives or wander.journey_time has passed
     seek_shade     walk to a remembered shaded spot
     rest_in_shade  stay put in shade
     cobra          scout: rear the front third up for a look over an obstacle ahead (taller than
@@ -129,6 +132,7 @@ class Brain(IntentSource):
         self._sought = None        # the remembered shade spot being walked to
         self._arrived_at = None    # when the agent reached it
         self._target_at = -math.inf  # when the wander target was drawn
+        self._journey = 0.0        # how long that target is walked to through the d10's rolls
         self.prey: Prey | None = None
         self.target: np.ndarray | None = None
         self.new_target = False
@@ -270,6 +274,8 @@ class Brain(IntentSource):
         """SEED's d10: shade (go or stay) on a low roll when enough spots are known, else wander."""
         self._next_decision = s.t + self.b.decision_interval
         self._recheck_spots(s.t)
+        if self._walking_to_target(s, self._journey):
+            return       # a journey to another floor: the d10 waits until it arrives
         roll = int(self.rng.integers(0, 10))
         spots = self._free_spots()
         shade = roll <= self.b.shade_roll_max or s.t < self._sated_until
@@ -289,13 +295,23 @@ class Brain(IntentSource):
             self._sought = spot
             self._go(spot.copy())
             return
-        if (self.state == "wander" and self.target is not None and not s.arrived
-                and s.t - self._target_at < self.rig.wander.keep_target):
+        if self._walking_to_target(s, self.rig.wander.keep_target):
             return       # keep walking to the target: a walk to another room outlasts a roll
-        target = self.nav.random_point_near(s.head, self.rig.wander.radius, self.rng)
-        self._enter("wander", s.t, roll=roll, target=_r(target) if target is not None else None)
+        w = self.rig.wander
+        target = self.nav.random_point_near(s.head, w.radius, self.rng)
+        journey = target is not None and perception.on_another_floor(
+            self.nav, s.head, target, w.journey_rise)
+        details = {"journey": True} if journey and w.journey_time > 0 else {}
+        self._enter("wander", s.t, roll=roll, target=_r(target) if target is not None else None,
+                    **details)
         self._target_at = s.t
+        self._journey = w.journey_time if journey else 0.0
         self._go(target)
+
+    def _walking_to_target(self, s: Senses, keep: float) -> bool:
+        """A wander target not yet reached, drawn less than `keep` seconds ago."""
+        return (self.state == "wander" and self.target is not None and not s.arrived
+                and s.t - self._target_at < keep)
 
     def _free_spots(self) -> list[np.ndarray]:
         """The remembered spots no other creature of a crowd holds (all of them alone)."""

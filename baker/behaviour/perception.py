@@ -1,11 +1,15 @@
-"""What the centipede senses: shade (a ray toward the sun), prey, obstacles worth rearing at.
-Every check takes arrays and casts its rays in one call."""
+"""What the centipede senses: shade (a ray toward the sun), prey, obstacles worth rearing at,
+and whether a point is on another floor. Every check takes arrays and casts its rays (or
+queries the walkable surface) in one call."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from baker.geometry.conventions import UP
+
+#: [m] a height far below any level, where the nearest walkable layer is a column's lowest
+FAR_BELOW = 1.0e4
 
 
 def in_shade(rays, points: np.ndarray, sun_dir: np.ndarray, lift: float) -> np.ndarray:
@@ -26,3 +30,24 @@ def obstacle_ahead(rays, head: np.ndarray, heading: np.ndarray, probe: float,
     d = np.tile(heading, (2, 1))
     hit = rays.occluded(o, d, probe)
     return bool(hit[0] and not hit[1])
+
+
+def on_another_floor(nav, head: np.ndarray, target: np.ndarray, rise: float) -> bool:
+    """True when walking from the head to the target changes floors: the target is at least
+    `rise` above or below the head, and the path between them runs somewhere over another
+    walkable layer at least `rise` below it (the terrace over the room under it, the bridge
+    over the passage). A hillside is not another floor, nor is a bank as high as a leaf the
+    head walks under.
+
+    nav : the walkable surface (navmesh protocol: find_path, resample_path, surface_height)
+    """
+    head = np.asarray(head, dtype=np.float64)
+    target = np.asarray(target, dtype=np.float64)
+    if abs(float(target[1] - head[1])) < rise:
+        return False
+    path = nav.find_path(head, target).points
+    pts = nav.resample_path(path, 0.5 * rise)
+    deep = pts.copy()
+    deep[:, 1] -= FAR_BELOW
+    lowest = nav.surface_height(deep)        # the lowest walkable layer in each column
+    return bool(np.any(lowest <= pts[:, 1] - rise))

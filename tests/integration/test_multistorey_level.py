@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from baker.behaviour import perception
 from baker.config import DEFAULT_RIG, load_rig_config, scale_rig
 from baker.environment import load_environment
 from baker.navmesh import build
@@ -136,6 +137,18 @@ def test_wander_targets_reach_the_upper_floor_by_its_share_of_area(level, level_
     assert abs(frac - share) < 0.04  # 4 standard deviations
 
 
+@pytest.mark.parametrize("a, b, expected", [
+    ("room A", "terrace C", True), ("terrace C", "yard", True), ("hall", "tower", True),
+    ("room D", "inside the log", True), ("yard", "ramp", False), ("hall", "on the log", False),
+    ("room A", "yard", False), ("terrace C", "bridge", False)])
+def test_a_wander_target_on_the_other_floor_is_a_journey(level, level_nav, a, b, expected):
+    """Up to the terrace or the tower (only reached over the bridge), or down from the upper
+    floor: a journey. Half-way up the ramp, onto the log, or on the same floor: not one."""
+    got = perception.on_another_floor(level_nav, level.to_local(PROBES[a]),
+                                      level.to_local(PROBES[b]), RIG.wander.journey_rise)
+    assert got is expected
+
+
 # --------------------------------------------------------------------------- a bake over it
 @pytest.fixture(scope="module")
 def climb(tmp_path_factory, nav_cache_dir):
@@ -171,3 +184,21 @@ def test_a_bake_visits_both_floors_and_climbs_the_staircase(climb):
 def test_feet_and_leg_bones_stay_out_of_the_steps(climb):
     _, m = climb
     assert m["foot_penetration_max_pct_bl"] < 0.5 and m["leg_bone_hits"] == 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(6))
+def test_a_default_bake_visits_both_floors(seed, nav_cache_dir, tmp_path):
+    """`baker bake environments/multistorey.glb --scale 8 --seconds 120 --seed S`: from the
+    default start (on either floor), with shade, rest and the d10 as they are, the head spends
+    more than 2 % of the frames on each floor: a wander target on the other floor is a journey
+    that the d10 does not cut short. (Legs off, for speed: the head's path is the same.)"""
+    from baker.config import BakeConfig
+    from baker.pipeline import bake
+
+    rig = replace(RIG, legs=replace(RIG.legs, enabled=False))
+    r = bake(BakeConfig(environment=GLB, seconds=120.0, seed=seed, rig=rig, prey=0,
+                        out=tmp_path / "ms", formats=("glb",), nav_cache_dir=nav_cache_dir))
+    y = r.trajectory.spine_positions[:, 0, 1] + r.origin[1]
+    assert np.mean(y < 0.5) > 0.02 and np.mean(y > UPPER_Y - 0.4) > 0.02
+    assert any(e["details"].get("journey") for e in r.report["timeline"])

@@ -1,7 +1,9 @@
 """The brain keeps a wander target it has not reached when the d10 says wander again
 (rig `wander.keep_target`), so a walk to another room or up a staircase is not cut short every
 decision interval; it draws a new one once the target is reached, or once it has been kept
-that long. Driven step by step with Senses on a flat 2 x 2 m floor, shade and prey off."""
+that long. A target on another floor is a journey (`wander.journey_rise`, `journey_time`): no
+d10 is rolled until it arrives. Driven step by step with Senses on a flat 2 x 2 m floor and on
+a floor with a deck stacked over it and a bank beside it, shade and prey off."""
 
 from __future__ import annotations
 
@@ -9,12 +11,14 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import trimesh.convex
 
+from baker.behaviour import perception
 from baker.behaviour.brain import Brain, Senses
 from baker.behaviour.sun import SunPath
 from baker.config import DEFAULT_RIG, load_rig_config
 from baker.navmesh import build
-from test_navmesh_scenes import env_of, floor
+from test_navmesh_scenes import box, env_of, floor
 
 RIG = load_rig_config(DEFAULT_RIG)
 
@@ -65,3 +69,110 @@ def test_keep_target_zero_is_seeds_new_target_at_every_roll(scene):
     interval = RIG.behaviour.decision_interval
     got = targets(brain(scene, 0.0), 2 * interval + 1.0)
     assert [t for t, _ in got] == pytest.approx([0.0, interval, 2 * interval], abs=1e-6)
+
+
+# --------------------------------------------------------------------------- journeys
+# A ground floor 6.5 x 4 m at y = 0; a deck (top 0.4 m, 1.6 BL) stacked over its middle with
+# 0.35 m of headroom, reached by a solid ramp; a solid bank as high as the deck in the west,
+# reached by its slope (a hillside: one layer everywhere).
+DECK_Y = 0.4
+
+
+def wedge(x_foot: float, x_top: float, x_end: float) -> trimesh.Trimesh:
+    """A solid slope from the floor at x_foot up to DECK_Y at x_top, then flat to x_end,
+    z in [-1, 1]."""
+    xs = [(x_foot, 0.0), (x_top, DECK_Y), (x_end, DECK_Y), (x_end, 0.0), (x_top, 0.0)]
+    return trimesh.convex.convex_hull(np.array([(x, y, z) for x, y in xs for z in (-1.0, 1.0)]))
+
+
+@pytest.fixture(scope="module")
+def storeys():
+    env = env_of(floor(-3.0, 3.5, -2.0, 2.0), box((0.5, 0.35, -1.0), (2.0, DECK_Y, 1.0)),
+                 wedge(2.8, 2.0, 2.0), wedge(-0.2, -1.0, -2.5))
+    return env, build(env, RIG.navigation)
+
+
+ON_DECK = np.array([1.25, DECK_Y, 0.0])
+UNDER_DECK = np.array([1.25, 0.0, 0.0])
+OPEN_GROUND = np.array([0.0, 0.0, 1.6])
+ON_BANK = np.array([-1.75, DECK_Y, 0.0])
+
+
+def test_the_scene_has_the_layers_the_journey_tests_assume(storeys):
+    _, nav = storeys
+    pts = np.array([ON_DECK, UNDER_DECK, OPEN_GROUND, ON_BANK])
+    assert nav.is_walkable(pts).all()
+    # the ground under the bank is inside it: one layer there
+    assert np.isnan(nav.surface_height(np.array([[-1.75, 0.0, 0.0]]), tol=0.1)[0])
+
+
+@pytest.mark.parametrize("head, target, expected", [
+    (UNDER_DECK, ON_DECK, True),      # up to the floor over the head
+    (OPEN_GROUND, ON_DECK, True),     # up to a floor stacked over the ground floor
+    (ON_DECK, OPEN_GROUND, True),     # down from it, to ground in the open
+    (ON_DECK, UNDER_DECK, True),
+    (OPEN_GROUND, ON_BANK, False),    # a hillside: nothing under the bank's top
+    (ON_BANK, OPEN_GROUND, False),
+    (UNDER_DECK, ON_BANK, False),     # a bank as high as the deck the head is under
+    (OPEN_GROUND, UNDER_DECK, False),  # the same floor
+])
+def test_on_another_floor_tells_stacked_floors_from_a_hillside(storeys, head, target, expected):
+    _, nav = storeys
+    assert perception.on_another_floor(nav, head, target, RIG.wander.journey_rise) is expected
+    assert perception.on_another_floor(nav, head, target, 0.45) is False   # rise above 0.4 m
+
+
+class Draws:
+    """The scene's walkable surface, whose wander draws are the given points in turn."""
+
+    def __init__(self, nav, points):
+        self._nav, self._points = nav, list(points)
+
+    def random_point_near(self, p, radius, rng):
+        return self._points.pop(0).copy()
+
+    def __getattr__(self, name):
+        return getattr(self._nav, name)
+
+
+def walk(storeys, points, seconds, arrived_at=np.inf, journey_time=None):
+    """The timeline of a wander-only brain whose draws are `points`, the head still on the
+    open ground (arrived from `arrived_at` on)."""
+    env, nav = storeys
+    w = RIG.wander if journey_time is None else replace(RIG.wander, journey_time=journey_time)
+    b = Brain(replace(RIG, wander=w), Draws(nav, points), env.rays,
+              SunPath(np.array([[0.0, 1.0, 0.0]]), 60.0), np.random.default_rng(3), [],
+              mode="wander", cobra_mode="never")
+    for k in range(int(seconds * 240)):
+        t = k / 240
+        b.step(Senses(t, OPEN_GROUND.copy(), np.array([0.0, 0.0, 1.0]), t >= arrived_at))
+    return b.finish(seconds)
+
+
+def test_a_journey_to_another_floor_goes_on_through_the_rolls(storeys):
+    interval, journey = RIG.behaviour.decision_interval, RIG.wander.journey_time
+    assert RIG.wander.keep_target == 0.0 and journey > 2 * interval
+    ev = walk(storeys, [ON_DECK, UNDER_DECK, OPEN_GROUND, ON_BANK] * 10, journey + interval + 1.0)
+    starts = [e["start"] for e in ev]
+    # the deck is drawn first: no roll until the journey has lasted journey_time, then a new
+    # target at every roll (the same floor, not journeys)
+    assert ev[0]["details"] == {"roll": ev[0]["details"]["roll"], "target": list(ON_DECK),
+                                "journey": True}
+    assert starts[:2] == pytest.approx([0.0, journey], abs=1e-6)
+    assert all("journey" not in e["details"] for e in ev[1:])
+    assert starts[2] == pytest.approx(journey + interval, abs=1e-6)
+
+
+def test_a_journey_ends_when_the_head_arrives(storeys):
+    interval = RIG.behaviour.decision_interval
+    ev = walk(storeys, [ON_DECK, OPEN_GROUND, ON_BANK, UNDER_DECK], 3 * interval + 1.0,
+              arrived_at=interval + 1.0)
+    assert [e["start"] for e in ev] == pytest.approx([0.0, 2 * interval, 3 * interval],
+                                                     abs=1e-6)
+
+
+def test_journey_time_zero_is_seeds_new_target_at_every_roll(storeys):
+    interval = RIG.behaviour.decision_interval
+    ev = walk(storeys, [ON_DECK, ON_DECK, ON_DECK], 2 * interval + 1.0, journey_time=0.0)
+    assert [e["start"] for e in ev] == pytest.approx([0.0, interval, 2 * interval], abs=1e-6)
+    assert all("journey" not in e["details"] for e in ev)
