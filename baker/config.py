@@ -70,8 +70,9 @@ class WanderConfig:
     radius: float = 5.0     # [>0] [m] target sphere radius around the head
     keep_target: float = 0.0  # [>=0] [s] a target not yet reached is kept this long at most
                             # when the d10 says wander again (0: a new one at every roll, SEED)
-    journey_rise: float = 0.25  # [>0] [m] a target this far above or below the head is on
-                                # another floor: walking there is a journey
+    journey_rise: float = 0.25  # [>0] [m] a target this far above or below the head, whose path
+                                # runs over a walkable layer this far below it, is on another
+                                # floor: walking there is a journey
     journey_time: float = 45.0  # [>=0] [s] a journey is not interrupted by the d10 until it
                                 # arrives or has lasted this long (0: no journeys)
 

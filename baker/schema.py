@@ -76,8 +76,9 @@ class WanderTable(_Table):
     radius: Num | None = key("BL", "targets drawn within this radius of the head", gt=0, le=1e4)
     keep_target: Num | None = key("s", "a target not yet reached is kept this long at most",
                                   ge=0, le=3600)
-    journey_rise: Num | None = key("BL", "a target this far above or below the head is on "
-                                   "another floor (a journey)", gt=0, le=1e4)
+    journey_rise: Num | None = key("BL", "a target this far above or below the head, its path "
+                                   "over a layer this far below, is on another floor (a journey)",
+                                   gt=0, le=1e4)
     journey_time: Num | None = key("s", "a journey goes on through the d10's rolls this long "
                                    "at most", ge=0, le=3600)
 

@@ -3,9 +3,9 @@
 States
     wander         walk to a random reachable point; a new one at every decision (with
                    wander.keep_target > 0: once it is reached, or kept that long). A target
-                   on another floor (wander.journey_rise above or below the head, on a floor
-                   stacked over or under the head's) is a journey: no d10 is rolled until it
-                   arrives or wander.journey_time has passed
+                   on another floor (wander.journey_rise above or below the head, the path to
+                   it running over another walkable layer) is a journey: no d10 is rolled
+                   until it arrives or wander.journey_time has passed
     seek_shade     walk to a remembered shaded spot
     rest_in_shade  stay put in shade
     cobra          scout: rear the front third up for a look over an obstacle ahead (taller than
