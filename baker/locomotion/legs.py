@@ -1021,7 +1021,8 @@ def _clear_knees(rays, hip, mid, end, hinge, l1, l2, tol):
     gets one swivel angle: the smallest candidate that clears the most of its frames; the angle
     eases in and out over neighbouring frames so the knee glides rather than jumps. An eased
     frame whose partial swivel puts a bone through something joins its run (with the frames
-    between), whose angle is then chosen again (up to KNEE_EASE_ROUNDS times).
+    between), whose angle is then chosen again (up to KNEE_EASE_ROUNDS times). The frames of a
+    run that its angle leaves through something get an angle of their own (_split_runs).
 
     hip, mid, end, hinge : (F, L, 3). Returns (mid, hinge) adjusted.
     """
@@ -1035,7 +1036,8 @@ def _clear_knees(rays, hip, mid, end, hinge, l1, l2, tol):
     near = maximum_filter1d(hit.astype(np.uint8), 5, axis=0, mode="constant").astype(bool)
     for _ in range(KNEE_EASE_ROUNDS):
         # the swivel eases in and out at most SWIVEL_RATE per frame (full swivel on the runs)
-        angle = _eased(_run_swivels(rays, hip, mid, end, axis, hit, near, l1, l2, tol))
+        angle = _run_swivels(rays, hip, mid, end, axis, hit, near, l1, l2, tol)
+        angle = _split_runs(rays, hip, mid, end, axis, angle, near, l1, l2, tol)
         fi, li = np.nonzero(~near & (angle != 0.0))
         bad = _bones_hit(rays, hip[fi, li], _swivel(mid[fi, li], hip[fi, li], axis[fi, li],
                                                      angle[fi, li]), end[fi, li], l1, l2, tol)
@@ -1069,10 +1071,8 @@ def _run_swivels(rays, hip, mid, end, axis, hit, near, l1, l2, tol) -> np.ndarra
     0 elsewhere: per run, the first of KNEE_SWIVELS with the fewest bone hits over its frames
     (no swivel unless one has fewer than `hit` (F, L), the hits unswivelled)."""
     F, L = near.shape
-    lt = near.T                                           # (L, F)
-    start = lt & ~np.concatenate([np.zeros((L, 1), bool), lt[:, :-1]], 1)
-    run_id = np.cumsum(start.ravel()).reshape(L, F).T - 1  # (F, L), valid where near
-    n_runs = int(start.sum())
+    run_id = _run_ids(near)
+    n_runs = int(run_id.max()) + 1
     f, l = np.nonzero(near)
     r = run_id[f, l]
     angle_run = np.zeros(n_runs)
@@ -1089,6 +1089,44 @@ def _run_swivels(rays, hip, mid, end, axis, hit, near, l1, l2, tol) -> np.ndarra
     angle = np.zeros((F, L))
     angle[f, l] = angle_run[r]
     return angle
+
+
+def _run_ids(mask: np.ndarray) -> np.ndarray:
+    """(F, L) int: the number of each run of consecutive True frames of each leg of `mask`
+    (F, L) bool, counted leg by leg (valid where mask, -1 before a leg's first run)."""
+    F, L = mask.shape
+    lt = mask.T                                           # (L, F)
+    start = lt & ~np.concatenate([np.zeros((L, 1), bool), lt[:, :-1]], 1)
+    return np.cumsum(start.ravel()).reshape(L, F).T - 1
+
+
+def _split_runs(rays, hip, mid, end, axis, angle, near, l1, l2, tol) -> np.ndarray:
+    """(F, L) the eased swivels: `angle` (one per run) with the frames of a run that it leaves
+    through something given a swivel of their own (per stretch of such frames), where one does
+    better there: a knee that must lean further beside a step's corner than over the step in
+    the same stance. The easing blends the two; a leg keeps its runs' single swivels when the
+    blend puts more of its frames through something."""
+    fi, li = np.nonzero(near)
+    still = np.zeros_like(near)
+    still[fi, li] = _bones_hit(rays, hip[fi, li], _swivel(mid[fi, li], hip[fi, li], axis[fi, li],
+                                                          angle[fi, li]), end[fi, li], l1, l2, tol)
+    if not still.any():
+        return _eased(angle)
+    again = _run_swivels(rays, hip, mid, end, axis, still, still, l1, l2, tol)
+    whole, split = _eased(angle), _eased(np.where(again != 0.0, again, angle))
+    # eased, a split can put neighbouring frames through something: per stretch of swivelled
+    # frames, the one with fewer hits
+    busy = (whole != 0.0) | (split != 0.0)
+    run = _run_ids(busy)
+    fi, li = np.nonzero(busy)
+    count = []
+    for a in (whole, split):
+        bad = _bones_hit(rays, hip[fi, li], _swivel(mid[fi, li], hip[fi, li], axis[fi, li],
+                                                     a[fi, li]), end[fi, li], l1, l2, tol)
+        count.append(np.bincount(run[fi, li], weights=bad, minlength=int(run.max()) + 1))
+    better = np.zeros(busy.shape, bool)
+    better[fi, li] = (count[1] < count[0])[run[fi, li]]
+    return np.where(better, split, whole)
 
 
 def _eased(angle: np.ndarray) -> np.ndarray:

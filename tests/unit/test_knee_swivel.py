@@ -1,0 +1,64 @@
+"""Knees swivel about the hip -> foot line where a leg bone would pass through the environment
+(legs._clear_knees). A run of offending frames gets one swivel; the frames of the run that it
+leaves through something get a swivel of their own, blended in by the easing: a knee beside a
+step's corner must lean further than over the step in the same stance.
+
+A leg 0.3 m long on x, knee 0.15 m up from its hip -> foot line; boxes around the knee's swivel
+circle leave, in the first ten frames, 20-50 deg of swivel clear, and in the last ten only
+60 deg or more (on the same side). One swivel for all twenty frames leaves ten of them through
+a box (the code before this test: 10 hits)."""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+
+from baker.environment.rays import RayCaster
+from baker.locomotion.legs import SWIVEL_RATE, _bones_hit, _clear_knees
+from test_navmesh_scenes import box
+
+A_Z, B_Z = 0.0, 1.0     # the leg's z in the first and last ten frames
+TOL = 0.001
+
+
+def boxes_round_the_knee() -> RayCaster:
+    parts = []
+    for z in (A_Z, B_Z):
+        parts.append(box((0.12, 0.22, z - 0.03), (0.18, 0.28, z + 0.03)))    # over the knee
+        parts.append(box((0.10, 0.0, z - 0.20), (0.20, 0.30, z - 0.045)))   # no swivel to -z
+    parts.append(box((0.10, 0.0, A_Z + 0.125), (0.20, 0.30, A_Z + 0.30)))   # A: up to 56 deg
+    parts.append(box((0.10, 0.19, B_Z + 0.04), (0.20, 0.30, B_Z + 0.11)))   # B: from 57 deg
+    return RayCaster(trimesh.util.concatenate(parts))
+
+
+def leg(z: np.ndarray):
+    n = len(z)
+    hip = np.stack([np.zeros(n), np.full(n, 0.1), z], 1)[:, None]
+    mid = np.stack([np.full(n, 0.15), np.full(n, 0.25), z], 1)[:, None]
+    end = np.stack([np.full(n, 0.3), np.full(n, 0.1), z], 1)[:, None]
+    hinge = np.tile([0.0, 0.0, 1.0], (n, 1, 1))
+    return hip, mid, end, hinge
+
+
+def hits(rays, hip, mid, end) -> np.ndarray:
+    l1 = float(np.linalg.norm(mid[0, 0] - hip[0, 0]))
+    l2 = float(np.linalg.norm(end[0, 0] - mid[0, 0]))
+    return _bones_hit(rays, hip.reshape(-1, 3), mid.reshape(-1, 3), end.reshape(-1, 3),
+                      l1, l2, TOL)
+
+
+def test_frames_that_need_a_larger_swivel_get_one_within_the_run():
+    rays = boxes_round_the_knee()
+    z = np.repeat([A_Z, B_Z], 10)
+    hip, mid, end, hinge = leg(z)
+    assert hits(rays, hip, mid, end).all()          # unswivelled: every frame through a box
+    l1 = float(np.linalg.norm(mid[0, 0] - hip[0, 0]))
+    new_mid, new_hinge = _clear_knees(rays, hip, mid, end, hinge, l1, l1, TOL)
+    assert not hits(rays, hip, new_mid, end).any()
+    # the knee stays on its circle round the hip -> foot line, and its swivel eases
+    assert np.allclose(np.linalg.norm(new_mid - hip, axis=-1), l1)
+    up = mid - 0.5 * (hip + end)
+    now = new_mid - 0.5 * (hip + end)
+    angle = np.arctan2(now[:, 0, 2], now[:, 0, 1]) * np.sign(up[:, 0, 1])
+    assert np.all(np.abs(np.diff(angle)) <= SWIVEL_RATE + 1e-9)
+    assert np.degrees(angle[:10]).max() < 57.0 and np.degrees(angle[10:]).min() > 56.0
