@@ -1039,8 +1039,7 @@ def _clear_knees(rays, hip, mid, end, hinge, l1, l2, tol):
         angle = _run_swivels(rays, hip, mid, end, axis, hit, near, l1, l2, tol)
         angle = _split_runs(rays, hip, mid, end, axis, angle, near, l1, l2, tol)
         fi, li = np.nonzero(~near & (angle != 0.0))
-        bad = _bones_hit(rays, hip[fi, li], _swivel(mid[fi, li], hip[fi, li], axis[fi, li],
-                                                     angle[fi, li]), end[fi, li], l1, l2, tol)
+        bad = _swivel_hits(rays, hip, mid, end, axis, angle, fi, li, l1, l2, tol)
         if not bad.any():
             break
         near = _joined(near, fi[bad], li[bad])
@@ -1104,12 +1103,11 @@ def _split_runs(rays, hip, mid, end, axis, angle, near, l1, l2, tol) -> np.ndarr
     """(F, L) the eased swivels: `angle` (one per run) with the frames of a run that it leaves
     through something given a swivel of their own (per stretch of such frames), where one does
     better there: a knee that must lean further beside a step's corner than over the step in
-    the same stance. The easing blends the two; a leg keeps its runs' single swivels when the
-    blend puts more of its frames through something."""
+    the same stance. The easing blends the two; each stretch of swivelled frames keeps its
+    runs' single swivels unless the blend puts fewer of its frames through something."""
     fi, li = np.nonzero(near)
     still = np.zeros_like(near)
-    still[fi, li] = _bones_hit(rays, hip[fi, li], _swivel(mid[fi, li], hip[fi, li], axis[fi, li],
-                                                          angle[fi, li]), end[fi, li], l1, l2, tol)
+    still[fi, li] = _swivel_hits(rays, hip, mid, end, axis, angle, fi, li, l1, l2, tol)
     if not still.any():
         return _eased(angle)
     again = _run_swivels(rays, hip, mid, end, axis, still, still, l1, l2, tol)
@@ -1121,12 +1119,18 @@ def _split_runs(rays, hip, mid, end, axis, angle, near, l1, l2, tol) -> np.ndarr
     fi, li = np.nonzero(busy)
     count = []
     for a in (whole, split):
-        bad = _bones_hit(rays, hip[fi, li], _swivel(mid[fi, li], hip[fi, li], axis[fi, li],
-                                                     a[fi, li]), end[fi, li], l1, l2, tol)
+        bad = _swivel_hits(rays, hip, mid, end, axis, a, fi, li, l1, l2, tol)
         count.append(np.bincount(run[fi, li], weights=bad, minlength=int(run.max()) + 1))
     better = np.zeros(busy.shape, bool)
     better[fi, li] = (count[1] < count[0])[run[fi, li]]
     return np.where(better, split, whole)
+
+
+def _swivel_hits(rays, hip, mid, end, axis, angle, fi, li, l1, l2, tol) -> np.ndarray:
+    """(n,) bool: frames fi of legs li put a bone through something with their knee swivelled
+    by angle[fi, li]."""
+    m = _swivel(mid[fi, li], hip[fi, li], axis[fi, li], angle[fi, li])
+    return _bones_hit(rays, hip[fi, li], m, end[fi, li], l1, l2, tol)
 
 
 def _eased(angle: np.ndarray) -> np.ndarray:
