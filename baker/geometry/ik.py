@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from baker.geometry.transforms import normalize
+from baker.geometry.transforms import cross, normalize
 
 #: fraction of the full reach (l1 + l2) where the soft clamp starts
 SOFT_START = 0.96
@@ -65,7 +65,7 @@ def two_bone_ik(root: np.ndarray, target: np.ndarray, pole: np.ndarray,
     d_raw = np.linalg.norm(v, axis=-1)
     u = v / np.maximum(d_raw, 1e-12)[..., None]
     # degenerate target at the root: reach along the pole's perpendicular fallback
-    u = np.where((d_raw > 1e-12)[..., None], u, normalize(np.cross(pole, [0.0, 0.0, 1.0]) + 1e-9))
+    u = np.where((d_raw > 1e-12)[..., None], u, normalize(cross(pole, [0.0, 0.0, 1.0]) + 1e-9))
     lo = np.abs(l1 - l2) + 1e-6 * (l1 + l2)
     hi = l1 + l2
     d = soft_clamp(d_raw, lo, hi)
@@ -73,7 +73,7 @@ def two_bone_ik(root: np.ndarray, target: np.ndarray, pole: np.ndarray,
     w = p - np.sum(p * u, axis=-1, keepdims=True) * u
     wn = np.linalg.norm(w, axis=-1, keepdims=True)
     # pole (anti)parallel to the chain: pick any perpendicular, deterministically
-    alt = np.cross(u, np.where(np.abs(u[..., 1:2]) < 0.9, [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]))
+    alt = cross(u, np.where(np.abs(u[..., 1:2]) < 0.9, [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]))
     w = np.where(wn > 1e-9, w / np.maximum(wn, 1e-300), normalize(alt))
     a = (l1 * l1 - l2 * l2 + d * d) / (2.0 * d)
     h = np.sqrt(np.maximum(l1 * l1 - a * a, 0.0))
@@ -82,7 +82,7 @@ def two_bone_ik(root: np.ndarray, target: np.ndarray, pole: np.ndarray,
     # re-impose the second length exactly against rounding
     end = mid + normalize(end - mid) * np.expand_dims(l2, -1)
     return TwoBoneSolution(mid=mid, end=end, reach=d, clamped=np.abs(d - d_raw) > 1e-9 * hi,
-                           hinge=np.cross(u, w))
+                           hinge=cross(u, w))
 
 
 def bone_frames(start: np.ndarray, end: np.ndarray, hinge: np.ndarray) -> np.ndarray:
@@ -94,7 +94,7 @@ def bone_frames(start: np.ndarray, end: np.ndarray, hinge: np.ndarray) -> np.nda
     y = normalize(np.asarray(end, float) - np.asarray(start, float))
     x = np.asarray(hinge, float)
     x = normalize(x - np.sum(x * y, axis=-1, keepdims=True) * y)
-    z = np.cross(x, y)
+    z = cross(x, y)
     m = np.stack([x, y, z], axis=-1)
     shape = m.shape[:-2]
     return Rotation.from_matrix(m.reshape(-1, 3, 3)).as_quat().reshape(*shape, 4)

@@ -15,6 +15,16 @@ def normalize(v: np.ndarray, eps: float = 1e-12) -> np.ndarray:
     return v / np.maximum(n, eps)
 
 
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross products of 3-vectors (..., 3), broadcast: np.cross's arithmetic (the same bits)
+    without its axis handling, which costs more than the products on small batches."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
 def frames_to_quat(forward: np.ndarray, up: np.ndarray) -> np.ndarray:
     """Rotations that map the rest frame (+Z forward, +Y up) onto the given frame.
 
@@ -35,8 +45,8 @@ def frames_to_quat(forward: np.ndarray, up: np.ndarray) -> np.ndarray:
 
 def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product a*b of xyzw quaternions, broadcast over leading axes."""
-    ax, ay, az, aw = np.moveaxis(a, -1, 0)
-    bx, by, bz, bw = np.moveaxis(b, -1, 0)
+    ax, ay, az, aw = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+    bx, by, bz, bw = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
     return np.stack(
         [
             aw * bx + ax * bw + ay * bz - az * by,
@@ -108,8 +118,8 @@ def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Rotate vectors v (..., 3) by unit quaternions q (..., 4), xyzw."""
     qv = q[..., :3]
     w = q[..., 3:4]
-    t = 2.0 * np.cross(qv, v)
-    return v + w * t + np.cross(qv, t)
+    t = 2.0 * cross(qv, v)
+    return v + w * t + cross(qv, t)
 
 
 def make_sign_continuous(q: np.ndarray, axis: int = 0) -> np.ndarray:

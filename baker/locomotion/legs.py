@@ -47,7 +47,7 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 from baker.config import LegsConfig, RigConfig
 from baker.geometry.conventions import FORWARD, LEFT, UP
 from baker.geometry.ik import bone_frames, soft_clamp, two_bone_ik
-from baker.geometry.transforms import normalize, quat_rotate
+from baker.geometry.transforms import cross, normalize, quat_rotate
 from baker.locomotion.body import BodyFrames
 from baker.locomotion.gait import gait_clock
 from baker.locomotion.swing import Limits, joint_space_swings
@@ -279,7 +279,7 @@ def spine_curvature(positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
     t = d / np.maximum(seg, 1e-12)[..., None]
     # turn angle between segment s-1 -> s and s -> s+1, seen along the joint's up axis
     up = quat_rotate(rotations, np.broadcast_to(UP, p.shape))
-    cr = np.cross(-t[:, 1:], -t[:, :-1])                     # heading change walking forward
+    cr = cross(-t[:, 1:], -t[:, :-1])                     # heading change walking forward
     ang = np.arctan2(np.einsum("fsi,fsi->fs", cr, up[:, 1:-1]),
                      np.einsum("fsi,fsi->fs", t[:, 1:], t[:, :-1]))
     k = ang / np.maximum(0.5 * (seg[:, 1:] + seg[:, :-1]), 1e-12)
@@ -885,7 +885,7 @@ def _stance_turns(hip, hold, fwd, left, q_inv, lay, legs, knee_out) -> np.ndarra
     target = np.broadcast_to(hold[:, None, :], hip.shape)
     u = normalize(target - hip)
     s = lay.side[legs][:, None, None]
-    pole = s * np.cross(fwd, u) + knee_out * s * left
+    pole = s * cross(fwd, u) + knee_out * s * left
     sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
     sw = (lambda a: np.swapaxes(a, 0, 1))
     m, hg = quat_rotate(q_inv, sol.mid - hip), quat_rotate(q_inv, sol.hinge)
@@ -899,7 +899,7 @@ def _frame_steps(a: np.ndarray, b: np.ndarray, hinge: np.ndarray) -> np.ndarray:
     """(F-1, L) degrees between consecutive frames of bones a -> b with hinge (local +X)."""
     y = normalize(b - a)
     x = normalize(hinge - np.sum(hinge * y, -1, keepdims=True) * y)
-    z = np.cross(x, y)
+    z = cross(x, y)
     tr = sum(np.sum(v[1:] * v[:-1], -1) for v in (x, y, z))
     return np.degrees(np.arccos(np.clip(0.5 * (tr - 1.0), -1.0, 1.0)))
 
@@ -999,7 +999,7 @@ def _leg_blocked(rays, lay, legs, hip, target, fwd, left, knee_out, tol):
     environment."""
     u = normalize(target - hip)
     s = lay.side[legs][:, None]
-    pole = s * np.cross(fwd, u) + knee_out * s * left
+    pole = s * cross(fwd, u) + knee_out * s * left
     sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
     v = sol.end - hip
     dist = np.linalg.norm(v, axis=1)
@@ -1068,18 +1068,26 @@ def _joined(near: np.ndarray, fi: np.ndarray, li: np.ndarray) -> np.ndarray:
 def _run_swivels(rays, hip, mid, end, axis, hit, near, l1, l2, tol) -> np.ndarray:
     """(F, L) the swivel of every frame of the runs of `near` (F, L) bool frames of each leg,
     0 elsewhere: per run, the first of KNEE_SWIVELS with the fewest bone hits over its frames
-    (no swivel unless one has fewer than `hit` (F, L), the hits unswivelled)."""
+    and the frames its easing in and out swivels part way (no swivel unless one has fewer than
+    `hit` (F, L), the hits unswivelled): a knee that clears at 0 and at 20 deg can graze at
+    the 4 and 12 deg between, and another side or angle may ease in clean."""
     F, L = near.shape
     run_id = _run_ids(near)
     n_runs = int(run_id.max()) + 1
     f, l = np.nonzero(near)
     r = run_id[f, l]
+    ends = np.stack([np.full(n_runs, F), np.zeros(n_runs, int)])   # each run's first, last
+    np.minimum.at(ends[0], r, f)
+    np.maximum.at(ends[1], r, f)
+    leg = np.zeros(n_runs, int)
+    leg[r] = l
     angle_run = np.zeros(n_runs)
     best = np.bincount(r, weights=hit[f, l], minlength=n_runs)   # fewest hits per run so far
     for a in KNEE_SWIVELS:
         m = _swivel(mid[f, l], hip[f, l], axis[f, l], a)
         bad = _bones_hit(rays, hip[f, l], m, end[f, l], l1, l2, tol)
         cnt = np.bincount(r, weights=bad, minlength=n_runs)
+        cnt += _ramp_hits(rays, hip, mid, end, axis, a, ends, leg, near, l1, l2, tol)
         better = cnt < best
         best[better] = cnt[better]
         angle_run[better] = a
@@ -1088,6 +1096,25 @@ def _run_swivels(rays, hip, mid, end, axis, hit, near, l1, l2, tol) -> np.ndarra
     angle = np.zeros((F, L))
     angle[f, l] = angle_run[r]
     return angle
+
+
+def _ramp_hits(rays, hip, mid, end, axis, a, ends, leg, near, l1, l2, tol) -> np.ndarray:
+    """(n_runs,) the frames beside each run (first and last frames `ends` (2, n_runs) of leg
+    `leg`) that a swivel `a` eased in and out at SWIVEL_RATE per frame (_eased) swivels part
+    way and puts a bone through something (frames of other runs left out)."""
+    F = len(near)
+    d = np.arange(1, int(np.ceil(abs(a) / SWIVEL_RATE)))
+    if len(d) == 0:
+        return np.zeros(ends.shape[1])
+    fr = np.concatenate([ends[0][:, None] - d, ends[1][:, None] + d], axis=1)     # (n_runs, 2k)
+    part = np.sign(a) * (abs(a) - SWIVEL_RATE * np.concatenate([d, d]))
+    ri, ci = np.nonzero((fr >= 0) & (fr < F))
+    fi, li = fr[ri, ci], leg[ri]
+    keep = ~near[fi, li]
+    ri, ci, fi, li = ri[keep], ci[keep], fi[keep], li[keep]
+    m = _swivel(mid[fi, li], hip[fi, li], axis[fi, li], part[ci])
+    bad = _bones_hit(rays, hip[fi, li], m, end[fi, li], l1, l2, tol)
+    return np.bincount(ri, weights=bad, minlength=ends.shape[1])
 
 
 def _run_ids(mask: np.ndarray) -> np.ndarray:
@@ -1157,7 +1184,7 @@ def _swivel(p, origin, axis, angle):
     v = p - origin
     c = np.cos(angle)[..., None] if np.ndim(angle) else np.cos(angle)
     s_ = np.sin(angle)[..., None] if np.ndim(angle) else np.sin(angle)
-    return origin + v * c + np.cross(axis, v) * s_ + axis * np.sum(axis * v, -1, keepdims=True) * (1 - c)
+    return origin + v * c + cross(axis, v) * s_ + axis * np.sum(axis * v, -1, keepdims=True) * (1 - c)
 
 
 def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, contact: np.ndarray,
@@ -1217,7 +1244,7 @@ def _turned(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
     """(n, 3) vectors v turned by `angle` about the unit axes (n, 3) (Rodrigues)."""
     c, s = np.cos(angle), np.sin(angle)
     dot = np.sum(v * axis, axis=-1, keepdims=True)
-    return v * c + np.cross(axis, v) * s + axis * dot * (1.0 - c)
+    return v * c + cross(axis, v) * s + axis * dot * (1.0 - c)
 
 
 def _push(holds, hold, leg, vec, need, Ts, rays, up, probe) -> np.ndarray:

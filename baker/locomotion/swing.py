@@ -39,6 +39,8 @@ RAISES = np.radians([4.0, 8.0, 12.0, 16.0, 24.0, 32.0, 45.0, 60.0])
 SWIVELS = np.radians([25.0, -25.0, 50.0, -50.0])
 #: knee bends that tuck the foot in, tried after raises and swivels [rad]
 FLEXES = np.radians([20.0, 40.0])
+#: the eased raises (tried last) grow by at most this share of the turn limit per frame
+RAISE_STEP = 0.5
 #: width (in swing progress) of the local lift round a frame where a swing crowds a neighbour
 BUMP_WIDTH = 0.25
 #: swings of the whole leg forward (> 0) or back round the hip, tried last [rad]
@@ -403,6 +405,12 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
     u_world = _world_paced(qs, sk, lim.turn)
     candidates += [("even/world", None, 0.0, 0.0, 0.0, 0.0, 0.0)]
     candidates += [("arc/world", p, r, 0.0, 0.0, 0.0, 0.0) for p in PROFILES[:2] for r in RAISES]
+    # and the raises too steep at the ends for the turn limit (a sooner-rising profile turns the
+    # leg by raise x profile(1 / frames) in the first and last frame), eased: the raise grows
+    # and shrinks by at most RAISE_STEP x turn per frame from either end of the swing
+    from_end = np.minimum(f - sw.a[sk], sw.b[sk] - f)
+    candidates += [("arc/eased", p, r, 0.0, 0.0, 0.0, 0.0) for p in PROFILES
+                   for r in RAISES[3:]]
     for kind, profile, r, swivel, flex, delay, yaw in candidates:
         open_ = todo & (best > 0)
         if not open_.any():
@@ -412,6 +420,9 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
         uj = u[j]
         if kind.endswith("/world"):       # paced by the turn the segment leaves the leg
             kind, uj = kind[:-6], u_world[j]
+        cap = np.inf
+        if kind.endswith("/eased"):
+            kind, cap = kind[:-6], RAISE_STEP * lim.turn * from_end[j]
         if delay > 0:
             uj = np.clip((uj - delay) / (1.0 - delay), 0.0, 1.0)
         elif delay < 0:
@@ -425,7 +436,7 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
             U = quat_mul(quat_about(axis[j], side[lg[j]] * r * bump), U0[j])
             T = T0[j]
         else:
-            U = quat_mul(quat_about(axis[j], side[lg[j]] * r * profile(uj)),
+            U = quat_mul(quat_about(axis[j], side[lg[j]] * np.minimum(r * profile(uj), cap)),
                          quat_slerp(U_first[j], U_last[j], uj))
             T = quat_slerp(T_first[j], T_last[j], uj)
         if swivel:

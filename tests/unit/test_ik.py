@@ -89,3 +89,18 @@ def test_bone_frames_point_y_along_the_bone_and_x_along_the_hinge():
     x = quat_rotate(q, np.tile([1.0, 0.0, 0.0], (len(q), 1)))
     np.testing.assert_allclose(y, (s.mid - root) / L1, atol=1e-12)
     np.testing.assert_allclose(x, s.hinge, atol=1e-12)
+
+
+def test_cross_gives_numpys_bits_on_every_broadcast_shape():
+    """geometry.transforms.cross (the IK's, the legs' and quat_rotate's cross product) is
+    np.cross's arithmetic without its axis handling: the same bits, so bakes do not change."""
+    from baker.geometry.transforms import cross
+
+    rng = np.random.default_rng(3)
+    for sa, sb in (((3,), (3,)), ((50, 3), (50, 3)), ((50, 3), (3,)), ((7, 1, 3), (5, 3)),
+                   ((20, 40, 3), (20, 40, 3))):
+        a, b = rng.normal(size=sa), rng.normal(size=sb)
+        out = cross(a, b)
+        assert out.shape == np.cross(a, b).shape
+        assert np.array_equal(out, np.cross(a, b))
+    assert np.array_equal(cross([1, 0, 0], [0, 1, 0]), [0.0, 0.0, 1.0])

@@ -62,3 +62,35 @@ def test_frames_that_need_a_larger_swivel_get_one_within_the_run():
     angle = np.arctan2(now[:, 0, 2], now[:, 0, 1]) * np.sign(up[:, 0, 1])
     assert np.all(np.abs(np.diff(angle)) <= SWIVEL_RATE + 1e-9)
     assert np.degrees(angle[:10]).max() < 57.0 and np.degrees(angle[10:]).min() > 56.0
+
+
+def test_a_swivel_whose_easing_in_grazes_something_turns_the_other_way():
+    """A standing leg whose knee clears at 0 and at +-20 deg of swivel but touches a small box
+    at +4 to +12 deg (the frames where a +20 deg swivel eases in), and, for ten frames in the
+    middle, a knee leaning 30 deg to -z into a second box. +20 deg (the first candidate) clears
+    those ten frames, but its easing in and out puts the knee into the first box, whatever
+    frames join the run; -20 deg clears them and eases in clean (the code before this test:
+    4 frames through the box)."""
+    knee_box = box((0.14, 0.23, 0.008), (0.16, 0.27, 0.034))                # +4..+12 deg
+    lean_box = box((0.14, 0.20, -0.088), (0.16, 0.26, -0.062))              # -25..-35 deg
+    rays = RayCaster(trimesh.util.concatenate([knee_box, lean_box]))
+    hip, mid, end, hinge = leg(np.zeros(30))
+    lean = np.radians(-30.0)
+    mid[10:20, 0] = [0.15, 0.1 + 0.15 * np.cos(lean), 0.15 * np.sin(lean)]
+    l1 = float(np.linalg.norm(mid[0, 0] - hip[0, 0]))
+    before = hits(rays, hip, mid, end)
+    assert before[10:20].all() and not before[:10].any() and not before[20:].any()
+    axis = np.array([1.0, 0.0, 0.0])
+    for deg, through in ((4, True), (12, True), (0, False), (20, False), (-4, False),
+                         (-12, False), (-20, False)):
+        m = hip[:1] + _turn(mid[:1] - hip[:1], axis, np.radians(deg))
+        assert hits(rays, hip[:1], m, end[:1]).all() == through, deg
+    new_mid, _ = _clear_knees(rays, hip, mid, end, hinge, l1, l1, TOL)
+    assert not hits(rays, hip, new_mid, end).any()
+    assert np.all(new_mid[10:20, 0, 2] < mid[10:20, 0, 2])      # swivelled further to -z
+
+
+def _turn(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
+    """v (..., 3) turned by `angle` about the unit `axis` (Rodrigues)."""
+    return (v * np.cos(angle) + np.cross(axis, v) * np.sin(angle)
+            + axis * np.sum(axis * v, -1, keepdims=True) * (1.0 - np.cos(angle)))
