@@ -42,7 +42,13 @@ Speed (the same keys as a plain implementation): the local pass evaluates only t
 split in its previous round and keys a channel at every frame at once when more of its frames
 than `_promote`'s bound miss even between their neighbours; the refinement's playback (`_Player`)
 is kept between rounds and replays only the (joint, frame) pairs whose keys, key values or parent
-changed, world rotations and positions apart, in blocks of `_PAIRS` pairs.
+changed, world rotations and positions apart, in blocks of `_PAIRS` pairs, and computes key
+values at key frames only (those of the other frames, which the files store but no player reads,
+once at the end). Both work component-first: a block's rows are gathered with np.take (and
+written back with np.put), each x, y, z (w) is a flat array over the pairs, and the sums over 3
+or 4 components are written out left to right instead of np.sum / np.linalg.norm over a small
+axis. That is operation for operation the plain arithmetic, so the values are the same bit for
+bit (tests/export/test_reduce.py checks a replay against a fresh playback).
 
 Planted feet: with `contacts` (frames where a joint is planted), a foot that does not move in the
 original may not slide in the reduced clip: between two planted frames its error may change by at
@@ -219,26 +225,42 @@ _CHUNK = 8192
 
 
 def _quantize(q: np.ndarray) -> np.ndarray:
-    """quantize_rotations of (N, 4) quaternions."""
-    u = q / np.linalg.norm(q, axis=1, keepdims=True)
+    """quantize_rotations of (N, 4) quaternions. The 16 candidate codes of each are rows of
+    (16, N) arrays, so each step is one flat operation."""
+    u = _unit(q)
     s = u * SHORT_MAX
     c = np.floor(s)
-    n2 = (np.sum(c * c, axis=1)[:, None] + 2.0 * _bit_sums(c)
-          + np.sum(_BITS, axis=0)[None, :]) / SHORT_MAX ** 2             # |code|^2 / 32767^2
-    dot = (np.sum(s * c, axis=1)[:, None] + _bit_sums(s)) / SHORT_MAX ** 2
-    sin2 = np.maximum(n2 - dot * dot, 0.0) / n2                          # sin^2(half angle)
-    lever = 1.0 - u[:, 3:4] ** 2                                         # |R - I|^2 / 4
-    cost = sin2 + np.abs(n2 - 1.0) ** 2 * lever
-    out = np.clip(c + _BITS.T[np.argmin(cost, axis=1)], -SHORT_MAX, SHORT_MAX)
-    return out.astype(np.int16)
+    n2 = _bit_sums(c)                                                    # |code|^2 / 32767^2
+    n2 *= 2.0
+    n2 += _dot(c, c)
+    n2 += _BIT_COUNT
+    n2 /= SHORT_MAX ** 2
+    dot = _bit_sums(s)
+    dot += _dot(s, c)
+    dot /= SHORT_MAX ** 2
+    cost = np.square(dot, out=dot)
+    np.subtract(n2, cost, out=cost)
+    np.maximum(cost, 0.0, out=cost)
+    cost /= n2                                                           # sin^2(half angle)
+    lever = 1.0 - u[:, 3] ** 2                                           # |R - I|^2 / 4
+    n2 -= 1.0
+    stretch = np.square(np.abs(n2, out=n2), out=n2)
+    stretch *= lever
+    cost += stretch
+    out = c + np.take(_BITS.T, np.argmin(cost, axis=0), axis=0)
+    return np.clip(out, -SHORT_MAX, SHORT_MAX, out=out).astype(np.int16)
+
+
+#: (16, 1) how many components each of the 16 codes rounds up
+_BIT_COUNT = np.sum(_BITS, axis=0)[:, None]
 
 
 def _bit_sums(a: np.ndarray) -> np.ndarray:
-    """(N, 16): for each of the 16 codes k, the sum of the components of a (N, 4) whose bit is
+    """(16, N): for each of the 16 codes k, the sum of the components of a (N, 4) whose bit is
     set in k (element by element, so a row's result does not depend on the batch)."""
-    out = np.zeros((len(a), 16))
+    out = np.zeros((16, len(a)))
     for i in range(4):              # codes with bit i: the codes below 2^i, plus a[:, i]
-        out[:, 1 << i:2 << i] = out[:, :1 << i] + a[:, i:i + 1]
+        np.add(out[:1 << i], a[:, i], out=out[1 << i:2 << i])
     return out
 
 
@@ -249,7 +271,7 @@ def dequantize_rotations(codes: np.ndarray) -> np.ndarray:
 
 
 def _unit_f32(q: np.ndarray) -> np.ndarray:
-    return (q / np.linalg.norm(q, axis=-1, keepdims=True)).astype(np.float32)
+    return _unit(q).astype(np.float32)
 
 
 def sample(values: np.ndarray, keep: np.ndarray, static: np.ndarray, times: np.ndarray,
@@ -289,8 +311,9 @@ def _around(prev: np.ndarray, nxt: np.ndarray, frames: np.ndarray, times: np.nda
     prev = np.clip(prev, 0, f_count - 1)
     nxt = np.where(last, prev, nxt)
     t = np.asarray(times, dtype=np.float32).astype(np.float64)
-    span = t[nxt] - t[prev]
-    a = np.where(span > 0, (t[frames] - t[prev]) / np.where(span > 0, span, 1.0), 0.0)
+    t_prev = np.take(t, prev)
+    span = np.take(t, nxt) - t_prev
+    a = np.where(span > 0, (np.take(t, frames) - t_prev) / np.where(span > 0, span, 1.0), 0.0)
     return prev, nxt, a, fixed, last
 
 
@@ -316,6 +339,56 @@ def _flat(a: np.ndarray) -> np.ndarray:
     return a.reshape((-1,) + a.shape[2:])
 
 
+def _take(a: np.ndarray, i: np.ndarray) -> np.ndarray:
+    """a[i], the rows i of a (np.take: the same copy, several times faster than fancy
+    indexing for rows of a few values)."""
+    return np.take(a, i, axis=0)
+
+
+def _take_t(a: np.ndarray, i: np.ndarray) -> np.ndarray:
+    """(W, N) the rows i of a (M, W), component-first and contiguous."""
+    return np.ascontiguousarray(np.take(a, i, axis=0).T)
+
+
+def _put(a: np.ndarray, i: np.ndarray, v: np.ndarray) -> None:
+    """a[i] = v for the rows i of a contiguous array a, v cast to a's dtype as assignment casts
+    it; each row is copied as one item (np.put on a void view: faster than fancy assignment)."""
+    if not len(i):
+        return
+    v = np.ascontiguousarray(v, dtype=a.dtype)
+    if a.ndim > 1:
+        row = _ROWS.get(a.strides[0]) or _ROWS.setdefault(a.strides[0],
+                                                          np.dtype((np.void, a.strides[0])))
+        a, v = a.reshape(len(a), -1).view(row), v.reshape(len(v), -1).view(row)
+    np.put(a, i, v)
+
+
+#: void dtypes of rows by their size in bytes (`_put`)
+_ROWS: dict = {}
+
+
+def _inner(a: np.ndarray, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """(...) sum over the first axis of a * b (W, ...), component-first, summed left to right
+    (into out): np.sum(a * b, axis=0) without its reduction overhead (the same value, up to the
+    sign of an all-zero sum)."""
+    out = np.multiply(a[0], b[0], out=out)
+    tmp = np.empty(out.shape)
+    for k in range(1, len(a)):
+        out += np.multiply(a[k], b[k], out=tmp)
+    return out
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(...) np.sum(a * b, axis=-1) of (..., W) a, b (`_inner` over the last axis)."""
+    return _inner(np.moveaxis(a, -1, 0), np.moveaxis(b, -1, 0))
+
+
+def _norm(a: np.ndarray) -> np.ndarray:
+    """(...) np.linalg.norm(a, axis=-1) of real (..., W) a, the same arithmetic (squares summed
+    left to right) without the reduction overhead."""
+    return np.sqrt(_dot(a, a))
+
+
 def _spans(segments, rows: np.ndarray, frames: np.ndarray, times: np.ndarray,
            seg_rows: np.ndarray | None = None) -> tuple:
     """Where the pairs (rows[i], frames[i]) are played from: (i0, i1) the flat indices (row
@@ -324,8 +397,8 @@ def _spans(segments, rows: np.ndarray, frames: np.ndarray, times: np.ndarray,
     seg_rows (default: rows)."""
     prev, nxt = segments
     f_count = prev.shape[1]
-    sr = rows if seg_rows is None else seg_rows
-    prev, nxt, a, fixed, last = _around(prev[sr, frames], nxt[sr, frames], frames, times,
+    at = (rows if seg_rows is None else seg_rows) * f_count + frames
+    prev, nxt, a, fixed, last = _around(np.take(prev, at), np.take(nxt, at), frames, times,
                                         f_count)
     base = rows * f_count
     return base + prev, base + nxt, a, fixed, last
@@ -333,18 +406,25 @@ def _spans(segments, rows: np.ndarray, frames: np.ndarray, times: np.ndarray,
 
 def _interp(flat_values: np.ndarray, static: np.ndarray, rows: np.ndarray, span: tuple,
             rotation: bool, both: bool = False):
-    """(N, W) float64: the values (C * F, W) played at the pairs of `span` (`_spans`), slerped
-    or lerped; element for element what `_sample_cf` gives there. static (C, W). With `both`,
-    (slerped, lerped)."""
+    """(W, N) float64, component-first: the values (C * F, W) played at the pairs of `span`
+    (`_spans`), slerped or lerped; element for element what `_sample_cf` gives there. static
+    (C, W). With `both`, (slerped, lerped)."""
     i0, i1, a, fixed, last = span
-    v0 = flat_values[i0].astype(np.float64)
-    v1 = flat_values[i1].astype(np.float64)
-    held = np.asarray(static, np.float64)[rows]
+    v0 = _take(flat_values, i0).T.astype(np.float64, order="C")               # (W, N)
+    v1 = _take(flat_values, i1).T.astype(np.float64, order="C")
+    held = np.asarray(static, np.float64)[rows[fixed]].T if fixed.any() else None
     outs = []
     for slerped in ((True, False) if both else (rotation,)):
-        out = slerp(v0, v1, a) if slerped else v0 + a[:, None] * (v1 - v0)
-        out = np.where(last[:, None], v0, out)
-        outs.append(np.where(fixed[:, None], held, out))
+        if slerped:
+            out = _slerp(v0, v1, a)
+        else:                                   # v0 + a (v1 - v0)
+            out = np.subtract(v1, v0)
+            out *= a
+            out += v0
+        np.copyto(out, v0, where=last)
+        if held is not None:
+            out[:, fixed] = held
+        outs.append(out)
     return tuple(outs) if both else outs[0]
 
 
@@ -353,52 +433,78 @@ def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
     weights from the stored keys as they are (not renormalized), the result not normalized;
     for nearly equal keys (dot >= 0.9995) a lerp, normalized; equal keys give a as stored.
     a, b (..., 4), t (...)."""
-    d = np.sum(a * b, axis=-1)
-    b = np.where((d < 0.0)[..., None], -b, b)
-    d = np.abs(d)
+    a, b = np.broadcast_arrays(np.asarray(a), np.asarray(b))
+    return np.moveaxis(_slerp(np.moveaxis(a, -1, 0), np.moveaxis(b, -1, 0), t), 0, -1)
+
+
+def _slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """slerp of component-first quaternions a, b (4, ...): a new (4, ...) array."""
+    d = _inner(a, b)
+    flip = d < 0.0
+    if flip.any():
+        b = np.negative(b, out=b.copy(), where=flip)
+    d = np.abs(d, out=d)
     t = np.asarray(t, dtype=np.float64)
     near = d >= 0.9995
     theta = np.arccos(np.minimum(d, 1.0))
     s = np.where(near, 1.0, np.sin(theta))
-    wa = np.where(near, 1.0 - t, np.sin((1.0 - t) * theta) / s)
+    u = 1.0 - t
+    wa = np.where(near, u, np.sin(u * theta) / s)
     wb = np.where(near, t, np.sin(t * theta) / s)
-    out = wa[..., None] * a + wb[..., None] * b
-    norm = np.where(near, np.linalg.norm(out, axis=-1), 1.0)
-    same = np.all(a == b, axis=-1, keepdims=True)                    # three.js: a, as stored
-    return np.where(same, a, out / norm[..., None])
+    out = a * wa
+    out += np.multiply(b, wb, out=np.empty(out.shape))
+    out /= np.where(near, np.sqrt(_inner(out, out)), 1.0)
+    same = a[0] == b[0]                                               # three.js: a, as stored
+    for k in range(1, 4):
+        same &= a[k] == b[k]
+    np.copyto(out, a, where=same)
+    return out
 
 
 def raw_matrix(q: np.ndarray) -> np.ndarray:
     """(..., 3, 3) rotation matrices of xyzw quaternions (..., 4) by the unit-quaternion formula
     applied to q as stored, without normalizing (as three.js and UsdSkel do)."""
-    q = np.asarray(q, dtype=np.float64)
-    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    m = np.empty(q.shape[:-1] + (3, 3))
+    m = _raw_matrix(np.moveaxis(np.asarray(q, dtype=np.float64), -1, 0))
+    return np.ascontiguousarray(np.moveaxis(m, (0, 1), (-2, -1)))
+
+
+def _raw_matrix(q: np.ndarray) -> np.ndarray:
+    """raw_matrix, component-first: (3, 3, ...) of (4, ...) float64 quaternions."""
+    x, y, z, w = q
+    m = np.empty((3, 3) + q.shape[1:])
     xx, yy, zz = x * x, y * y, z * z
-    xy, xz, yz, xw, yw, zw = x * y, x * z, y * z, x * w, y * w, z * w
-    m[..., 0, 0] = 1 - 2 * (yy + zz)
-    m[..., 0, 1] = 2 * (xy - zw)
-    m[..., 0, 2] = 2 * (xz + yw)
-    m[..., 1, 0] = 2 * (xy + zw)
-    m[..., 1, 1] = 1 - 2 * (xx + zz)
-    m[..., 1, 2] = 2 * (yz - xw)
-    m[..., 2, 0] = 2 * (xz - yw)
-    m[..., 2, 1] = 2 * (yz + xw)
-    m[..., 2, 2] = 1 - 2 * (xx + yy)
+    for (r, c), a, b, sign in (((0, 0), yy, zz, 0), ((1, 1), xx, zz, 0), ((2, 2), xx, yy, 0),
+                               ((0, 1), x * y, z * w, -1), ((1, 0), x * y, z * w, 1),
+                               ((0, 2), x * z, y * w, 1), ((2, 0), x * z, y * w, -1),
+                               ((1, 2), y * z, x * w, -1), ((2, 1), y * z, x * w, 1)):
+        o = np.subtract(a, b, out=m[r, c]) if sign < 0 else np.add(a, b, out=m[r, c])
+        o *= 2
+        if not sign:                    # the diagonal: 1 - 2 (yy + zz) ...
+            np.subtract(1, o, out=o)
     return m
 
 
 def _rotation_error(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(...) radians between xyzw rotations a and b (..., 4)."""
-    d = np.abs(np.sum(a * b, axis=-1)) / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
-    return 2.0 * np.arccos(np.clip(d, 0.0, 1.0))
+    return _angle(np.moveaxis(a, -1, 0), np.moveaxis(b, -1, 0))
+
+
+def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """_rotation_error of component-first rotations a, b (4, ...)."""
+    d = np.abs(_inner(a, b))
+    d /= np.sqrt(_inner(a, a)) * np.sqrt(_inner(b, b))
+    return 2.0 * np.arccos(np.clip(d, 0.0, 1.0, out=d))
 
 
 def _errors(values: np.ndarray, reduced: np.ndarray, rotation: bool) -> np.ndarray:
-    """(C, F) error of each channel: metres (translations, scales) or radians (rotations)."""
-    v = values.astype(np.float64)
-    e = _rotation_error(v, reduced) if rotation else np.linalg.norm(reduced - v, axis=-1)
-    return e.T
+    """(C, F) error of each channel: metres (translations, scales) or radians (rotations).
+    values, reduced (F, C, W)."""
+    v = np.transpose(values, (2, 1, 0)).astype(np.float64, order="C")           # (W, C, F)
+    r = np.transpose(reduced, (2, 1, 0))
+    if rotation:
+        return _angle(v, r)
+    d = r - v
+    return np.sqrt(_inner(d, d))
 
 
 # ------------------------------------------------------------------------------- local pass
@@ -485,10 +591,7 @@ def _local_keys(values: np.ndarray, stored: np.ndarray, times: np.ndarray, rotat
             break
         ri, fi = np.nonzero(pending[rows])              # ri: index into rows
         segments = _segments(keep[rows])
-        est = _interp(flat_kept, static, rows[ri],
-                      _spans(segments, rows[ri], fi, times, seg_rows=ri), rotation)
-        v = flat_vals[rows[ri] * f_count + fi].astype(np.float64)
-        err = _rotation_error(v, est) if rotation else np.linalg.norm(est - v, axis=-1)
+        err = _local_errors(flat_vals, flat_kept, static, times, rotation, segments, rows, ri, fi)
         bad = np.flatnonzero((err > tol[rows[ri]]) & ~keep[rows[ri], fi])
         group = ri * (f_count + 1) + segments[0][ri, fi] + 1
         _key_worst(keep, rows[ri[bad]], fi[bad], group[bad], err[bad])
@@ -501,6 +604,28 @@ def _local_keys(values: np.ndarray, stored: np.ndarray, times: np.ndarray, rotat
         keep[rows[full]] = True              # promoted in the end anyway (keys only grow)
         pending[rows[full]] = False
     return keep, static
+
+
+def _local_errors(flat_vals: np.ndarray, flat_kept: np.ndarray, static: np.ndarray,
+                  times: np.ndarray, rotation: bool, segments: tuple, rows: np.ndarray,
+                  ri: np.ndarray, fi: np.ndarray) -> np.ndarray:
+    """(N,) the local pass's errors at the pairs (channel rows[ri], frame fi), played from
+    `flat_kept` between the keys `segments` (of the channels rows), against `flat_vals` (C * F,
+    W), in blocks of _PAIRS."""
+    f_count = segments[0].shape[1]
+    err = np.empty(len(ri))
+    for k in range(0, len(ri), _PAIRS):
+        r, f = ri[k:k + _PAIRS], fi[k:k + _PAIRS]
+        c = rows[r]
+        est = _interp(flat_kept, static, c, _spans(segments, c, f, times, seg_rows=r),
+                      rotation)                                                   # (W, n)
+        v = _take(flat_vals, c * f_count + f).T.astype(np.float64, order="C")
+        if rotation:
+            err[k:k + _PAIRS] = _angle(v, est)
+        else:
+            est -= v
+            err[k:k + _PAIRS] = np.sqrt(_inner(est, est))
+    return err
 
 
 def _tight_misses(vals: np.ndarray, kept: np.ndarray, times: np.ndarray, rotation: bool,
@@ -548,9 +673,10 @@ def levers(parents, world: np.ndarray, local_t: np.ndarray) -> np.ndarray:
     parents = np.asarray(parents)
     out = np.linalg.norm(local_t, axis=-1).max(axis=0) * (parents >= 0)
     chains = ancestors(parents)
+    world = np.ascontiguousarray(np.swapaxes(world, 0, 1))                     # (J, F, 3)
     for j in range(1, len(parents)):                # each joint's reach to its ancestors
         up = chains[j, 1:][chains[j, 1:] >= 0]
-        d = np.linalg.norm(world[:, j, None] - world[:, up], axis=-1).max(axis=0)
+        d = _norm(world[j] - world[up]).max(axis=1)
         out[up] = np.maximum(out[up], d)
     return out
 
@@ -600,66 +726,99 @@ def _target(clip: Clip, parents, planted, tol: float, short: bool, tight=None) -
                    None if tight is None else first(tight))
 
 
+# Component-first kernels: vectors (3, ...), xyzw quaternions (4, ...) and matrices (3, 3, ...),
+# each component an array over the pairs (a contiguous block or a strided view of (N, ...)
+# rows), so that each step is one flat numpy operation into a preallocated output instead of
+# small inner loops over 3 or 4 components. Operation for operation (so bit for bit) the
+# arithmetic of geometry.transforms and raw_matrix; `_last` applies them to last-axis arrays.
+
+
+def _last(kernel, *args: np.ndarray) -> np.ndarray:
+    """kernel (component-first) applied to arrays with their components last; result likewise."""
+    return np.moveaxis(kernel(*(np.moveaxis(a, -1, 0) for a in args)), 0, -1)
+
+
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(N, 3) a x b of (N, 3) vectors, component by component (np.cross's arithmetic, without
-    its overhead)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
-    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
-    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    """(3, ...) a x b of (3, ...) vectors (np.cross's arithmetic, without its overhead)."""
+    out = np.empty((3,) + np.broadcast_shapes(a[0].shape, b[0].shape))
+    tmp = np.empty(out.shape[1:])
+    for k, (p, q) in enumerate(((1, 2), (2, 0), (0, 1))):
+        np.multiply(a[p], b[q], out=out[k])
+        out[k] -= np.multiply(a[q], b[p], out=tmp)
     return out
 
 
 def _qrot(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """geometry.transforms.quat_rotate (v rotated by the xyzw quaternions q) with `_cross`."""
-    qv = q[..., :3]
-    t = 2.0 * _cross(qv, v)
-    return v + q[..., 3:4] * t + _cross(qv, t)
+    """geometry.transforms.quat_rotate (v (3, ...) rotated by the quaternions q (4, ...)):
+    v + w t + qv x t with t = 2 qv x v."""
+    t = _cross(q[:3], v)
+    t *= 2.0
+    out = t * q[3]
+    out += v
+    out += _cross(q[:3], t)
+    return out
+
+
+#: Hamilton product a b (xyzw): per output component, the (a, b) components of its terms, in
+#: order, the first added, the others with their signs
+_QMUL = (((3, 0), (0, 3, 1), (1, 2, 1), (2, 1, -1)),
+         ((3, 1), (0, 2, -1), (1, 3, 1), (2, 0, 1)),
+         ((3, 2), (0, 1, 1), (1, 0, -1), (2, 3, 1)),
+         ((3, 3), (0, 0, -1), (1, 1, -1), (2, 2, -1)))
 
 
 def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """geometry.transforms.quat_mul (Hamilton product a b, xyzw) into one array."""
-    ax, ay, az, aw = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
-    bx, by, bz, bw = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[..., 0] = aw * bx + ax * bw + ay * bz - az * by
-    out[..., 1] = aw * by - ax * bz + ay * bw + az * bx
-    out[..., 2] = aw * bz + ax * by - ay * bx + az * bw
-    out[..., 3] = aw * bw - ax * bx - ay * by - az * bz
+    """geometry.transforms.quat_mul: the Hamilton product a b of (4, ...) xyzw quaternions."""
+    out = np.empty((4,) + np.broadcast_shapes(a[0].shape, b[0].shape))
+    tmp = np.empty(out.shape[1:])
+    for o, ((i, j), *terms) in zip(out, _QMUL):
+        np.multiply(a[i], b[j], out=o)
+        for i, j, sign in terms:
+            (np.add if sign > 0 else np.subtract)(o, np.multiply(a[i], b[j], out=tmp), out=o)
     return out
 
 
 def _norm3(d: np.ndarray) -> np.ndarray:
     """(N,) lengths of (N, 3) vectors."""
-    return np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2])
+    return _length(np.moveaxis(d, -1, 0))
+
+
+def _length(d: np.ndarray) -> np.ndarray:
+    """(...) lengths of (3, ...) vectors (squares summed left to right)."""
+    return np.sqrt(_inner(d, d))
 
 
 def _solve3(m: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """x with m x = v, for (N, 3, 3) matrices m and (N, 3) vectors v, by Cramer's rule (the
-    matrices are near rotations, well conditioned), element by element."""
-    c0 = _cross(m[:, :, 1], m[:, :, 2])                      # rows of adj(m)
-    c1 = _cross(m[:, :, 2], m[:, :, 0])
-    c2 = _cross(m[:, :, 0], m[:, :, 1])
+    """(3, N) x with m x = v, for (3, 3, N) matrices m and (3, N) vectors v, by Cramer's rule
+    (the matrices are near rotations, well conditioned), element by element."""
+    adj = [_cross(m[:, 1], m[:, 2]), _cross(m[:, 2], m[:, 0]), _cross(m[:, 0], m[:, 1])]
     out = np.empty(v.shape)
-    for k, c in enumerate((c0, c1, c2)):
-        out[:, k] = c[:, 0] * v[:, 0] + c[:, 1] * v[:, 1] + c[:, 2] * v[:, 2]
-    det = c0[:, 0] * m[:, 0, 0] + c0[:, 1] * m[:, 1, 0] + c0[:, 2] * m[:, 2, 0]
-    return out / det[:, None]
+    for k, c in enumerate(adj):                              # rows of adj(m)
+        _inner(c, v, out=out[k])
+    out /= _inner(adj[0], m[:, 0])                            # det
+    return out
 
 
 def _mat_vec(m: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """(N, 3) m v for (N, 3, 3) m and (N, 3) v, element by element."""
-    return m[:, :, 0] * v[:, 0:1] + m[:, :, 1] * v[:, 1:2] + m[:, :, 2] * v[:, 2:3]
+    """(3, N) m v for (3, 3, N) m and (3, N) v, element by element (each row's products summed
+    left to right)."""
+    out = m[:, 0] * v[0]
+    out += m[:, 1] * v[1]
+    out += m[:, 2] * v[2]
+    return out
 
 
 def _mat_mat(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) a b, element by element."""
-    return (a[:, :, 0:1] * b[:, 0:1, :] + a[:, :, 1:2] * b[:, 1:2, :]
-            + a[:, :, 2:3] * b[:, 2:3, :])
+    """(3, 3, N) a b of (3, 3, N) matrices, element by element (products summed left to
+    right)."""
+    out = a[:, 0, None] * b[0]
+    out += a[:, 1, None] * b[1]
+    out += a[:, 2, None] * b[2]
+    return out
 
 
 def _unit(q: np.ndarray) -> np.ndarray:
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return q / _norm(q)[..., None]
 
 
 class _Player:
@@ -669,7 +828,7 @@ class _Player:
     (so a parent's interpolation error is not passed on at the child's keys); its curves are
     sampled between the keys as players do and posed with the players' matrices (raw_matrix:
     stored quaternions are not renormalized), and as the two other players pose them (see
-    `_errors_at`).
+    `_errors`).
 
     `play` recomputes only the (joint, frame) pairs whose result can change since the last play:
     frames whose segment (the keys around them) changed, frames whose segment's key values
@@ -677,9 +836,10 @@ class _Player:
     the same keys gives.
 
     Stored key values vt (J, F, 3), vq (J, F, 4) float32 and codes (J, F, 4) int16 (SHORT
-    rotations); their targets tt, tq (float64); the played local tr, rr (float32 values as
-    float64); world positions pos, rotations wq (the matrices' rotation part) and matrices mat
-    (J, F, 3, 3); the other players' poses (unit: renormalized slerp; blender, wn: nlerp);
+    rotations) and their targets tt, tq (float64; codes are requantized only where tq changed),
+    at the key frames (the players read no others; `complete` fills in the rest); the played
+    local tr, rr (float32 values as float64); world positions pos, rotations wq (the matrices'
+    rotation part) and matrices mat (J, F, 3, 3); the other players' poses (unit: renormalized slerp; blender, wn: nlerp);
     error vectors diff (J, F, 3) and lengths err (J, F) [m], the worst of the three players;
     slide (J, F-1) [m]: the change of a planted joint's error between planted frames; spread
     (J, F) [m]: how far the other two players are from the first; viol (J, F) bool: over a
@@ -694,8 +854,8 @@ class _Player:
 
         self.vt, self.vq = empty(3, dtype=np.float32), empty(4, dtype=np.float32)
         self.codes = empty(4, dtype=np.int16)
-        self.quantized = np.full((j_count, f_count, 4), np.nan)     # the targets of `codes`
-        self.tt, self.tq, self.tr, self.rr = empty(3), empty(4), empty(3), empty(4)
+        self.tt, self.tr, self.rr = empty(3), empty(3), empty(4)
+        self.tq = np.full((j_count, f_count, 4), np.nan)     # NaN: none quantized yet
         self.pos, self.wq, self.mat = empty(3), empty(4), empty(3, 3)
         self.nlerp, self.unit, self.blender, self.wn = empty(4), empty(3), empty(3), empty(4)
         self.diff, self.err, self.spread = empty(3), empty(), empty()
@@ -712,7 +872,9 @@ class _Player:
             self.segments = ((_segments(keep_t), keep_t.copy()),
                              (_segments(keep_r), keep_r.copy()))
             dirty_t = dirty_r = np.ones((j_count, f_count), dtype=bool)
+            new_t, new_r = keep_t, keep_r
         else:
+            new_t, new_r = keep_t & ~self.segments[0][1], keep_r & ~self.segments[1][1]
             dirty_t = _resegment(*self.segments[0], keep_t)
             dirty_r = _resegment(*self.segments[1], keep_r)
         seg_t, seg_r = self.segments[0][0], self.segments[1][0]
@@ -729,14 +891,14 @@ class _Player:
                 target_t, target_r = moved[parents], turned[parents]
             if not (target_t.any() or dirty_t[level].any() or dirty_r[level].any()):
                 continue                                    # nothing below moves either
-            self._targets(level, target_t, target_r, root)
+            self._targets(level, (target_t | new_t[level]) & keep_t[level],
+                          (target_r | new_r[level]) & keep_r[level], root)
             st = dirty_t[level] | _touches(target_t & keep_t[level], seg_t, level)
             sr = dirty_r[level] | _touches(target_r & keep_r[level], seg_r, level)
             self._sample(level, st, sr, seg_t, seg_r)
             turned[level] = sr | target_r
             moved[level] = st | turned[level] | target_t
             self._pose(level, turned[level], moved[level], root)
-        self._errors_at(moved)
         self._slide_at(moved)
         viol = (self.err > x.tol) | (self.spread > PLAYER_SPREAD_M)
         if x.tight is not None:
@@ -748,51 +910,80 @@ class _Player:
         self.viol = viol
         return viol
 
+    def complete(self, keep_t: np.ndarray, keep_r: np.ndarray) -> None:
+        """Fill in the key values (and targets) of the frames that are not keys, keep_t,
+        keep_r (J, F) the last played keys: `play` computes them at key frames only (the
+        players read no others), the files store every frame's."""
+        for level in self.x.levels:
+            self._targets(level, ~keep_t[level], ~keep_r[level], self.x.parents[level[0]] < 0)
+
     def _targets(self, level: np.ndarray, target_t: np.ndarray, target_r: np.ndarray,
                  root: bool) -> None:
         """The key values of the joints `level`: translations at the frames target_t, rotations
-        at the frames target_r (L, F) bool (where the parent's pose, or only its rotation,
-        moved)."""
+        at the frames target_r (L, F) bool (new keys, and keys where the parent's pose, or only
+        its rotation, moved)."""
         x, f_count = self.x, self.x.t0.shape[1]
         for j, f, i in _pair_blocks(target_t, level, f_count):
-            if root:
-                tt = _flat(x.t0)[i]
-            else:
-                ip = x.parents[j] * f_count + f
-                tt = _solve3(_flat(self.mat)[ip], _flat(x.pos0)[i] - _flat(self.pos)[ip])
-            _flat(self.tt)[i] = tt
-            _flat(self.vt)[i] = tt
+            tt = _take(_flat(x.t0), i) if root else self._target_t(i, x.parents[j] * f_count + f)
+            _put(_flat(self.tt), i, tt)
+            _put(_flat(self.vt), i, tt)
         for j, f, i in _pair_blocks(target_r, level, f_count):
-            if root:
-                tq = _flat(x.q0)[i]
-            else:
-                ip = x.parents[j] * f_count + f
-                q = _qmul(quat_conj(_flat(self.wq)[ip]), _flat(x.wq0)[i])
-                q = np.where((np.sum(q * _flat(x.q0)[i], axis=-1) < 0)[..., None], -q, q)
-                tq = _unit(q)
-            _flat(self.tq)[i] = tq
-            if x.short:
-                codes, quantized = _flat(self.codes), _flat(self.quantized)
-                changed = np.any(quantized[i] != tq, axis=-1)
+            tq = _take(_flat(x.q0), i) if root else self._target_q(i, x.parents[j] * f_count + f)
+            if x.short:                 # requantize the targets that changed
+                ne = _take(_flat(self.tq), i) != tq
+                changed = ne[:, 0] | ne[:, 1] | ne[:, 2] | ne[:, 3]
                 ic = i[changed]
-                codes[ic] = quantize_rotations(tq[changed])
-                quantized[ic] = tq[changed]
-                _flat(self.vq)[ic] = dequantize_rotations(codes[ic])
+                codes = quantize_rotations(tq[changed])
+                _put(_flat(self.codes), ic, codes)
+                _put(_flat(self.vq), ic, dequantize_rotations(codes))
             else:
-                _flat(self.vq)[i] = _unit_f32(tq)
+                _put(_flat(self.vq), i, _unit_f32(tq))
+            _put(_flat(self.tq), i, tq)
+
+    def _target_t(self, i: np.ndarray, ip: np.ndarray) -> np.ndarray:
+        """(N, 3) the translation targets of the pairs i (flat) of non-root joints, given their
+        parents' current poses at the pairs ip: the local translation that puts the joint on its
+        unreduced world position."""
+        m = _take(_flat(self.mat), ip).transpose(1, 2, 0)
+        return _solve3(m, (_take(_flat(self.x.pos0), i) - _take(_flat(self.pos), ip)).T).T
+
+    def _target_q(self, i: np.ndarray, ip: np.ndarray) -> np.ndarray:
+        """(N, 4) the rotation targets of the pairs i of non-root joints (parents' pairs ip):
+        the unit local rotation that gives the unreduced world rotation, on the clip's side."""
+        x = self.x
+        conj = _take_t(_flat(self.wq), ip)
+        np.negative(conj[:3], out=conj[:3])                    # quat_conj, the parent's inverse
+        q = _qmul(conj, _take_t(_flat(x.wq0), i)).T
+        np.negative(q, out=q, where=(_dot(q, _take(_flat(x.q0), i)) < 0)[:, None])
+        return _unit(q)
+
+    def targets_at(self, i: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """((N, 3), (N, 4)) the translation and rotation targets of any pairs i (flat indices),
+        from the current poses: what `_targets` gives there (the arrays tt, tq hold them at
+        key frames only)."""
+        x, f_count = self.x, self.x.t0.shape[1]
+        j, f = np.divmod(i, f_count)
+        parent = x.parents[j]
+        tt, tq = _take(_flat(x.t0), i), _take(_flat(x.q0), i)              # roots
+        child = np.flatnonzero(parent >= 0)
+        ic, ip = i[child], parent[child] * f_count + f[child]
+        tt[child], tq[child] = self._target_t(ic, ip), self._target_q(ic, ip)
+        return tt, tq
 
     def _sample(self, level, st, sr, seg_t, seg_r) -> None:
         """Played local values of the joints `level` at the frames st (translations) and sr
         (rotations) (L, F) bool; and Blender's nlerp of the rotations."""
         x, f_count = self.x, self.x.t0.shape[1]
         for j, f, i in _pair_blocks(st, level, f_count):
-            _flat(self.tr)[i] = _interp(_flat(self.vt), self.static_t, j,
-                                        _spans(seg_t, j, f, x.times), False).astype(np.float32)
+            played = _interp(_flat(self.vt), self.static_t, j, _spans(seg_t, j, f, x.times),
+                             False)
+            _put(_flat(self.tr), i, played.astype(np.float32).T)
         for j, f, i in _pair_blocks(sr, level, f_count):
             slerped, lerped = _interp(_flat(self.vq), self.static_r, j,
                                       _spans(seg_r, j, f, x.times), True, both=True)
-            _flat(self.rr)[i] = slerped.astype(np.float32)
-            _flat(self.nlerp)[i] = _unit(lerped)
+            _put(_flat(self.rr), i, slerped.astype(np.float32).T)
+            lerped /= np.sqrt(_inner(lerped, lerped))                  # _unit
+            _put(_flat(self.nlerp), i, lerped.T)
 
     def _pose(self, level: np.ndarray, turned: np.ndarray, moved: np.ndarray,
               root: bool) -> None:
@@ -803,45 +994,49 @@ class _Player:
         unit_w, blender, wn, nlerp = (_flat(self.unit), _flat(self.blender), _flat(self.wn),
                                       _flat(self.nlerp))
         for j, f, i in _pair_blocks(turned, level, f_count):
-            rr = _flat(self.rr)[i]
+            rr = _take(_flat(self.rr), i)
             if root:
-                mat[i], wq[i], wn[i] = raw_matrix(rr), _unit(rr), nlerp[i]
+                _put(mat, i, raw_matrix(rr))
+                _put(wq, i, _unit(rr))
+                _put(wn, i, _take(nlerp, i))
             else:
                 ip = self.x.parents[j] * f_count + f
-                mat[i] = _mat_mat(mat[ip], raw_matrix(rr))
-                wq[i] = _qmul(wq[ip], _unit(rr))
-                wn[i] = _qmul(wn[ip], nlerp[i])
+                m = _mat_mat(_take(mat, ip).transpose(1, 2, 0), _raw_matrix(rr.T))
+                _put(mat, i, m.transpose(2, 0, 1))
+                _put(wq, i, _qmul(_take_t(wq, ip), _unit(rr).T).T)
+                _put(wn, i, _qmul(_take_t(wn, ip), _take_t(nlerp, i)).T)
         for j, f, i in _pair_blocks(moved, level, f_count):
-            tr = _flat(self.tr)[i]
+            tr = _take_t(_flat(self.tr), i)                              # (3, N)
             if root:
-                pos[i], unit_w[i], blender[i] = tr, tr, tr
-                continue
-            ip = self.x.parents[j] * f_count + f
-            pos[i] = pos[ip] + _mat_vec(mat[ip], tr)
-            unit_w[i] = unit_w[ip] + _qrot(wq[ip], tr)
-            blender[i] = blender[ip] + _qrot(wn[ip], tr)
+                worlds = (tr, tr, tr)
+            else:
+                ip = self.x.parents[j] * f_count + f
+                worlds = (_mat_vec(_take(mat, ip).transpose(1, 2, 0), tr),
+                          _qrot(_take_t(wq, ip), tr), _qrot(_take_t(wn, ip), tr))
+                for a, w in zip((pos, unit_w, blender), worlds):
+                    w += _take(a, ip).T                      # the parent's position + ...
+            for a, w in zip((pos, unit_w, blender), worlds):
+                _put(a, i, w.T)
+            self._errors(i, *worlds)
 
-    def _errors_at(self, moved: np.ndarray) -> None:
-        """Errors of the pairs `moved` (J, F) bool: each the worst of three players: pos, as
-        three.js and UsdSkel play the keys; unit, a player that normalizes the slerped
-        quaternions; and Blender's (blender), which interpolates the stored quaternions
-        component by component and normalizes (nlerp); and the spread of the other two around
-        the first."""
-        f_count = moved.shape[1]
-        for _, _, i in _pair_blocks(moved, np.arange(len(moved)), f_count):
-            pos, unit, blender = _flat(self.pos)[i], _flat(self.unit)[i], _flat(self.blender)[i]
-            _flat(self.spread)[i] = np.maximum(_norm3(unit - pos), _norm3(blender - pos))
-            pos0 = _flat(self.x.pos0)[i]
-            diff, err = None, None
-            for world in (pos, unit, blender):
-                d = world - pos0
-                e = _norm3(d)
-                if diff is None:
-                    diff, err = d, e
-                else:
-                    diff = np.where((e > err)[..., None], d, diff)
-                    err = np.maximum(err, e)
-            _flat(self.diff)[i], _flat(self.err)[i] = diff, err
+    def _errors(self, i: np.ndarray, pos: np.ndarray, unit: np.ndarray,
+                blender: np.ndarray) -> None:
+        """Errors of the pairs i (flat indices) from their world positions (3, N) as each
+        player poses them, the worst of three: pos, as three.js and UsdSkel play the keys;
+        unit, a player that normalizes the slerped quaternions; and Blender's (blender), which
+        interpolates the stored quaternions component by component and normalizes (nlerp); and
+        the spread of the other two around the first."""
+        _put(_flat(self.spread), i, np.maximum(_length(unit - pos), _length(blender - pos)))
+        pos0 = _take(_flat(self.x.pos0), i).T
+        diff = pos - pos0
+        err = _length(diff)
+        for world in (unit, blender):
+            d = world - pos0
+            e = _length(d)
+            diff = np.where(e > err, d, diff)
+            np.maximum(err, e, out=err)
+        _put(_flat(self.diff), i, diff.T)
+        _put(_flat(self.err), i, err)
 
     def _slide_at(self, moved: np.ndarray) -> None:
         """slide at the planted frame pairs (f, f + 1) with a moved frame."""
@@ -853,11 +1048,12 @@ class _Player:
         i = j * f_count + f
         pos0 = _flat(x.pos0)
         slide = np.zeros(len(j))
+        p0, p1 = _take(pos0, i), _take(pos0, i + 1)
         for world in (self.pos, self.unit, self.blender):
             w = _flat(world)
-            d = (w[i + 1] - pos0[i + 1]) - (w[i] - pos0[i])
-            slide = np.maximum(slide, _norm3(d))
-        self.slide[j, f] = slide
+            d = (_take(w, i + 1) - p1) - (_take(w, i) - p0)
+            np.maximum(slide, _norm3(d), out=slide)
+        np.put(self.slide, j * (f_count - 1) + f, slide)
 
 
 #: (joint, frame) pairs per block of a playback: the temporaries stay in cache
@@ -893,12 +1089,12 @@ def _touches(changed: np.ndarray, segments, level: np.ndarray) -> np.ndarray:
     out = np.zeros(changed.shape, dtype=bool)
     rows = np.flatnonzero(changed.any(axis=1))
     if len(rows):
-        last = changed.shape[1] - 1
-        prev = np.clip(segments[0][level[rows]], 0, last)
-        nxt = np.minimum(segments[1][level[rows]], last)
-        sub = changed[rows]
-        r = np.arange(len(rows))[:, None]
-        out[rows] = sub[r, prev] | sub[r, nxt]
+        f_count = changed.shape[1]
+        prev = np.clip(segments[0][level[rows]], 0, f_count - 1)
+        nxt = np.minimum(segments[1][level[rows]], f_count - 1)
+        sub = changed[rows].ravel()
+        base = np.arange(len(rows))[:, None] * f_count
+        out[rows] = np.take(sub, base + prev) | np.take(sub, base + nxt)
     return out
 
 
@@ -907,15 +1103,16 @@ def _blame(x: _Target, chains: np.ndarray, p: _Player):
     the translation channels and for the rotation channels, each (J, F); scores in metres."""
     j_count, f_count = p.viol.shape
     ki, fi = np.nonzero(p.viol)
-    e = _flat(p.diff)[ki * f_count + fi]
-    e = e / np.maximum(np.linalg.norm(e, axis=-1, keepdims=True), 1e-300)
+    e = _take(_flat(p.diff), ki * f_count + fi)
+    e = e / np.maximum(_norm(e), 1e-300)[:, None]
     chain = chains[ki]                                                     # (V, D)
     a = np.maximum(chain, 0)
     ft = np.broadcast_to(fi[:, None], a.shape)
     c_t, omega = _channel_moves(x, p, a, ft)
     ct = np.where(chain >= 0, np.einsum("vdk,vk->vd", c_t, e), -np.inf)
     pos = _flat(p.pos)
-    arm = _cross(pos[ki * f_count + fi][:, None, :] - pos[a * f_count + ft], e[:, None, :])
+    arm = np.ascontiguousarray(_last(_cross, _take(pos, ki * f_count + fi)[:, None, :]
+                                     - _take(pos, a * f_count + ft), e[:, None, :]))
     strict = (chain >= 0) & (np.arange(chain.shape[1]) > 0)[None, :]       # ancestors of k
     cr = np.where(strict, np.einsum("vdk,vdk->vd", omega, arm), -np.inf)
     top = np.maximum(ct.max(axis=1), cr.max(axis=1))[:, None]
@@ -942,13 +1139,14 @@ def _channel_moves(x: _Target, p: _Player, a: np.ndarray, ft: np.ndarray):
     i = np.flatnonzero(need)
     j, f = np.divmod(i, f_count)
     parent = x.parents[j]
-    wp = np.where((parent >= 0)[:, None], _flat(p.wq)[np.maximum(parent, 0) * f_count + f],
-                  [0.0, 0.0, 0.0, 1.0])
-    c_t = np.empty((j_count * f_count, 3))
-    omega = np.empty((j_count * f_count, 3))
-    c_t[i] = _qrot(wp, _flat(p.tr)[i] - _flat(p.tt)[i])
-    omega[i] = _qrot(wp, _rotvec(_qmul(_flat(p.rr)[i], quat_conj(_flat(p.tq)[i]))))
-    return c_t[flat], omega[flat]
+    wp = np.where((parent >= 0)[:, None], _take(_flat(p.wq), np.maximum(parent, 0) * f_count + f),
+                  [0.0, 0.0, 0.0, 1.0]).T
+    tt, tq = p.targets_at(i)
+    c_t = _qrot(wp, (_take(_flat(p.tr), i) - tt).T).T
+    err_q = _qmul(_take(_flat(p.rr), i).T, quat_conj(tq).T).T
+    omega = _qrot(wp, _rotvec(err_q).T).T
+    at = np.take(np.cumsum(need) - 1, flat)         # each pair's row in i
+    return _take(np.ascontiguousarray(c_t), at), _take(np.ascontiguousarray(omega), at)
 
 
 def _refine(x: _Target, keep_t: np.ndarray, keep_r: np.ndarray, player: _Player) -> _Player:
@@ -1069,6 +1267,7 @@ def reduce_clip(clip: Clip, parents, tolerance_m: float, *, contacts=None,
     _promote(keep_r, VALUE_BYTES["rotation_short" if x.short else "rotation"])
     _promote(keep_s, VALUE_BYTES["scale"])
     p = _refine(x, keep_t, keep_r, player)
+    p.complete(keep_t, keep_r)
     keys = ClipKeys(
         translations=Keys(keep_t, _frames_first(p.vt), static_t),
         rotations=Keys(keep_r, _frames_first(p.vq), static_r,
