@@ -255,12 +255,17 @@ def is_level(rays, pts: np.ndarray, up: np.ndarray, inward: np.ndarray, edge: fl
     one plane with it, within half an `edge` along `up` (no step's edge or riser next to a
     foothold), and no steeper than an `edge` rise per `edge`. Opposite sides are compared with
     each other (a second difference), so a level tread under a body leaning with a flight of
-    stairs, or a ramp, is level."""
+    stairs, or a ramp, is level. A ray that starts inside a solid (RayCaster.inside) has a step
+    or ledge taller than its start (2 `edge` up) over it: not level (its first hit would be the
+    step's bottom, or the floor under it, level with the point: the foot of a flight's first
+    riser or side, a plate of leaf litter)."""
     along = normalize(np.cross(up, inward))
     ring = np.stack([along, -along, inward, -inward], 1) * edge                 # (n, 4, 3)
-    top = pts[:, None] + ring + 2.0 * edge * up[:, None]
-    hr = rays.first_hit(top.reshape(-1, 3), np.repeat(-up, 4, axis=0), max_distance=4.0 * edge)
-    rise = (2.0 * edge - np.where(hr.hit, hr.distance, np.inf)).reshape(-1, 4)   # above the point
+    top = (pts[:, None] + ring + 2.0 * edge * up[:, None]).reshape(-1, 3)
+    hr = rays.first_hit(top, np.repeat(-up, 4, axis=0), max_distance=4.0 * edge)
+    rise = np.where(rays.inside(top), 4.0 * edge,
+                    2.0 * edge - np.where(hr.hit, hr.distance, np.inf))
+    rise = rise.reshape(-1, 4)                                            # above the point
     bend = np.abs(rise[:, [0, 2]] + rise[:, [1, 3]])                      # (n, 2): per axis
     return (np.all(np.abs(rise) < edge, axis=1) & np.all(bend < 0.5 * edge, axis=1))
 

@@ -17,12 +17,15 @@ pytestmark = pytest.mark.slow
 #: that failed: default 94035 (the keyframe reduction moved a swinging foot's tip bone,
 #: grazing the ground just inside its judged part, into it), floor 97024 (a planted knee
 #: easing into its swivel passed through a stone), default 110113 (a standing knee whose
-#: swivel eased in through what it stood on: the other way round is clean) and multi-storey
+#: swivel eased in through what it stood on: the other way round is clean), multi-storey
 #: 110010 (a leg stepping from the floor onto the hollow log's end, redone as one long
-#: joint-space swing whose raise dropped 39 deg in its last frame)
+#: joint-space swing whose raise dropped 39 deg in its last frame) and multi-storey 110416 (a
+#: hold on the floor 1 mm from the flight's side read level, and the leg stepping down to it
+#: turned 31.6 deg in a frame)
 CASES = [("floor", 9000, 20.0), ("floor", 9001, 20.0), ("far", 9002, 20.0),
          ("nav_test", 9001, 30.0), ("default", 94035, 12.0), ("floor", 97024, 8.0),
-         ("default", 110113, 48.0), ("multistorey", 110010, 90.0)]
+         ("default", 110113, 48.0), ("multistorey", 110010, 90.0),
+         ("multistorey", 110416, 105.0)]
 
 
 @pytest.mark.parametrize("scene,seed,seconds", CASES, ids=lambda v: str(v))

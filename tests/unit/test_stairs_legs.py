@@ -134,3 +134,22 @@ def test_a_tread_is_level_under_a_body_leaning_with_the_flight_and_a_riser_foot_
         assert is_level(rays, mid, *args).all()
         assert not is_level(rays, riser_foot, *args).any()
         assert not is_level(rays, nosing, *args).any()
+
+
+def test_the_foot_of_a_step_standing_on_the_floor_is_not_level():
+    """A 0.18 m step standing on the floor (its bottom on the floor's top, as the multi-storey
+    level's flight stands) and a foot 1 mm from its side, with the 2 m rig's `edge` (6.8 cm:
+    the level test's rays start 2 `edge` = 13.6 cm up, inside the step). The ray toward the
+    step meets the step's bottom or the floor under it, level with the foot; it started inside
+    a solid, so the foot is not level. A foot 0.3 m away is."""
+    from baker.locomotion.legs import EDGE_CLEAR, PLAN_REACH, is_level
+
+    edge = EDGE_CLEAR * PLAN_REACH * (RIG.legs.upper_length + RIG.legs.tip_length)
+    floor = trimesh.creation.box(bounds=[[-2.0, -0.3, -2.0], [2.0, 0.0, 2.0]])
+    step = trimesh.creation.box(bounds=[[0.0, 0.0, -1.0], [1.0, RISER, 1.0]])
+    rays = RayCaster(trimesh.util.concatenate([floor, step]))
+    assert 2.0 * edge < RISER
+    pts = np.array([[-0.001, 0.0, 0.0], [-0.3, 0.0, 0.0]])
+    for up, inward in (([0.0, 1.0, 0.0], [0.0, 0.0, 1.0]), ([0.0, 1.0, 0.0], [1.0, 0.0, 0.0])):
+        args = (np.tile(up, (2, 1)), np.tile(inward, (2, 1)), edge)
+        assert is_level(rays, pts, *args).tolist() == [False, True]
