@@ -299,9 +299,9 @@ class Brain(IntentSource):
             return       # keep walking to the target: a walk to another room outlasts a roll
         w = self.rig.wander
         target = self.nav.random_point_near(s.head, w.radius, self.rng)
-        journey = target is not None and perception.on_another_floor(
+        journey = w.journey_time > 0 and target is not None and perception.on_another_floor(
             self.nav, s.head, target, w.journey_rise)
-        details = {"journey": True} if journey and w.journey_time > 0 else {}
+        details = {"journey": True} if journey else {}
         self._enter("wander", s.t, roll=roll, target=_r(target) if target is not None else None,
                     **details)
         self._target_at = s.t

@@ -778,11 +778,6 @@ def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def _norm3(d: np.ndarray) -> np.ndarray:
-    """(N,) lengths of (N, 3) vectors."""
-    return _length(np.moveaxis(d, -1, 0))
-
-
 def _length(d: np.ndarray) -> np.ndarray:
     """(...) lengths of (3, ...) vectors (squares summed left to right)."""
     return np.sqrt(_inner(d, d))
@@ -1052,7 +1047,7 @@ class _Player:
         for world in (self.pos, self.unit, self.blender):
             w = _flat(world)
             d = (_take(w, i + 1) - p1) - (_take(w, i) - p0)
-            np.maximum(slide, _norm3(d), out=slide)
+            np.maximum(slide, _norm(d), out=slide)
         np.put(self.slide, j * (f_count - 1) + f, slide)
 
 

@@ -186,7 +186,7 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     if n == 0:
         return points.copy()
     lat = np.sum((points - hips) * inward, -1, keepdims=True)          # <= 0: distance outward
-    along = normalize(np.cross(up, inward))
+    along = normalize(cross(up, inward))
     edge = EDGE_CLEAR * reach
     cands_o, cands_d = [], []
     for pull in FAN_PULL:
@@ -259,7 +259,7 @@ def is_level(rays, pts: np.ndarray, up: np.ndarray, inward: np.ndarray, edge: fl
     or ledge taller than its start (2 `edge` up) over it: not level (its first hit would be the
     step's bottom, or the floor under it, level with the point: the foot of a flight's first
     riser or side, a plate of leaf litter)."""
-    along = normalize(np.cross(up, inward))
+    along = normalize(cross(up, inward))
     ring = np.stack([along, -along, inward, -inward], 1) * edge                 # (n, 4, 3)
     top = (pts[:, None] + ring + 2.0 * edge * up[:, None]).reshape(-1, 3)
     hr = rays.first_hit(top, np.repeat(-up, 4, axis=0), max_distance=4.0 * edge)

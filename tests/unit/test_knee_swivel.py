@@ -14,7 +14,7 @@ import numpy as np
 import trimesh
 
 from baker.environment.rays import RayCaster
-from baker.locomotion.legs import SWIVEL_RATE, _bones_hit, _clear_knees
+from baker.locomotion.legs import SWIVEL_RATE, _bones_hit, _clear_knees, _swivel
 from test_navmesh_scenes import box
 
 A_Z, B_Z = 0.0, 1.0     # the leg's z in the first and last ten frames
@@ -83,14 +83,9 @@ def test_a_swivel_whose_easing_in_grazes_something_turns_the_other_way():
     axis = np.array([1.0, 0.0, 0.0])
     for deg, through in ((4, True), (12, True), (0, False), (20, False), (-4, False),
                          (-12, False), (-20, False)):
-        m = hip[:1] + _turn(mid[:1] - hip[:1], axis, np.radians(deg))
+        m = _swivel(mid[:1], hip[:1], axis, np.radians(deg))
         assert hits(rays, hip[:1], m, end[:1]).all() == through, deg
     new_mid, _ = _clear_knees(rays, hip, mid, end, hinge, l1, l1, TOL)
     assert not hits(rays, hip, new_mid, end).any()
     assert np.all(new_mid[10:20, 0, 2] < mid[10:20, 0, 2])      # swivelled further to -z
 
-
-def _turn(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
-    """v (..., 3) turned by `angle` about the unit `axis` (Rodrigues)."""
-    return (v * np.cos(angle) + np.cross(axis, v) * np.sin(angle)
-            + axis * np.sum(axis * v, -1, keepdims=True) * (1.0 - np.cos(angle)))
