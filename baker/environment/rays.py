@@ -198,7 +198,11 @@ class RayCaster:
         between overlapping patches, says little about which side of it the point is), and
         the nearest hit is a back face (a foot in the open over the ground, under a one-sided
         leaf, with some face metres away seen from behind, is not inside: the ground it sees
-        first is a front). On a closed, consistently outward-wound mesh every first hit from
+        first is a front), and something is straight overhead (+Y): a point inside a closed
+        solid sees its top from below, and one under a one-sided ground its underside, so a
+        point under the open sky is in the open, however many leaves or slopes its sideways
+        rays meet from behind (a body between two overlapping one-sided leaves, the upper
+        leaf's edge beside it). On a closed, consistently outward-wound mesh every first hit from
         inside is a back face, so this is exact there; the majority vote tolerates flipped
         faces away from the point and open meshes (a one-sided ground plane: a point below it sees its back from
         below and nothing else, so it counts as inside; a one-sided deck overhead with a floor
@@ -217,7 +221,7 @@ class RayCaster:
         vote = vote.reshape(n, 6)
         nearest = vote[np.arange(n), np.argmin(t.reshape(n, 6), axis=1)]
         return ((np.count_nonzero(vote > 0, axis=1) > np.count_nonzero(vote < 0, axis=1))
-                & (vote.sum(axis=1) > 0.0) & (nearest > 0.0))
+                & (vote.sum(axis=1) > 0.0) & (nearest > 0.0) & hit[0::6])
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray,
                  max_distance: float | np.ndarray = np.inf) -> np.ndarray:

@@ -13,7 +13,8 @@ Walking legs (two bones each, one pair per trunk segment):
      (at most half a stance sweep ahead of its anchor) and stays put;
    - a planted foot lifts early (a frame before it happens) when the body would carry it out of
      reach, too far behind, under the body, or behind a wall, or turn its leg round the hip by
-     more than STANCE_TURN in one frame (a fast, tight turn).
+     more than STANCE_TURN in one frame (a fast, tight turn); when the phase's next touchdown
+     is far off (a slow body), it lands settle_time later on a new hold (_land_early).
    The loop runs over step cycles (a few hundred a minute), vectorized over legs.
 4. Footholds: one batch of ray casts for every touchdown of every leg: straight down the
    segment's up axis, then fans tilted toward the body, also from origins pulled in. A hold must
@@ -132,6 +133,13 @@ MIN_REACH = 0.36
 SWING_CLEAR = 0.5
 #: planted feet of neighbouring legs keep at least this many segment spacings apart
 NEIGHBOUR_GAP = 0.3
+#: rounds of spreading neighbours' holds and lifting unusable ones (a foot that lands early
+#: gets a new hold, spread and checked in the next round)
+STANCE_ROUNDS = 4
+#: a foot lifted early lands early when it would otherwise swing longer than this many
+#: settle_times (a slow body's swings are settle_time long: one lifted a frame or two early
+#: keeps its touchdown)
+HANG_SWINGS = 2.0
 #: [Hz] the ultimate legs' slow sway: yaw and pitch frequencies
 ULTIMATE_SWAY_HZ = (0.35, 0.22)
 
@@ -498,46 +506,98 @@ def _step_events(rays, lf: _Frames, clock, anchor: np.ndarray, times: np.ndarray
 
 def _footholds(rays, lf: _Frames, cfg: RigConfig, anchor: np.ndarray, st: _Steps) -> np.ndarray:
     """(C+1, L, 3) the hold of every touchdown: one batch of rays."""
-    lay, lg = lf.lay, lf.lg
-    F, L = lf.shape
+    L = lf.shape[1]
+    legs = np.broadcast_to(np.arange(L)[None, :], st.Ts.shape)
+    return _holds_at(rays, lf, cfg, anchor, st.Ts.ravel(), legs.ravel(),
+                     st.xs.ravel()).reshape(st.Ts.shape + (3,))
+
+
+def _holds_at(rays, lf: _Frames, cfg: RigConfig, anchor: np.ndarray, frames: np.ndarray,
+              legs: np.ndarray, xs: np.ndarray) -> np.ndarray:
+    """(n, 3) the holds of touchdowns of legs `legs` at frames `frames` (n,), each `xs` along
+    its segment's forward axis from its anchor (project_footholds, one batch of rays)."""
+    fr = np.minimum(frames, lf.shape[0] - 1)
+    pts = anchor[fr, legs] + lf.fwd[fr, legs] * xs[:, None]
+    inward = -lf.left[fr, legs] * lf.lay.side[legs][:, None]
+    return project_footholds(rays, pts, lf.up[fr, legs], inward, lf.hip[fr, legs],
+                             PLAN_REACH * (lf.lay.l1 + lf.lay.l2),
+                             probe=cfg.body.clearance + 2.0 * lf.lg.lift,
+                             min_out=lf.out_min[legs])
+
+
+def _cycles(Ts: np.ndarray, F: int) -> np.ndarray:
+    """(F, L) the hold (cycle) index of each frame and leg: one search over every leg's
+    touchdowns Ts (C+1, L), each leg's (non-decreasing, at most F) offset past the previous
+    leg's."""
+    C1, L = Ts.shape
     legs = np.arange(L)
-    C1 = len(st.Ts)
-    fr = np.minimum(st.Ts, F - 1)
-    pts = anchor[fr, legs[None, :]] + lf.fwd[fr, legs[None, :]] * st.xs[..., None]
-    inward = -lf.left[fr, legs[None, :]] * lay.side[None, :, None]
-    return project_footholds(rays, pts.reshape(-1, 3), lf.up[fr, legs[None, :]].reshape(-1, 3),
-                             inward.reshape(-1, 3), lf.hip[fr, legs[None, :]].reshape(-1, 3),
-                             PLAN_REACH * (lay.l1 + lay.l2),
-                             probe=cfg.body.clearance + 2.0 * lg.lift,
-                             min_out=np.tile(lf.out_min, C1)
-                             ).reshape(C1, L, 3)
-
-
-def _stances(rays, lf: _Frames, cfg: RigConfig, st: _Steps, holds: np.ndarray):
-    """Spread neighbours' holds, then lift early the feet the surface put somewhere unusable.
-    Returns (holds, cidx (F, L) hold index of each frame, contact (F, L)); st.LOs is updated."""
-    F, L = lf.shape
-    Ts, LOs = st.Ts, st.LOs
-    C1 = len(Ts)
-    f_idx, legs = np.arange(F), np.arange(L)
-    # hold (cycle) index of each frame: one search over every leg's touchdowns, each leg's
-    # (non-decreasing, at most F) offset past the previous leg's
     off = legs * (F + 1)
-    c = np.searchsorted((Ts.T + off[:, None]).ravel(), f_idx[:, None] + off[None, :],
+    c = np.searchsorted((Ts.T + off[:, None]).ravel(), np.arange(F)[:, None] + off[None, :],
                         side="right") - 1 - legs[None, :] * C1
-    cidx = np.clip(c, 0, C1 - 2)
-    contact = f_idx[:, None] < LOs[cidx, legs[None, :]]
-    holds = _spread_neighbours(holds, Ts, cidx, contact, NEIGHBOUR_GAP * cfg.body.spacing, rays,
-                               lf.up, probe=cfg.body.clearance + 2.0 * lf.lg.lift)
-    # the surface (and the neighbours) put some feet elsewhere than planned: lift those early
-    # where they would now fall out of reach, under the body or behind a wall (touchdowns stay;
-    # the next swing just starts sooner)
-    for c in range(C1 - 1):
+    return np.clip(c, 0, C1 - 2)
+
+
+def _stances(rays, lf: _Frames, cfg: RigConfig, st: _Steps, holds: np.ndarray,
+             anchor: np.ndarray, times: np.ndarray):
+    """Spread neighbours' holds, then lift early the feet the surface put somewhere unusable.
+    Returns (holds, cidx (F, L) hold index of each frame, contact (F, L)); st.LOs is updated,
+    and st.Ts, st.phase_td where an early lift lands early (_land_early: the new holds are
+    then spread from their neighbours' and checked again, until no foot lands early; the
+    last of STANCE_ROUNDS rounds only lifts)."""
+    F, L = lf.shape
+    for r in range(STANCE_ROUNDS):
+        cidx = _cycles(st.Ts, F)
+        contact = np.arange(F)[:, None] < st.LOs[cidx, np.arange(L)[None, :]]
+        holds = _spread_neighbours(holds, st.Ts, cidx, contact,
+                                   NEIGHBOUR_GAP * cfg.body.spacing, rays, lf.up,
+                                   probe=cfg.body.clearance + 2.0 * lf.lg.lift)
+        if not _lift_unusable(rays, lf, cfg, st, holds, anchor, times,
+                              land=r < STANCE_ROUNDS - 1):
+            break
+    cidx = _cycles(st.Ts, F)
+    contact = np.arange(F)[:, None] < st.LOs[cidx, np.arange(L)[None, :]]
+    return holds, cidx, contact
+
+
+def _lift_unusable(rays, lf: _Frames, cfg: RigConfig, st: _Steps, holds: np.ndarray,
+                   anchor: np.ndarray, times: np.ndarray, land: bool = True) -> bool:
+    """The surface (and the neighbours) put some feet elsewhere than planned: lift those early
+    where they would now fall out of reach, under the body or behind a wall (the next swing
+    starts sooner; with `land`, one left hanging lands early, _land_early). True when a foot
+    lands early on a new hold."""
+    F = lf.shape[0]
+    Ts, LOs = st.Ts, st.LOs
+    landed = False
+    for c in range(len(Ts) - 1):
         bad = lf.first_bad(rays, holds[c], np.minimum(Ts[c], F - 1),
                            np.minimum(LOs[c] + 1, F), sight=True)
         LOs[c] = np.clip(np.minimum(LOs[c], bad), Ts[c], F)
-    contact = f_idx[:, None] < LOs[cidx, legs[None, :]]
-    return holds, cidx, contact
+        if land:
+            landed |= _land_early(rays, lf, cfg, st, holds, anchor, times, c)
+    return landed
+
+
+def _land_early(rays, lf: _Frames, cfg: RigConfig, st: _Steps, holds: np.ndarray,
+                anchor: np.ndarray, times: np.ndarray, c: int) -> bool:
+    """A foot lifted early off hold c (a slow or stopped body: the phase's touchdown may be
+    seconds away) would hang beside the body until the phase comes round. When that would take
+    longer than HANG_SWINGS settle_times, it lands settle_time after its liftoff, as the
+    phase's swings do, on a hold chosen for that frame. Updates st.Ts[c + 1],
+    st.phase_td[c + 1] and holds[c + 1] in place; True when any did."""
+    F = lf.shape[0]
+    lo = st.LOs[c]
+    t_lo = times[np.minimum(lo, F - 1)]
+    td = np.searchsorted(times, t_lo + lf.lg.settle_time - 1e-9, side="left")
+    hang = np.searchsorted(times, t_lo + HANG_SWINGS * lf.lg.settle_time - 1e-9, side="left")
+    late = (lo < F) & (hang < st.Ts[c + 1])
+    if not late.any():
+        return False
+    legs = np.nonzero(late)[0]
+    st.Ts[c + 1, legs] = np.maximum(td[legs], lo[legs] + 1)
+    st.phase_td[c + 1, legs] = False
+    holds[c + 1, legs] = _holds_at(rays, lf, cfg, anchor, st.Ts[c + 1, legs], legs,
+                                   st.xs[c + 1, legs])
+    return True
 
 
 def _swing_progress(lf: _Frames, st: _Steps, holds, cidx, contact, clock, times):
@@ -757,7 +817,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     clock = gait_clock(arc, times, cfg.locomotion.max_speed, lg.stride_min, lg.stride_max)
     st = _step_events(rays, lf, clock, anchor, times)
     holds = _footholds(rays, lf, cfg, anchor, st)
-    holds, cidx, contact = _stances(rays, lf, cfg, st, holds)
+    holds, cidx, contact = _stances(rays, lf, cfg, st, holds, anchor, times)
     p0, p1, u, td_flag = _swing_progress(lf, st, holds, cidx, contact, clock, times)
     target = _swing_targets(rays, lf, cfg, st, cidx, contact, p0, p1, u)
 

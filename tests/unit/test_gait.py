@@ -200,3 +200,36 @@ def test_an_eased_knee_frame_that_hits_joins_its_run_with_the_frames_between():
     got = _joined(near, np.array([2, 10, 4]), np.array([0, 0, 1]))
     assert np.flatnonzero(got[:, 0]).tolist() == [2, 3, 4, 5, 6, 7, 8, 9, 10]
     assert np.flatnonzero(got[:, 1]).tolist() == [4]        # no run on that leg: the frame alone
+
+
+def test_a_foot_lifted_early_lands_within_the_settle_time(rig_config, flat_env):
+    """A planted foot that something makes unusable lifts early (legs._lift_unusable). With
+    the body stopped, the phase's next touchdown is never: the foot used to hover beside the
+    body until then (15 s in a default bake, its tip bone dragged through a leaf). It lands
+    settle_time after lifting, on a new hold on the ground within its leg's reach."""
+    from baker.locomotion import legs
+
+    bf, arc, t = _straight_body(rig_config, speed=0.2, seconds=6.0, stop_at=2.0)
+    rays, F = flat_env.rays, len(t)
+    lf = legs._leg_frames(bf, rig_config)
+    anchor = legs._anchors(rays, lf, bf)
+    clock = gait_clock(arc, t, rig_config.locomotion.max_speed, lf.lg.stride_min,
+                       lf.lg.stride_max)
+    st = legs._step_events(rays, lf, clock, anchor, t)
+    holds = legs._footholds(rays, lf, rig_config, anchor, st)
+    leg, lift = 5, 120                                       # 4 s: 2 s after the body stopped
+    c = int(np.nonzero((st.Ts[:-1, leg] <= lift) & (st.LOs[:, leg] > lift))[0][0])
+    assert st.LOs[c, leg] == F                               # planted to the end ...
+    before = (st.Ts.copy(), holds.copy())
+    st.LOs[c, leg] = lift                                    # ... until it is lifted
+    assert legs._land_early(rays, lf, rig_config, st, holds, anchor, t, c)
+    land = int(np.searchsorted(t, t[lift] + rig_config.legs.settle_time - 1e-9))
+    assert st.Ts[c + 1, leg] == land and not st.phase_td[c + 1, leg]
+    hold = holds[c + 1, leg]
+    assert abs(hold[1]) < 1e-6                               # on the ground
+    assert np.linalg.norm(hold - lf.hip[land, leg]) < legs.PLAN_REACH * (lf.lay.l1 + lf.lay.l2)
+    others = np.arange(lf.shape[1]) != leg
+    np.testing.assert_array_equal(st.Ts[:, others], before[0][:, others])
+    np.testing.assert_array_equal(holds[:, others], before[1][:, others])
+    # a foot lifted in time (landing before the phase's touchdown anyway) is left alone
+    assert not legs._land_early(rays, lf, rig_config, st, holds, anchor, t, c)

@@ -139,3 +139,35 @@ def replace_x(pos, x):
     p = pos.copy()
     p[:, :, 0] = x
     return p
+
+
+def test_open_sky_between_two_overlapping_leaves_is_not_inside():
+    """A spine joint 2.4 cm over a one-sided leaf, beside the edge of a second leaf that
+    overlaps it and slopes down away from the joint (the showcase's seedling, default seeds
+    110613 and 110742): its +z ray meets the upper leaf from below, nearer than the leaf under
+    it, and its -x and -z rays meet a stem and a far leaf from behind. Three back faces
+    against one front, the nearest a back face, but nothing is overhead: it is in the open.
+    Inside a closed solid or under a one-sided ground something always is."""
+    def sheet(corners):
+        m = trimesh.Trimesh(corners, [[0, 1, 2], [0, 2, 3]], process=False)
+        return m if m.face_normals[0][1] > 0 else trimesh.Trimesh(corners, [[0, 2, 1], [0, 3, 2]],
+                                                                 process=False)
+    lower = floor(0.4)                                                 # normal up
+    upper = sheet([[-0.1, 0.026, 0.015], [0.1, 0.026, 0.015], [0.1, 0.004, 0.035],
+                   [-0.1, 0.004, 0.035]])                              # slopes down to +z
+    stem = trimesh.Trimesh([[-0.15, -1, -1], [-0.15, 1, -1], [-0.15, 1, 1], [-0.15, -1, 1]],
+                           [[0, 1, 2], [0, 2, 3]], process=False)
+    if stem.face_normals[0][0] > 0:
+        stem.invert()                                                  # faces -x: seen from behind
+    far = sheet([[-0.3, 0.0, -0.8], [0.3, 0.0, -0.8], [0.3, 0.3, -0.6], [-0.3, 0.3, -0.6]])
+    env = env_of(lower, upper, stem, far)
+    joint = np.array([[0.0, 0.024, 0.0]])
+    t, prim = env.rays.cast(np.repeat(joint, 6, axis=0), np.array(
+        [[0, 1, 0], [0, -1, 0], [1, 0, 0], [-1, 0, 0], [0, 0, 1], [0, 0, -1]], float))
+    assert prim[0] < 0 and (prim[1:] >= 0).tolist() == [True, False, True, True, True]
+    assert t[4] < t[1]                                  # the upper leaf, from below, is nearest
+    assert not inside_geometry(joint, env.rays).any()
+    # under the upper leaf (it is overhead now), in the wedge: still not inside, the leaf
+    # below is nearer; below the lower leaf: inside, as under any one-sided ground
+    assert not inside_geometry([[0.0, 0.006, 0.025]], env.rays).any()
+    assert inside_geometry([[0.0, -0.01, 0.0]], env.rays).all()
