@@ -582,22 +582,38 @@ def _land_early(rays, lf: _Frames, cfg: RigConfig, st: _Steps, holds: np.ndarray
     """A foot lifted early off hold c (a slow or stopped body: the phase's touchdown may be
     seconds away) would hang beside the body until the phase comes round. When that would take
     longer than HANG_SWINGS settle_times, it lands settle_time after its liftoff, as the
-    phase's swings do, on a hold chosen for that frame. Updates st.Ts[c + 1],
-    st.phase_td[c + 1] and holds[c + 1] in place; True when any did."""
-    F = lf.shape[0]
+    phase's swings do, on a hold chosen for that frame, if that hold stays usable (lf.first_bad)
+    for a settle_time; else a settle_time later, and so on, while that is still sooner than the
+    phase's touchdown (a foot whose every hold is out of reach, beside a body rearing over an
+    edge, keeps hanging rather than tapping). Updates st.Ts[c + 1], st.phase_td[c + 1] and
+    holds[c + 1] in place; True when any did."""
+    F, L = lf.shape
     lo = st.LOs[c]
     t_lo = times[np.minimum(lo, F - 1)]
-    td = np.searchsorted(times, t_lo + lf.lg.settle_time - 1e-9, side="left")
-    hang = np.searchsorted(times, t_lo + HANG_SWINGS * lf.lg.settle_time - 1e-9, side="left")
-    late = (lo < F) & (hang < st.Ts[c + 1])
-    if not late.any():
-        return False
-    legs = np.nonzero(late)[0]
-    st.Ts[c + 1, legs] = np.maximum(td[legs], lo[legs] + 1)
-    st.phase_td[c + 1, legs] = False
-    holds[c + 1, legs] = _holds_at(rays, lf, cfg, anchor, st.Ts[c + 1, legs], legs,
-                                   st.xs[c + 1, legs])
-    return True
+    settle = lf.lg.settle_time
+    hang = np.searchsorted(times, t_lo + HANG_SWINGS * settle - 1e-9, side="left")
+    todo = (lo < F) & (hang < st.Ts[c + 1])
+    landed = np.zeros(L, bool)
+    k = 1
+    while todo.any():
+        td = np.maximum(np.searchsorted(times, t_lo + k * settle - 1e-9, side="left"), lo + 1)
+        end = np.searchsorted(times, t_lo + (k + 1) * settle - 1e-9, side="left")
+        todo &= end < st.Ts[c + 1]
+        legs = np.nonzero(todo)[0]
+        if len(legs) == 0:
+            break
+        new = holds[c + 1].copy()
+        new[legs] = _holds_at(rays, lf, cfg, anchor, td[legs], legs, st.xs[c + 1, legs])
+        start = np.minimum(td, F - 1)
+        ok = todo & (lf.first_bad(rays, new, start, np.where(todo, end, start),
+                                  sight=True) >= end)
+        st.Ts[c + 1, ok] = td[ok]
+        holds[c + 1, ok] = new[ok]
+        landed |= ok
+        todo &= ~ok
+        k += 1
+    st.phase_td[c + 1, landed] = False
+    return bool(landed.any())
 
 
 def _swing_progress(lf: _Frames, st: _Steps, holds, cidx, contact, clock, times):

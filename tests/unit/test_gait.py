@@ -233,3 +233,48 @@ def test_a_foot_lifted_early_lands_within_the_settle_time(rig_config, flat_env):
     np.testing.assert_array_equal(holds[:, others], before[1][:, others])
     # a foot lifted in time (landing before the phase's touchdown anyway) is left alone
     assert not legs._land_early(rays, lf, rig_config, st, holds, anchor, t, c)
+
+
+def test_a_foot_lifted_early_waits_for_a_hold_it_can_keep(rig_config, flat_env, monkeypatch):
+    """The early landing's hold must stay usable for a settle time (legs._Frames.first_bad):
+    when the first is not, the foot lands a settle time later; when none is before the phase's
+    touchdown, it keeps hanging (no tapping on holds it must leave at once)."""
+    from baker.locomotion import legs
+
+    bf, arc, t = _straight_body(rig_config, speed=0.2, seconds=6.0, stop_at=2.0)
+    rays, F = flat_env.rays, len(t)
+    lf = legs._leg_frames(bf, rig_config)
+    anchor = legs._anchors(rays, lf, bf)
+    clock = gait_clock(arc, t, rig_config.locomotion.max_speed, lf.lg.stride_min,
+                       lf.lg.stride_max)
+    leg, lift = 5, 120
+    settle = rig_config.legs.settle_time
+
+    def plan():
+        st = legs._step_events(rays, lf, clock, anchor, t)
+        holds = legs._footholds(rays, lf, rig_config, anchor, st)
+        c = int(np.nonzero((st.Ts[:-1, leg] <= lift) & (st.LOs[:, leg] > lift))[0][0])
+        st.LOs[c, leg] = lift
+        return st, holds, c
+
+    unusable_until = {"frame": F}
+    real = legs._Frames.first_bad
+
+    def first_bad(self, rays_, hold, start, stop, sight=False):
+        out = real(self, rays_, hold, start, stop, sight)
+        early = (start < stop) & (start < unusable_until["frame"])
+        return np.where(early, start, out)
+
+    st, holds, c = plan()
+    ts, hs = st.Ts.copy(), holds.copy()
+    monkeypatch.setattr(legs._Frames, "first_bad", first_bad)
+    assert not legs._land_early(rays, lf, rig_config, st, holds, anchor, t, c)
+    np.testing.assert_array_equal(st.Ts, ts)
+    np.testing.assert_array_equal(holds, hs)
+    # usable from 2.5 settle times after the lift: it lands at the third settle time
+    monkeypatch.undo()
+    st, holds, c = plan()
+    unusable_until["frame"] = int(np.searchsorted(t, t[lift] + 2.5 * settle))
+    monkeypatch.setattr(legs._Frames, "first_bad", first_bad)
+    assert legs._land_early(rays, lf, rig_config, st, holds, anchor, t, c)
+    assert st.Ts[c + 1, leg] == np.searchsorted(t, t[lift] + 3 * settle - 1e-9)
