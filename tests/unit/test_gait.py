@@ -202,6 +202,39 @@ def test_an_eased_knee_frame_that_hits_joins_its_run_with_the_frames_between():
     assert np.flatnonzero(got[:, 1]).tolist() == [4]        # no run on that leg: the frame alone
 
 
+class _StoppedPlan:
+    """The step plan of a body that walks 2 s and stands still to 6 s, with leg LEG's stance
+    under way at frame LIFT (4 s: planted to the end) lifted early there; plan() makes it
+    afresh (_land_early changes it in place)."""
+    LEG, LIFT = 5, 120
+
+    def __init__(self, cfg, env):
+        from baker.locomotion import legs
+
+        self.cfg, self.rays = cfg, env.rays
+        bf, arc, self.t = _straight_body(cfg, speed=0.2, seconds=6.0, stop_at=2.0)
+        self.lf = legs._leg_frames(bf, cfg)
+        self.anchor = legs._anchors(self.rays, self.lf, bf)
+        self.clock = gait_clock(arc, self.t, cfg.locomotion.max_speed, self.lf.lg.stride_min,
+                                self.lf.lg.stride_max)
+
+    def plan(self):
+        from baker.locomotion import legs
+
+        st = legs._step_events(self.rays, self.lf, self.clock, self.anchor, self.t)
+        holds = legs._footholds(self.rays, self.lf, self.cfg, self.anchor, st)
+        leg, lift = self.LEG, self.LIFT
+        c = int(np.nonzero((st.Ts[:-1, leg] <= lift) & (st.LOs[:, leg] > lift))[0][0])
+        assert st.LOs[c, leg] == len(self.t)                # planted to the end ...
+        st.LOs[c, leg] = lift                               # ... until it is lifted
+        return st, holds, c
+
+    def land_early(self, st, holds, c) -> bool:
+        from baker.locomotion import legs
+
+        return legs._land_early(self.rays, self.lf, self.cfg, st, holds, self.anchor, self.t, c)
+
+
 def test_a_foot_lifted_early_lands_within_the_settle_time(rig_config, flat_env):
     """A planted foot that something makes unusable lifts early (legs._lift_unusable). With
     the body stopped, the phase's next touchdown is never: the foot used to hover beside the
@@ -209,21 +242,12 @@ def test_a_foot_lifted_early_lands_within_the_settle_time(rig_config, flat_env):
     settle_time after lifting, on a new hold on the ground within its leg's reach."""
     from baker.locomotion import legs
 
-    bf, arc, t = _straight_body(rig_config, speed=0.2, seconds=6.0, stop_at=2.0)
-    rays, F = flat_env.rays, len(t)
-    lf = legs._leg_frames(bf, rig_config)
-    anchor = legs._anchors(rays, lf, bf)
-    clock = gait_clock(arc, t, rig_config.locomotion.max_speed, lf.lg.stride_min,
-                       lf.lg.stride_max)
-    st = legs._step_events(rays, lf, clock, anchor, t)
-    holds = legs._footholds(rays, lf, rig_config, anchor, st)
-    leg, lift = 5, 120                                       # 4 s: 2 s after the body stopped
-    c = int(np.nonzero((st.Ts[:-1, leg] <= lift) & (st.LOs[:, leg] > lift))[0][0])
-    assert st.LOs[c, leg] == F                               # planted to the end ...
+    p = _StoppedPlan(rig_config, flat_env)
+    st, holds, c = p.plan()
+    leg, lf, t = p.LEG, p.lf, p.t
     before = (st.Ts.copy(), holds.copy())
-    st.LOs[c, leg] = lift                                    # ... until it is lifted
-    assert legs._land_early(rays, lf, rig_config, st, holds, anchor, t, c)
-    land = int(np.searchsorted(t, t[lift] + rig_config.legs.settle_time - 1e-9))
+    assert p.land_early(st, holds, c)
+    land = int(np.searchsorted(t, t[p.LIFT] + rig_config.legs.settle_time - 1e-9))
     assert st.Ts[c + 1, leg] == land and not st.phase_td[c + 1, leg]
     hold = holds[c + 1, leg]
     assert abs(hold[1]) < 1e-6                               # on the ground
@@ -232,7 +256,7 @@ def test_a_foot_lifted_early_lands_within_the_settle_time(rig_config, flat_env):
     np.testing.assert_array_equal(st.Ts[:, others], before[0][:, others])
     np.testing.assert_array_equal(holds[:, others], before[1][:, others])
     # a foot lifted in time (landing before the phase's touchdown anyway) is left alone
-    assert not legs._land_early(rays, lf, rig_config, st, holds, anchor, t, c)
+    assert not p.land_early(st, holds, c)
 
 
 def test_a_foot_lifted_early_waits_for_a_hold_it_can_keep(rig_config, flat_env, monkeypatch):
@@ -241,23 +265,9 @@ def test_a_foot_lifted_early_waits_for_a_hold_it_can_keep(rig_config, flat_env, 
     touchdown, it keeps hanging (no tapping on holds it must leave at once)."""
     from baker.locomotion import legs
 
-    bf, arc, t = _straight_body(rig_config, speed=0.2, seconds=6.0, stop_at=2.0)
-    rays, F = flat_env.rays, len(t)
-    lf = legs._leg_frames(bf, rig_config)
-    anchor = legs._anchors(rays, lf, bf)
-    clock = gait_clock(arc, t, rig_config.locomotion.max_speed, lf.lg.stride_min,
-                       lf.lg.stride_max)
-    leg, lift = 5, 120
-    settle = rig_config.legs.settle_time
-
-    def plan():
-        st = legs._step_events(rays, lf, clock, anchor, t)
-        holds = legs._footholds(rays, lf, rig_config, anchor, st)
-        c = int(np.nonzero((st.Ts[:-1, leg] <= lift) & (st.LOs[:, leg] > lift))[0][0])
-        st.LOs[c, leg] = lift
-        return st, holds, c
-
-    unusable_until = {"frame": F}
+    p = _StoppedPlan(rig_config, flat_env)
+    t, settle = p.t, rig_config.legs.settle_time
+    unusable_until = {"frame": len(t)}
     real = legs._Frames.first_bad
 
     def first_bad(self, rays_, hold, start, stop, sight=False):
@@ -265,16 +275,16 @@ def test_a_foot_lifted_early_waits_for_a_hold_it_can_keep(rig_config, flat_env, 
         early = (start < stop) & (start < unusable_until["frame"])
         return np.where(early, start, out)
 
-    st, holds, c = plan()
+    st, holds, c = p.plan()
     ts, hs = st.Ts.copy(), holds.copy()
     monkeypatch.setattr(legs._Frames, "first_bad", first_bad)
-    assert not legs._land_early(rays, lf, rig_config, st, holds, anchor, t, c)
+    assert not p.land_early(st, holds, c)
     np.testing.assert_array_equal(st.Ts, ts)
     np.testing.assert_array_equal(holds, hs)
     # usable from 2.5 settle times after the lift: it lands at the third settle time
     monkeypatch.undo()
-    st, holds, c = plan()
-    unusable_until["frame"] = int(np.searchsorted(t, t[lift] + 2.5 * settle))
+    st, holds, c = p.plan()
+    unusable_until["frame"] = int(np.searchsorted(t, t[p.LIFT] + 2.5 * settle))
     monkeypatch.setattr(legs._Frames, "first_bad", first_bad)
-    assert legs._land_early(rays, lf, rig_config, st, holds, anchor, t, c)
-    assert st.Ts[c + 1, leg] == np.searchsorted(t, t[lift] + 3 * settle - 1e-9)
+    assert p.land_early(st, holds, c)
+    assert st.Ts[c + 1, p.LEG] == np.searchsorted(t, t[p.LIFT] + 3 * settle - 1e-9)
