@@ -158,8 +158,7 @@ def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: flo
     pts = polyline.sample(path, cum_h0, s)
     # the body follows the head's path with its kinks rounded (a slide along an edge or a turn
     # on the spot bends the path sharper than the turning radius; every joint would turn there)
-    pts[:, [0, 2]] = gaussian_filter1d(pts[:, [0, 2]], ROUND * spacing / res, axis=0,
-                                       mode="nearest")
+    pts[:, [0, 2]] = straight_ended_smooth(pts[:, [0, 2]], ROUND * spacing / res)
     ground_pts, normals, _ = project_to_surface(rays, pts, probe)
     ground = ground_pts[:, 1]
     sigma = 2.0 * spacing / res
@@ -176,6 +175,19 @@ def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: flo
     high = smooth_envelope(y, RAISED_SMOOTH * spacing / res)
     return Trail(points=pts, normals=normals, ground=ground, cum=polyline.arc_lengths(pts), cum_h=s,
                  high=high)
+
+
+def straight_ended_smooth(xy: np.ndarray, sigma: float) -> np.ndarray:
+    """Gaussian smoothing (sigma in samples) along axis 0 of an (n, k) path whose ends carry on
+    as straight lines (each end extended by the path's point reflection about it), so a path
+    that runs straight into its end keeps its pace there: padding with the end point itself
+    bunches the last samples up, and a body following the trail slowed down over its last
+    frames (to 63 % of its speed in the last frame of a default bake)."""
+    k = min(int(4.0 * sigma + 0.5), len(xy) - 1)
+    if k < 1:
+        return gaussian_filter1d(xy, sigma, axis=0, mode="nearest")
+    padded = np.concatenate([2.0 * xy[0] - xy[k:0:-1], xy, 2.0 * xy[-1] - xy[-2:-k - 2:-1]])
+    return gaussian_filter1d(padded, sigma, axis=0, mode="nearest")[k:k + len(xy)]
 
 
 def _hip_bound(rays, pts: np.ndarray, ground_pts: np.ndarray, probe: float, clearance: float,

@@ -520,3 +520,26 @@ def test_a_hunt_beside_a_wall_slows_so_that_the_folded_legs_keep_up():
     assert np.median(speeds(0.47, legless)[0]) > 0.95 * hunt
     stubby = replace(RIG, legs=replace(RIG.legs, reach=0.5 * hip))  # feet inside the hips
     assert np.median(speeds(0.47, stubby)[0]) > 0.95 * hunt
+
+
+def test_a_body_walking_straight_into_the_end_of_its_path_keeps_its_pace():
+    """The trail rounds the head path's kinks by Gaussian smoothing; padded with its end
+    point, the smoothing bunched the last samples up and a body walking at a steady pace to the
+    end of the bake slowed down over its last frames (to 63 % of its speed in the last frame of
+    a default bake), while the head itself kept its pace. Its ends now carry on straight."""
+    from baker.locomotion.body import straight_ended_smooth
+
+    env = env_of(floor(-1.0, 1.0, -1.0, 1.0))
+    body = RIG.body
+    x = np.linspace(0.0, 0.5, 301)
+    path = np.stack([x, np.zeros_like(x), 0.02 * np.sin(4.0 * x)], axis=1)   # a gentle curve
+    trail = build_trail(path, env.rays, probe=0.025, spacing=body.spacing,
+                        clearance=body.clearance)
+    flat = path.copy()
+    flat[:, 1] = 0.0
+    cum_h = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(flat, axis=0), axis=1))]
+    steps = np.diff(trail.arc_at(cum_h[::10]))               # the head's steps, frame by frame
+    assert steps[-1] > 0.97 * np.median(steps) and steps[0] > 0.97 * np.median(steps)
+    # a straight line is left as it is, ends included
+    line = np.stack([np.linspace(0, 1, 50), np.linspace(0, -2, 50)], axis=1)
+    np.testing.assert_allclose(straight_ended_smooth(line, 6.0), line, atol=1e-12)
