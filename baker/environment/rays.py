@@ -190,7 +190,8 @@ class RayCaster:
     def inside(self, points: np.ndarray) -> np.ndarray:
         """(n,) bool: each point is inside a solid.
 
-        points : (n, 3) float, metres, world. Six axis rays per point, cast in one batch; each
+        points : (n, 3) float, metres, world. Six axis rays per point, in two batches (the ray
+        straight up first, the other five only where it meets something); each
         first hit votes "back" when the ray leaves through the face's back (its normal, as
         wound, points along the ray) and "front" otherwise. A point is inside when back votes
         outnumber front votes, also outweigh them with each vote weighted by how squarely its
@@ -210,18 +211,30 @@ class RayCaster:
         inward throughout, or an object whose faces are mostly flipped, reads inside-out.
         """
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        n = len(p)
+        out = np.zeros(len(p), dtype=bool)
+        if len(p) == 0:
+            return out
+        # the ray straight up first: the other five only where it meets something
+        t_up, prim_up = self.cast(p, np.broadcast_to(_AXES6[0], p.shape))
+        roofed = np.nonzero(prim_up >= 0)[0]
+        n = len(roofed)
         if n == 0:
-            return np.zeros(0, dtype=bool)
+            return out
         d = np.tile(_AXES6, (n, 1))
-        t, prim = self.cast(np.repeat(p, 6, axis=0), d)
+        t = np.empty((n, 6))
+        prim = np.empty((n, 6), dtype=prim_up.dtype)
+        t[:, 0], prim[:, 0] = t_up[roofed], prim_up[roofed]
+        t5, prim5 = self.cast(np.repeat(p[roofed], 5, axis=0), np.tile(_AXES6[1:], (n, 1)))
+        t[:, 1:], prim[:, 1:] = t5.reshape(n, 5), prim5.reshape(n, 5)
+        t, prim = t.ravel(), prim.ravel()
         hit = prim >= 0
         vote = np.zeros(len(d))
         vote[hit] = np.einsum("ij,ij->i", self.face_normals[prim[hit]], d[hit])
         vote = vote.reshape(n, 6)
         nearest = vote[np.arange(n), np.argmin(t.reshape(n, 6), axis=1)]
-        return ((np.count_nonzero(vote > 0, axis=1) > np.count_nonzero(vote < 0, axis=1))
-                & (vote.sum(axis=1) > 0.0) & (nearest > 0.0) & hit[0::6])
+        out[roofed] = ((np.count_nonzero(vote > 0, axis=1) > np.count_nonzero(vote < 0, axis=1))
+                       & (vote.sum(axis=1) > 0.0) & (nearest > 0.0))
+        return out
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray,
                  max_distance: float | np.ndarray = np.inf) -> np.ndarray:
