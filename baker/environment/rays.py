@@ -220,18 +220,14 @@ class RayCaster:
         n = len(roofed)
         if n == 0:
             return out
-        d = np.tile(_AXES6, (n, 1))
-        t = np.empty((n, 6))
-        prim = np.empty((n, 6), dtype=prim_up.dtype)
-        t[:, 0], prim[:, 0] = t_up[roofed], prim_up[roofed]
         t5, prim5 = self.cast(np.repeat(p[roofed], 5, axis=0), np.tile(_AXES6[1:], (n, 1)))
-        t[:, 1:], prim[:, 1:] = t5.reshape(n, 5), prim5.reshape(n, 5)
-        t, prim = t.ravel(), prim.ravel()
+        t = np.column_stack([t_up[roofed], t5.reshape(n, 5)])
+        prim = np.column_stack([prim_up[roofed], prim5.reshape(n, 5)])
         hit = prim >= 0
-        vote = np.zeros(len(d))
-        vote[hit] = np.einsum("ij,ij->i", self.face_normals[prim[hit]], d[hit])
-        vote = vote.reshape(n, 6)
-        nearest = vote[np.arange(n), np.argmin(t.reshape(n, 6), axis=1)]
+        vote = np.zeros((n, 6))
+        vote[hit] = np.einsum("ij,ij->i", self.face_normals[prim[hit]],
+                              np.broadcast_to(_AXES6, (n, 6, 3))[hit])
+        nearest = vote[np.arange(n), np.argmin(t, axis=1)]
         out[roofed] = ((np.count_nonzero(vote > 0, axis=1) > np.count_nonzero(vote < 0, axis=1))
                        & (vote.sum(axis=1) > 0.0) & (nearest > 0.0))
         return out

@@ -525,16 +525,17 @@ def _holds_at(rays, lf: _Frames, cfg: RigConfig, anchor: np.ndarray, frames: np.
                              min_out=lf.out_min[legs])
 
 
-def _cycles(Ts: np.ndarray, F: int) -> np.ndarray:
-    """(F, L) the hold (cycle) index of each frame and leg: one search over every leg's
-    touchdowns Ts (C+1, L), each leg's (non-decreasing, at most F) offset past the previous
-    leg's."""
-    C1, L = Ts.shape
+def _cycles(st: _Steps, F: int) -> tuple[np.ndarray, np.ndarray]:
+    """(cidx, contact), each (F, L): the hold (cycle) index of each frame and leg, and whether
+    the foot is planted. One search over every leg's touchdowns st.Ts (C+1, L), each leg's
+    (non-decreasing, at most F) offset past the previous leg's."""
+    C1, L = st.Ts.shape
     legs = np.arange(L)
     off = legs * (F + 1)
-    c = np.searchsorted((Ts.T + off[:, None]).ravel(), np.arange(F)[:, None] + off[None, :],
+    c = np.searchsorted((st.Ts.T + off[:, None]).ravel(), np.arange(F)[:, None] + off[None, :],
                         side="right") - 1 - legs[None, :] * C1
-    return np.clip(c, 0, C1 - 2)
+    cidx = np.clip(c, 0, C1 - 2)
+    return cidx, np.arange(F)[:, None] < st.LOs[cidx, legs[None, :]]
 
 
 def _stances(rays, lf: _Frames, cfg: RigConfig, st: _Steps, holds: np.ndarray,
@@ -544,19 +545,16 @@ def _stances(rays, lf: _Frames, cfg: RigConfig, st: _Steps, holds: np.ndarray,
     and st.Ts, st.phase_td where an early lift lands early (_land_early: the new holds are
     then spread from their neighbours' and checked again, until no foot lands early; the
     last of STANCE_ROUNDS rounds only lifts)."""
-    F, L = lf.shape
+    F = lf.shape[0]
     for r in range(STANCE_ROUNDS):
-        cidx = _cycles(st.Ts, F)
-        contact = np.arange(F)[:, None] < st.LOs[cidx, np.arange(L)[None, :]]
+        cidx, contact = _cycles(st, F)
         holds = _spread_neighbours(holds, st.Ts, cidx, contact,
                                    NEIGHBOUR_GAP * cfg.body.spacing, rays, lf.up,
                                    probe=cfg.body.clearance + 2.0 * lf.lg.lift)
         if not _lift_unusable(rays, lf, cfg, st, holds, anchor, times,
                               land=r < STANCE_ROUNDS - 1):
             break
-    cidx = _cycles(st.Ts, F)
-    contact = np.arange(F)[:, None] < st.LOs[cidx, np.arange(L)[None, :]]
-    return holds, cidx, contact
+    return (holds,) + _cycles(st, F)
 
 
 def _lift_unusable(rays, lf: _Frames, cfg: RigConfig, st: _Steps, holds: np.ndarray,

@@ -7,6 +7,7 @@ from baker.environment.model import Environment, Sun
 from baker.geometry.transforms import normalize
 from baker.locomotion.body import BodyFrames
 from baker.locomotion.gait import gait_clock, stance_mask, stride_length
+from baker.locomotion import legs
 from baker.locomotion.legs import leg_frames, walking_legs
 from baker.rig.limbs import leg_layout
 from conftest import flat_ground
@@ -209,8 +210,6 @@ class _StoppedPlan:
     LEG, LIFT = 5, 120
 
     def __init__(self, cfg, env):
-        from baker.locomotion import legs
-
         self.cfg, self.rays = cfg, env.rays
         bf, arc, self.t = _straight_body(cfg, speed=0.2, seconds=6.0, stop_at=2.0)
         self.lf = legs._leg_frames(bf, cfg)
@@ -219,8 +218,6 @@ class _StoppedPlan:
                                 self.lf.lg.stride_max)
 
     def plan(self):
-        from baker.locomotion import legs
-
         st = legs._step_events(self.rays, self.lf, self.clock, self.anchor, self.t)
         holds = legs._footholds(self.rays, self.lf, self.cfg, self.anchor, st)
         leg, lift = self.LEG, self.LIFT
@@ -230,8 +227,6 @@ class _StoppedPlan:
         return st, holds, c
 
     def land_early(self, st, holds, c) -> bool:
-        from baker.locomotion import legs
-
         return legs._land_early(self.rays, self.lf, self.cfg, st, holds, self.anchor, self.t, c)
 
 
@@ -240,8 +235,6 @@ def test_a_foot_lifted_early_lands_within_the_settle_time(rig_config, flat_env):
     the body stopped, the phase's next touchdown is never: the foot used to hover beside the
     body until then (15 s in a default bake, its tip bone dragged through a leaf). It lands
     settle_time after lifting, on a new hold on the ground within its leg's reach."""
-    from baker.locomotion import legs
-
     p = _StoppedPlan(rig_config, flat_env)
     st, holds, c = p.plan()
     leg, lf, t = p.LEG, p.lf, p.t
@@ -263,8 +256,6 @@ def test_a_foot_lifted_early_waits_for_a_hold_it_can_keep(rig_config, flat_env, 
     """The early landing's hold must stay usable for a settle time (legs._Frames.first_bad):
     when the first is not, the foot lands a settle time later; when none is before the phase's
     touchdown, it keeps hanging (no tapping on holds it must leave at once)."""
-    from baker.locomotion import legs
-
     p = _StoppedPlan(rig_config, flat_env)
     t, settle = p.t, rig_config.legs.settle_time
     unusable_until = {"frame": len(t)}
