@@ -68,6 +68,14 @@ LINE_SAMPLES = (0.4, 0.6, 0.8, 1.0)
 EDGE_CLEAR = 0.2
 #: a foothold lies at most this many times its outward distance below its hip
 MAX_DROP = 1.2
+#: what the files may move a joint whose bone passes near a surface [BL]: twice the bound the
+#: keyframe reduction keeps such joints within (a tenth of its default 0.001 BL tolerance)
+FILE_MARGIN = 0.0002
+#: the last bit of a tip bone (its foot's end) that may touch a surface [BL]: the 0.005 BL the
+#: files are judged by (metrics) less FILE_MARGIN
+BONE_TOL = 0.005 - FILE_MARGIN
+#: ... and a bone keeps FILE_MARGIN over a surface below it (as a share of BONE_TOL)
+GRAZE = FILE_MARGIN / BONE_TOL
 #: a foothold's surface faces at most this far from the segment's up [rad]
 FOOT_SLOPE = np.radians(65.0)
 #: next to a wall, feet stay within this fraction of the free distance from hip to wall
@@ -331,6 +339,11 @@ class _Frames:
     def shape(self) -> tuple[int, int]:
         return self.q.shape[:2]
 
+    @property
+    def reach(self) -> float:
+        """How far from its hip a foothold is looked for (project_footholds' `reach`)."""
+        return PLAN_REACH * (self.lay.l1 + self.lay.l2)
+
     def first_bad(self, rays, hold, start, stop, sight=False):
         """(L,) first frame in [start, stop) where a foot planted at `hold` (L, 3) would be out
         of reach, too far behind, or under the body (with `sight`, also: hidden from its hip
@@ -519,8 +532,7 @@ def _holds_at(rays, lf: _Frames, cfg: RigConfig, anchor: np.ndarray, frames: np.
     fr = np.minimum(frames, lf.shape[0] - 1)
     pts = anchor[fr, legs] + lf.fwd[fr, legs] * xs[:, None]
     inward = -lf.left[fr, legs] * lf.lay.side[legs][:, None]
-    return project_footholds(rays, pts, lf.up[fr, legs], inward, lf.hip[fr, legs],
-                             PLAN_REACH * (lf.lay.l1 + lf.lay.l2),
+    return project_footholds(rays, pts, lf.up[fr, legs], inward, lf.hip[fr, legs], lf.reach,
                              probe=cfg.body.clearance + 2.0 * lf.lg.lift,
                              min_out=lf.out_min[legs])
 
@@ -550,7 +562,8 @@ def _stances(rays, lf: _Frames, cfg: RigConfig, st: _Steps, holds: np.ndarray,
         cidx, contact = _cycles(st, F)
         holds = _spread_neighbours(holds, st.Ts, cidx, contact,
                                    NEIGHBOUR_GAP * cfg.body.spacing, rays, lf.up,
-                                   probe=cfg.body.clearance + 2.0 * lf.lg.lift)
+                                   probe=cfg.body.clearance + 2.0 * lf.lg.lift,
+                                   level=(EDGE_CLEAR * lf.reach, -lf.left * lf.lay.side[:, None]))
         if not _lift_unusable(rays, lf, cfg, st, holds, anchor, times,
                               land=r < STANCE_ROUNDS - 1):
             break
@@ -812,7 +825,7 @@ def _swing_targets(rays, lf: _Frames, cfg: RigConfig, st: _Steps, cidx, contact,
     # a swinging foot whose leg would still reach through the environment (past a wall's
     # corner) is drawn in toward its hip, eased in and out
     target = _pull_in_swings(rays, lf.hip, target, sw, lf.fwd, lf.left, lay, lg.knee_out,
-                             0.005 * cfg.body.length)
+                             BONE_TOL * cfg.body.length)
     # a swinging foot never comes close to its hip: there the leg's plane would swing round
     # with every millimetre the foot moves (a softly clamped minimum reach)
     rel = target - lf.hip
@@ -839,13 +852,14 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     pole = leg_pole(lay, hip, target, lf.fwd, lf.left, lg.knee_out)
     sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
     mid, hinge = _clear_knees(rays, hip, sol.mid, sol.end, sol.hinge, lay.l1, lay.l2,
-                              0.005 * body.length)
+                              BONE_TOL * body.length)
     q_u = bone_frames(hip, mid, hinge)
     q_t = bone_frames(mid, sol.end, hinge)
     # swings that still break a limit (a joint turning too fast, a bone through something, a
     # moving foot on or in a surface) are redone in joint space (swing.py)
     lim = Limits(contact=0.8 * (SWING_CLEAR * lg.lift), slide=SLIDE * body.length,
-                 tol=0.005 * body.length, turn=np.radians(SWING_TURN), gap=SWING_GAP * body.spacing,
+                 tol=BONE_TOL * body.length, turn=np.radians(SWING_TURN),
+                 gap=SWING_GAP * body.spacing,
                  hard_turn=np.radians(HARD_TURN), hard_gap=HARD_GAP * body.spacing,
                  deep=DEEP * body.length)
     q_u, q_t, mid, feet, swing = joint_space_swings(rays, hip, lf.q, q_u, q_t, mid, sol.end,
@@ -1088,10 +1102,15 @@ def _leg_blocked(rays, lay, legs, hip, target, fwd, left, knee_out, tol):
 
 def _bones_hit(rays, hip, mid, end, l1, l2, tol):
     """(n,) bool: either bone of each leg passes through the environment (the last `tol` of the
-    tip bone is not tested, so a foot resting on the surface does not count)."""
-    a = rays.first_hit(hip, mid - hip, max_distance=l1 - tol).hit
-    b = rays.first_hit(mid, end - mid, max_distance=l2 - tol).hit
-    return a | b
+    tip bone is not tested, so a foot resting on the surface does not count), or within
+    GRAZE x `tol` over a surface below it (the files' keyframe reduction moves a joint by a
+    little, and a bone lying flat a hair over the floor would go into it)."""
+    hit = np.zeros(len(hip), bool)
+    for drop in (0.0, GRAZE * tol):
+        o = drop * UP
+        hit |= rays.first_hit(hip - o, mid - hip, max_distance=l1 - tol).hit
+        hit |= rays.first_hit(mid - o, end - mid, max_distance=l2 - tol).hit
+    return hit
 
 
 def _clear_knees(rays, hip, mid, end, hinge, l1, l2, tol):
@@ -1268,15 +1287,17 @@ def _swivel(p, origin, axis, angle):
 
 def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, contact: np.ndarray,
                        gap: float, rays, up: np.ndarray, probe: float,
-                       iterations: int = 32) -> np.ndarray:
+                       level: tuple | None = None, iterations: int = 32) -> np.ndarray:
     """Legs that know where their neighbours are: when two planted feet of neighbouring legs on
     one side come closer than `gap`, the one that landed later steps away from the other (its
     foothold moves along the line between them and is dropped back onto the surface); where
     that would take it off the surface (over a stair's nosing), the other one steps away.
 
     holds : (C+1, L, 3) footholds; Ts : (C+1, L) their touchdown frames; cidx : (F, L) hold of
-    each frame; contact : (F, L) planted. Legs are ordered L_01, R_01, L_02, ... so leg l's
-    rear neighbour on the same side is l + 2. Returns adjusted holds.
+    each frame; contact : (F, L) planted; level : (edge, inward (F, L, 3)) or None: a hold on
+    level ground is not moved off it (is_level, as project_footholds prefers). Legs are ordered
+    L_01, R_01, L_02, ... so leg l's rear neighbour on the same side is l + 2. Returns adjusted
+    holds.
     """
     holds = holds.copy()
     F, L = cidx.shape
@@ -1310,7 +1331,7 @@ def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, cont
             h, leg = h_all[left], l_all[left]
             u = up[np.minimum(Ts[h, leg], F - 1), leg]
             moved[left] = _push(holds, h, leg, _turned(vec[left], u, angle), need[left], Ts,
-                                rays, up, probe)
+                                rays, up, probe, level)
     return holds
 
 
@@ -1326,10 +1347,12 @@ def _turned(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
     return v * c + cross(axis, v) * s + axis * dot * (1.0 - c)
 
 
-def _push(holds, hold, leg, vec, need, Ts, rays, up, probe) -> np.ndarray:
+def _push(holds, hold, leg, vec, need, Ts, rays, up, probe, level) -> np.ndarray:
     """Move holds[hold, leg] by vec (n, 3) (per hold the largest push) and drop them back onto
-    the surface along the up axis at their touchdown; a move that would leave the surface is
-    dropped. Updates `holds` in place; returns (n,) bool, the entry's hold moved."""
+    the surface along the up axis at their touchdown; a move that would leave the surface, or
+    (level = (edge, inward (F, L, 3))) take a hold off level ground (is_level: next to a step,
+    or beside an overhang such as a leaf's edge a centimetre over the ground), is dropped.
+    Updates `holds` in place; returns (n,) bool, the entry's hold moved."""
     F = len(up)
     order = np.argsort(need, kind="stable")
     disp = np.zeros_like(holds)
@@ -1360,6 +1383,12 @@ def _push(holds, hold, leg, vec, need, Ts, rays, up, probe) -> np.ndarray:
                            max_distance=2.0 * probe)
         free = ~(h.hit & _faces_up(h.normals, u[loose])) & ~rays.inside(new[loose])
         ok[np.nonzero(loose)[0][free]] = True
+    kk = np.nonzero(ok & ~loose)[0]
+    if level is not None and len(kk):
+        edge, inward = level
+        w = inward[frame[kk], np.nonzero(moved)[1][kk]]
+        was = is_level(rays, holds[moved][kk], u[kk], w, edge)
+        ok[kk] = ~was | is_level(rays, found[kk], u[kk], w, edge)
     new = found
     sel = np.nonzero(moved)
     keep = ok | ~moved[sel]

@@ -22,11 +22,13 @@ pytestmark = pytest.mark.slow
 #: joint-space swing whose raise dropped 39 deg in its last frame) and multi-storey 110416 (a
 #: hold on the floor 1 mm from the flight's side read level, and the leg stepping down to it
 #: turned 31.6 deg in a frame) and default 110709 (a foot lifted early while the body fed
-#: hung beside it for 15.8 s, its tip bone dragged through a leaf lying on the ground)
+#: hung beside it for 15.8 s, its tip bone dragged through a leaf lying on the ground) and
+#: default 111002 (spreading crowded neighbours pushed a foothold beside a leaf's edge 12 mm
+#: over the ground; the swing onto it put its tip bone through the leaf)
 CASES = [("floor", 9000, 20.0), ("floor", 9001, 20.0), ("far", 9002, 20.0),
          ("nav_test", 9001, 30.0), ("default", 94035, 12.0), ("floor", 97024, 8.0),
          ("default", 110113, 48.0), ("multistorey", 110010, 90.0),
-         ("multistorey", 110416, 105.0), ("default", 110709, 55.0)]
+         ("multistorey", 110416, 105.0), ("default", 110709, 55.0), ("default", 111002, 8.0)]
 
 
 @pytest.mark.parametrize("scene,seed,seconds", CASES, ids=lambda v: str(v))

@@ -89,3 +89,31 @@ def test_a_swivel_whose_easing_in_grazes_something_turns_the_other_way():
     assert not hits(rays, hip, new_mid, end).any()
     assert np.all(new_mid[10:20, 0, 2] < mid[10:20, 0, 2])      # swivelled further to -z
 
+
+
+def test_a_tip_bone_lying_a_hair_over_the_floor_counts_and_its_knee_swivels_up():
+    """Multi-storey seed 111202: a planted leg stretched nearly flat kept its knee 1.9 mm over
+    the floor, the tip bone 0.01 mm over it 2.7 cm from the foot; the files' keyframe reduction
+    moved the knee down by 0.05 mm and the bone went into the floor. A bone within GRAZE x tol
+    over a surface below counts as touching it, so the knee swivels up."""
+    floor = RayCaster(trimesh.Trimesh([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]],
+                                      [[0, 2, 1], [0, 3, 2]], process=False))
+    n = 5
+    l1, l2, tol = 0.22, 0.24, 0.008
+    end = np.tile([0.44, 0.0, 0.0], (n, 1, 1))
+    for lift, counts in ((0.0019, True), (0.03, False)):
+        mid = end + [-np.sqrt(l2 ** 2 - lift ** 2), lift, 0.0]
+        hip = mid + [-np.sqrt(l1 ** 2 - 0.05 ** 2), 0.05, 0.0]
+        flat = _bones_hit(floor, hip.reshape(-1, 3), mid.reshape(-1, 3), end.reshape(-1, 3),
+                          l1, l2, tol)
+        # the bone is over the floor: the plain ray along it meets nothing
+        assert not floor.first_hit(mid.reshape(-1, 3), (end - mid).reshape(-1, 3),
+                                   max_distance=l2 - tol).hit.any()
+        assert flat.tolist() == [counts] * n
+    mid = end + [-np.sqrt(l2 ** 2 - 0.0019 ** 2), 0.0019, 0.0]
+    hip = mid + [-np.sqrt(l1 ** 2 - 0.05 ** 2), 0.05, 0.0]
+    new_mid, _ = _clear_knees(floor, hip, mid, end, np.tile([0.0, 0.0, 1.0], (n, 1, 1)),
+                              l1, l2, tol)
+    assert not _bones_hit(floor, hip.reshape(-1, 3), new_mid.reshape(-1, 3),
+                          end.reshape(-1, 3), l1, l2, tol).any()
+    assert np.all(new_mid[..., 1] > mid[..., 1])
