@@ -148,6 +148,9 @@ STANCE_ROUNDS = 4
 #: settle_times (a slow body's swings are settle_time long: one lifted a frame or two early
 #: keeps its touchdown)
 HANG_SWINGS = 2.0
+#: the legs are planned at most this many times over, each time lifting the feet whose planted
+#: leg goes through something (_lift_stuck)
+STUCK_ROUNDS = 3
 #: [Hz] the ultimate legs' slow sway: yaw and pitch frequencies
 ULTIMATE_SWAY_HZ = (0.35, 0.22)
 
@@ -845,14 +848,20 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     st = _step_events(rays, lf, clock, anchor, times)
     holds = _footholds(rays, lf, cfg, anchor, st)
     holds, cidx, contact = _stances(rays, lf, cfg, st, holds, anchor, times)
-    p0, p1, u, td_flag = _swing_progress(lf, st, holds, cidx, contact, clock, times)
-    target = _swing_targets(rays, lf, cfg, st, cidx, contact, p0, p1, u)
-
-    # -- IK, all frames x legs
-    pole = leg_pole(lay, hip, target, lf.fwd, lf.left, lg.knee_out)
-    sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
-    mid, hinge = _clear_knees(rays, hip, sol.mid, sol.end, sol.hinge, lay.l1, lay.l2,
-                              BONE_TOL * body.length)
+    tol = BONE_TOL * body.length
+    for attempt in range(STUCK_ROUNDS):
+        p0, p1, u, td_flag = _swing_progress(lf, st, holds, cidx, contact, clock, times)
+        target = _swing_targets(rays, lf, cfg, st, cidx, contact, p0, p1, u)
+        # -- IK, all frames x legs
+        pole = leg_pole(lay, hip, target, lf.fwd, lf.left, lg.knee_out)
+        sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
+        mid, hinge = _clear_knees(rays, hip, sol.mid, sol.end, sol.hinge, lay.l1, lay.l2, tol)
+        # a planted leg whose bones no knee swivel clears (a foot at the foot of a step, the
+        # knee over it) lifts before that frame, and the stances are planned again
+        if attempt == STUCK_ROUNDS - 1 or not _lift_stuck(rays, lay, st, cidx, contact, hip, mid,
+                                                          sol.end, tol):
+            break
+        holds, cidx, contact = _stances(rays, lf, cfg, st, holds, anchor, times)
     q_u = bone_frames(hip, mid, hinge)
     q_t = bone_frames(mid, sol.end, hinge)
     # swings that still break a limit (a joint turning too fast, a bone through something, a
@@ -871,6 +880,23 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     return dict(names=names, positions=positions, rotations=rotations, feet=feet,
                 targets=target, contacts=contact, touchdown=td_flag, lag=lay.lag,
                 touchdowns=st.Ts, liftoffs=st.LOs, holds=holds)
+
+
+def _lift_stuck(rays, lay: LegLayout, st: _Steps, cidx, contact, hip, mid, end, tol) -> bool:
+    """Planted frames whose leg bones pass through something (_bones_hit) end their stance: the
+    foot lifts off the frame before the first of them (st.LOs, never before its touchdown).
+    True when a stance got shorter."""
+    f, l = np.nonzero(contact)
+    bad = _bones_hit(rays, hip[f, l], mid[f, l], end[f, l], lay.l1, lay.l2, tol)
+    if not bad.any():
+        return False
+    f, l = f[bad], l[bad]
+    c = cidx[f, l]
+    before = st.LOs.copy()
+    np.minimum.at(st.LOs, (c, l), f - 1)
+    Ts = st.Ts[:len(before)]
+    st.LOs[:] = np.maximum(st.LOs, np.minimum(Ts, before))
+    return bool(np.any(st.LOs < before))
 
 
 def _obstacle_lift(rays, hip: np.ndarray, base: np.ndarray, up: np.ndarray, u: np.ndarray,
