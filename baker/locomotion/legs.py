@@ -1321,7 +1321,8 @@ def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, cont
 
     holds : (C+1, L, 3) footholds; Ts : (C+1, L) their touchdown frames; cidx : (F, L) hold of
     each frame; contact : (F, L) planted; level : (edge, inward (F, L, 3)) or None: a hold on
-    level ground is not moved off it (is_level, as project_footholds prefers). Legs are ordered
+    level ground is moved off it (is_level, as project_footholds prefers) only when no move
+    keeps it level. Legs are ordered
     L_01, R_01, L_02, ... so leg l's rear neighbour on the same side is l + 2. Returns adjusted
     holds.
     """
@@ -1346,18 +1347,21 @@ def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, cont
         early = (np.where(later_rear, cf, cr), np.where(later_rear, front, rear))
         # first along the line between them: the later foot, else the other one; then (or,
         # in the second half of the passes, first: a push along a crowded side only hands the
-        # crowding on) the later foot steps aside, turned about its up axis
+        # crowding on) the later foot steps aside, turned about its up axis; all of them
+        # keeping level holds level first, then (feet apart matter more) any way
         along = [(late, 0.0), (early, np.pi)]
         aside = [(late, a) for a in SIDESTEP_ANGLES]
+        moves = along + aside if it < iterations // 2 else aside + along
         moved = np.zeros(len(f), bool)
-        for (h_all, l_all), angle in (along + aside if it < iterations // 2 else aside + along):
+        for (h_all, l_all), angle, keep in [m + (level,) for m in moves] + [m + (None,)
+                                                                            for m in moves]:
             left = ~moved
             if not left.any():
                 break
             h, leg = h_all[left], l_all[left]
             u = up[np.minimum(Ts[h, leg], F - 1), leg]
             moved[left] = _push(holds, h, leg, _turned(vec[left], u, angle), need[left], Ts,
-                                rays, up, probe, level)
+                                rays, up, probe, keep)
     return holds
 
 
