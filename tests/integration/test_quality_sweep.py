@@ -24,11 +24,13 @@ pytestmark = pytest.mark.slow
 #: turned 31.6 deg in a frame) and default 110709 (a foot lifted early while the body fed
 #: hung beside it for 15.8 s, its tip bone dragged through a leaf lying on the ground) and
 #: default 111002 (spreading crowded neighbours pushed a foothold beside a leaf's edge 12 mm
-#: over the ground; the swing onto it put its tip bone through the leaf)
+#: over the ground; the swing onto it put its tip bone through the leaf) and default 110347
+#: (with level holds kept level whatever it cost, two planted feet stayed 0.189 spacing apart)
 CASES = [("floor", 9000, 20.0), ("floor", 9001, 20.0), ("far", 9002, 20.0),
          ("nav_test", 9001, 30.0), ("default", 94035, 12.0), ("floor", 97024, 8.0),
          ("default", 110113, 48.0), ("multistorey", 110010, 90.0),
-         ("multistorey", 110416, 105.0), ("default", 110709, 55.0), ("default", 111002, 8.0)]
+         ("multistorey", 110416, 105.0), ("default", 110709, 55.0), ("default", 111002, 8.0),
+         ("default", 110347, 9.0)]
 
 
 @pytest.mark.parametrize("scene,seed,seconds", CASES, ids=lambda v: str(v))
