@@ -20,7 +20,7 @@ Walking legs (two bones each, one pair per trunk segment):
    segment's up axis, then fans tilted toward the body, also from origins pulled in. A hold must
    face up, be in reach, outside the body, not straight down a ledge and in sight of its hip.
    Planted feet of neighbouring legs are then pushed apart ("legs that know where their
-   neighbours are").
+   neighbours are"), a level hold kept level where some push allows it.
 5. Swing: the foot sweeps around its hip in the segment frame, from the old hold as seen at
    liftoff to the new one as seen at touchdown, with a lift; raised where the surface below or
    a wall is in the way; lifted over a neighbour's foot; re-timed to an even angular pace where
@@ -30,7 +30,10 @@ Walking legs (two bones each, one pair per trunk segment):
    toward its hip, eased in and out. It lands exactly on the hold.
 6. Two-bone IK for all frames x legs at once (geometry/ik.py), knee pole across the leg (up and
    out); knees swivel about the hip->foot line where a bone would touch the environment, the
-   swivel easing in and out at most SWIVEL_RATE per frame.
+   swivel easing in and out at most SWIVEL_RATE per frame. A planted leg that no swivel clears
+   lifts off the frame before; the stance rules of 3-4 and steps 5-6 run again (at most
+   STUCK_ROUNDS times). Bones are tested with FILE_MARGIN to spare for the files' keyframe
+   reduction.
 
 Ultimate legs and antennae are posed by angles in their segment's frame; their raise/pitch is
 lifted where a bone would go through the environment (candidate angles, one batch of rays),
@@ -867,8 +870,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     # swings that still break a limit (a joint turning too fast, a bone through something, a
     # moving foot on or in a surface) are redone in joint space (swing.py)
     lim = Limits(contact=0.8 * (SWING_CLEAR * lg.lift), slide=SLIDE * body.length,
-                 tol=BONE_TOL * body.length, turn=np.radians(SWING_TURN),
-                 gap=SWING_GAP * body.spacing,
+                 tol=tol, turn=np.radians(SWING_TURN), gap=SWING_GAP * body.spacing,
                  hard_turn=np.radians(HARD_TURN), hard_gap=HARD_GAP * body.spacing,
                  deep=DEEP * body.length)
     q_u, q_t, mid, feet, swing = joint_space_swings(rays, hip, lf.q, q_u, q_t, mid, sol.end,
