@@ -841,8 +841,11 @@ def _swing_targets(rays, lf: _Frames, cfg: RigConfig, st: _Steps, cidx, contact,
     return lf.hip + rel * (d_new / np.maximum(d, 1e-12))[..., None]
 
 
-def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: RigConfig):
-    """Footholds, swings and IK for every walking leg and frame. Returns a dict of arrays."""
+def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: RigConfig,
+                 judged: slice = slice(None)):
+    """Footholds, swings and IK for every walking leg and frame. Returns a dict of arrays.
+    judged: the frames that are kept (the rest are margins): only their faults count when
+    swings are redone in joint space (all frames by default)."""
     lf = _leg_frames(bf, cfg)
     lay, lg, body, hip = lf.lay, lf.lg, cfg.body, lf.hip
     F, L = lf.shape
@@ -872,7 +875,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     lim = Limits(contact=0.8 * (SWING_CLEAR * lg.lift), slide=SLIDE * body.length,
                  tol=tol, turn=np.radians(SWING_TURN), gap=SWING_GAP * body.spacing,
                  hard_turn=np.radians(HARD_TURN), hard_gap=HARD_GAP * body.spacing,
-                 deep=DEEP * body.length)
+                 deep=DEEP * body.length, judged=np.isin(np.arange(F), np.arange(F)[judged]))
     q_u, q_t, mid, feet, swing = joint_space_swings(rays, hip, lf.q, q_u, q_t, mid, sol.end,
                                                     ~contact, lay.side, lay.l1, lay.l2, lim)
     contact = ~swing
@@ -1617,8 +1620,8 @@ def _planned_with_margins(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, ra
     d_arc = float(arc[-1] - arc[-2]) if F > 1 else 0.0
     arc2 = np.r_[np.full(before, arc[0]), arc, arc[-1] + k * d_arc]
     times2 = np.r_[times[0] - dt * np.arange(before, 0, -1), times, times[-1] + dt * k]
-    w = walking_legs(padded, arc2, times2, rays, cfg)
     keep = slice(before, before + F)
+    w = walking_legs(padded, arc2, times2, rays, cfg, judged=keep)
     for key in ("positions", "rotations", "feet", "targets", "contacts", "touchdown"):
         w[key] = w[key][keep]
     for key in ("touchdowns", "liftoffs"):

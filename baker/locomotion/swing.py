@@ -75,6 +75,8 @@ class Limits:
               these and turn, gap a frame is a near miss
     deep    : a foot deeper than this inside a solid breaks a limit; shallower it is a near
               miss [m]
+    judged  : (F,) bool, the frames whose faults count (None: all): legs planned over margins
+              beyond the bake's frames do not trade a fault in the bake for one in a margin
     """
 
     contact: float
@@ -85,6 +87,11 @@ class Limits:
     hard_turn: float | None = None
     hard_gap: float | None = None
     deep: float = 0.0
+    judged: np.ndarray | None = None
+
+    def weight(self, f: np.ndarray) -> np.ndarray:
+        """(n,) 1.0 for entries at judged frames `f`, else 0.0."""
+        return np.ones(len(f)) if self.judged is None else self.judged[f].astype(float)
 
 
 def _runs(swing: np.ndarray):
@@ -337,6 +344,8 @@ def _swings_pass(rays, hip, q_seg, side, l1, l2, lim: Limits, rounds, q_u, q_t, 
     f, lg = sw.f, sw.lg
     own, feet_k = _own_faults(rays, lim, hip[f, lg], q_seg[f, lg], U_all[f, lg], T_all[f, lg],
                               l1, l2, sw.inner, sw.sid[1:] == sw.sid[:-1])
+    w = lim.weight(f)
+    own *= w
     feet = end.copy()
     redone = np.zeros(swing.shape, bool)
     plan = (U_all.copy(), T_all.copy())     # the planner's poses, a candidate in every pass
@@ -344,7 +353,8 @@ def _swings_pass(rays, hip, q_seg, side, l1, l2, lim: Limits, rounds, q_u, q_t, 
         for parity in (0, 1):
             mine = ((sw.leg // 2) % 2 == parity)[sw.sid]
             k = np.nonzero(mine)[0]
-            cost = own[k] + _crowding(feet[f[k], lg[k]], sw.inner[k], sw.near(feet, k), lim)
+            cost = own[k] + w[k] * _crowding(feet[f[k], lg[k]], sw.inner[k], sw.near(feet, k),
+                                             lim)
             best = np.bincount(sw.sid[k], weights=cost, minlength=sw.n)
             todo = best > 0
             if todo.any():
@@ -353,7 +363,7 @@ def _swings_pass(rays, hip, q_seg, side, l1, l2, lim: Limits, rounds, q_u, q_t, 
     q_u2, q_t2, mid2, end2 = _pose(q_seg, hip, U_all, T_all, l1, l2)
     # frames left as planned keep the planner's exact numbers (no round trip through rotations)
     r = redone[..., None]
-    final = own + _crowding(feet[f, lg], sw.inner, sw.near(feet, np.arange(len(f))), lim)
+    final = own + w * _crowding(feet[f, lg], sw.inner, sw.near(feet, np.arange(len(f))), lim)
     return ((np.where(r, q_u2, q_u), np.where(r, q_t2, q_t), np.where(r, mid2, mid),
              np.where(r, end2, end)), sw, np.bincount(sw.sid, weights=final, minlength=sw.n))
 
@@ -370,6 +380,7 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
     first, last = sw.start[k], sw.last[k]
     chosen_U, chosen_T, chosen_own = U0.copy(), T0.copy(), own[k].copy()
     near = sw.near(feet, k)
+    wk = lim.weight(f)
     axis = np.broadcast_to(_Z, (len(k), 3))
     U_first, U_last = U_all[sw.f[first], sw.lg[first]], U_all[sw.f[last], sw.lg[last]]
     T_first, T_last = T_all[sw.f[first], sw.lg[first]], T_all[sw.f[last], sw.lg[last]]
@@ -448,7 +459,8 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
             T = _flex(U, T, flex * profile(uj), l1, l2)
         c_own, end = _own_faults(rays, lim, hp[j], qs[j], U, T, l1, l2, inner[j],
                                  sj[1:] == sj[:-1])
-        score = np.bincount(sj, weights=c_own + _crowding(end, inner[j], near[j], lim),
+        c_own *= wk[j]
+        score = np.bincount(sj, weights=c_own + wk[j] * _crowding(end, inner[j], near[j], lim),
                             minlength=sw.n)
         take = open_ & (score < best)
         best[take] = score[take]

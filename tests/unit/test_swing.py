@@ -135,6 +135,31 @@ def test_a_swing_too_short_to_turn_within_the_limit_lifts_off_earlier():
     assert np.all(pose[3][swing2[:, 0], 0, 1] > 0.0)           # the swing stays above the floor
 
 
+def test_faults_in_frames_that_are_not_kept_do_not_count():
+    """Legs are planned over margins beyond the bake's frames (legs._planned_with_margins).
+    A swing whose faults all lie in the margin is left as planned: it does not lift off
+    earlier, into the kept frames (default 111304: a swing in the end margin lifted off 12
+    frames sooner and crossed its neighbour's foot in the bake's last frames)."""
+    from dataclasses import replace
+
+    a, b = np.array([0.1, 0.0, -0.15]), np.array([0.1, 0.0, 0.15])
+    t = np.empty((12, 3))
+    t[:5], t[7:] = a, b
+    t[5:7] = a + (b - a) * np.array([1 / 3, 2 / 3])[:, None] + [0.0, 0.03, 0.0]
+    swing = np.zeros(12, bool)
+    swing[5:7] = True
+    q_u, q_t, mid, end = leg(t)
+    q_seg = np.tile([0.0, 0.0, 0.0, 1.0], (12, 1, 1))
+    args = (ground(), np.broadcast_to(HIP, (12, 1, 3)), q_seg, q_u[:, None], q_t[:, None],
+            mid[:, None], end[:, None], swing[:, None], np.array([1.0]), L1, L2)
+    kept = np.arange(12) < 4                                    # frames 4- are a margin
+    *pose, swing2 = joint_space_swings(*args, replace(LIM, judged=kept))
+    assert np.array_equal(swing2[:, 0], swing)
+    np.testing.assert_allclose(pose[3][:, 0], t, atol=1e-9)
+    *pose, swing3 = joint_space_swings(*args, LIM)             # every frame kept: lifts sooner
+    assert np.nonzero(swing3[:, 0])[0][0] < 5
+
+
 def test_a_tap_between_two_swings_too_fast_for_the_limit_becomes_one_swing():
     """Two swings of two frames with a single planted frame between them (a tap: the foot lands
     at C and lifts again the next frame), sweeping the leg round its hip from A a little
