@@ -109,10 +109,9 @@ def test_a_swing_while_the_body_turns_keeps_the_world_turn_within_the_limit():
         assert np.degrees(quat_angle(q[1:], q[:-1])).max() <= 27.0
 
 
-def test_a_swing_too_short_to_turn_within_the_limit_lifts_off_earlier():
-    """A swing of two frames that sweeps the leg 112 deg round its hip cannot keep every joint
-    within 27 deg a frame; lifting off earlier (the stance before it is long) spreads the sweep
-    over more frames. The touchdown frame and the stance up to the new liftoff stay."""
+def short_swing():
+    """12 frames: planted (0-4), a swing of two frames (5-6) sweeping the leg 112 deg round its
+    hip, planted (7-11). Returns (targets, swing, joint_space_swings' arguments but `lim`)."""
     a, b = np.array([0.1, 0.0, -0.15]), np.array([0.1, 0.0, 0.15])
     t = np.empty((12, 3))
     t[:5], t[7:] = a, b
@@ -121,9 +120,17 @@ def test_a_swing_too_short_to_turn_within_the_limit_lifts_off_earlier():
     swing[5:7] = True
     q_u, q_t, mid, end = leg(t)
     q_seg = np.tile([0.0, 0.0, 0.0, 1.0], (12, 1, 1))
-    *pose, swing2 = joint_space_swings(ground(), np.broadcast_to(HIP, (12, 1, 3)), q_seg,
-                                       q_u[:, None], q_t[:, None], mid[:, None], end[:, None],
-                                       swing[:, None], np.array([1.0]), L1, L2, LIM)
+    return t, swing, (ground(), np.broadcast_to(HIP, (12, 1, 3)), q_seg, q_u[:, None],
+                      q_t[:, None], mid[:, None], end[:, None], swing[:, None], np.array([1.0]),
+                      L1, L2)
+
+
+def test_a_swing_too_short_to_turn_within_the_limit_lifts_off_earlier():
+    """A swing of two frames that sweeps the leg 112 deg round its hip cannot keep every joint
+    within 27 deg a frame; lifting off earlier (the stance before it is long) spreads the sweep
+    over more frames. The touchdown frame and the stance up to the new liftoff stay."""
+    t, swing, args = short_swing()
+    *pose, swing2 = joint_space_swings(*args, LIM)
     lifted = np.nonzero(swing2[:, 0])[0]
     assert lifted[0] < 5 and lifted[-1] == 6                   # lifts sooner, lands as planned
     assert np.all(~swing2[:lifted[0], 0])
@@ -142,16 +149,7 @@ def test_faults_in_frames_that_are_not_kept_do_not_count():
     frames sooner and crossed its neighbour's foot in the bake's last frames)."""
     from dataclasses import replace
 
-    a, b = np.array([0.1, 0.0, -0.15]), np.array([0.1, 0.0, 0.15])
-    t = np.empty((12, 3))
-    t[:5], t[7:] = a, b
-    t[5:7] = a + (b - a) * np.array([1 / 3, 2 / 3])[:, None] + [0.0, 0.03, 0.0]
-    swing = np.zeros(12, bool)
-    swing[5:7] = True
-    q_u, q_t, mid, end = leg(t)
-    q_seg = np.tile([0.0, 0.0, 0.0, 1.0], (12, 1, 1))
-    args = (ground(), np.broadcast_to(HIP, (12, 1, 3)), q_seg, q_u[:, None], q_t[:, None],
-            mid[:, None], end[:, None], swing[:, None], np.array([1.0]), L1, L2)
+    t, swing, args = short_swing()
     kept = np.arange(12) < 4                                    # frames 4- are a margin
     *pose, swing2 = joint_space_swings(*args, replace(LIM, judged=kept))
     assert np.array_equal(swing2[:, 0], swing)
