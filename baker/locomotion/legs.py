@@ -855,6 +855,8 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     holds = _footholds(rays, lf, cfg, anchor, st)
     holds, cidx, contact = _stances(rays, lf, cfg, st, holds, anchor, times)
     tol = BONE_TOL * body.length
+    kept = np.zeros(F, bool)
+    kept[judged] = True
     for attempt in range(STUCK_ROUNDS):
         p0, p1, u, td_flag = _swing_progress(lf, st, holds, cidx, contact, clock, times)
         target = _swing_targets(rays, lf, cfg, st, cidx, contact, p0, p1, u)
@@ -875,7 +877,7 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
     lim = Limits(contact=0.8 * (SWING_CLEAR * lg.lift), slide=SLIDE * body.length,
                  tol=tol, turn=np.radians(SWING_TURN), gap=SWING_GAP * body.spacing,
                  hard_turn=np.radians(HARD_TURN), hard_gap=HARD_GAP * body.spacing,
-                 deep=DEEP * body.length, judged=np.isin(np.arange(F), np.arange(F)[judged]))
+                 deep=DEEP * body.length, judged=kept)
     q_u, q_t, mid, feet, swing = joint_space_swings(rays, hip, lf.q, q_u, q_t, mid, sol.end,
                                                     ~contact, lay.side, lay.l1, lay.l2, lim)
     contact = ~swing
@@ -1136,12 +1138,12 @@ def _bones_hit(rays, hip, mid, end, l1, l2, tol):
     tip bone is not tested, so a foot resting on the surface does not count), or within
     GRAZE x `tol` over a surface below it (the files' keyframe reduction moves a joint by a
     little, and a bone lying flat a hair over the floor would go into it)."""
-    hit = np.zeros(len(hip), bool)
-    for drop in (0.0, GRAZE * tol):
-        o = drop * UP
-        hit |= rays.first_hit(hip - o, mid - hip, max_distance=l1 - tol).hit
-        hit |= rays.first_hit(mid - o, end - mid, max_distance=l2 - tol).hit
-    return hit
+    low = GRAZE * tol * UP                  # each bone cast as it is and that much lower
+    a = rays.first_hit(np.concatenate([hip, hip - low]), np.tile(mid - hip, (2, 1)),
+                       max_distance=l1 - tol).hit
+    b = rays.first_hit(np.concatenate([mid, mid - low]), np.tile(end - mid, (2, 1)),
+                       max_distance=l2 - tol).hit
+    return (a | b).reshape(2, -1).any(axis=0)
 
 
 def _clear_knees(rays, hip, mid, end, hinge, l1, l2, tol):
@@ -1327,9 +1329,8 @@ def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, cont
     holds : (C+1, L, 3) footholds; Ts : (C+1, L) their touchdown frames; cidx : (F, L) hold of
     each frame; contact : (F, L) planted; level : (edge, inward (F, L, 3)) or None: a hold on
     level ground is moved off it (is_level, as project_footholds prefers) only when no move
-    keeps it level. Legs are ordered
-    L_01, R_01, L_02, ... so leg l's rear neighbour on the same side is l + 2. Returns adjusted
-    holds.
+    keeps it level. Legs are ordered L_01, R_01, L_02, ... so leg l's rear neighbour on the
+    same side is l + 2. Returns adjusted holds.
     """
     holds = holds.copy()
     F, L = cidx.shape
@@ -1357,9 +1358,9 @@ def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, cont
         along = [(late, 0.0), (early, np.pi)]
         aside = [(late, a) for a in SIDESTEP_ANGLES]
         moves = along + aside if it < iterations // 2 else aside + along
+        keeps = (level, None) if level is not None else (None,)
         moved = np.zeros(len(f), bool)
-        for (h_all, l_all), angle, keep in [m + (level,) for m in moves] + [m + (None,)
-                                                                            for m in moves]:
+        for keep, ((h_all, l_all), angle) in ((k, m) for k in keeps for m in moves):
             left = ~moved
             if not left.any():
                 break
