@@ -50,7 +50,7 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from baker.config import LegsConfig, RigConfig
 from baker.geometry.conventions import FORWARD, LEFT, UP
-from baker.geometry.ik import SOFT_START, bone_frames, soft_clamp, two_bone_ik
+from baker.geometry.ik import bone_frames, soft_clamp, two_bone_ik
 from baker.geometry.transforms import cross, normalize, quat_rotate
 from baker.locomotion.body import BodyFrames
 from baker.locomotion.gait import gait_clock
@@ -115,8 +115,8 @@ CHAIN_RAISE_RATE = np.radians(4.0)
 #: a swinging foot whose leg would pass through the environment is drawn toward its hip to
 #: the first of these fractions of its distance that clears
 PULL_IN = (0.85, 0.7, 0.55, 0.4)
-#: ... with the pull bending the knee by at most this much more or less per frame [rad]
-PULL_BEND_RATE = np.radians(10.0)
+#: ... with the pull changing by at most this fraction per frame
+PULL_RATE = 0.1
 #: swings turning the leg by more than this in a frame are re-timed to an even pace [rad]
 EVEN_SWING = np.radians(18.0)
 #: swings turning a leg joint (IK) by more than this in a frame are re-timed in joint space [deg]
@@ -1084,9 +1084,8 @@ def _even_joint_swings(target, hip, q, q_inv, fwd, left, lay, knee_out, cidx, LO
 def _pull_in_swings(rays, hip, target, sw, fwd, left, lay, knee_out, tol):
     """Swinging feet drawn toward their hips (by the smallest of PULL_IN that works) in frames
     where the leg (IK bones, or the straight hip->foot line) would pass through the
-    environment; the pull bends the knee by at most PULL_BEND_RATE more or less per frame and
-    is zero on planted frames (so at most PULL_BEND_RATE one frame after liftoff or before
-    touchdown)."""
+    environment; the pull changes by at most PULL_RATE per frame and is zero on planted
+    frames (so at most PULL_RATE one frame after liftoff or before touchdown)."""
     F, L, _ = target.shape
     f, l = np.nonzero(sw)
     if len(f) == 0:
@@ -1106,16 +1105,9 @@ def _pull_in_swings(rays, hip, target, sw, fwd, left, lay, knee_out, tol):
         todo[i[ok]] = False
     if not need.any():
         return target
-    # the pull is eased in the knee's bend, not in distance: near a straight knee a small
-    # change of reach bends the knee a lot (PULL_RATE of the distance from a nearly straight
-    # leg bends it by 30-40 degrees)
-    full = lay.l1 + lay.l2
-    d0 = np.linalg.norm(target - hip, axis=-1)                       # (F, L)
-    bend0 = _knee_bend(soft_clamp(d0, 0.0, full), lay.l1, lay.l2)
-    extra = np.zeros((F, L))
-    extra[f, l] = np.maximum(_knee_bend(soft_clamp((1.0 - need) * d0[f, l], 0.0, full),
-                                        lay.l1, lay.l2) - bend0[f, l], 0.0)
-    extra = _ramp(extra, PULL_BEND_RATE)
+    pull = np.zeros((F, L))
+    pull[f, l] = need
+    pull = _ramp(pull, PULL_RATE)
     # ... and grows from nothing at liftoff and back to nothing at touchdown
     run = np.zeros((F, L))
     for i in range(1, F):
@@ -1123,30 +1115,8 @@ def _pull_in_swings(rays, hip, target, sw, fwd, left, lay, knee_out, tol):
     back = np.zeros((F, L))
     for i in range(F - 2, -1, -1):
         back[i] = np.where(sw[i], back[i + 1] + 1.0, 0.0)
-    extra = np.minimum(extra, PULL_BEND_RATE * np.minimum(run, back))
-    d_new = _soft_unclamp(_knee_reach(np.minimum(bend0 + extra, np.pi), lay.l1, lay.l2), full)
-    scale = np.where(extra > 0.0, np.minimum(d_new / np.maximum(d0, 1e-12), 1.0), 1.0)
-    return hip + scale[..., None] * (target - hip)
-
-
-def _knee_bend(d, l1, l2):
-    """The knee's bend [rad] (0 straight) of a two-bone leg whose foot is d from its hip."""
-    c = np.clip((l1 * l1 + l2 * l2 - d * d) / (2.0 * l1 * l2), -1.0, 1.0)
-    return np.pi - np.arccos(c)
-
-
-def _knee_reach(bend, l1, l2):
-    """The hip -> foot distance of a two-bone leg whose knee bends by `bend` (_knee_bend's
-    inverse)."""
-    return np.sqrt(np.maximum(l1 * l1 + l2 * l2 + 2.0 * l1 * l2 * np.cos(bend), 0.0))
-
-
-def _soft_unclamp(d, full):
-    """The target distance that two_bone_ik's soft clamp (lo = 0) turns into `d` (< full)."""
-    s_hi = SOFT_START * full
-    w = full - s_hi
-    over = np.clip((d - s_hi) / w, 0.0, 1.0 - 1e-12)
-    return np.where(d > s_hi, s_hi - w * np.log1p(-over), d)
+    pull = np.minimum(pull, PULL_RATE * np.minimum(run, back))
+    return hip + (1.0 - pull)[..., None] * (target - hip)
 
 
 def _leg_blocked(rays, lay, legs, hip, target, fwd, left, knee_out, tol):
