@@ -10,7 +10,9 @@ Such a swing is replaced by one in the leg's own joint space: the upper bone's r
 (relative to its segment) and the tip bone's (relative to the upper bone) slerp from the last
 planted pose to the touchdown pose at an even pace, while the whole leg is raised about the
 body's long axis (through the hip) by a bump raise * profile(u); when that is not enough the
-knee also swivels round the hip -> foot line, or bends to tuck the foot in. Of the candidates,
+knee also swivels round the hip -> foot line, or bends to tuck the foot in; last, the best
+candidate so far has its fastest step spread evenly over the frames round it, on its own path
+(PEAK_SPREAD: a path clear of everything but for one fast turn). Of the candidates,
 the first that keeps every frame of the swing within all limits wins; when none does,
 the one with the fewest offending frames, and the planned swing stays when it has no more
 than that. A fault that breaks the bake's own limits (a bone through something, a foot deeper
@@ -51,6 +53,8 @@ DELAYS = (0.3, -0.3)
 EARLY_LIFT = 0.5
 #: ... keeping at least this many planted frames after the previous touchdown
 MIN_STANCE = 2
+#: entries on either side of a swing's fastest step over which the "peak" candidates spread it
+PEAK_SPREAD = (2, 4, 8)
 #: the cost of a fault that breaks a limit, against 1 for a near miss
 HARD = 100.0
 #: raise profiles over the swing's progress u: a plain bump, and two that rise sooner (off the
@@ -160,6 +164,31 @@ def _retimed(U, T, sid, u):
     span = np.maximum(key[j + 1] - key[j], 1e-15)
     t = np.clip((want - key[j]) / span, 0.0, 1.0)
     return quat_slerp(U[j], U[j + 1], t), quat_slerp(T[j], T[j + 1], t)
+
+
+def _peak_spread(U, T, sid, w: int):
+    """The swings' own poses (flat entries of swings `sid`, as _retimed) with each swing's
+    fastest step (the largest of the two bones' turns between entries) spread over the `w`
+    entries on either side of it, walked at an even pace in joint space there; the other
+    entries, and both ends of every swing, unchanged."""
+    n = len(sid)
+    same = sid[1:] == sid[:-1]
+    step = np.full(n, -1.0)
+    step[1:] = np.where(same, np.maximum(quat_angle(U[1:], U[:-1]), quat_angle(T[1:], T[:-1])),
+                        -1.0)
+    first = np.r_[0, np.nonzero(~same)[0] + 1]
+    runs = np.diff(np.r_[first, n])
+    g = np.repeat(np.arange(len(first)), runs)
+    idx = np.arange(n)
+    top = np.repeat(np.maximum.reduceat(step, first), runs)
+    peak = np.minimum.reduceat(np.where(step == top, idx, n), first)   # entry after the step
+    lo = np.maximum(first, peak - 1 - w)
+    hi = np.minimum(first + runs - 1, peak + w)
+    win = np.nonzero((idx >= lo[g]) & (idx <= hi[g]))[0]
+    u = (idx[win] - lo[g[win]]) / np.maximum(hi - lo, 1)[g[win]]
+    U, T = U.copy(), T.copy()
+    U[win], T[win] = _retimed(U[win], T[win], g[win], u)
+    return U, T
 
 
 def _world_paced(q_seg, sid, turn):
@@ -368,6 +397,43 @@ def _swings_pass(rays, hip, q_seg, side, l1, l2, lim: Limits, rounds, q_u, q_t, 
              np.where(r, end2, end)), sw, np.bincount(sw.sid, weights=final, minlength=sw.n))
 
 
+def _candidates() -> list:
+    """The joint-space candidates, in the order _redo tries them: (kind, raise profile, raise,
+    swivel, flex, delay, yaw). "plan" is the planner's swing, "even" the same path at an even
+    joint pace, "arc" the slerp from the last planted pose to the touchdown pose, "bump" the
+    current swing lifted round its crowded frame, "peak" the best so far with its fastest step
+    spread (raise: the entries on either side); a delay > 0 waits that fraction of the swing
+    at the start, < 0 lands that much early; a yaw swings the leg forward (> 0) or back round
+    the hip (a neighbour swinging at the same time gets out of the way)."""
+    out = [("plan", None, 0.0, 0.0, 0.0, 0.0, 0.0), ("even", None, 0.0, 0.0, 0.0, 0.0, 0.0)]
+    out += [("arc", p, r, 0.0, 0.0, 0.0, 0.0) for p in PROFILES for r in RAISES]
+    out += [("arc", PROFILES[0], r, sv, 0.0, 0.0, 0.0) for sv in SWIVELS
+            for r in RAISES[::2]]
+    out += [("arc", p, r, 0.0, fx, 0.0, 0.0) for fx in FLEXES for p in PROFILES
+            for r in RAISES[:4]]
+    out += [(kind, PROFILES[1], r, 0.0, 0.0, dl, 0.0) for dl in DELAYS
+            for kind, r in (("even", 0.0), ("arc", RAISES[1]), ("arc", RAISES[3]))]
+    out += [("arc", PROFILES[0], r, 0.0, 0.0, 0.0, yw) for yw in YAWS
+            for r in RAISES[1:4]]
+    out += [("bump", None, r, 0.0, 0.0, 0.0, 0.0) for r in RAISES[1:]]
+    out += [("arc", p, r, 0.0, fx, 0.0, 0.0) for fx in TUCKS for p in PROFILES[:2]
+            for r in RAISES[2::2]]
+    # last, the same paths paced so each frame's share of the leg's own turn shrinks by what
+    # the segment turns in the world that frame (a leg joint turns in the world by its turn
+    # relative to the body plus the body's own turn)
+    out += [("even/world", None, 0.0, 0.0, 0.0, 0.0, 0.0)]
+    out += [("arc/world", p, r, 0.0, 0.0, 0.0, 0.0) for p in PROFILES[:2] for r in RAISES]
+    # and the raises too steep at the ends for the turn limit (a sooner-rising profile turns the
+    # leg by raise x profile(1 / frames) in the first and last frame), eased: the raise grows
+    # and shrinks by at most RAISE_STEP x turn per frame from either end of the swing
+    out += [("arc/eased", p, r, 0.0, 0.0, 0.0, 0.0) for p in PROFILES
+            for r in RAISES[3:]]
+    # and the best so far, its fastest turn spread evenly over the frames round it, on its own
+    # path (a path clear of everything but for one fast turn)
+    out += [("peak", None, w, 0.0, 0.0, 0.0, 0.0) for w in PEAK_SPREAD]
+    return out
+
+
 def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, own, best,
           todo, redone, plan) -> None:
     """The swings flagged in `todo` (best: their current cost) get the best joint-space
@@ -384,12 +450,6 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
     axis = np.broadcast_to(_Z, (len(k), 3))
     U_first, U_last = U_all[sw.f[first], sw.lg[first]], U_all[sw.f[last], sw.lg[last]]
     T_first, T_last = T_all[sw.f[first], sw.lg[first]], T_all[sw.f[last], sw.lg[last]]
-    # (kind, raise profile, raise, swivel, flex, delay, yaw): "plan" is the planner's swing,
-    # "even" the same path at an even joint pace, "arc" the slerp from the last planted pose to
-    # the touchdown pose; a
-    # delay > 0 waits that fraction of the swing at the start, < 0 lands that much early; a
-    # yaw swings the leg forward (> 0) or back round the hip (a neighbour swinging at the same
-    # time gets out of the way)
     U_plan, T_plan = plan[0][f, lg], plan[1][f, lg]
     # where each swing first crowds a neighbour now: a local lift there is a candidate too
     crowd = _crowding(feet[f, lg], inner, near, lim) > 0
@@ -397,32 +457,11 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
     ck = np.nonzero(crowd)[0][::-1]
     u_c[sk[ck]] = u[ck]
     u_c = u_c[sk]
-    candidates = [("plan", None, 0.0, 0.0, 0.0, 0.0, 0.0), ("even", None, 0.0, 0.0, 0.0, 0.0, 0.0)]
-    candidates += [("arc", p, r, 0.0, 0.0, 0.0, 0.0) for p in PROFILES for r in RAISES]
-    candidates += [("arc", PROFILES[0], r, sv, 0.0, 0.0, 0.0) for sv in SWIVELS
-                   for r in RAISES[::2]]
-    candidates += [("arc", p, r, 0.0, fx, 0.0, 0.0) for fx in FLEXES for p in PROFILES
-                   for r in RAISES[:4]]
-    candidates += [(kind, PROFILES[1], r, 0.0, 0.0, dl, 0.0) for dl in DELAYS
-                   for kind, r in (("even", 0.0), ("arc", RAISES[1]), ("arc", RAISES[3]))]
-    candidates += [("arc", PROFILES[0], r, 0.0, 0.0, 0.0, yw) for yw in YAWS
-                   for r in RAISES[1:4]]
-    candidates += [("bump", None, r, 0.0, 0.0, 0.0, 0.0) for r in RAISES[1:]]
-    candidates += [("arc", p, r, 0.0, fx, 0.0, 0.0) for fx in TUCKS for p in PROFILES[:2]
-                   for r in RAISES[2::2]]
-    # last, the same paths paced so each frame's share of the leg's own turn shrinks by what
-    # the segment turns in the world that frame (a leg joint turns in the world by its turn
-    # relative to the body plus the body's own turn)
+    # paces: the segment's turn left to the leg (".../world"), raises eased from either end of
+    # the swing (".../eased")
     u_world = _world_paced(qs, sk, lim.turn)
-    candidates += [("even/world", None, 0.0, 0.0, 0.0, 0.0, 0.0)]
-    candidates += [("arc/world", p, r, 0.0, 0.0, 0.0, 0.0) for p in PROFILES[:2] for r in RAISES]
-    # and the raises too steep at the ends for the turn limit (a sooner-rising profile turns the
-    # leg by raise x profile(1 / frames) in the first and last frame), eased: the raise grows
-    # and shrinks by at most RAISE_STEP x turn per frame from either end of the swing
     from_end = np.minimum(f - sw.a[sk], sw.b[sk] - f)
-    candidates += [("arc/eased", p, r, 0.0, 0.0, 0.0, 0.0) for p in PROFILES
-                   for r in RAISES[3:]]
-    for kind, profile, r, swivel, flex, delay, yaw in candidates:
+    for kind, profile, r, swivel, flex, delay, yaw in _candidates():
         open_ = todo & (best > 0)
         if not open_.any():
             break
@@ -442,6 +481,8 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
             U, T = U_plan[j], T_plan[j]
         elif kind == "even":
             U, T = _retimed(U_plan[j], T_plan[j], sj, uj)
+        elif kind == "peak":
+            U, T = _peak_spread(chosen_U[j], chosen_T[j], sj, int(r))
         elif kind == "bump":              # the current swing, lifted round its crowded frame
             bump = np.nan_to_num(np.exp(-((uj - u_c[j]) / BUMP_WIDTH) ** 2) * np.sin(np.pi * uj))
             U = quat_mul(quat_about(axis[j], side[lg[j]] * r * bump), U0[j])

@@ -27,12 +27,16 @@ pytestmark = pytest.mark.slow
 #: over the ground; the swing onto it put its tip bone through the leaf) and default 110347
 #: (with level holds kept level whatever it cost, two planted feet stayed 0.189 spacing apart)
 #: and default 111304 (a swing whose faults lay in the legs' end margin, past the last frame,
-#: lifted off sooner and crossed its neighbour's foot ten frames before the end)
+#: lifted off sooner and crossed its neighbour's foot ten frames before the end) and
+#: multi-storey 111805 (a 236-frame swing of a hanging foot, drawn in toward its hip, folded
+#: its knee 31.9 deg in one frame, and every joint-space candidate kept a fault: the best one's
+#: fastest turn is now spread over the frames round it, swing.PEAK_SPREAD)
 CASES = [("floor", 9000, 20.0), ("floor", 9001, 20.0), ("far", 9002, 20.0),
          ("nav_test", 9001, 30.0), ("default", 94035, 12.0), ("floor", 97024, 8.0),
          ("default", 110113, 48.0), ("multistorey", 110010, 90.0),
          ("multistorey", 110416, 105.0), ("default", 110709, 55.0), ("default", 111002, 8.0),
-         ("default", 110347, 9.0), ("default", 111304, 60.0)]
+         ("default", 110347, 9.0), ("default", 111304, 60.0),
+         ("multistorey", 111805, 120.0)]
 
 
 @pytest.mark.parametrize("scene,seed,seconds", CASES, ids=lambda v: str(v))

@@ -237,3 +237,34 @@ def test_a_swing_after_a_short_stance_merges_with_the_swing_before(stance):
     for q in (qu, local_t):
         assert np.degrees(quat_angle(q[1:], q[:-1])).max() <= 27.0 + 1e-6
     np.testing.assert_allclose(pose[3][~swing2[:, 0], 0], t[~swing2[:, 0]], atol=1e-9)
+
+
+def test_a_swings_fastest_step_is_spread_over_the_frames_round_it_on_its_own_path():
+    """_peak_spread (the "peak" candidates): two swings of 12 entries whose upper bone turns
+    2 deg a frame but 40 deg in one step; with w = 3 the 40 deg step and the three entries on
+    either side walk the same path at an even pace, and everything else stays."""
+    from baker.geometry.transforms import quat_about
+    from baker.locomotion.swing import _peak_spread
+
+    deg = np.full(12, 2.0)
+    deg[0] = 0.0
+    deg[6] = 40.0                              # from entry 5 to entry 6
+    ang = np.radians(np.cumsum(deg))
+    U1 = quat_about(np.broadcast_to([0.0, 0.0, 1.0], (12, 3)), ang)
+    U = np.concatenate([U1, U1])
+    T = np.tile([0.0, 0.0, 0.0, 1.0], (24, 1))
+    sid = np.repeat([0, 1], 12)
+    U2, T2 = _peak_spread(U, T, sid, 3)
+    steps = np.degrees(quat_angle(U2[1:], U2[:-1]))
+    steps[11] = np.nan                                       # across the two swings
+    win = np.arange(2, 10)                                   # entries 2..9: the steps 3..9
+    for s in (0, 12):
+        st = steps[s:s + 11]
+        assert np.allclose(st[win[1:] - 1], (3 * 2.0 + 40.0 + 3 * 2.0) / 7.0, atol=1e-6)
+        assert np.nanmax(st) < 10.0
+        keep = np.setdiff1d(np.arange(12), win[1:-1]) + s    # outside the window and its ends
+        np.testing.assert_allclose(U2[keep], U[keep], atol=1e-12)
+    # on its own path: every new pose turns about the same axis, between its neighbours' angles
+    got = 2.0 * np.degrees(np.arctan2(U2[:12, 2], U2[:12, 3]))
+    assert np.all(np.diff(got) > 0.0) and np.isclose(got[-1], np.degrees(ang[-1]))
+    np.testing.assert_array_equal(T2, T)
