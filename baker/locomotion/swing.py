@@ -141,6 +141,28 @@ def _flex(U, T, angle, l1, l2):
     return np.where((out[0][1] <= out[1][1])[:, None], out[0][0], out[1][0])
 
 
+def _swing_runs(sid):
+    """(same (n-1,) bool: entries k and k+1 are one swing, first: each swing's first entry,
+    runs: each swing's entry count) of flat entries of swings `sid`."""
+    same = sid[1:] == sid[:-1]
+    first = np.r_[0, np.nonzero(~same)[0] + 1]
+    return same, first, np.diff(np.r_[first, len(sid)])
+
+
+def _joint_steps(U, T):
+    """(n-1,) the larger of the two bones' turns between consecutive entries."""
+    return np.maximum(quat_angle(U[1:], U[:-1]), quat_angle(T[1:], T[:-1]))
+
+
+def _run_progress(step, first, runs):
+    """(n,) each entry's share of its swing's summed `step` (step[first] is not counted): 0 at
+    each swing's first entry, 1 at its last."""
+    cum = np.cumsum(step)
+    cum -= np.repeat(cum[first], runs)
+    total = np.repeat(cum[first + runs - 1], runs)
+    return cum / np.maximum(total, 1e-12)
+
+
 def _retimed(U, T, sid, u):
     """The swings' own poses (U, T local rotations, flat entries of swings `sid` at progress
     `u`) walked at an even pace in joint space: entry k gets the pose at u_k of the swing's
@@ -148,16 +170,10 @@ def _retimed(U, T, sid, u):
     that turns a joint too fast in one frame spreads the turn over its frames, on its own
     path (both ends unchanged)."""
     n = len(sid)
+    same, first, runs = _swing_runs(sid)
     step = np.zeros(n)
-    same = sid[1:] == sid[:-1]
-    step[1:] = np.where(same, np.maximum(quat_angle(U[1:], U[:-1]),
-                                         quat_angle(T[1:], T[:-1])) + 1e-9, 0.0)
-    cum = np.cumsum(step)
-    first = np.r_[0, np.nonzero(~same)[0] + 1]
-    start = np.repeat(cum[first], np.diff(np.r_[first, n]))
-    cum -= start
-    total = np.repeat(cum[np.r_[first[1:] - 1, n - 1]], np.diff(np.r_[first, n]))
-    key = sid + cum / np.maximum(total, 1e-12) * (1.0 - 1e-9)
+    step[1:] = np.where(same, _joint_steps(U, T) + 1e-9, 0.0)
+    key = sid + _run_progress(step, first, runs) * (1.0 - 1e-9)
     want = sid + np.clip(u, 0.0, 1.0) * (1.0 - 1e-9)
     j = np.clip(np.searchsorted(key, want, side="right") - 1, 0, n - 2)
     j = np.where(sid[np.minimum(j + 1, n - 1)] == sid, j, j - 1)
@@ -172,12 +188,9 @@ def _peak_spread(U, T, sid, w: int):
     entries on either side of it, walked at an even pace in joint space there; the other
     entries, and both ends of every swing, unchanged."""
     n = len(sid)
-    same = sid[1:] == sid[:-1]
+    same, first, runs = _swing_runs(sid)
     step = np.full(n, -1.0)
-    step[1:] = np.where(same, np.maximum(quat_angle(U[1:], U[:-1]), quat_angle(T[1:], T[:-1])),
-                        -1.0)
-    first = np.r_[0, np.nonzero(~same)[0] + 1]
-    runs = np.diff(np.r_[first, n])
+    step[1:] = np.where(same, _joint_steps(U, T), -1.0)
     g = np.repeat(np.arange(len(first)), runs)
     idx = np.arange(n)
     top = np.repeat(np.maximum.reduceat(step, first), runs)
@@ -196,17 +209,11 @@ def _world_paced(q_seg, sid, turn):
     consecutive frames) paced by the turn left to the leg: each frame's step is `turn` less the
     segment's world rotation (q_seg (n, 4)) since the previous frame, at least a quarter of
     `turn`; 0 at each swing's first entry, 1 at its last."""
-    n = len(sid)
-    step = np.zeros(n)
-    same = sid[1:] == sid[:-1]
+    same, first, runs = _swing_runs(sid)
+    step = np.zeros(len(sid))
     step[1:] = np.where(same, np.maximum(turn - quat_angle(q_seg[1:], q_seg[:-1]), 0.25 * turn),
                         0.0)
-    cum = np.cumsum(step)
-    first = np.r_[0, np.nonzero(~same)[0] + 1]
-    runs = np.diff(np.r_[first, n])
-    cum -= np.repeat(cum[first], runs)
-    total = np.repeat(cum[np.r_[first[1:] - 1, n - 1]], runs)
-    return cum / np.maximum(total, 1e-12)
+    return _run_progress(step, first, runs)
 
 
 def _own_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same):
@@ -434,6 +441,10 @@ def _candidates() -> list:
     return out
 
 
+#: the candidates, in order (see _candidates)
+CANDIDATES = tuple(_candidates())
+
+
 def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, own, best,
           todo, redone, plan) -> None:
     """The swings flagged in `todo` (best: their current cost) get the best joint-space
@@ -461,7 +472,7 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
     # the swing (".../eased")
     u_world = _world_paced(qs, sk, lim.turn)
     from_end = np.minimum(f - sw.a[sk], sw.b[sk] - f)
-    for kind, profile, r, swivel, flex, delay, yaw in _candidates():
+    for kind, profile, r, swivel, flex, delay, yaw in CANDIDATES:
         open_ = todo & (best > 0)
         if not open_.any():
             break
