@@ -22,6 +22,16 @@ nearer than `gap`, a sliding touch). Both ends are the planted poses, so stances
 but for one last resort: a swing that still breaks a limit lifts off earlier (EARLY_LIFT of its
 length sooner) and is redone over the longer swing, kept where it costs less. All swings,
 candidates and frames are checked in flat batches (one ray batch per candidate).
+
+The very last resort, for a swing that every candidate leaves broken (`_repair`): its frames
+round the broken ones are searched afresh as a trellis. At each frame, poses are sampled round
+its current pose and round the slerp across the window (REPAIR_GRID: raises, yaws, knee
+swivels and tucks); poses with a bone through something or a foot deep in a solid are dropped,
+and trellis.cheapest_path picks the sequence with the fewest faults, every step between frames
+within the turn limit where it can be. Where a single fixed path family fails — a hip a few
+millimetres over the ground beside a bank, a landing pose that only clears the ground in its
+own frame — a path threaded pose by pose through what is clear usually exists. It is kept
+only where the swing then breaks a limit in fewer frames.
 """
 
 from __future__ import annotations
@@ -32,6 +42,7 @@ import numpy as np
 
 from baker.geometry.transforms import (quat_about, quat_angle, quat_conj, quat_mul, quat_rotate,
                                        quat_slerp)
+from baker.locomotion.trellis import cheapest_path
 
 #: deep tucks (the foot drawn up to the hip) tried with the larger raises, last [rad]
 TUCKS = np.radians([60.0, 90.0])
@@ -57,6 +68,19 @@ MIN_STANCE = 2
 PEAK_SPREAD = (2, 4, 8)
 #: the cost of a fault that breaks a limit, against 1 for a near miss
 HARD = 100.0
+#: the last resort's samples round each pose (raise about the body's long axis, yaw round the
+#: hip, knee swivel, tuck) [rad]; the unchanged pose first
+REPAIR_GRID = np.radians(np.stack(np.meshgrid(
+    [0.0, -15.0, 10.0, 20.0, 30.0, 45.0, 60.0, 80.0], [0.0, 15.0, -15.0, 30.0, -30.0],
+    [0.0, 30.0, -30.0], [0.0, 25.0, 50.0], indexing="ij"), -1).reshape(-1, 4))
+#: frames on either side of a broken swing's faults that the last resort may change
+REPAIR_MARGIN = 4
+#: the last resort's cost per radian of a turn beyond the limit (a path that cannot keep within
+#: it breaks it by as little as it can)
+OVER = 10.0
+#: the last resort's cost of a step between frames per unit of 1 - cos(half its largest turn):
+#: a tie-breaker for smooth paths, far below a near miss over any swing
+SMOOTH = 1e-2
 #: raise profiles over the swing's progress u: a plain bump, and two that rise sooner (off the
 #: ground and away from a neighbour's foot in the first frame)
 PROFILES = (lambda u: np.sin(np.pi * u), lambda u: np.sqrt(np.sin(np.pi * u)),
@@ -216,12 +240,10 @@ def _world_paced(q_seg, sid, turn):
     return _run_progress(step, first, runs)
 
 
-def _own_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same):
-    """(cost (n,), feet (n, 3)) per entry of flat swing frames (consecutive entries of one
-    swing are consecutive frames; `same[k]`: entries k and k+1 belong to one swing): a bone
-    through the environment; an inner frame's foot inside a solid; a joint turning more than
-    `turn` to the next entry; a foot touching a surface in this and the next entry while it
-    slides more than `slide`. A near miss costs 1, a broken limit HARD (see Limits)."""
+def _node_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner):
+    """(cost (n,), q_u, q_t, feet (n, 3), touch (n,) bool) of single poses: a bone through the
+    environment (HARD); an inner pose's foot inside a solid (1, HARD deeper than `deep`); touch:
+    the foot within `contact` of a surface."""
     q_u, q_t, mid, end = _pose(q_seg, hip, U, T, l1, l2)
     bad = rays.first_hit(hip, mid - hip, max_distance=l1 - 1e-9).hit
     bad |= rays.first_hit(mid, end - mid, max_distance=max(l2 - lim.tol, 0.0)).hit
@@ -233,9 +255,18 @@ def _own_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same):
     if lim.deep > 0.0 and len(k):
         k = k[~np.isfinite(rays.closest(end[k], lim.deep)[0])]
     cost[k] += HARD - 1.0
+    return cost, q_u, q_t, end, d < lim.contact
+
+
+def _own_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same):
+    """(cost (n,), feet (n, 3)) per entry of flat swing frames (consecutive entries of one
+    swing are consecutive frames; `same[k]`: entries k and k+1 belong to one swing): a bone
+    through the environment; an inner frame's foot inside a solid; a joint turning more than
+    `turn` to the next entry; a foot touching a surface in this and the next entry while it
+    slides more than `slide`. A near miss costs 1, a broken limit HARD (see Limits)."""
+    cost, q_u, q_t, end, touch = _node_faults(rays, lim, hip, q_seg, U, T, l1, l2, inner)
     if len(U) > 1:
         steps = np.maximum.reduce([quat_angle(x[:-1], x[1:]) for x in (U, T, q_u, q_t)])
-        touch = d < lim.contact
         slide = np.linalg.norm(np.diff(end, axis=0), axis=1)
         cost[:-1] += same & touch[:-1] & touch[1:] & (slide > lim.slide)
         hard = lim.turn if lim.hard_turn is None else lim.hard_turn
@@ -396,10 +427,15 @@ def _swings_pass(rays, hip, q_seg, side, l1, l2, lim: Limits, rounds, q_u, q_t, 
             if todo.any():
                 _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw, feet, own, best,
                       todo, redone, plan)
+    final = own + w * _crowding(feet[f, lg], sw.inner, sw.near(feet, np.arange(len(f))), lim)
+    broken = np.bincount(sw.sid, weights=final, minlength=sw.n)
+    if (broken >= HARD).any():
+        _repair(rays, lim, hip, q_seg, side, l1, l2, sw, U_all, T_all, feet, own, w, redone,
+                broken)
+        final = own + w * _crowding(feet[f, lg], sw.inner, sw.near(feet, np.arange(len(f))), lim)
     q_u2, q_t2, mid2, end2 = _pose(q_seg, hip, U_all, T_all, l1, l2)
     # frames left as planned keep the planner's exact numbers (no round trip through rotations)
     r = redone[..., None]
-    final = own + w * _crowding(feet[f, lg], sw.inner, sw.near(feet, np.arange(len(f))), lim)
     return ((np.where(r, q_u2, q_u), np.where(r, q_t2, q_t), np.where(r, mid2, mid),
              np.where(r, end2, end)), sw, np.bincount(sw.sid, weights=final, minlength=sw.n))
 
@@ -525,3 +561,117 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
     redone[f[changed], lg[changed]] = True
     feet[f[changed], lg[changed]] = _pose(qs[changed], hp[changed], chosen_U[changed],
                                           chosen_T[changed], l1, l2)[3]
+
+
+def _grid_poses(U, T, side, l1, l2):
+    """(n, G, 4) local poses U, T (n, 4) each turned by every REPAIR_GRID entry (the leg raised
+    about the body's long axis, swivelled round the hip -> foot line, yawed round the hip, the
+    foot tucked in); side: +1 left, -1 right."""
+    n, G = len(U), len(REPAIR_GRID)
+    r, yaw, swivel, flex = (np.tile(REPAIR_GRID[:, i], n) for i in range(4))
+    Ub, Tb = np.repeat(U, G, axis=0), np.repeat(T, G, axis=0)
+    Ub = quat_mul(quat_about(np.broadcast_to(_Z, (n * G, 3)), side * r), Ub)
+    Ub = _swivel(Ub, Tb, swivel, l1, l2)
+    Ub = quat_mul(quat_about(np.broadcast_to(_Y, (n * G, 3)), side * yaw), Ub)
+    Tb = _flex(Ub, Tb, flex, l1, l2)
+    return Ub.reshape(n, G, 4), Tb.reshape(n, G, 4)
+
+
+@dataclass
+class _Layer:
+    """The sampled poses of one frame of a repaired swing (see _searched): Q (4, n, 4) their
+    local and world upper and tip bone rotations (U, T, q_u, q_t; float32: only turns between
+    frames are read from them, and the swing is checked afresh), their feet, which touch a
+    surface, their own costs and the frame's weight."""
+
+    Q: np.ndarray
+    end: np.ndarray
+    touch: np.ndarray
+    cost: np.ndarray
+    w: float
+
+
+def _step_cost(a: _Layer, b: _Layer, lim: Limits) -> np.ndarray:
+    """(n_a, n_b) the cost of stepping from each pose of layer a to each of the next frame's b:
+    a joint turning more than `turn` (1) or `hard_turn` (HARD, and OVER per radian beyond it),
+    a touching foot sliding (1), and SMOOTH x (1 - cos(half the largest turn))."""
+    d = np.abs(np.matmul(a.Q, b.Q.transpose(0, 2, 1)))         # cos(half of each turn)
+    dot = np.minimum(np.minimum(d[0], d[1]), np.minimum(d[2], d[3])).astype(np.float64)
+    hard = lim.turn if lim.hard_turn is None else lim.hard_turn
+    c = (dot < np.cos(0.5 * lim.turn)) + (HARD - 1.0) * (dot < np.cos(0.5 * hard))
+    over = np.nonzero(dot < np.cos(0.5 * hard))
+    c[over] += OVER * (2.0 * np.arccos(dot[over]) - hard)
+    i, j = np.nonzero(a.touch)[0], np.nonzero(b.touch)[0]
+    if len(i) and len(j):
+        slide = np.linalg.norm(a.end[i, None] - b.end[None, j], axis=2) > lim.slide
+        c[np.ix_(i, j)] += slide
+    return a.w * c + SMOOTH * (1.0 - dot)
+
+
+def _searched(rays, lim: Limits, hp, qs, U, T, near, w, side, l1, l2, lo: int, hi: int):
+    """The frames strictly between entries lo and hi of one swing (hp, qs, U, T, near (the
+    neighbours' feet), w: per entry) re-chosen among poses sampled round the current ones and
+    round the slerp from lo's pose to hi's (REPAIR_GRID), as the cheapest sequence from lo's
+    pose to hi's (trellis.cheapest_path). Returns the swing's (U, T) with those frames
+    replaced."""
+    free = np.arange(lo + 1, hi)
+    m = len(free)
+    t = (free - lo) / (hi - lo)
+    arc_U = quat_slerp(np.broadcast_to(U[lo], (m, 4)), np.broadcast_to(U[hi], (m, 4)), t)
+    arc_T = quat_slerp(np.broadcast_to(T[lo], (m, 4)), np.broadcast_to(T[hi], (m, 4)), t)
+    Us, Ts = (np.concatenate(p, axis=1) for p in zip(_grid_poses(U[free], T[free], side, l1, l2),
+                                                    _grid_poses(arc_U, arc_T, side, l1, l2)))
+    S = Us.shape[1]
+    all_U = np.concatenate([Us.reshape(-1, 4), U[[lo, hi]]])   # the samples, then lo's, hi's
+    all_T = np.concatenate([Ts.reshape(-1, 4), T[[lo, hi]]])
+    at = np.r_[np.repeat(free, S), lo, hi]                      # each row's entry
+    sampled = np.arange(len(at)) < m * S
+    cost, q_u, q_t, end, touch = _node_faults(rays, lim, hp[at], qs[at], all_U, all_T, l1, l2,
+                                              sampled)
+    cost += _crowding(end, sampled, near[at], lim)
+    # a layer per frame: lo's pose, each frame's samples clear of every hard fault (and its
+    # unchanged pose, so that a path always exists), hi's pose
+    kept = [np.r_[m * S]] + [j * S + np.nonzero((cost[j * S:(j + 1) * S] < HARD) |
+                                                (np.arange(S) == 0))[0] for j in range(m)]
+    kept.append(np.r_[m * S + 1])
+    layers = [_Layer(np.stack([all_U[rows], all_T[rows], q_u[rows], q_t[rows]]).astype(np.float32),
+                     end[rows], touch[rows], w[at[rows[0]]] * cost[rows] * sampled[rows],
+                     float(w[at[rows[0]]])) for rows in kept]
+    pick, _ = cheapest_path([x.cost for x in layers],
+                            lambda k: _step_cost(layers[k], layers[k + 1], lim))
+    U, T = U.copy(), T.copy()
+    U[free] = [all_U[rows[p]] for rows, p in zip(kept[1:-1], pick[1:-1])]
+    T[free] = [all_T[rows[p]] for rows, p in zip(kept[1:-1], pick[1:-1])]
+    return U, T
+
+
+def _repair(rays, lim: Limits, hip, q_seg, side, l1, l2, sw: _Swings, U_all, T_all, feet, own,
+            w, redone, cost) -> None:
+    """The last resort for each swing still breaking a limit (cost >= HARD): its frames from
+    REPAIR_MARGIN before its first broken frame to as many after its last are searched afresh
+    (_searched) and kept where the whole swing then costs less and breaks a limit in fewer
+    frames. U_all, T_all (local poses), feet, own (per-entry own costs) and redone are updated
+    in place."""
+    for i in np.nonzero(cost >= HARD)[0]:
+        k = np.nonzero(sw.sid == i)[0]
+        f, lg = sw.f[k], sw.lg[k[0]]
+        near = sw.near(feet, k)
+        now = own[k] + w[k] * _crowding(feet[f, lg], sw.inner[k], near, lim)
+        bad = np.nonzero(now >= HARD)[0]
+        if len(bad) == 0:
+            continue
+        lo = max(bad[0] - REPAIR_MARGIN, 0)
+        hi = min(bad[-1] + 1 + REPAIR_MARGIN, len(k) - 1)
+        hp, qs = hip[f, lg], q_seg[f, lg]
+        U, T = _searched(rays, lim, hp, qs, U_all[f, lg], T_all[f, lg], near, w[k], side[lg],
+                         l1, l2, lo, hi)
+        c_own, end = _own_faults(rays, lim, hp, qs, U, T, l1, l2, sw.inner[k],
+                                 np.ones(len(k) - 1, bool))
+        c_own *= w[k]
+        new = c_own + w[k] * _crowding(end, sw.inner[k], near, lim)
+        if new.sum() >= now.sum() or (new >= HARD).sum() >= len(bad):
+            continue                     # kept only with fewer broken frames, and cheaper
+        changed = (np.any(U != U_all[f, lg], axis=-1) | np.any(T != T_all[f, lg], axis=-1))
+        U_all[f, lg], T_all[f, lg], own[k] = U, T, c_own
+        feet[f, lg] = end
+        redone[f[changed], lg] = True

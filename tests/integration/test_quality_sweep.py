@@ -30,13 +30,16 @@ pytestmark = pytest.mark.slow
 #: lifted off sooner and crossed its neighbour's foot ten frames before the end) and
 #: multi-storey 111805 (a 236-frame swing of a hanging foot, drawn in toward its hip, folded
 #: its knee 31.9 deg in one frame, and every joint-space candidate kept a fault: the best one's
-#: fastest turn is now spread over the frames round it, swing.PEAK_SPREAD)
+#: fastest turn is now spread over the frames round it, swing.PEAK_SPREAD) and default 112319
+#: (the first swing, its hip 5 mm over the ground beside a 47 deg bank: every candidate put
+#: the tip bone through the bank or turned a joint too fast; the trellis search over sampled
+#: poses, swing._repair, finds a clear path within the turn limit)
 CASES = [("floor", 9000, 20.0), ("floor", 9001, 20.0), ("far", 9002, 20.0),
          ("nav_test", 9001, 30.0), ("default", 94035, 12.0), ("floor", 97024, 8.0),
          ("default", 110113, 48.0), ("multistorey", 110010, 90.0),
          ("multistorey", 110416, 105.0), ("default", 110709, 55.0), ("default", 111002, 8.0),
          ("default", 110347, 9.0), ("default", 111304, 60.0),
-         ("multistorey", 111805, 120.0)]
+         ("multistorey", 111805, 120.0), ("default", 112319, 4.0)]
 
 
 @pytest.mark.parametrize("scene,seed,seconds", CASES, ids=lambda v: str(v))

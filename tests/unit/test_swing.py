@@ -268,3 +268,57 @@ def test_a_swings_fastest_step_is_spread_over_the_frames_round_it_on_its_own_pat
     got = 2.0 * np.degrees(np.arctan2(U2[:12, 2], U2[:12, 3]))
     assert np.all(np.diff(got) > 0.0) and np.isclose(got[-1], np.degrees(ang[-1]))
     np.testing.assert_array_equal(T2, T)
+
+
+def test_the_cheapest_path_through_a_trellis_is_the_brute_force_minimum():
+    """trellis.cheapest_path against every path of small random trellises."""
+    import itertools
+
+    from baker.locomotion.trellis import cheapest_path
+
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        sizes = rng.integers(1, 5, size=rng.integers(2, 5))
+        node = [rng.random(n) for n in sizes]
+        edge = [rng.random((a, b)) for a, b in zip(sizes[:-1], sizes[1:])]
+
+        def total(p):
+            return sum(node[k][i] for k, i in enumerate(p)) + sum(
+                edge[k][p[k], p[k + 1]] for k in range(len(p) - 1))
+
+        best = min(itertools.product(*[range(n) for n in sizes]), key=total)
+        pick, cost = cheapest_path(node, lambda k: edge[k])
+        assert np.isclose(cost, total(best)) and np.isclose(total(tuple(pick)), cost)
+
+
+def test_the_last_resort_finds_a_clear_path_over_a_wall_within_the_turn_limit():
+    """_searched (the trellis search for a swing that still breaks a limit): a foot swinging
+    along the floor from A to B, through a 6 cm wall between them, every bone of the middle
+    frames through it. Re-chosen among sampled poses, the swing keeps every bone clear and
+    every joint within 27 deg a frame; its ends stay."""
+    from baker.geometry.transforms import quat_rotate
+    from baker.locomotion.swing import _searched
+
+    box = trimesh.creation.box(extents=[0.2, 0.06, 0.03])
+    box.apply_translation([0.2, 0.03, 0.0])
+    env = trimesh.util.concatenate([ground().mesh, box])
+    rays = RayCaster(trimesh.Trimesh(env.vertices, env.faces, process=False))
+    u = np.linspace(0.0, 1.0, 8)
+    t = np.array([0.17, 0.0, -0.08]) + np.outer(u, [0.0, 0.0, 0.16])
+    q_u, q_t, mid, end = leg(t)
+    hip = np.broadcast_to(HIP, (8, 3))
+    q_seg = np.tile([0.0, 0.0, 0.0, 1.0], (8, 1))
+    U, T = q_u, quat_mul(quat_conj(q_u), q_t)
+    hit = rays.first_hit(mid, end - mid, max_distance=L2 - LIM.tol).hit
+    assert hit[1:-1].any()                                    # the floor path meets the wall
+    near = np.full((8, 2, 3), np.nan)
+    U2, T2 = _searched(rays, LIM, hip, q_seg, U, T, near, np.ones(8), 1.0, L1, L2, 0, 7)
+    qu2, qt2 = U2, quat_mul(U2, T2)
+    knee = hip + quat_rotate(qu2, L1 * np.array([0.0, 1.0, 0.0]))
+    foot = knee + quat_rotate(qt2, L2 * np.array([0.0, 1.0, 0.0]))
+    assert not rays.first_hit(hip, knee - hip, max_distance=L1 - 1e-9).hit.any()
+    assert not rays.first_hit(knee, foot - knee, max_distance=L2 - LIM.tol).hit.any()
+    for q in (U2, T2, qu2, qt2):
+        assert np.degrees(quat_angle(q[1:], q[:-1])).max() <= 27.0
+    np.testing.assert_array_equal(U2[[0, -1]], U[[0, -1]])
+    np.testing.assert_array_equal(T2[[0, -1]], T[[0, -1]])
