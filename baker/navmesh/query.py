@@ -315,19 +315,21 @@ def _locate(s: NavSurface, points: np.ndarray, tol: float, _retry: bool = True):
         bestd[j[better]] = d[better]
         k += 1
     if _retry and (best < 0).any():
-        # points on a cell border (path corners often are): try the neighbouring columns
+        # points on a cell border (path corners often are): try the neighbouring columns, all
+        # eight nudges in one batch; each point takes the first of them (in this order) to hit
         miss = np.nonzero(best < 0)[0]
         eps = 1e-6 * s.cell_size
-        for ox, oz in ((eps, 0), (-eps, 0), (0, eps), (0, -eps), (eps, eps), (-eps, -eps),
-                       (eps, -eps), (-eps, eps)):
-            q = pts[miss] + [ox, 0.0, oz]
-            b2, h2 = _locate(s, q, tol, _retry=False)
-            got = b2 >= 0
-            best[miss[got]] = b2[got]
-            besth[miss[got]] = h2[got]
-            miss = miss[~got]
-            if len(miss) == 0:
-                break
+        nudge = np.array([[eps, 0.0, 0.0], [-eps, 0.0, 0.0], [0.0, 0.0, eps], [0.0, 0.0, -eps],
+                          [eps, 0.0, eps], [-eps, 0.0, -eps], [eps, 0.0, -eps],
+                          [-eps, 0.0, eps]])
+        q = (pts[miss][None, :, :] + nudge[:, None, :]).reshape(-1, 3)
+        b2, h2 = _locate(s, q, tol, _retry=False)
+        b2, h2 = b2.reshape(len(nudge), len(miss)), h2.reshape(len(nudge), len(miss))
+        got = b2 >= 0
+        first = np.argmax(got, axis=0)
+        some = np.nonzero(got.any(axis=0))[0]
+        best[miss[some]] = b2[first[some], some]
+        besth[miss[some]] = h2[first[some], some]
     return best, besth
 
 
