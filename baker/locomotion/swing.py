@@ -30,8 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from baker.geometry.transforms import (quat_about, quat_angle, quat_conj, quat_mul, quat_rotate,
-                                       quat_slerp)
+from baker.geometry.transforms import (normalize, quat_about, quat_angle, quat_conj, quat_mul,
+                                       quat_rotate, quat_slerp)
 
 #: deep tucks (the foot drawn up to the hip) tried with the larger raises, last [rad]
 TUCKS = np.radians([60.0, 90.0])
@@ -223,15 +223,20 @@ def _own_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same):
     `turn` to the next entry; a foot touching a surface in this and the next entry while it
     slides more than `slide`. A near miss costs 1, a broken limit HARD (see Limits)."""
     q_u, q_t, mid, end = _pose(q_seg, hip, U, T, l1, l2)
-    bad = rays.first_hit(hip, mid - hip, max_distance=l1 - 1e-9).hit
-    bad |= rays.first_hit(mid, end - mid, max_distance=max(l2 - lim.tol, 0.0)).hit
-    cost = HARD * bad
-    d = rays.closest(end, lim.contact)[0]
+    # both bones' rays in one batch (each ray's hit is its own: Embree casts them one by one)
+    n = len(hip)
+    prim = rays.cast(np.concatenate([hip, mid]),
+                     np.concatenate([normalize(mid - hip), normalize(end - mid)]),
+                     np.repeat([l1 - 1e-9, max(l2 - lim.tol, 0.0)], n))[1]
+    cost = HARD * ((prim[:n] >= 0) | (prim[n:] >= 0))
+    # each foot's distance to the surface, uncapped: the touch and the depth are both read
+    # from it (the same distance a capped query returns within its cap)
+    d = rays.closest(end, np.inf)[0]
     k = np.nonzero(inner)[0]
     k = k[rays.inside(end[k])]
     cost[k] += 1.0
     if lim.deep > 0.0 and len(k):
-        k = k[~np.isfinite(rays.closest(end[k], lim.deep)[0])]
+        k = k[~(d[k] <= lim.deep)]
     cost[k] += HARD - 1.0
     if len(U) > 1:
         steps = np.maximum.reduce([quat_angle(x[:-1], x[1:]) for x in (U, T, q_u, q_t)])
