@@ -11,8 +11,17 @@ def normalize(v: np.ndarray, eps: float = 1e-12) -> np.ndarray:
 
     v : (..., n) float
     """
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return v / np.maximum(n, eps)
+    v = np.asarray(v)
+    return v / np.maximum(norm3(v) if v.shape[-1:] == (3,) and v.dtype == np.float64
+                          else np.linalg.norm(v, axis=-1, keepdims=True), eps)
+
+
+def norm3(v: np.ndarray) -> np.ndarray:
+    """(..., 1) lengths of float64 3-vectors (..., 3): np.linalg.norm(v, axis=-1,
+    keepdims=True)'s arithmetic (the squares summed left to right, the same bits) without its
+    reduction over a 3-long axis, which costs several times the products."""
+    s = v * v
+    return np.sqrt((s[..., 0] + s[..., 1]) + s[..., 2])[..., None]
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
