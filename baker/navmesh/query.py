@@ -343,16 +343,25 @@ def layer_height(s: NavSurface, x: float, y: float, z: float, tol: float) -> flo
     nx, nz = s.shape
     if not (0 <= ix < nx and 0 <= iz < nz):
         return math.nan
-    col = ix * nz + iz
-    a, b = int(s.col_start[col]), int(s.col_start[col + 1])
     best, bestd = math.nan, tol
-    for k in range(a, b):
-        px, py, pz = s.positions[k].tolist()
-        nxk, nyk, nzk = s.normals[k].tolist()
+    for (px, py, pz), (nxk, nyk, nzk) in _column_planes(s, ix * nz + iz):
         h = py - (nxk * (x - px) + nzk * (z - pz)) / nyk
         if abs(h - y) <= bestd:
             best, bestd = h, abs(h - y)
     return best
+
+
+def _column_planes(s: NavSurface, col: int) -> list:
+    """[(position, normal), ...] of the samples of column `col`, top to bottom, as Python floats
+    (each column read from the arrays once per surface: layer_height runs every step)."""
+    cols = s._cache.get("column_planes")
+    if cols is None:
+        cols = s._cache["column_planes"] = {}
+    planes = cols.get(col)
+    if planes is None:
+        a, b = int(s.col_start[col]), int(s.col_start[col + 1])
+        planes = cols[col] = list(zip(s.positions[a:b].tolist(), s.normals[a:b].tolist()))
+    return planes
 
 
 def _default_tol(s: NavSurface) -> float:
