@@ -12,16 +12,24 @@ def normalize(v: np.ndarray, eps: float = 1e-12) -> np.ndarray:
     v : (..., n) float
     """
     v = np.asarray(v)
-    return v / np.maximum(norm3(v) if v.shape[-1:] == (3,) and v.dtype == np.float64
-                          else np.linalg.norm(v, axis=-1, keepdims=True), eps)
+    if v.dtype == np.float64 and v.shape[-1:] in ((3,), (4,)):
+        n = np.sqrt(dot(v, v))[..., None]      # np.linalg.norm's bits (see dot)
+    else:
+        n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.maximum(n, eps)
 
 
-def norm3(v: np.ndarray) -> np.ndarray:
-    """(..., 1) lengths of float64 3-vectors (..., 3): np.linalg.norm(v, axis=-1,
-    keepdims=True)'s arithmetic (the squares summed left to right, the same bits) without its
-    reduction over a 3-long axis, which costs several times the products."""
-    s = v * v
-    return np.sqrt((s[..., 0] + s[..., 1]) + s[..., 2])[..., None]
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(...) np.sum(a * b, axis=-1): for float64 3- and 4-vectors the products summed left to
+    right, as numpy sums a 3- or 4-long last axis (the same bits; np.linalg.norm sums the
+    squares so too), without its reduction's cost (several times the products')."""
+    p = np.multiply(a, b)
+    if p.dtype != np.float64 or p.shape[-1:] not in ((3,), (4,)):
+        return np.sum(p, axis=-1)
+    out = p[..., 0] + p[..., 1]
+    for k in range(2, p.shape[-1]):
+        out = out + p[..., k]
+    return out
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -74,7 +82,7 @@ def quat_conj(q: np.ndarray) -> np.ndarray:
 
 def quat_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angle [rad] of the rotation between unit xyzw quaternions a and b (..., 4)."""
-    d = np.abs(np.sum(a * b, axis=-1))
+    d = np.abs(dot(a, b))
     return 2.0 * np.arccos(np.clip(d, 0.0, 1.0))
 
 
@@ -105,7 +113,7 @@ def limit_rotation(q: np.ndarray, max_angle: float) -> np.ndarray:
 def quat_slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Spherical interpolation from unit quaternions a to b (..., 4) at t (...), the short way
     round; nearly equal rotations fall back to a normalized lerp."""
-    d = np.sum(a * b, axis=-1)
+    d = dot(a, b)
     b = np.where((d < 0.0)[..., None], -b, b)
     d = np.abs(d)
     t = np.asarray(t, dtype=np.float64)[..., None]
