@@ -30,6 +30,7 @@ import numpy as np
 from baker.behaviour.intent import Intent
 from baker.config import RigConfig
 from baker.geometry import polyline
+from baker.geometry.transforms import cross
 from baker.locomotion.agent import PathAgent
 from baker.locomotion.body import project_to_surface
 from baker.locomotion.head import HeadSteer
@@ -256,7 +257,7 @@ class Follower:
         if np.linalg.norm(f) < 1e-9:
             f = self.head.heading - (self.head.heading @ n) * n
         f = f / max(np.linalg.norm(f), 1e-12)
-        left = np.cross(n, f)
+        left = cross(n, f)
         ground = np.array([p[0], self.height, p[2]])
         h, side_x, side_cos, sin, cos = self._lever_rays
         hits = self.rays.first_hit(ground + h * n + side_x * left, side_cos * left + sin * f,
