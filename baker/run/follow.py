@@ -30,7 +30,7 @@ import numpy as np
 from baker.behaviour.intent import Intent
 from baker.config import RigConfig
 from baker.geometry import polyline
-from baker.geometry.transforms import cross
+from baker.geometry.transforms import cross, normalize
 from baker.locomotion.agent import PathAgent
 from baker.locomotion.body import project_to_surface
 from baker.locomotion.head import HeadSteer
@@ -59,6 +59,8 @@ MIN_TURN = 0.75
 #: [rad] directions of the rays that measure the room beside the hips (as the legs' anchors
 #: do): straight out, ahead and behind
 WALL_YAWS = np.radians([0.0, 40.0, -40.0])
+#: straight down (the ray under the head in _leg_lever)
+_DOWN = np.array([[0.0, -1.0, 0.0]])
 
 
 class Follower:
@@ -247,9 +249,10 @@ class Follower:
         surface, straight out, ahead and behind, at hip and knee height, as the legs' anchors
         measure the room beside them."""
         hip_x, _, _, reach = self._hip
-        down = self.rays.cast_down(np.array([[p[0], self.height, p[2]]]), self.probe,
-                                   2.0 * self.probe)
-        n = down.normals[0] if down.hit[0] else np.array([0.0, 1.0, 0.0])
+        # the ground's normal from a ray cast down (rays.cast_down's ray), facing up
+        prim = self.rays.cast(np.array([[p[0], self.height + self.probe, p[2]]]), _DOWN,
+                              2.0 * self.probe)[1][0]
+        n = self.rays.face_normals[prim] if prim >= 0 else np.array([0.0, 1.0, 0.0])
         if n[1] < 0.0:
             n = -n
         f = np.array([dx, 0.0, dz])
@@ -260,9 +263,9 @@ class Follower:
         left = cross(n, f)
         ground = np.array([p[0], self.height, p[2]])
         h, side_x, side_cos, sin, cos = self._lever_rays
-        hits = self.rays.first_hit(ground + h * n + side_x * left, side_cos * left + sin * f,
-                                   max_distance=1.2 * reach)
-        free = np.where(hits.hit, hits.distance * cos[:, 0], np.inf)
+        t, prim = self.rays.cast(ground + h * n + side_x * left,
+                                 normalize(side_cos * left + sin * f), 1.2 * reach)
+        free = np.where(prim >= 0, t * cos[:, 0], np.inf)
         return float(folded_lever(free.min(), reach, hip_x))
 
     def _avoiding(self, others: np.ndarray):
