@@ -32,6 +32,13 @@ def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
+def length(v: np.ndarray) -> np.ndarray:
+    """(...) np.linalg.norm(v, axis=-1): for float64 vectors the square root of dot(v, v), the
+    same bits without the reduction's cost."""
+    v = np.asarray(v)
+    return np.sqrt(dot(v, v)) if v.dtype == np.float64 else np.linalg.norm(v, axis=-1)
+
+
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Cross products of 3-vectors (..., 3), broadcast: np.cross's arithmetic (the same bits)
     without its axis handling, which costs more than the products on small batches."""

@@ -30,8 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from baker.geometry.transforms import (normalize, quat_about, quat_angle, quat_conj, quat_mul,
-                                       quat_rotate, quat_slerp)
+from baker.geometry.transforms import (length, normalize, quat_about, quat_angle, quat_conj,
+                                       quat_mul, quat_rotate, quat_slerp)
 
 #: deep tucks (the foot drawn up to the hip) tried with the larger raises, last [rad]
 TUCKS = np.radians([60.0, 90.0])
@@ -126,7 +126,7 @@ def _swivel(U, T, angle, l1, l2):
     """Upper-bone local rotations U (n, 4) turned by `angle` (n,) about the hip -> foot line
     (segment frame): the knee swings round, the foot stays."""
     foot = quat_rotate(U, l1 * _Y) + quat_rotate(quat_mul(U, T), l2 * _Y)
-    axis = foot / np.maximum(np.linalg.norm(foot, axis=-1, keepdims=True), 1e-12)
+    axis = foot / np.maximum(length(foot)[..., None], 1e-12)
     return quat_mul(quat_about(axis, angle), U)
 
 
@@ -137,7 +137,7 @@ def _flex(U, T, angle, l1, l2):
     for sgn in (1.0, -1.0):
         Tk = quat_mul(quat_about(np.broadcast_to(_X, U.shape[:-1] + (3,)), sgn * angle), T)
         foot = quat_rotate(U, l1 * _Y) + quat_rotate(quat_mul(U, Tk), l2 * _Y)
-        out.append((Tk, np.linalg.norm(foot, axis=-1)))
+        out.append((Tk, length(foot)))
     return np.where((out[0][1] <= out[1][1])[:, None], out[0][0], out[1][0])
 
 
@@ -241,7 +241,7 @@ def _own_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same):
     if len(U) > 1:
         steps = np.maximum.reduce([quat_angle(x[:-1], x[1:]) for x in (U, T, q_u, q_t)])
         touch = d < lim.contact
-        slide = np.linalg.norm(np.diff(end, axis=0), axis=1)
+        slide = length(np.diff(end, axis=0))
         cost[:-1] += same & touch[:-1] & touch[1:] & (slide > lim.slide)
         hard = lim.turn if lim.hard_turn is None else lim.hard_turn
         cost[:-1] += same & (steps > lim.turn)
@@ -253,7 +253,7 @@ def _crowding(end, inner, near_feet, lim: Limits):
     """(n,) the cost of an inner frame's foot (n, 3) near a neighbour's foot (near_feet
     (n, 2, 3), NaN for none): 1 within lim.gap, HARD within lim.hard_gap."""
     with np.errstate(invalid="ignore"):
-        d = np.nanmin(np.linalg.norm(near_feet - end[:, None], axis=2), axis=1, initial=np.inf)
+        d = np.nanmin(length(near_feet - end[:, None]), axis=1, initial=np.inf)
     hard = lim.gap if lim.hard_gap is None else lim.hard_gap
     return inner * ((d < lim.gap) + (HARD - 1.0) * (d < hard))
 
