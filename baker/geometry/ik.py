@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from baker.geometry.transforms import cross, normalize
+from baker.geometry.transforms import cross, dot, length, normalize
 
 #: fraction of the full reach (l1 + l2) where the soft clamp starts
 SOFT_START = 0.96
@@ -62,7 +62,7 @@ def two_bone_ik(root: np.ndarray, target: np.ndarray, pole: np.ndarray,
     l1 = np.asarray(l1, dtype=np.float64)
     l2 = np.asarray(l2, dtype=np.float64)
     v = target - root
-    d_raw = np.linalg.norm(v, axis=-1)
+    d_raw = length(v)
     u = v / np.maximum(d_raw, 1e-12)[..., None]
     # degenerate target at the root: reach along the pole's perpendicular fallback
     u = np.where((d_raw > 1e-12)[..., None], u, normalize(cross(pole, [0.0, 0.0, 1.0]) + 1e-9))
@@ -70,8 +70,8 @@ def two_bone_ik(root: np.ndarray, target: np.ndarray, pole: np.ndarray,
     hi = l1 + l2
     d = soft_clamp(d_raw, lo, hi)
     p = np.asarray(pole, dtype=np.float64)
-    w = p - np.sum(p * u, axis=-1, keepdims=True) * u
-    wn = np.linalg.norm(w, axis=-1, keepdims=True)
+    w = p - dot(p, u)[..., None] * u
+    wn = length(w)[..., None]
     # pole (anti)parallel to the chain: pick any perpendicular, deterministically
     alt = cross(u, np.where(np.abs(u[..., 1:2]) < 0.9, [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]))
     w = np.where(wn > 1e-9, w / np.maximum(wn, 1e-300), normalize(alt))

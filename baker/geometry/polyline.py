@@ -2,6 +2,8 @@
 
 import numpy as np
 
+from baker.geometry.transforms import length
+
 
 def arc_lengths(points: np.ndarray) -> np.ndarray:
     """Cumulative arc length at each vertex.
@@ -11,7 +13,7 @@ def arc_lengths(points: np.ndarray) -> np.ndarray:
     points = np.asarray(points, dtype=np.float64)
     if len(points) == 0:
         return np.zeros(0)
-    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    seg = length(np.diff(points, axis=0))
     return np.concatenate([[0.0], np.cumsum(seg)])
 
 

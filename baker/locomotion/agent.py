@@ -4,6 +4,7 @@ limit and a stopping distance (as Unity's NavMeshAgent does)."""
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 
 import numpy as np
 
@@ -27,6 +28,7 @@ class PathAgent:
         self.speed = 0.0
         self._points = self.position[None, :].copy()
         self._cum = np.zeros(1)
+        self._cum_list = [0.0]      # _cum as Python floats, for the step loop's look-ups
         self._s = 0.0
 
     def set_path(self, points: np.ndarray) -> None:
@@ -36,6 +38,7 @@ class PathAgent:
             pts = np.vstack([self.position, pts])
         self._points = pts
         self._cum = polyline.arc_lengths(pts)
+        self._cum_list = self._cum.tolist()
         self._s = 0.0
 
     def point_behind(self, distance: float) -> np.ndarray:
@@ -44,13 +47,13 @@ class PathAgent:
 
     def skip(self, distance: float) -> None:
         """Move `distance` metres along the path at once (not past its end)."""
-        self._s = min(self._s + max(distance, 0.0), float(self._cum[-1]))
+        self._s = min(self._s + max(distance, 0.0), self._cum_list[-1])
         self.position = self._at(self._s)
 
     @property
     def remaining(self) -> float:
         """Metres left along the path."""
-        return float(self._cum[-1] - self._s)
+        return float(self._cum_list[-1] - self._s)
 
     @property
     def arrived(self) -> bool:
@@ -58,10 +61,10 @@ class PathAgent:
 
     def _at(self, s: float) -> np.ndarray:
         """Point at arc length s (scalar fast path of polyline.sample, for the step loop)."""
-        cum, pts = self._cum, self._points
+        cum, pts = self._cum_list, self._points
         if len(cum) == 1:
             return pts[0].copy()
-        i = min(max(int(np.searchsorted(cum, s, side="right")) - 1, 0), len(cum) - 2)
+        i = min(max(bisect_right(cum, s) - 1, 0), len(cum) - 2)   # np.searchsorted "right"
         seg = cum[i + 1] - cum[i]
         t = (s - cum[i]) / seg if seg > 0 else 0.0
         return pts[i] + t * (pts[i + 1] - pts[i])
@@ -95,5 +98,5 @@ class PathAgent:
         self.speed = min(max(target, self.speed - dv), self.speed + dv)
         if free <= 0.0:
             self.speed = max(self.speed - dv, 0.0)
-        self._s = min(self._s + self.speed * dt, float(self._cum[-1]))
+        self._s = min(self._s + self.speed * dt, self._cum_list[-1])
         self.position = self._at(self._s)

@@ -19,7 +19,8 @@ from scipy.ndimage import gaussian_filter1d, label, maximum_filter1d
 from baker.environment.rays import RayCaster
 from baker.geometry import polyline
 from baker.geometry.conventions import UP
-from baker.geometry.transforms import frames_to_quat, limit_rotation, normalize, quat_angle
+from baker.geometry.transforms import (frames_to_quat, length, limit_rotation, normalize,
+                                       quat_angle)
 from baker.locomotion.cobra import limit_lift
 
 
@@ -344,13 +345,13 @@ def place_chain(trail: Trail, head_arc: np.ndarray, offset: np.ndarray, spacing:
         # bracket: the first of a few arc steps back whose point is a spacing away (the trail
         # can fold back on itself over a crease or in a tight turn)
         cand = arc[:, i - 1:i] - steps[None, :]
-        beyond = np.linalg.norm(at(cand, i) - prev[:, None, :], axis=2) > spacing
+        beyond = length(at(cand, i) - prev[:, None, :]) > spacing
         k = np.where(beyond.any(axis=1), np.argmax(beyond, axis=1), len(steps) - 1)
         hi = cand[rows, np.maximum(k, 1)]
         lo = cand[rows, np.maximum(k - 1, 0)]
         for _ in range(16):   # bisection on the arc: distance to the joint ahead == spacing
             mid = 0.5 * (lo + hi)
-            far = np.linalg.norm(at(mid, i) - prev, axis=1) > spacing
+            far = length(at(mid, i) - prev) > spacing
             hi = np.where(far, mid, hi)
             lo = np.where(far, lo, mid)
         arc[:, i] = 0.5 * (lo + hi)

@@ -51,7 +51,7 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 from baker.config import LegsConfig, RigConfig
 from baker.geometry.conventions import FORWARD, LEFT, UP
 from baker.geometry.ik import bone_frames, soft_clamp, two_bone_ik
-from baker.geometry.transforms import cross, normalize, quat_rotate
+from baker.geometry.transforms import cross, dot, normalize, quat_rotate
 from baker.locomotion.body import BodyFrames
 from baker.locomotion.gait import gait_clock
 from baker.locomotion.swing import Limits, joint_space_swings
@@ -978,7 +978,7 @@ def _even_swings(target, hip, q, q_inv, cidx, LOs, Ts, sw, limit):
     F, L, _ = target.shape
     rel = quat_rotate(q_inv, target - hip)
     d = normalize(rel)
-    step = np.arccos(np.clip(np.sum(d[1:] * d[:-1], -1), -1.0, 1.0))      # (F-1, L)
+    step = np.arccos(np.clip(dot(d[1:], d[:-1]), -1.0, 1.0))      # (F-1, L)
     big = (step > limit) & (sw[1:] | sw[:-1])
     if not big.any():
         return target
@@ -1024,9 +1024,9 @@ def _stance_turns(hip, hold, fwd, left, q_inv, lay, legs, knee_out) -> np.ndarra
 def _frame_steps(a: np.ndarray, b: np.ndarray, hinge: np.ndarray) -> np.ndarray:
     """(F-1, L) degrees between consecutive frames of bones a -> b with hinge (local +X)."""
     y = normalize(b - a)
-    x = normalize(hinge - np.sum(hinge * y, -1, keepdims=True) * y)
+    x = normalize(hinge - dot(hinge, y)[..., None] * y)
     z = cross(x, y)
-    tr = sum(np.sum(v[1:] * v[:-1], -1) for v in (x, y, z))
+    tr = sum(dot(v[1:], v[:-1]) for v in (x, y, z))
     return np.degrees(np.arccos(np.clip(0.5 * (tr - 1.0), -1.0, 1.0)))
 
 
@@ -1043,7 +1043,7 @@ def _joint_steps(hip, target, q_inv, fwd, left, lay, knee_out):
     # the tip turns about the same hinge: its step relative to the upper bone is the change of
     # the knee angle
     y = normalize(m)
-    knee = np.arccos(np.clip(np.sum(y * normalize(e - m), -1), -1.0, 1.0))
+    knee = np.arccos(np.clip(dot(y, normalize(e - m)), -1.0, 1.0))
     world = np.maximum(_frame_steps(hip, sol.mid, sol.hinge),
                        _frame_steps(sol.mid, sol.end, sol.hinge))
     return np.maximum(np.maximum(up_step, np.degrees(np.abs(np.diff(knee, axis=0)))), world)

@@ -40,8 +40,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from baker.geometry.transforms import (quat_about, quat_angle, quat_conj, quat_mul, quat_rotate,
-                                       quat_slerp)
+from baker.geometry.transforms import (length, normalize, quat_about, quat_angle, quat_conj,
+                                       quat_mul, quat_rotate, quat_slerp)
 from baker.locomotion.trellis import cheapest_path
 
 #: deep tucks (the foot drawn up to the hip) tried with the larger raises, last [rad]
@@ -150,7 +150,7 @@ def _swivel(U, T, angle, l1, l2):
     """Upper-bone local rotations U (n, 4) turned by `angle` (n,) about the hip -> foot line
     (segment frame): the knee swings round, the foot stays."""
     foot = quat_rotate(U, l1 * _Y) + quat_rotate(quat_mul(U, T), l2 * _Y)
-    axis = foot / np.maximum(np.linalg.norm(foot, axis=-1, keepdims=True), 1e-12)
+    axis = foot / np.maximum(length(foot)[..., None], 1e-12)
     return quat_mul(quat_about(axis, angle), U)
 
 
@@ -161,7 +161,7 @@ def _flex(U, T, angle, l1, l2):
     for sgn in (1.0, -1.0):
         Tk = quat_mul(quat_about(np.broadcast_to(_X, U.shape[:-1] + (3,)), sgn * angle), T)
         foot = quat_rotate(U, l1 * _Y) + quat_rotate(quat_mul(U, Tk), l2 * _Y)
-        out.append((Tk, np.linalg.norm(foot, axis=-1)))
+        out.append((Tk, length(foot)))
     return np.where((out[0][1] <= out[1][1])[:, None], out[0][0], out[1][0])
 
 
@@ -245,15 +245,20 @@ def _node_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner):
     environment (HARD); an inner pose's foot inside a solid (1, HARD deeper than `deep`); touch:
     the foot within `contact` of a surface."""
     q_u, q_t, mid, end = _pose(q_seg, hip, U, T, l1, l2)
-    bad = rays.first_hit(hip, mid - hip, max_distance=l1 - 1e-9).hit
-    bad |= rays.first_hit(mid, end - mid, max_distance=max(l2 - lim.tol, 0.0)).hit
-    cost = HARD * bad
-    d = rays.closest(end, lim.contact)[0]
+    # both bones' rays in one batch (each ray's hit is its own: Embree casts them one by one)
+    n = len(hip)
+    prim = rays.cast(np.concatenate([hip, mid]),
+                     np.concatenate([normalize(mid - hip), normalize(end - mid)]),
+                     np.repeat([l1 - 1e-9, max(l2 - lim.tol, 0.0)], n))[1]
+    cost = HARD * ((prim[:n] >= 0) | (prim[n:] >= 0))
+    # each foot's distance to the surface, uncapped: the touch and the depth are both read
+    # from it (the same distance a capped query returns within its cap)
+    d = rays.closest(end, np.inf)[0]
     k = np.nonzero(inner)[0]
     k = k[rays.inside(end[k])]
     cost[k] += 1.0
     if lim.deep > 0.0 and len(k):
-        k = k[~np.isfinite(rays.closest(end[k], lim.deep)[0])]
+        k = k[~(d[k] <= lim.deep)]
     cost[k] += HARD - 1.0
     return cost, q_u, q_t, end, d < lim.contact
 
@@ -267,7 +272,7 @@ def _own_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same):
     cost, q_u, q_t, end, touch = _node_faults(rays, lim, hip, q_seg, U, T, l1, l2, inner)
     if len(U) > 1:
         steps = np.maximum.reduce([quat_angle(x[:-1], x[1:]) for x in (U, T, q_u, q_t)])
-        slide = np.linalg.norm(np.diff(end, axis=0), axis=1)
+        slide = length(np.diff(end, axis=0))
         cost[:-1] += same & touch[:-1] & touch[1:] & (slide > lim.slide)
         hard = lim.turn if lim.hard_turn is None else lim.hard_turn
         cost[:-1] += same & (steps > lim.turn)
@@ -279,7 +284,7 @@ def _crowding(end, inner, near_feet, lim: Limits):
     """(n,) the cost of an inner frame's foot (n, 3) near a neighbour's foot (near_feet
     (n, 2, 3), NaN for none): 1 within lim.gap, HARD within lim.hard_gap."""
     with np.errstate(invalid="ignore"):
-        d = np.nanmin(np.linalg.norm(near_feet - end[:, None], axis=2), axis=1, initial=np.inf)
+        d = np.nanmin(length(near_feet - end[:, None]), axis=1, initial=np.inf)
     hard = lim.gap if lim.hard_gap is None else lim.hard_gap
     return inner * ((d < lim.gap) + (HARD - 1.0) * (d < hard))
 
@@ -603,7 +608,7 @@ def _step_cost(a: _Layer, b: _Layer, lim: Limits) -> np.ndarray:
     c[over] += OVER * (2.0 * np.arccos(dot[over]) - hard)
     i, j = np.nonzero(a.touch)[0], np.nonzero(b.touch)[0]
     if len(i) and len(j):
-        slide = np.linalg.norm(a.end[i, None] - b.end[None, j], axis=2) > lim.slide
+        slide = length(a.end[i, None] - b.end[None, j]) > lim.slide
         c[np.ix_(i, j)] += slide
     return a.w * c + SMOOTH * (1.0 - dot)
 

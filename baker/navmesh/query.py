@@ -315,19 +315,21 @@ def _locate(s: NavSurface, points: np.ndarray, tol: float, _retry: bool = True):
         bestd[j[better]] = d[better]
         k += 1
     if _retry and (best < 0).any():
-        # points on a cell border (path corners often are): try the neighbouring columns
+        # points on a cell border (path corners often are): try the neighbouring columns, all
+        # eight nudges in one batch; each point takes the first of them (in this order) to hit
         miss = np.nonzero(best < 0)[0]
         eps = 1e-6 * s.cell_size
-        for ox, oz in ((eps, 0), (-eps, 0), (0, eps), (0, -eps), (eps, eps), (-eps, -eps),
-                       (eps, -eps), (-eps, eps)):
-            q = pts[miss] + [ox, 0.0, oz]
-            b2, h2 = _locate(s, q, tol, _retry=False)
-            got = b2 >= 0
-            best[miss[got]] = b2[got]
-            besth[miss[got]] = h2[got]
-            miss = miss[~got]
-            if len(miss) == 0:
-                break
+        nudge = np.array([[eps, 0.0, 0.0], [-eps, 0.0, 0.0], [0.0, 0.0, eps], [0.0, 0.0, -eps],
+                          [eps, 0.0, eps], [-eps, 0.0, -eps], [eps, 0.0, -eps],
+                          [-eps, 0.0, eps]])
+        q = (pts[miss][None, :, :] + nudge[:, None, :]).reshape(-1, 3)
+        b2, h2 = _locate(s, q, tol, _retry=False)
+        b2, h2 = b2.reshape(len(nudge), len(miss)), h2.reshape(len(nudge), len(miss))
+        got = b2 >= 0
+        first = np.argmax(got, axis=0)
+        some = np.nonzero(got.any(axis=0))[0]
+        best[miss[some]] = b2[first[some], some]
+        besth[miss[some]] = h2[first[some], some]
     return best, besth
 
 
@@ -341,16 +343,25 @@ def layer_height(s: NavSurface, x: float, y: float, z: float, tol: float) -> flo
     nx, nz = s.shape
     if not (0 <= ix < nx and 0 <= iz < nz):
         return math.nan
-    col = ix * nz + iz
-    a, b = int(s.col_start[col]), int(s.col_start[col + 1])
     best, bestd = math.nan, tol
-    for k in range(a, b):
-        px, py, pz = s.positions[k].tolist()
-        nxk, nyk, nzk = s.normals[k].tolist()
+    for (px, py, pz), (nxk, nyk, nzk) in _column_planes(s, ix * nz + iz):
         h = py - (nxk * (x - px) + nzk * (z - pz)) / nyk
         if abs(h - y) <= bestd:
             best, bestd = h, abs(h - y)
     return best
+
+
+def _column_planes(s: NavSurface, col: int) -> list:
+    """[(position, normal), ...] of the samples of column `col`, top to bottom, as Python floats
+    (each column read from the arrays once per surface: layer_height runs every step)."""
+    cols = s._cache.get("column_planes")
+    if cols is None:
+        cols = s._cache["column_planes"] = {}
+    planes = cols.get(col)
+    if planes is None:
+        a, b = int(s.col_start[col]), int(s.col_start[col + 1])
+        planes = cols[col] = list(zip(s.positions[a:b].tolist(), s.normals[a:b].tolist()))
+    return planes
 
 
 def _default_tol(s: NavSurface) -> float:

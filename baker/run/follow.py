@@ -30,6 +30,7 @@ import numpy as np
 from baker.behaviour.intent import Intent
 from baker.config import RigConfig
 from baker.geometry import polyline
+from baker.geometry.transforms import cross, normalize
 from baker.locomotion.agent import PathAgent
 from baker.locomotion.body import project_to_surface
 from baker.locomotion.head import HeadSteer
@@ -58,6 +59,8 @@ MIN_TURN = 0.75
 #: [rad] directions of the rays that measure the room beside the hips (as the legs' anchors
 #: do): straight out, ahead and behind
 WALL_YAWS = np.radians([0.0, 40.0, -40.0])
+#: straight down (the ray under the head in _leg_lever)
+_DOWN = np.array([[0.0, -1.0, 0.0]])
 
 
 class Follower:
@@ -99,6 +102,7 @@ class Follower:
         legged = rig.legs.enabled and rig.legs.reach > hip_x
         self.stance_speed = STANCE_TURN * fps if legged else math.inf
         self._hip = (hip_x, body.clearance + hip_y, rig.legs.upper_length, rig.legs.reach)
+        self._lever_rays = _lever_rays(*self._hip[:3])
         # (walked, x, z, the legs' lever there) under the body: the straight start line behind
         # the head first, so a turn back at the start is a bend under the body like any other
         step = BEND_SAMPLE * body.spacing
@@ -244,10 +248,11 @@ class Follower:
         trail heading (dx, dz) there: one batch of rays outward from both hips, along the
         surface, straight out, ahead and behind, at hip and knee height, as the legs' anchors
         measure the room beside them."""
-        hip_x, hip_y, l1, reach = self._hip
-        down = self.rays.cast_down(np.array([[p[0], self.height, p[2]]]), self.probe,
-                                   2.0 * self.probe)
-        n = down.normals[0] if down.hit[0] else np.array([0.0, 1.0, 0.0])
+        hip_x, _, _, reach = self._hip
+        # the ground's normal from a ray cast down (rays.cast_down's ray), facing up
+        prim = self.rays.cast(np.array([[p[0], self.height + self.probe, p[2]]]), _DOWN,
+                              2.0 * self.probe)[1][0]
+        n = self.rays.face_normals[prim] if prim >= 0 else np.array([0.0, 1.0, 0.0])
         if n[1] < 0.0:
             n = -n
         f = np.array([dx, 0.0, dz])
@@ -255,17 +260,12 @@ class Follower:
         if np.linalg.norm(f) < 1e-9:
             f = self.head.heading - (self.head.heading @ n) * n
         f = f / max(np.linalg.norm(f), 1e-12)
-        left = np.cross(n, f)
+        left = cross(n, f)
         ground = np.array([p[0], self.height, p[2]])
-        origins, dirs, cos = [], [], []
-        for side in (1.0, -1.0):
-            for h in (hip_y, hip_y + 0.5 * l1):
-                for yaw in WALL_YAWS:
-                    origins.append(ground + h * n + side * hip_x * left)
-                    dirs.append(math.cos(yaw) * side * left + math.sin(yaw) * f)
-                    cos.append(math.cos(yaw))
-        hits = self.rays.first_hit(np.array(origins), np.array(dirs), max_distance=1.2 * reach)
-        free = np.where(hits.hit, hits.distance * np.array(cos), np.inf)
+        h, side_x, side_cos, sin, cos = self._lever_rays
+        t, prim = self.rays.cast(ground + h * n + side_x * left,
+                                 normalize(side_cos * left + sin * f), 1.2 * reach)
+        free = np.where(prim >= 0, t * cos[:, 0], np.inf)
         return float(folded_lever(free.min(), reach, hip_x))
 
     def _avoiding(self, others: np.ndarray):
@@ -354,6 +354,16 @@ class Follower:
             return y
         g, _, hit = project_to_surface(self.rays, np.array([[p[0], self.height, p[2]]]), self.probe)
         return float(g[0, 1]) if hit[0] else self.height
+
+
+def _lever_rays(hip_x: float, hip_y: float, l1: float) -> np.ndarray:
+    """(5, 12, 1) per ray of Follower._leg_lever (left hip then right, at hip height hip_y and
+    knee height hip_y + l1 / 2, each of WALL_YAWS): its height above the ground, its hip's
+    offset along `left` (side x hip_x), the weights of `left` (cos(yaw) x side) and of the
+    heading (sin(yaw)) in its direction, and cos(yaw)."""
+    rows = [(h, side * hip_x, math.cos(yaw) * side, math.sin(yaw), math.cos(yaw))
+            for side in (1.0, -1.0) for h in (hip_y, hip_y + 0.5 * l1) for yaw in WALL_YAWS]
+    return np.array(rows).T[..., None]
 
 
 def bend_radius(points: np.ndarray, k: int) -> float:
