@@ -73,8 +73,9 @@ HARD = 100.0
 REPAIR_GRID = np.radians(np.stack(np.meshgrid(
     [0.0, -15.0, 10.0, 20.0, 30.0, 45.0, 60.0, 80.0], [0.0, 15.0, -15.0, 30.0, -30.0],
     [0.0, 30.0, -30.0], [0.0, 25.0, 50.0], indexing="ij"), -1).reshape(-1, 4))
-#: frames on either side of a broken swing's faults that the last resort may change
-REPAIR_MARGIN = 4
+#: frames on either side of a broken swing's faults that the last resort may change, tried in
+#: turn until one is enough
+REPAIR_MARGINS = (4, 16)
 #: the last resort's cost per radian of a turn beyond the limit (a path that cannot keep within
 #: it breaks it by as little as it can)
 OVER = 10.0
@@ -653,30 +654,29 @@ def _searched(rays, lim: Limits, hp, qs, U, T, near, w, side, l1, l2, lo: int, h
 def _repair(rays, lim: Limits, hip, q_seg, side, l1, l2, sw: _Swings, U_all, T_all, feet, own,
             w, redone, cost) -> None:
     """The last resort for each swing still breaking a limit (cost >= HARD): its frames from
-    REPAIR_MARGIN before its first broken frame to as many after its last are searched afresh
-    (_searched) and kept where the whole swing then costs less and breaks a limit in fewer
-    frames. U_all, T_all (local poses), feet, own (per-entry own costs) and redone are updated
-    in place."""
+    REPAIR_MARGINS[0] before its first broken frame to as many after its last are searched
+    afresh (_searched), then with the wider margins, until the whole swing then costs less and
+    breaks a limit in fewer frames; kept only then. U_all, T_all (local poses), feet, own
+    (per-entry own costs) and redone are updated in place."""
     for i in np.nonzero(cost >= HARD)[0]:
         k = np.nonzero(sw.sid == i)[0]
         f, lg = sw.f[k], sw.lg[k[0]]
-        near = sw.near(feet, k)
+        hp, qs, near = hip[f, lg], q_seg[f, lg], sw.near(feet, k)
         now = own[k] + w[k] * _crowding(feet[f, lg], sw.inner[k], near, lim)
         bad = np.nonzero(now >= HARD)[0]
-        if len(bad) == 0:
-            continue
-        lo = max(bad[0] - REPAIR_MARGIN, 0)
-        hi = min(bad[-1] + 1 + REPAIR_MARGIN, len(k) - 1)
-        hp, qs = hip[f, lg], q_seg[f, lg]
-        U, T = _searched(rays, lim, hp, qs, U_all[f, lg], T_all[f, lg], near, w[k], side[lg],
-                         l1, l2, lo, hi)
-        c_own, end = _own_faults(rays, lim, hp, qs, U, T, l1, l2, sw.inner[k],
-                                 np.ones(len(k) - 1, bool))
-        c_own *= w[k]
-        new = c_own + w[k] * _crowding(end, sw.inner[k], near, lim)
-        if new.sum() >= now.sum() or (new >= HARD).sum() >= len(bad):
-            continue                     # kept only with fewer broken frames, and cheaper
-        changed = (np.any(U != U_all[f, lg], axis=-1) | np.any(T != T_all[f, lg], axis=-1))
-        U_all[f, lg], T_all[f, lg], own[k] = U, T, c_own
-        feet[f, lg] = end
-        redone[f[changed], lg] = True
+        for margin in REPAIR_MARGINS if len(bad) else ():
+            lo, hi = max(bad[0] - margin, 0), min(bad[-1] + 1 + margin, len(k) - 1)
+            U, T = _searched(rays, lim, hp, qs, U_all[f, lg], T_all[f, lg], near, w[k],
+                             side[lg], l1, l2, lo, hi)
+            c_own, end = _own_faults(rays, lim, hp, qs, U, T, l1, l2, sw.inner[k],
+                                     np.ones(len(k) - 1, bool))
+            c_own *= w[k]
+            new = c_own + w[k] * _crowding(end, sw.inner[k], near, lim)
+            if new.sum() < now.sum() and (new >= HARD).sum() < len(bad):
+                changed = (np.any(U != U_all[f, lg], axis=-1) | np.any(T != T_all[f, lg], axis=-1))
+                U_all[f, lg], T_all[f, lg], own[k] = U, T, c_own
+                feet[f, lg] = end
+                redone[f[changed], lg] = True
+                break
+            if hi - lo == len(k) - 1:
+                break                              # the whole swing was searched

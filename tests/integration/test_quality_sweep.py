@@ -33,13 +33,17 @@ pytestmark = pytest.mark.slow
 #: fastest turn is now spread over the frames round it, swing.PEAK_SPREAD) and default 112319
 #: (the first swing, its hip 5 mm over the ground beside a 47 deg bank: every candidate put
 #: the tip bone through the bank or turned a joint too fast; the trellis search over sampled
-#: poses, swing._repair, finds a clear path within the turn limit)
+#: poses, swing._repair, finds a clear path within the turn limit) and default 112528 (three
+#: neighbouring legs landing together, one turning its upper bone 82 deg into its landing
+#: pose: a search four frames either side of the fault finds no clear path, the whole swing
+#: does, swing.REPAIR_MARGINS)
 CASES = [("floor", 9000, 20.0), ("floor", 9001, 20.0), ("far", 9002, 20.0),
          ("nav_test", 9001, 30.0), ("default", 94035, 12.0), ("floor", 97024, 8.0),
          ("default", 110113, 48.0), ("multistorey", 110010, 90.0),
          ("multistorey", 110416, 105.0), ("default", 110709, 55.0), ("default", 111002, 8.0),
          ("default", 110347, 9.0), ("default", 111304, 60.0),
-         ("multistorey", 111805, 120.0), ("default", 112319, 4.0)]
+         ("multistorey", 111805, 120.0), ("default", 112319, 4.0),
+         ("default", 112528, 8.0)]
 
 
 @pytest.mark.parametrize("scene,seed,seconds", CASES, ids=lambda v: str(v))
