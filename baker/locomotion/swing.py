@@ -655,9 +655,10 @@ def _repair(rays, lim: Limits, hip, q_seg, side, l1, l2, sw: _Swings, U_all, T_a
             w, redone, cost) -> None:
     """The last resort for each swing still breaking a limit (cost >= HARD): its frames from
     REPAIR_MARGINS[0] before its first broken frame to as many after its last are searched
-    afresh (_searched), then with the wider margins, until the whole swing then costs less and
-    breaks a limit in fewer frames; kept only then. U_all, T_all (local poses), feet, own
-    (per-entry own costs) and redone are updated in place."""
+    afresh (_searched), and again with each wider margin while that is not enough. A result is
+    kept only where the whole swing then costs less and breaks a limit in fewer frames.
+    U_all, T_all (local poses), feet, own (per-entry own costs) and redone are updated in
+    place."""
     for i in np.nonzero(cost >= HARD)[0]:
         k = np.nonzero(sw.sid == i)[0]
         f, lg = sw.f[k], sw.lg[k[0]]
