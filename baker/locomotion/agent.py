@@ -27,8 +27,7 @@ class PathAgent:
         self.position = np.asarray(position, dtype=np.float64).copy()
         self.speed = 0.0
         self._points = self.position[None, :].copy()
-        self._cum = np.zeros(1)
-        self._cum_list = [0.0]      # _cum as Python floats, for the step loop's look-ups
+        self._cum = [0.0]           # arc lengths as Python floats, for the step loop's look-ups
         self._s = 0.0
 
     def set_path(self, points: np.ndarray) -> None:
@@ -37,8 +36,7 @@ class PathAgent:
         if len(pts) == 0 or np.linalg.norm(pts[0] - self.position) > 1e-9:
             pts = np.vstack([self.position, pts])
         self._points = pts
-        self._cum = polyline.arc_lengths(pts)
-        self._cum_list = self._cum.tolist()
+        self._cum = polyline.arc_lengths(pts).tolist()
         self._s = 0.0
 
     def point_behind(self, distance: float) -> np.ndarray:
@@ -47,13 +45,13 @@ class PathAgent:
 
     def skip(self, distance: float) -> None:
         """Move `distance` metres along the path at once (not past its end)."""
-        self._s = min(self._s + max(distance, 0.0), self._cum_list[-1])
+        self._s = min(self._s + max(distance, 0.0), self._cum[-1])
         self.position = self._at(self._s)
 
     @property
     def remaining(self) -> float:
         """Metres left along the path."""
-        return float(self._cum_list[-1] - self._s)
+        return float(self._cum[-1] - self._s)
 
     @property
     def arrived(self) -> bool:
@@ -61,7 +59,7 @@ class PathAgent:
 
     def _at(self, s: float) -> np.ndarray:
         """Point at arc length s (scalar fast path of polyline.sample, for the step loop)."""
-        cum, pts = self._cum_list, self._points
+        cum, pts = self._cum, self._points
         if len(cum) == 1:
             return pts[0].copy()
         i = min(max(bisect_right(cum, s) - 1, 0), len(cum) - 2)   # np.searchsorted "right"
@@ -75,8 +73,8 @@ class PathAgent:
         cum = self._cum
         if len(cum) < 2:
             return 0.0
-        i0 = max(int(np.searchsorted(cum, self._s - back, side="right")) - 1, 0)
-        i1 = min(int(np.searchsorted(cum, self._s + ahead, side="right")) + 1, len(cum))
+        i0 = max(bisect_right(cum, self._s - back) - 1, 0)
+        i1 = min(bisect_right(cum, self._s + ahead) + 1, len(cum))
         if i1 - i0 < 2:
             return 0.0
         return float(np.abs(np.diff(self._points[i0:i1, 1])).max())
@@ -98,5 +96,5 @@ class PathAgent:
         self.speed = min(max(target, self.speed - dv), self.speed + dv)
         if free <= 0.0:
             self.speed = max(self.speed - dv, 0.0)
-        self._s = min(self._s + self.speed * dt, self._cum_list[-1])
+        self._s = min(self._s + self.speed * dt, self._cum[-1])
         self.position = self._at(self._s)

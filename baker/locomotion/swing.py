@@ -118,6 +118,16 @@ class Limits:
     deep: float = 0.0
     judged: np.ndarray | None = None
 
+    @property
+    def breaking_turn(self) -> float:
+        """The per-frame turn that breaks a limit [rad]."""
+        return self.turn if self.hard_turn is None else self.hard_turn
+
+    @property
+    def breaking_gap(self) -> float:
+        """The distance to a neighbour's foot that breaks a limit [m]."""
+        return self.gap if self.hard_gap is None else self.hard_gap
+
     def weight(self, f: np.ndarray) -> np.ndarray:
         """(n,) 1.0 for entries at judged frames `f`, else 0.0."""
         return np.ones(len(f)) if self.judged is None else self.judged[f].astype(float)
@@ -275,9 +285,8 @@ def _own_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same):
         steps = np.maximum.reduce([quat_angle(x[:-1], x[1:]) for x in (U, T, q_u, q_t)])
         slide = length(np.diff(end, axis=0))
         cost[:-1] += same & touch[:-1] & touch[1:] & (slide > lim.slide)
-        hard = lim.turn if lim.hard_turn is None else lim.hard_turn
         cost[:-1] += same & (steps > lim.turn)
-        cost[:-1] += (HARD - 1.0) * (same & (steps > hard))
+        cost[:-1] += (HARD - 1.0) * (same & (steps > lim.breaking_turn))
     return cost, end
 
 
@@ -286,8 +295,13 @@ def _crowding(end, inner, near_feet, lim: Limits):
     (n, 2, 3), NaN for none): 1 within lim.gap, HARD within lim.hard_gap."""
     with np.errstate(invalid="ignore"):
         d = np.nanmin(length(near_feet - end[:, None]), axis=1, initial=np.inf)
-    hard = lim.gap if lim.hard_gap is None else lim.hard_gap
-    return inner * ((d < lim.gap) + (HARD - 1.0) * (d < hard))
+    return inner * ((d < lim.gap) + (HARD - 1.0) * (d < lim.breaking_gap))
+
+
+def _entry_costs(sw: "_Swings", own, w, feet, lim: Limits, k: np.ndarray) -> np.ndarray:
+    """(len(k),) the cost now of entries k: their own faults (`own`, weighted by `w`) and their
+    feet's crowding of the neighbours' current feet (`feet` (F, L, 3))."""
+    return own[k] + w[k] * _crowding(feet[sw.f[k], sw.lg[k]], sw.inner[k], sw.near(feet, k), lim)
 
 
 class _Swings:
@@ -415,8 +429,8 @@ def _swings_pass(rays, hip, q_seg, side, l1, l2, lim: Limits, rounds, q_u, q_t, 
     if sw.n == 0:
         return (q_u, q_t, mid, end), sw, np.zeros(0)
     f, lg = sw.f, sw.lg
-    own, feet_k = _own_faults(rays, lim, hip[f, lg], q_seg[f, lg], U_all[f, lg], T_all[f, lg],
-                              l1, l2, sw.inner, sw.sid[1:] == sw.sid[:-1])
+    own, _ = _own_faults(rays, lim, hip[f, lg], q_seg[f, lg], U_all[f, lg], T_all[f, lg],
+                         l1, l2, sw.inner, sw.sid[1:] == sw.sid[:-1])
     w = lim.weight(f)
     own *= w
     feet = end.copy()
@@ -426,19 +440,19 @@ def _swings_pass(rays, hip, q_seg, side, l1, l2, lim: Limits, rounds, q_u, q_t, 
         for parity in (0, 1):
             mine = ((sw.leg // 2) % 2 == parity)[sw.sid]
             k = np.nonzero(mine)[0]
-            cost = own[k] + w[k] * _crowding(feet[f[k], lg[k]], sw.inner[k], sw.near(feet, k),
-                                             lim)
+            cost = _entry_costs(sw, own, w, feet, lim, k)
             best = np.bincount(sw.sid[k], weights=cost, minlength=sw.n)
             todo = best > 0
             if todo.any():
                 _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw, feet, own, best,
                       todo, redone, plan)
-    final = own + w * _crowding(feet[f, lg], sw.inner, sw.near(feet, np.arange(len(f))), lim)
+    every = np.arange(len(f))
+    final = _entry_costs(sw, own, w, feet, lim, every)
     broken = np.bincount(sw.sid, weights=final, minlength=sw.n)
     if (broken >= HARD).any():
         _repair(rays, lim, hip, q_seg, side, l1, l2, sw, U_all, T_all, feet, own, w, redone,
                 broken)
-        final = own + w * _crowding(feet[f, lg], sw.inner, sw.near(feet, np.arange(len(f))), lim)
+        final = _entry_costs(sw, own, w, feet, lim, every)
     q_u2, q_t2, mid2, end2 = _pose(q_seg, hip, U_all, T_all, l1, l2)
     # frames left as planned keep the planner's exact numbers (no round trip through rotations)
     r = redone[..., None]
@@ -603,7 +617,7 @@ def _step_cost(a: _Layer, b: _Layer, lim: Limits) -> np.ndarray:
     a touching foot sliding (1), and SMOOTH x (1 - cos(half the largest turn))."""
     d = np.abs(np.matmul(a.Q, b.Q.transpose(0, 2, 1)))         # cos(half of each turn)
     dot = np.minimum(np.minimum(d[0], d[1]), np.minimum(d[2], d[3])).astype(np.float64)
-    hard = lim.turn if lim.hard_turn is None else lim.hard_turn
+    hard = lim.breaking_turn
     c = (dot < np.cos(0.5 * lim.turn)) + (HARD - 1.0) * (dot < np.cos(0.5 * hard))
     over = np.nonzero(dot < np.cos(0.5 * hard))
     c[over] += OVER * (2.0 * np.arccos(dot[over]) - hard)
@@ -663,7 +677,7 @@ def _repair(rays, lim: Limits, hip, q_seg, side, l1, l2, sw: _Swings, U_all, T_a
         k = np.nonzero(sw.sid == i)[0]
         f, lg = sw.f[k], sw.lg[k[0]]
         hp, qs, near = hip[f, lg], q_seg[f, lg], sw.near(feet, k)
-        now = own[k] + w[k] * _crowding(feet[f, lg], sw.inner[k], near, lim)
+        now = _entry_costs(sw, own, w, feet, lim, k)
         bad = np.nonzero(now >= HARD)[0]
         for margin in REPAIR_MARGINS if len(bad) else ():
             lo, hi = max(bad[0] - margin, 0), min(bad[-1] + 1 + margin, len(k) - 1)
