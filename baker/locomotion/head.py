@@ -32,6 +32,9 @@ _TIGHT = (0.25, 0.5, 0.75, 1.0)
 #: such a turn's largest yaw rate, in multiples of the head's yaw-rate limit (about the rate of
 #: its usual turning circle at full speed)
 CONTAIN_YAW = 2.0
+#: points tested along a turn's look-ahead, from the step to the look-ahead point, without a
+#: grid (HeadSteer.grid)
+LOOK_SAMPLES = 8
 
 
 class HeadSteer:
@@ -73,6 +76,9 @@ class HeadSteer:
         # the direction the slither offset is measured across: the heading, followed only as
         # the base travels (a turn on the spot does not swing the head round the base)
         self.sway_dir = self.heading.copy()
+        # (x0, z0, cell) of the columns the surface test answers for (a navigation grid), or
+        # None: a look-ahead is then tested at one point in each column it crosses
+        self.grid: tuple[float, float, float] | None = None
 
     def step(self, dt: float, agent_pos: np.ndarray, agent_speed: float,
              allowed: Callable[[float, float], bool] | None = None,
@@ -217,10 +223,14 @@ class HeadSteer:
         tight = slow / self.min_radius
 
         def free(t: float, s: float, reach: float) -> bool:
+            """The step, and the straight way on from it to `reach`, on the surface: a
+            look-ahead point alone would see past the corner of an obstacle the way runs
+            into."""
             c, sn = math.cos(t), math.sin(t)
             dx, dz = c * hx + sn * hz, -sn * hx + c * hz
             return (allowed(bx + dx * s, bz + dz * s)
-                    and (reach == s or allowed(bx + dx * reach, bz + dz * reach)))
+                    and all(allowed(bx + dx * r, bz + dz * r)
+                            for r in way_points(bx, bz, dx, dz, s, reach, self.grid)))
 
         turns = ((a, step), *((max(-tight, min(tight, a + sd * f * tight)), slow)
                               for f in _TIGHT for sd in (side, -side)))
@@ -250,3 +260,22 @@ class HeadSteer:
                      if free(t, step, step)), ang)
         self._creep = 2.0 * self.min_radius
         return max(-turn, min(turn, want)), 0.0
+
+
+def way_points(x: float, z: float, dx: float, dz: float, s: float, reach: float,
+               grid: tuple[float, float, float] | None) -> list[float]:
+    """Distances along the unit direction (dx, dz) from (x, z) at which to test the way from
+    `s` to `reach`: `reach`, and one point inside each grid column the way crosses (the middle
+    of its piece there), so a way that clips a column's corner is seen; without a grid,
+    LOOK_SAMPLES even steps."""
+    if reach <= s:
+        return []
+    if grid is None:
+        return [s + (reach - s) * i / LOOK_SAMPLES for i in range(1, LOOK_SAMPLES + 1)]
+    ts = [s, reach]
+    for o, p, d in ((grid[0], x, dx), (grid[1], z, dz)):
+        if abs(d) > 1e-12:
+            lo, hi = sorted(((p + d * s - o) / grid[2], (p + d * reach - o) / grid[2]))
+            ts.extend((o + i * grid[2] - p) / d for i in range(math.floor(lo) + 1, math.ceil(hi)))
+    ts.sort()
+    return [0.5 * (u + v) for u, v in zip(ts, ts[1:]) if v - u > 1e-12] + [reach]

@@ -33,7 +33,7 @@ from baker.geometry import polyline
 from baker.geometry.transforms import cross, normalize
 from baker.locomotion.agent import PathAgent
 from baker.locomotion.body import project_to_surface
-from baker.locomotion.head import HeadSteer
+from baker.locomotion.head import HeadSteer, way_points
 from baker.locomotion.legs import STANCE_TURN, folded_lever, hip_line
 
 #: steps between checks of what the head can see of the agent's path
@@ -86,6 +86,7 @@ class Follower:
                               turn_rate=loco.head_turn_rate, amplitude=loco.slither_amplitude,
                               max_offset=SLITHER_OFFSET * body.length,
                               min_radius=MIN_TURN * body.spacing)
+        self.head.grid = (float(nav.origin[0]), float(nav.origin[1]), float(nav.cell_size))
         self.height = float(start[1])
         self.body_length = body.length
         self.rough_speed = loco.rough_speed
@@ -301,14 +302,15 @@ class Follower:
 
     def _clear(self, p: np.ndarray) -> bool:
         """True when the straight line from the head's base to p stays on the head's layer of
-        the walkable surface (samples every half cell)."""
+        the walkable surface (tested in every column it crosses, head.way_points)."""
         bx, bz = self.head.base[0], self.head.base[2]
         dx, dz = p[0] - bx, p[2] - bz
-        n = int(math.hypot(dx, dz) / (0.5 * self.nav.cell_size)) + 1
+        n = math.hypot(dx, dz)
+        if n < 1e-12:
+            return True
         y = self.height
-        for i in range(1, n + 1):
-            t = i / n
-            y = self.nav.layer_height(bx + t * dx, y, bz + t * dz, self.tol)
+        for r in way_points(bx, bz, dx / n, dz / n, 0.0, n, self.head.grid):
+            y = self.nav.layer_height(bx + r * dx / n, y, bz + r * dz / n, self.tol)
             if y != y:  # NaN
                 return False
         return True

@@ -17,7 +17,7 @@ import pytest
 from baker.config import SIM_RATE_HZ
 from baker.geometry import polyline
 from baker.locomotion.body import Trail, place_chain
-from baker.locomotion.head import HeadSteer
+from baker.locomotion.head import HeadSteer, way_points
 
 DT = 1.0 / SIM_RATE_HZ
 TURN_RADIUS = 0.0375     # the default rig's: 3 spacings
@@ -102,3 +102,57 @@ def test_the_spine_follows_a_reversal_in_a_narrow_dead_end_without_a_joint_jumpi
     heads: list = []
     u_turn(width, seconds=1.5, z0=z0 * width, heads=heads)
     assert chain_jumps(np.array(heads), np.array([0.2, 0.0, z0 * width])) < 0.25
+
+
+CELL = 0.015
+BLOCK = (0.0, 0.0)      # the lower corner (x, z) of the one blocked grid column
+
+
+def one_blocked_column(x: float, z: float) -> bool:
+    """Open ground but for one grid column, as an eroded surface marks a column a pebble or a
+    spike stands in (the surface test answers per column of a CELL grid)."""
+    return not (BLOCK[0] <= x < BLOCK[0] + CELL and BLOCK[1] <= z < BLOCK[1] + CELL)
+
+
+def past_a_column(offset: float, speed: float, grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A head walking -z toward the blocked column, `offset` metres right of its left edge
+    (inside its width), while the agent it chases walks -z along that edge (a path pulled tight
+    round the column's corner). Returns (head positions, base headings, base step lengths)."""
+    head = HeadSteer(np.array([offset + 0.004, 0.0, 0.06]), np.array([-0.1, 0.0, -1.0]),
+                     max_speed=0.2, turn_radius=TURN_RADIUS, lead=TURN_RADIUS, turn_rate=4.0,
+                     amplitude=math.radians(25.0), max_offset=0.008, min_radius=MIN_RADIUS)
+    head.grid = grid
+    heads, heading, steps = [], [], []
+    for k in range(int(1.5 / DT)):
+        agent = np.array([0.0, 0.0, 0.06 - TURN_RADIUS - speed * k * DT])
+        b = head.base.copy()
+        head.step(DT, agent, speed, allowed=one_blocked_column)
+        heads.append(head.position.copy())
+        heading.append(head.heading.copy())
+        steps.append(float(np.linalg.norm(head.base - b)))
+    return np.array(heads), np.array(heading), np.array(steps)
+
+
+@pytest.mark.parametrize("speed", [0.06, 0.15])
+@pytest.mark.parametrize("offset", [0.0003, 0.0006, 0.001, 0.002, 0.004])
+def test_a_head_cutting_a_corner_turns_off_before_the_column_instead_of_on_the_spot(offset, speed):
+    """A look-ahead tested only at its far end saw past the column's corner: the head walked
+    on into the corner, had no room left for a tight circle and turned round on the spot, a
+    cusp in the trail that folded the tail over 15 s later (default 112610: 44 degrees in a
+    frame). Tested in every column the way crosses, it slides off along the column's edge."""
+    heads, heading, steps = past_a_column(offset, speed, (0.0, 0.0, CELL))
+    turn = np.arccos(np.clip(np.einsum("ij,ij->i", heading[:-1], heading[1:]), -1.0, 1.0))
+    assert not np.any(turn[steps[1:] <= 1e-12] > 1e-12)           # never on the spot
+    assert heads[-1][2] < -CELL                                    # and on past the column
+
+
+def test_way_points_fall_in_every_column_the_way_crosses():
+    # a way from column (0, 0) to (1, 1) that clips the corner of column (0, 1) for 0.1 mm
+    x0, z0, d = 0.0, 0.0148, np.array([0.0149, 0.0002])
+    d = d / np.linalg.norm(d)
+    pts = way_points(x0, z0, d[0], d[1], 0.001, 0.03, (0.0, 0.0, CELL))
+    cols = [(math.floor((x0 + d[0] * r) / CELL), math.floor((z0 + d[1] * r) / CELL)) for r in pts]
+    assert cols == [(0, 0), (0, 1), (1, 1), (1, 1)]
+    assert pts[-1] == 0.03 and all(0.001 < r <= 0.03 for r in pts)
+    # without a grid: LOOK_SAMPLES even steps
+    assert way_points(x0, z0, d[0], d[1], 0.001, 0.03, None)[0] == pytest.approx(0.001 + 0.029 / 8)
