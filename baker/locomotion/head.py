@@ -265,17 +265,21 @@ class HeadSteer:
 def way_points(x: float, z: float, dx: float, dz: float, s: float, reach: float,
                grid: tuple[float, float, float] | None) -> list[float]:
     """Distances along the unit direction (dx, dz) from (x, z) at which to test the way from
-    `s` to `reach`: `reach`, and one point inside each grid column the way crosses (the middle
-    of its piece there), so a way that clips a column's corner is seen; without a grid,
-    LOOK_SAMPLES even steps."""
+    `s` to `reach` (the point at `s` is tested by the caller): one point inside each grid column
+    the way crosses after the first (the middle of its piece there, `reach` in the last), so a
+    way that clips a column's corner is seen; without a grid, LOOK_SAMPLES even steps."""
     if reach <= s:
         return []
     if grid is None:
         return [s + (reach - s) * i / LOOK_SAMPLES for i in range(1, LOOK_SAMPLES + 1)]
-    ts = [s, reach]
+    ts = []
     for o, p, d in ((grid[0], x, dx), (grid[1], z, dz)):
-        if abs(d) > 1e-12:
-            lo, hi = sorted(((p + d * s - o) / grid[2], (p + d * reach - o) / grid[2]))
-            ts.extend((o + i * grid[2] - p) / d for i in range(math.floor(lo) + 1, math.ceil(hi)))
+        if d > 1e-12 or d < -1e-12:
+            a, b = (p + d * s - o) / grid[2], (p + d * reach - o) / grid[2]
+            if a > b:
+                a, b = b, a
+            ts.extend((o + i * grid[2] - p) / d for i in range(math.floor(a) + 1, math.ceil(b)))
+    if not ts:
+        return [reach]
     ts.sort()
     return [0.5 * (u + v) for u, v in zip(ts, ts[1:]) if v - u > 1e-12] + [reach]

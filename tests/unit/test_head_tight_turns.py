@@ -152,7 +152,7 @@ def test_way_points_fall_in_every_column_the_way_crosses():
     d = d / np.linalg.norm(d)
     pts = way_points(x0, z0, d[0], d[1], 0.001, 0.03, (0.0, 0.0, CELL))
     cols = [(math.floor((x0 + d[0] * r) / CELL), math.floor((z0 + d[1] * r) / CELL)) for r in pts]
-    assert cols == [(0, 0), (0, 1), (1, 1), (1, 1)]
+    assert cols == [(0, 1), (1, 1)]          # the first column is the step's, tested apart
     assert pts[-1] == 0.03 and all(0.001 < r <= 0.03 for r in pts)
     # without a grid: LOOK_SAMPLES even steps
     assert way_points(x0, z0, d[0], d[1], 0.001, 0.03, None)[0] == pytest.approx(0.001 + 0.029 / 8)
