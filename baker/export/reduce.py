@@ -462,13 +462,14 @@ def _slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
     if flip.any():
         b = np.negative(b, out=b.copy(), where=flip)
     d = np.abs(d, out=d)
-    t = np.asarray(t, dtype=np.float64)
+    t = np.broadcast_to(np.asarray(t, dtype=np.float64), d.shape)
     near = d >= 0.9995
-    theta = np.arccos(np.minimum(d, 1.0))
-    s = np.where(near, 1.0, np.sin(theta))
-    u = 1.0 - t
-    wa = np.where(near, u, np.sin(u * theta) / s)
-    wb = np.where(near, t, np.sin(t * theta) / s)
+    wa, wb = 1.0 - t, t.copy()          # near: lerp weights (the result is normalized below)
+    far = ~near                         # the sines only here (a third of the pairs are near)
+    theta = np.arccos(np.minimum(d[far], 1.0))
+    s = np.sin(theta)
+    wa[far] = np.sin(wa[far] * theta) / s
+    wb[far] = np.sin(wb[far] * theta) / s
     out = a * wa
     out += np.multiply(b, wb, out=np.empty(out.shape))
     out /= np.where(near, np.sqrt(_inner(out, out)), 1.0)
@@ -1357,9 +1358,10 @@ def _short_fits(x: _Target) -> bool:
     PLAYER_SPREAD_M of each other."""
     j_count, f_count = x.t0.shape[:2]
     some = np.arange(0, f_count, 8)         # every frame a key: frames are independent
-    sub = dataclasses.replace(x, t0=x.t0[:, some], q0=x.q0[:, some], pos0=x.pos0[:, some],
-                              wq0=x.wq0[:, some], times=x.times[some], planted=None,
-                              tight=None)
+    sub = dataclasses.replace(x, t0=np.take(x.t0, some, axis=1), q0=np.take(x.q0, some, axis=1),
+                              pos0=np.take(x.pos0, some, axis=1),
+                              wq0=np.take(x.wq0, some, axis=1), times=x.times[some],
+                              planted=None, tight=None)     # contiguous: _flat gives views
     every = np.ones((j_count, len(some)), dtype=bool)
     p = _Player(sub, np.zeros((j_count, 3)), np.zeros((j_count, 4)))
     p.play(every, every)
