@@ -44,11 +44,13 @@ than `_promote`'s bound miss even between their neighbours; the refinement's pla
 is kept between rounds and replays only the (joint, frame) pairs whose keys, key values or parent
 changed, world rotations and positions apart, in blocks of `_PAIRS` pairs, and computes key
 values at key frames only (those of the other frames, which the files store but no player reads,
-once at the end). Both work component-first: a block's rows are gathered with np.take (and
-written back with np.put), each x, y, z (w) is a flat array over the pairs, and the sums over 3
-or 4 components are written out left to right instead of np.sum / np.linalg.norm over a small
-axis. That is operation for operation the plain arithmetic, so the values are the same bit for
-bit (tests/export/test_reduce.py checks a replay against a fresh playback).
+once at the end). Both work component-first: each x, y, z (w) is a flat array over the pairs,
+and the sums over 3 or 4 components are written out left to right instead of np.sum /
+np.linalg.norm over a small axis. The player stores its played and world poses that way too
+((W, J, F)), so a block's components are gathered contiguous and written back without transposing
+copies, and a level with most of its pairs to pose is posed whole, row by row. That is
+operation for operation the plain arithmetic, so the values are the same bit for bit
+(tests/export/test_reduce.py checks a replay against a fresh playback).
 
 Planted feet: with `contacts` (frames where a joint is planted), a foot that does not move in the
 original may not slide in the reduced clip: between two planted frames its error may change by at
