@@ -44,11 +44,13 @@ than `_promote`'s bound miss even between their neighbours; the refinement's pla
 is kept between rounds and replays only the (joint, frame) pairs whose keys, key values or parent
 changed, world rotations and positions apart, in blocks of `_PAIRS` pairs, and computes key
 values at key frames only (those of the other frames, which the files store but no player reads,
-once at the end). Both work component-first: a block's rows are gathered with np.take (and
-written back with np.put), each x, y, z (w) is a flat array over the pairs, and the sums over 3
-or 4 components are written out left to right instead of np.sum / np.linalg.norm over a small
-axis. That is operation for operation the plain arithmetic, so the values are the same bit for
-bit (tests/export/test_reduce.py checks a replay against a fresh playback).
+once at the end). Both work component-first: each x, y, z (w) is a flat array over the pairs,
+and the sums over 3 or 4 components are written out left to right instead of np.sum /
+np.linalg.norm over a small axis. The player stores its played and world poses that way too
+((W, J, F)), so a block's components are gathered contiguous and written back without transposing
+copies, and a level with most of its pairs to pose is posed whole, row by row. That is
+operation for operation the plain arithmetic, so the values are the same bit for bit
+(tests/export/test_reduce.py checks a replay against a fresh playback).
 
 Planted feet: with `contacts` (frames where a joint is planted), a foot that does not move in the
 original may not slide in the reduced clip: between two planted frames its error may change by at
@@ -86,7 +88,6 @@ import numpy as np
 from baker.clip import Clip
 from baker.errors import ExportError
 from baker.geometry.transforms import quat_conj
-from baker.rig.skeleton import forward_kinematics
 
 #: local pass: the share of the tolerance each channel gets on its own
 LOCAL_SHARE = 0.5
@@ -367,6 +368,24 @@ def _put(a: np.ndarray, i: np.ndarray, v: np.ndarray) -> None:
 _ROWS: dict = {}
 
 
+def _cols(a: np.ndarray) -> np.ndarray:
+    """(..., J * F) view of a contiguous component-first (..., J, F) array: column j * F + f
+    is (j, f)."""
+    return a.reshape(a.shape[:-2] + (-1,))
+
+
+def _gather(a: np.ndarray, i: np.ndarray) -> np.ndarray:
+    """(..., N) the columns i of a component-first (..., M) array, contiguous: each component
+    a flat array over the pairs, ready for the kernels (no transposing copy)."""
+    return np.take(a, i, axis=-1)
+
+
+def _scatter(a: np.ndarray, i: np.ndarray, v: np.ndarray) -> None:
+    """a[..., i] = v for the columns i of a component-first array a, v (..., N) cast to a's
+    dtype as assignment casts it."""
+    a[..., i] = v
+
+
 def _inner(a: np.ndarray, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """(...) sum over the first axis of a * b (W, ...), component-first, summed left to right
     (into out): np.sum(a * b, axis=0) without its reduction overhead (the same value, up to the
@@ -444,13 +463,14 @@ def _slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
     if flip.any():
         b = np.negative(b, out=b.copy(), where=flip)
     d = np.abs(d, out=d)
-    t = np.asarray(t, dtype=np.float64)
+    t = np.broadcast_to(np.asarray(t, dtype=np.float64), d.shape)
     near = d >= 0.9995
-    theta = np.arccos(np.minimum(d, 1.0))
-    s = np.where(near, 1.0, np.sin(theta))
-    u = 1.0 - t
-    wa = np.where(near, u, np.sin(u * theta) / s)
-    wb = np.where(near, t, np.sin(t * theta) / s)
+    wa, wb = 1.0 - t, t.copy()          # near: lerp weights (the result is normalized below)
+    far = ~near                         # the sines only here (a third of the pairs are near)
+    theta = np.arccos(np.minimum(d[far], 1.0))
+    s = np.sin(theta)
+    wa[far] = np.sin(wa[far] * theta) / s
+    wb[far] = np.sin(wb[far] * theta) / s
     out = a * wa
     out += np.multiply(b, wb, out=np.empty(out.shape))
     out /= np.where(near, np.sqrt(_inner(out, out)), 1.0)
@@ -717,25 +737,38 @@ def _target(clip: Clip, parents, planted, tol: float, short: bool, tight=None) -
     parents = np.asarray(parents)
     depth = (ancestors(parents) >= 0).sum(axis=1)
     levels = tuple(np.flatnonzero(depth == d) for d in range(1, depth.max() + 1))
-    t0 = clip.translations.astype(np.float64)
-    q0 = clip.rotations.astype(np.float64)
-    pos0, wq0 = forward_kinematics(parents, t0, q0)
     first = (lambda a: np.ascontiguousarray(np.swapaxes(a, 0, 1)))
-    return _Target(first(t0), first(q0), first(pos0), first(wq0), clip.times, parents, levels,
+    t0, q0 = first(clip.translations.astype(np.float64)), first(clip.rotations.astype(np.float64))
+    pos0, wq0 = _world(parents, levels, t0, q0)
+    return _Target(t0, q0, pos0, wq0, clip.times, parents, levels,
                    None if planted is None else first(planted), tol, short,
                    None if tight is None else first(tight))
 
 
+def _world(parents: np.ndarray, levels: tuple, t0: np.ndarray, q0: np.ndarray):
+    """rig.skeleton.forward_kinematics (the same arithmetic, so the same bits) of joints-first
+    local translations t0 (J, F, 3) and rotations q0 (J, F, 4), a level at a time and component
+    first (the joint by joint loop over strided (F, J, ...) columns took most of `_target`).
+    Returns world positions (J, F, 3) and rotations (J, F, 4)."""
+    t, q = (np.ascontiguousarray(np.moveaxis(a, -1, 0)) for a in (t0, q0))
+    pos, rot = np.empty_like(t), np.empty_like(q)
+    for level in levels:
+        up = parents[level]
+        if up[0] < 0:                                   # the roots (the first level)
+            pos[:, level], rot[:, level] = t[:, level], q[:, level]
+            continue
+        up_rot = np.take(rot, up, axis=1)
+        pos[:, level] = np.take(pos, up, axis=1) + _qrot(up_rot, np.take(t, level, axis=1))
+        rot[:, level] = _qmul(up_rot, np.take(q, level, axis=1))
+    return (np.ascontiguousarray(np.moveaxis(a, 0, -1)) for a in (pos, rot))
+
+
 # Component-first kernels: vectors (3, ...), xyzw quaternions (4, ...) and matrices (3, 3, ...),
-# each component an array over the pairs (a contiguous block or a strided view of (N, ...)
-# rows), so that each step is one flat numpy operation into a preallocated output instead of
-# small inner loops over 3 or 4 components. Operation for operation (so bit for bit) the
-# arithmetic of geometry.transforms and raw_matrix; `_last` applies them to last-axis arrays.
-
-
-def _last(kernel, *args: np.ndarray) -> np.ndarray:
-    """kernel (component-first) applied to arrays with their components last; result likewise."""
-    return np.moveaxis(kernel(*(np.moveaxis(a, -1, 0) for a in args)), 0, -1)
+# each component an array over the pairs (best a contiguous block: the player's arrays are
+# stored component-first so that its gathers give one; a strided view of (N, ...) rows works but
+# is several times slower), so that each step is one flat numpy operation into a preallocated
+# output instead of small inner loops over 3 or 4 components. Operation for operation (so bit
+# for bit) the arithmetic of geometry.transforms and raw_matrix.
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -816,6 +849,11 @@ def _unit(q: np.ndarray) -> np.ndarray:
     return q / _norm(q)[..., None]
 
 
+def _unit_cf(q: np.ndarray) -> np.ndarray:
+    """_unit of component-first quaternions q (4, ...): the same arithmetic."""
+    return q / np.sqrt(_inner(q, q))
+
+
 class _Player:
     """Compensated playback of a reduction, kept from one round to the next (all arrays joints
     first, (J, F, ...)): level by level down the skeleton, each joint's key values are the local
@@ -832,13 +870,15 @@ class _Player:
 
     Stored key values vt (J, F, 3), vq (J, F, 4) float32 and codes (J, F, 4) int16 (SHORT
     rotations) and their targets tt, tq (float64; codes are requantized only where tq changed),
-    at the key frames (the players read no others; `complete` fills in the rest); the played
-    local tr, rr (float32 values as float64); world positions pos, rotations wq (the matrices'
-    rotation part) and matrices mat (J, F, 3, 3); the other players' poses (unit: renormalized slerp; blender, wn: nlerp);
-    error vectors diff (J, F, 3) and lengths err (J, F) [m], the worst of the three players;
-    slide (J, F-1) [m]: the change of a planted joint's error between planted frames; spread
-    (J, F) [m]: how far the other two players are from the first; viol (J, F) bool: over a
-    bound."""
+    at the key frames (the players read no others; `complete` fills in the rest). Component
+    first, (W, J, F) (`_cols`, `_gather`, `_scatter`: the kernels read and write them without
+    transposing copies, on contiguous components): the played local tr (3), rr (4) (float32
+    values as float64) and Blender's nlerp (4); world positions pos (3), rotations wq (4) (the
+    matrices' rotation part) and matrices mat (3, 3, J, F); the other players' poses (unit (3):
+    renormalized slerp; blender (3), wn (4): nlerp); error vectors diff (3). Joints first: the
+    error lengths err (J, F) [m], the worst of the three players; slide (J, F-1) [m]: the change
+    of a planted joint's error between planted frames; spread (J, F) [m]: how far the other two
+    players are from the first; viol (J, F) bool: over a bound."""
 
     def __init__(self, x: _Target, static_t: np.ndarray, static_r: np.ndarray):
         j_count, f_count = x.t0.shape[:2]
@@ -847,13 +887,17 @@ class _Player:
         def empty(*shape, dtype=np.float64):
             return np.zeros((j_count, f_count) + shape, dtype)
 
+        def comps(*shape):                          # component-first
+            return np.zeros(shape + (j_count, f_count))
+
         self.vt, self.vq = empty(3, dtype=np.float32), empty(4, dtype=np.float32)
         self.codes = empty(4, dtype=np.int16)
-        self.tt, self.tr, self.rr = empty(3), empty(3), empty(4)
+        self.tt, self.tr, self.rr = empty(3), comps(3), comps(4)
         self.tq = np.full((j_count, f_count, 4), np.nan)     # NaN: none quantized yet
-        self.pos, self.wq, self.mat = empty(3), empty(4), empty(3, 3)
-        self.nlerp, self.unit, self.blender, self.wn = empty(4), empty(3), empty(3), empty(4)
-        self.diff, self.err, self.spread = empty(3), empty(), empty()
+        self.pos, self.wq, self.mat = comps(3), comps(4), comps(3, 3)
+        self.nlerp, self.unit, self.blender, self.wn = comps(4), comps(3), comps(3), comps(4)
+        self.diff, self.err, self.spread = comps(3), empty(), empty()
+        self.pos0 = np.ascontiguousarray(np.moveaxis(x.pos0, -1, 0))       # (3, J, F)
         self.slide = np.zeros((j_count, max(f_count - 1, 0)))
         self.viol = np.zeros((j_count, f_count), dtype=bool)
         self.segments = None        # ((segments, keys) of translations, of rotations) last played
@@ -939,14 +983,14 @@ class _Player:
         """(N, 3) the translation targets of the pairs i (flat) of non-root joints, given their
         parents' current poses at the pairs ip: the local translation that puts the joint on its
         unreduced world position."""
-        m = _take(_flat(self.mat), ip).transpose(1, 2, 0)
-        return _solve3(m, (_take(_flat(self.x.pos0), i) - _take(_flat(self.pos), ip)).T).T
+        m = _gather(_cols(self.mat), ip)
+        return _solve3(m, _gather(_cols(self.pos0), i) - _gather(_cols(self.pos), ip)).T
 
     def _target_q(self, i: np.ndarray, ip: np.ndarray) -> np.ndarray:
         """(N, 4) the rotation targets of the pairs i of non-root joints (parents' pairs ip):
         the unit local rotation that gives the unreduced world rotation, on the clip's side."""
         x = self.x
-        conj = _take_t(_flat(self.wq), ip)
+        conj = _gather(_cols(self.wq), ip)
         np.negative(conj[:3], out=conj[:3])                    # quat_conj, the parent's inverse
         q = _qmul(conj, _take_t(_flat(x.wq0), i)).T
         np.negative(q, out=q, where=(_dot(q, _take(_flat(x.q0), i)) < 0)[:, None])
@@ -972,57 +1016,51 @@ class _Player:
         for j, f, i in _pair_blocks(st, level, f_count):
             played = _interp(_flat(self.vt), self.static_t, j, _spans(seg_t, j, f, x.times),
                              False)
-            _put(_flat(self.tr), i, played.astype(np.float32).T)
+            _scatter(_cols(self.tr), i, played.astype(np.float32))
         for j, f, i in _pair_blocks(sr, level, f_count):
             slerped, lerped = _interp(_flat(self.vq), self.static_r, j,
                                       _spans(seg_r, j, f, x.times), True, both=True)
-            _put(_flat(self.rr), i, slerped.astype(np.float32).T)
+            _scatter(_cols(self.rr), i, slerped.astype(np.float32))
             lerped /= np.sqrt(_inner(lerped, lerped))                  # _unit
-            _put(_flat(self.nlerp), i, lerped.T)
+            _scatter(_cols(self.nlerp), i, lerped)
 
     def _pose(self, level: np.ndarray, turned: np.ndarray, moved: np.ndarray,
               root: bool) -> None:
         """World poses of the joints `level`, as the three players pose them: rotations at the
         frames `turned`, positions at the frames `moved` (L, F) bool."""
-        f_count = self.x.t0.shape[1]
-        pos, mat, wq = _flat(self.pos), _flat(self.mat), _flat(self.wq)
-        unit_w, blender, wn, nlerp = (_flat(self.unit), _flat(self.blender), _flat(self.wn),
-                                      _flat(self.nlerp))
-        for j, f, i in _pair_blocks(turned, level, f_count):
-            rr = _take(_flat(self.rr), i)
+        parents = self.x.parents
+        for b in _level_blocks(turned, level, parents):
+            rr = b.own(self.rr)                                         # (4, ...)
             if root:
-                _put(mat, i, raw_matrix(rr))
-                _put(wq, i, _unit(rr))
-                _put(wn, i, _take(nlerp, i))
+                b.set(self.mat, _raw_matrix(rr))
+                b.set(self.wq, _unit_cf(rr))
+                b.set(self.wn, b.own(self.nlerp))
             else:
-                ip = self.x.parents[j] * f_count + f
-                m = _mat_mat(_take(mat, ip).transpose(1, 2, 0), _raw_matrix(rr.T))
-                _put(mat, i, m.transpose(2, 0, 1))
-                _put(wq, i, _qmul(_take_t(wq, ip), _unit(rr).T).T)
-                _put(wn, i, _qmul(_take_t(wn, ip), _take_t(nlerp, i)).T)
-        for j, f, i in _pair_blocks(moved, level, f_count):
-            tr = _take_t(_flat(self.tr), i)                              # (3, N)
+                b.set(self.mat, _mat_mat(b.parent(self.mat), _raw_matrix(rr)))
+                b.set(self.wq, _qmul(b.parent(self.wq), _unit_cf(rr)))
+                b.set(self.wn, _qmul(b.parent(self.wn), b.own(self.nlerp)))
+        worlds = (self.pos, self.unit, self.blender)
+        for b in _level_blocks(moved, level, parents):
+            tr = b.own(self.tr)                                         # (3, ...)
             if root:
-                worlds = (tr, tr, tr)
+                poses = (tr, tr, tr)
             else:
-                ip = self.x.parents[j] * f_count + f
-                worlds = (_mat_vec(_take(mat, ip).transpose(1, 2, 0), tr),
-                          _qrot(_take_t(wq, ip), tr), _qrot(_take_t(wn, ip), tr))
-                for a, w in zip((pos, unit_w, blender), worlds):
-                    w += _take(a, ip).T                      # the parent's position + ...
-            for a, w in zip((pos, unit_w, blender), worlds):
-                _put(a, i, w.T)
-            self._errors(i, *worlds)
+                poses = (_mat_vec(b.parent(self.mat), tr), _qrot(b.parent(self.wq), tr),
+                         _qrot(b.parent(self.wn), tr))
+                for a, w in zip(worlds, poses):
+                    w += b.parent(a)                         # the parent's position + ...
+            for a, w in zip(worlds, poses):
+                b.set(a, w)
+            self._errors(b, *poses)
 
-    def _errors(self, i: np.ndarray, pos: np.ndarray, unit: np.ndarray,
-                blender: np.ndarray) -> None:
-        """Errors of the pairs i (flat indices) from their world positions (3, N) as each
-        player poses them, the worst of three: pos, as three.js and UsdSkel play the keys;
-        unit, a player that normalizes the slerped quaternions; and Blender's (blender), which
-        interpolates the stored quaternions component by component and normalizes (nlerp); and
-        the spread of the other two around the first."""
-        _put(_flat(self.spread), i, np.maximum(_length(unit - pos), _length(blender - pos)))
-        pos0 = _take(_flat(self.x.pos0), i).T
+    def _errors(self, b, pos: np.ndarray, unit: np.ndarray, blender: np.ndarray) -> None:
+        """Errors of the pairs of the block b (`_level_blocks`) from their world positions (3,
+        ...) as each player poses them, the worst of three: pos, as three.js and UsdSkel play
+        the keys; unit, a player that normalizes the slerped quaternions; and Blender's
+        (blender), which interpolates the stored quaternions component by component and
+        normalizes (nlerp); and the spread of the other two around the first."""
+        b.set(self.spread, np.maximum(_length(unit - pos), _length(blender - pos)))
+        pos0 = b.own(self.pos0)
         diff = pos - pos0
         err = _length(diff)
         for world in (unit, blender):
@@ -1030,8 +1068,8 @@ class _Player:
             e = _length(d)
             diff = np.where(e > err, d, diff)
             np.maximum(err, e, out=err)
-        _put(_flat(self.diff), i, diff.T)
-        _put(_flat(self.err), i, err)
+        b.set(self.diff, diff)
+        b.set(self.err, err)
 
     def _slide_at(self, moved: np.ndarray) -> None:
         """slide at the planted frame pairs (f, f + 1) with a moved frame."""
@@ -1041,13 +1079,13 @@ class _Player:
             return
         j, f = np.nonzero(x.planted[:, 1:] & x.planted[:, :-1] & (moved[:, 1:] | moved[:, :-1]))
         i = j * f_count + f
-        pos0 = _flat(x.pos0)
+        pos0 = _cols(self.pos0)
         slide = np.zeros(len(j))
-        p0, p1 = _take(pos0, i), _take(pos0, i + 1)
+        p0, p1 = _gather(pos0, i), _gather(pos0, i + 1)
         for world in (self.pos, self.unit, self.blender):
-            w = _flat(world)
-            d = (_take(w, i + 1) - p1) - (_take(w, i) - p0)
-            np.maximum(slide, _norm(d), out=slide)
+            w = _cols(world)
+            d = (_gather(w, i + 1) - p1) - (_gather(w, i) - p0)
+            np.maximum(slide, _length(d), out=slide)
         np.put(self.slide, j * (f_count - 1) + f, slide)
 
 
@@ -1062,6 +1100,59 @@ def _pair_blocks(mask: np.ndarray, level: np.ndarray, f_count: int):
     for k in range(0, len(li), _PAIRS):
         j, f = level[li[k:k + _PAIRS]], fi[k:k + _PAIRS]
         yield j, f, j * f_count + f
+
+
+#: `_level_blocks` poses a whole level when at least this share of its pairs is to be posed
+_DENSE = 0.5
+
+
+def _level_blocks(mask: np.ndarray, level: np.ndarray, parents: np.ndarray):
+    """The blocks (`_Pairs` or `_Rows`) in which `_Player._pose` poses the True pairs of mask
+    (L, F) of the joints `level` (parents: the skeleton's). When most of the level is to be
+    posed, all of it is, as one `_Rows`: whole rows are copied in and out instead of gathering
+    and scattering pairs, and a pair posed again from unchanged inputs gets the same bits (the
+    player's arrays hold what a fresh playback gives, see `_Player`)."""
+    n = np.count_nonzero(mask)
+    if n and n >= _DENSE * mask.size:
+        yield _Rows(level, parents[level])
+        return
+    for j, f, i in _pair_blocks(mask, level, mask.shape[1]):
+        yield _Pairs(i, parents[j] * mask.shape[1] + f)
+
+
+class _Pairs:
+    """A block of (joint, frame) pairs: i, their flat indices j * F + f, and ip, their
+    parents'. own(a) and parent(a) gather the pairs' and the parents' pairs' values of a
+    component-first (..., J, F) array as (..., N); set(a, v) writes v (..., N) to the pairs."""
+
+    def __init__(self, i: np.ndarray, ip: np.ndarray):
+        self.i, self.ip = i, ip
+
+    def own(self, a: np.ndarray) -> np.ndarray:
+        return _gather(_cols(a), self.i)
+
+    def parent(self, a: np.ndarray) -> np.ndarray:
+        return _gather(_cols(a), self.ip)
+
+    def set(self, a: np.ndarray, v: np.ndarray) -> None:
+        _scatter(_cols(a), self.i, v)
+
+
+class _Rows:
+    """Every frame of the joints `level` (with their `parents`), as a `_Pairs` block, with
+    (..., L, F) arrays."""
+
+    def __init__(self, level: np.ndarray, parents: np.ndarray):
+        self.level, self.parents = level, parents
+
+    def own(self, a: np.ndarray) -> np.ndarray:
+        return np.take(a, self.level, axis=-2)
+
+    def parent(self, a: np.ndarray) -> np.ndarray:
+        return np.take(a, self.parents, axis=-2)
+
+    def set(self, a: np.ndarray, v: np.ndarray) -> None:
+        a[..., self.level, :] = v
 
 
 def _resegment(segments: tuple, played: np.ndarray, keep: np.ndarray) -> np.ndarray:
@@ -1098,16 +1189,17 @@ def _blame(x: _Target, chains: np.ndarray, p: _Player):
     the translation channels and for the rotation channels, each (J, F); scores in metres."""
     j_count, f_count = p.viol.shape
     ki, fi = np.nonzero(p.viol)
-    e = _take(_flat(p.diff), ki * f_count + fi)
+    e = np.ascontiguousarray(_gather(_cols(p.diff), ki * f_count + fi).T)
     e = e / np.maximum(_norm(e), 1e-300)[:, None]
     chain = chains[ki]                                                     # (V, D)
     a = np.maximum(chain, 0)
     ft = np.broadcast_to(fi[:, None], a.shape)
     c_t, omega = _channel_moves(x, p, a, ft)
     ct = np.where(chain >= 0, np.einsum("vdk,vk->vd", c_t, e), -np.inf)
-    pos = _flat(p.pos)
-    arm = np.ascontiguousarray(_last(_cross, _take(pos, ki * f_count + fi)[:, None, :]
-                                     - _take(pos, a * f_count + ft), e[:, None, :]))
+    pos = _cols(p.pos)
+    arm = _cross(_gather(pos, ki * f_count + fi)[:, :, None] - _gather(pos, a * f_count + ft),
+                 e.T[:, :, None])                                                # (3, V, D)
+    arm = np.ascontiguousarray(np.moveaxis(arm, 0, -1))
     strict = (chain >= 0) & (np.arange(chain.shape[1]) > 0)[None, :]       # ancestors of k
     cr = np.where(strict, np.einsum("vdk,vdk->vd", omega, arm), -np.inf)
     top = np.maximum(ct.max(axis=1), cr.max(axis=1))[:, None]
@@ -1134,11 +1226,11 @@ def _channel_moves(x: _Target, p: _Player, a: np.ndarray, ft: np.ndarray):
     i = np.flatnonzero(need)
     j, f = np.divmod(i, f_count)
     parent = x.parents[j]
-    wp = np.where((parent >= 0)[:, None], _take(_flat(p.wq), np.maximum(parent, 0) * f_count + f),
-                  [0.0, 0.0, 0.0, 1.0]).T
+    wp = np.where(parent >= 0, _gather(_cols(p.wq), np.maximum(parent, 0) * f_count + f),
+                  np.array([0.0, 0.0, 0.0, 1.0])[:, None])
     tt, tq = p.targets_at(i)
-    c_t = _qrot(wp, (_take(_flat(p.tr), i) - tt).T).T
-    err_q = _qmul(_take(_flat(p.rr), i).T, quat_conj(tq).T).T
+    c_t = _qrot(wp, _gather(_cols(p.tr), i) - tt.T).T
+    err_q = _qmul(_gather(_cols(p.rr), i), quat_conj(tq).T).T
     omega = _qrot(wp, _rotvec(err_q).T).T
     at = np.take(np.cumsum(need) - 1, flat)         # each pair's row in i
     return _take(np.ascontiguousarray(c_t), at), _take(np.ascontiguousarray(omega), at)
@@ -1284,9 +1376,10 @@ def _short_fits(x: _Target) -> bool:
     PLAYER_SPREAD_M of each other."""
     j_count, f_count = x.t0.shape[:2]
     some = np.arange(0, f_count, 8)         # every frame a key: frames are independent
-    sub = dataclasses.replace(x, t0=x.t0[:, some], q0=x.q0[:, some], pos0=x.pos0[:, some],
-                              wq0=x.wq0[:, some], times=x.times[some], planted=None,
-                              tight=None)
+    sub = dataclasses.replace(x, t0=np.take(x.t0, some, axis=1), q0=np.take(x.q0, some, axis=1),
+                              pos0=np.take(x.pos0, some, axis=1),
+                              wq0=np.take(x.wq0, some, axis=1), times=x.times[some],
+                              planted=None, tight=None)     # contiguous: _flat gives views
     every = np.ones((j_count, len(some)), dtype=bool)
     p = _Player(sub, np.zeros((j_count, 3)), np.zeros((j_count, 4)))
     p.play(every, every)
