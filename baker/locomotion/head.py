@@ -76,8 +76,9 @@ class HeadSteer:
         # the direction the slither offset is measured across: the heading, followed only as
         # the base travels (a turn on the spot does not swing the head round the base)
         self.sway_dir = self.heading.copy()
-        # (x0, z0, cell) of the columns the surface test answers for (a navigation grid), or
-        # None: a look-ahead is then tested at one point in each column it crosses
+        # (x0, z0, cell) of the grid of columns the surface test answers for (a navigation
+        # grid's): a look-ahead is tested at one point in each column it crosses; None: at
+        # LOOK_SAMPLES even steps
         self.grid: tuple[float, float, float] | None = None
 
     def step(self, dt: float, agent_pos: np.ndarray, agent_speed: float,
