@@ -88,6 +88,7 @@ import numpy as np
 from baker.clip import Clip
 from baker.errors import ExportError
 from baker.geometry.transforms import quat_conj
+from baker.rig.skeleton import forward_kinematics
 
 #: local pass: the share of the tolerance each channel gets on its own
 LOCAL_SHARE = 0.5
@@ -737,30 +738,13 @@ def _target(clip: Clip, parents, planted, tol: float, short: bool, tight=None) -
     parents = np.asarray(parents)
     depth = (ancestors(parents) >= 0).sum(axis=1)
     levels = tuple(np.flatnonzero(depth == d) for d in range(1, depth.max() + 1))
+    t0 = clip.translations.astype(np.float64)
+    q0 = clip.rotations.astype(np.float64)
+    pos0, wq0 = forward_kinematics(parents, t0, q0)
     first = (lambda a: np.ascontiguousarray(np.swapaxes(a, 0, 1)))
-    t0, q0 = first(clip.translations.astype(np.float64)), first(clip.rotations.astype(np.float64))
-    pos0, wq0 = _world(parents, levels, t0, q0)
-    return _Target(t0, q0, pos0, wq0, clip.times, parents, levels,
+    return _Target(first(t0), first(q0), first(pos0), first(wq0), clip.times, parents, levels,
                    None if planted is None else first(planted), tol, short,
                    None if tight is None else first(tight))
-
-
-def _world(parents: np.ndarray, levels: tuple, t0: np.ndarray, q0: np.ndarray):
-    """rig.skeleton.forward_kinematics (the same arithmetic, so the same bits) of joints-first
-    local translations t0 (J, F, 3) and rotations q0 (J, F, 4), a level at a time and component
-    first (the joint by joint loop over strided (F, J, ...) columns took most of `_target`).
-    Returns world positions (J, F, 3) and rotations (J, F, 4)."""
-    t, q = (np.ascontiguousarray(np.moveaxis(a, -1, 0)) for a in (t0, q0))
-    pos, rot = np.empty_like(t), np.empty_like(q)
-    for level in levels:
-        up = parents[level]
-        if up[0] < 0:                                   # the roots (the first level)
-            pos[:, level], rot[:, level] = t[:, level], q[:, level]
-            continue
-        up_rot = np.take(rot, up, axis=1)
-        pos[:, level] = np.take(pos, up, axis=1) + _qrot(up_rot, np.take(t, level, axis=1))
-        rot[:, level] = _qmul(up_rot, np.take(q, level, axis=1))
-    return (np.ascontiguousarray(np.moveaxis(a, 0, -1)) for a in (pos, rot))
 
 
 # Component-first kernels: vectors (3, ...), xyzw quaternions (4, ...) and matrices (3, 3, ...),

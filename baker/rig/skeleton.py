@@ -121,15 +121,23 @@ def forward_kinematics(parents: np.ndarray, local_t: np.ndarray, local_q: np.nda
     """
     local_t = np.asarray(local_t, dtype=np.float64)
     local_q = np.asarray(local_q, dtype=np.float64)
+    parents = np.asarray(parents)
     wt = np.empty_like(local_t)
     wq = np.empty_like(local_q)
-    for j, p in enumerate(np.asarray(parents)):
-        if p < 0:
-            wt[:, j] = local_t[:, j]
-            wq[:, j] = local_q[:, j]
-        else:
-            wt[:, j] = wt[:, p] + quat_rotate(wq[:, p], local_t[:, j])
-            wq[:, j] = quat_mul(wq[:, p], local_q[:, j])
+    # a level of the skeleton at a time (joints at one depth, all parents posed): the same
+    # element-wise arithmetic as joint by joint, so the same bits, in a few numpy steps
+    depth = np.zeros(len(parents), dtype=np.int64)
+    for j, p in enumerate(parents.tolist()):
+        depth[j] = 0 if p < 0 else depth[p] + 1
+    for d in range(int(depth.max(initial=-1)) + 1):
+        level = np.flatnonzero(depth == d)
+        if d == 0:
+            wt[:, level] = local_t[:, level]
+            wq[:, level] = local_q[:, level]
+            continue
+        up_t, up_q = wt[:, parents[level]], wq[:, parents[level]]
+        wt[:, level] = up_t + quat_rotate(up_q, local_t[:, level])
+        wq[:, level] = quat_mul(up_q, local_q[:, level])
     return wt, wq
 
 
