@@ -94,7 +94,7 @@ OPTIONS: dict[str, object] = {
 }
 #: `bake` options that are one per batch: `baker batch`'s own options set them.
 BATCH_LEVEL = {"out": "--out", "cache_dir": "--cache-dir", "no_cache": "--cache-dir",
-               "cache_max": "--cache-max"}
+               "cache_max": "--cache-max", "workers": "--workers"}
 #: job key -> BakeConfig field, where the option is copied as it is
 _FIELDS = {"seconds": "seconds", "fps": "fps", "seed": "seed", "prey": "prey",
            "creatures": "creatures",
@@ -106,8 +106,9 @@ _FIELDS = {"seconds": "seconds", "fps": "fps", "seed": "seed", "prey": "prey",
 _BAKE_RULES = {"fps": "fps", "sun": "sun_direction", "sun_path": "sun_path", "tolerance": "tolerance"}
 _RIG_OVERRIDES = ("scale", "agent_radius", "agent_height", "step_height", "max_slope",
                   "cell_size")
-#: BakeConfig fields that change no output byte (where files go, the cache, a memory refusal)
-_NOT_IN_KEY = {"environment", "rig", "out", "nav_cache_dir", "max_memory_mb"}
+#: BakeConfig fields that change no output byte (where files go, the cache, a memory refusal,
+#: the processes a crowd's bake shares its work among)
+_NOT_IN_KEY = {"environment", "rig", "out", "nav_cache_dir", "max_memory_mb", "workers"}
 #: text formats whose files may name other files beside them (hashed into the key too)
 _NAMES_FILES = {".gltf", ".obj", ".usda", ".mtl"}
 _NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}$")
@@ -352,8 +353,9 @@ def job_config(opts: dict, out: Path, cache=None) -> BakeConfig:
     kw = {f: opts[k] for k, f in _FIELDS.items() if k in opts}
     if "sun" in opts:
         kw["sun_direction"] = tuple(opts["sun"])
+    # one process per job: the batch's workers already bake side by side
     cfg = BakeConfig(environment=Path(opts.get("environment", DEFAULT_ENVIRONMENT)), rig=rig,
-                     out=out, formats=formats, nav_cache_dir=cache, **kw)
+                     out=out, formats=formats, nav_cache_dir=cache, workers=1, **kw)
     return validate_bake(cfg)
 
 

@@ -116,6 +116,10 @@ def cli(verbose: int):
 @click.option("--creatures", type=int, default=1, show_default=True,
               help="Number of centipedes baked together (1-1000): each its own skinned "
                    "skeleton, sharing one mesh, keeping apart from the others.")
+@click.option("--workers", type=int, default=None, metavar="N",
+              help="Processes that share a crowd's per-creature work (body and legs, metrics, "
+                   "keyframe reduction); the files are the same bytes whatever N "
+                   "[default: the CPUs this process may use; 1 on macOS and Windows].")
 @click.option("--cobra", type=click.Choice(["auto", "always", "never"]), default="auto",
               show_default=True, help="Cobra mode (front third raised).")
 @click.option("--sun-path", default=None, metavar="AZ,EL;AZ,EL",
@@ -145,8 +149,8 @@ def cli(verbose: int):
 @max_memory_option
 @rig_options
 def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_navmesh,
-         cache_dir, no_cache, cache_max, nav_build, behaviour, prey, creatures, cobra, sun_path,
-         clips, root_motion, tolerance, rotations, preview, max_memory,
+         cache_dir, no_cache, cache_max, nav_build, behaviour, prey, creatures, workers, cobra,
+         sun_path, clips, root_motion, tolerance, rotations, preview, max_memory,
          **rig_overrides):
     """Bake a centipede on ENVIRONMENT (glTF/GLB, OBJ, PLY, STL or USD).
 
@@ -163,8 +167,8 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
     sun_direction = parse_vec3(sun, "--sun")
     validate_bake(BakeConfig(seconds=seconds, fps=fps, seed=seed, formats=formats,
                              sun_direction=sun_direction, behaviour=behaviour,
-                             prey=prey, creatures=creatures, cobra=cobra, sun_path=sun_path,
-                             nav_build=nav_build,
+                             prey=prey, creatures=creatures, workers=workers, cobra=cobra,
+                             sun_path=sun_path, nav_build=nav_build,
                              tolerance=tolerance, rotations=rotations, preview=preview))
     if preview:
         from baker.export.preview import check_dependencies
@@ -182,8 +186,8 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
         rig=override_rig(load_rig_config(rig_path), **rig_overrides), out=resolve_out(out),
         formats=formats, sun_direction=sun_direction, debug_navmesh=debug_navmesh,
         nav_cache_dir=None if no_cache else NavCache.of(cache_dir or default_cache_dir(), cache_max),
-        nav_build=nav_build, behaviour=behaviour, prey=prey, creatures=creatures, cobra=cobra,
-        sun_path=sun_path, clips=clips,
+        nav_build=nav_build, behaviour=behaviour, prey=prey, creatures=creatures,
+        workers=workers, cobra=cobra, sun_path=sun_path, clips=clips,
         root_motion=root_motion, max_memory_mb=max_memory, tolerance=tolerance,
         rotations=rotations, preview=preview,
     )

@@ -228,6 +228,9 @@ class BakeConfig:
                                  # (0.001 = 0.1% BL); 0 keeps every frame as a key
     rotations: str = "short"     # short | float: reduced rotation keys stored as 16-bit
                                  # normalized integers (checked within the tolerance) or float
+    workers: int | None = None   # [1..1024] processes sharing a crowd's per-creature stages
+                                 # (solve, metrics, reduce; baker.parallel); None: every CPU
+                                 # this process may use. The files do not depend on it
     preview: bool = False        # also draw the bake's map and contact sheet (PNG) from its
                                  # GLB (export.preview; needs "glb" in formats and matplotlib)
 
@@ -260,7 +263,8 @@ def validate_bake(cfg: BakeConfig) -> BakeConfig:
         except (TypeError, ValueError):
             raise ConfigError("--sun must be three numbers x,y,z", where="command line") from None
     schema.validate_options(seconds=cfg.seconds, fps=cfg.fps, seed=cfg.seed, prey=cfg.prey,
-                            creatures=cfg.creatures, sun=sun, tolerance=cfg.tolerance)
+                            creatures=cfg.creatures, workers=cfg.workers, sun=sun,
+                            tolerance=cfg.tolerance)
     if SIM_RATE_HZ % cfg.fps:
         divisors = [d for d in range(1, MAX_FPS + 1) if SIM_RATE_HZ % d == 0]
         raise ConfigError(

@@ -29,6 +29,7 @@ import numpy as np
 
 from baker.config import BakeConfig, validate_bake
 from baker.context import Context
+from baker.parallel import available_cpus, fork_map
 from baker.streams import Streams
 
 log = logging.getLogger(__name__)
@@ -152,8 +153,9 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
 
     # Step 4: behaviour, agent, head and body, at the fixed simulation rate (--creatures N:
     # all of them at once, keeping apart; creature 0 is the lone creature's).
+    workers = cfg.workers or available_cpus()
     with ctx.stage("simulate"):
-        trajs = simulate_creatures(run_cfg, env, nav, ctx)
+        trajs = simulate_creatures(run_cfg, env, nav, ctx, workers)
     traj = trajs[0]
 
     # Step 5: joint-local transforms at the export fps, relative to a placement near the path,
@@ -165,7 +167,7 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
     # Step 6: motion-quality metrics (independent ray casts against the environment), per
     # creature, and how a crowd's creatures keep apart.
     with ctx.stage("metrics"):
-        motions = [measure(cfg, t, env, nav) for t in trajs]
+        motions = fork_map(lambda i: measure(cfg, trajs[i], env, nav), len(trajs), workers)
         crowd = crowd_report(cfg, trajs)
     motion = motions[0]
 
@@ -176,8 +178,9 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
     clip = replace(clip, events=events(0, clip.n_frames))
     segments = behaviour_clips(clip, traj.events, cfg.fps, events) if cfg.clips else ()
     with ctx.stage("reduce"):
-        clip, segments, animation = reduce_clips(cfg, rig, traj, clip, segments, env)
-        others = reduce_crowd(cfg, rig, env, trajs[1:], [p[0] for p in posed[1:]])
+        (clip, segments, animation), *rest = reduce_creatures(
+            cfg, rig, env, trajs, [clip] + [p[0] for p in posed[1:]], segments, workers)
+    others = [(c, a) for c, _, a in rest]
 
     # Step 8: files, all or nothing: each is written to a temporary beside its target and
     # they are renamed together at the end (atomic.OutputSet); a failure or a signal before
@@ -220,14 +223,16 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
                       trajectories=tuple(trajs), clips=(clip,) + tuple(c for c, _ in others))
 
 
-def simulate_creatures(cfg: BakeConfig, env, nav, ctx: Context) -> list:
+def simulate_creatures(cfg: BakeConfig, env, nav, ctx: Context,
+                       workers: int = 1) -> list:
     """The trajectories of cfg.creatures creatures (sim.loop.simulate for one, run together by
-    sim.loop.simulate_crowd for more), in the environment's local frame."""
+    sim.loop.simulate_crowd for more, solved on up to `workers` processes), in the
+    environment's local frame."""
     from baker.sim.loop import simulate, simulate_crowd
 
     if cfg.creatures == 1:
         return [simulate(cfg, env, nav, Streams(cfg.seed), ctx)]
-    return simulate_crowd(cfg, env, nav, cfg.seed, cfg.creatures, ctx)
+    return simulate_crowd(cfg, env, nav, cfg.seed, cfg.creatures, ctx, workers)
 
 
 def measure(cfg: BakeConfig, traj, env, nav) -> dict:
@@ -265,16 +270,22 @@ def body_radius(rig_cfg) -> float:
     return float(max(rig_cfg.body.width_profile))
 
 
-def reduce_crowd(cfg: BakeConfig, rig, env, trajs, clips) -> list:
-    """(reduced clip, the report's `animation` section) of each of a crowd's further creatures:
-    its own events (events_of), no node tracks (the prey and the sun ride on creature 0's
-    clip), no per-behaviour clips."""
-    out = []
-    for traj, clip in zip(trajs, clips):
-        clip = replace(clip, tracks=(), events=events_of(cfg, traj, env.origin)(0, clip.n_frames))
-        reduced, _, animation = reduce_clips(cfg, rig, traj, clip, (), env)
-        out.append((reduced, animation))
-    return out
+def reduce_creatures(cfg: BakeConfig, rig, env, trajs, clips, segments: tuple,
+                     workers: int = 1) -> list:
+    """reduce_clips of every creature, on up to `workers` processes (baker.parallel.fork_map,
+    the same bits as one): (reduced clip, reduced per-behaviour clips, the report's `animation`
+    section). Creature 0 keeps its clip as it is and the per-behaviour `segments`; a crowd's
+    further creatures get their own events (events_of), no node tracks (the prey and the sun
+    ride on creature 0's clip) and no per-behaviour clips."""
+    def one(i: int):
+        if i == 0:
+            return reduce_clips(cfg, rig, trajs[0], clips[0], segments, env)
+        clip = clips[i]
+        clip = replace(clip, tracks=(),
+                       events=events_of(cfg, trajs[i], env.origin)(0, clip.n_frames))
+        return reduce_clips(cfg, rig, trajs[i], clip, (), env)
+
+    return fork_map(one, len(trajs), workers)
 
 
 def write_scene(cfg: BakeConfig, paths: dict, out, env, rig, clip, scene: dict, ctx):

@@ -199,6 +199,8 @@ class Options(_Table):
     seed: Int | None = key("", "random seed", ge=0, le=2**63 - 1)
     prey: Int | None = key("", "prey capsules", ge=0, le=16)
     creatures: Int | None = key("", "centipedes baked together (a crowd)", ge=1, le=1000)
+    workers: Int | None = key("", "processes sharing a crowd's per-creature stages", ge=1,
+                              le=1024)
     scale: Num | None = key("", "uniform rig scale", ge=1e-3, le=1e3)
     agent_radius: Num | None = key("m", "navigation agent radius", gt=0, le=1e3)
     agent_height: Num | None = key("m", "free height above walkable surface", gt=0, le=1e3)

@@ -9,6 +9,7 @@ import numpy as np
 
 from baker.config import BakeConfig
 from baker.context import Context
+from baker.parallel import fork_map
 from baker.run.crowd import run_crowd
 from baker.run.loop import run
 from baker.solve.solve import prey_frames, solve
@@ -29,14 +30,16 @@ def simulate(cfg: BakeConfig, env, nav, streams: Streams, ctx: Context,
     return solve(rec, env.rays, cfg.rig)
 
 
-def simulate_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context) -> list[Trajectory]:
+def simulate_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
+                   workers: int = 1) -> list[Trajectory]:
     """Run `n` creatures together (run.crowd.run_crowd: their own streams, separate starts,
-    local avoidance, one creature per shade spot, one hunter per prey), then solve each.
+    local avoidance, one creature per shade spot, one hunter per prey), then solve each (on
+    up to `workers` processes: baker.parallel.fork_map, the same bits as one).
     The bake's prey ride on the first trajectory (each held at its hunter's head while fed
     on); the others have none. ctx.notes["path_replans"] lists every creature's replans."""
     recs, prey = run_crowd(cfg, env, nav, seed, n, ctx)
     ctx.notes["path_replans"] = [r.replans for r in recs]
-    trajs = [solve(r, env.rays, cfg.rig) for r in recs]
+    trajs = fork_map(lambda i: solve(recs[i], env.rays, cfg.rig), n, workers)
     if prey["prey_names"]:
         holder = prey["prey_holder"]                        # (F, P) creature or -1
         heads_p = np.stack([t.spine_positions[:, 0] for t in trajs])    # (n, F, 3)

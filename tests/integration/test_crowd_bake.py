@@ -29,11 +29,13 @@ N = 3
 
 @pytest.fixture(scope="module")
 def crowd(tmp_path_factory, nav_cache_dir):
-    out = tmp_path_factory.mktemp("crowd") / "crowd"
-    cfg = BakeConfig(seconds=4.0, seed=0, creatures=N, rig=load_rig_config(DEFAULT_RIG),
-                     environment=FLOOR_ENVIRONMENT, prey=0,
-                     out=out, nav_cache_dir=nav_cache_dir)
-    return bake(cfg)
+    return bake(crowd_config(tmp_path_factory.mktemp("crowd") / "crowd", nav_cache_dir, 2))
+
+
+def crowd_config(out, nav_cache_dir, workers: int) -> BakeConfig:
+    return BakeConfig(seconds=4.0, seed=0, creatures=N, rig=load_rig_config(DEFAULT_RIG),
+                      environment=FLOOR_ENVIRONMENT, prey=0,
+                      out=out, nav_cache_dir=nav_cache_dir, workers=workers)
 
 
 @pytest.fixture(scope="module")
@@ -174,6 +176,17 @@ def test_every_creature_is_judged(crowd):
         assert r["metrics"]["spine_inside_geometry"] == 0
 
 
+def test_one_worker_writes_the_same_bytes_as_two(crowd, tmp_path, nav_cache_dir):
+    """The crowd's per-creature stages on one process and on two forked ones (the fixture's
+    bake, baker.parallel.fork_map; serial where fork is not used) give the same files."""
+    res = bake(crowd_config(tmp_path / "one", nav_cache_dir, 1))
+    for fmt in ("glb", "usd"):
+        assert res.outputs[fmt].read_bytes() == crowd.outputs[fmt].read_bytes(), fmt
+    strip = ("timings_s", "outputs", "navmesh_cache_hit")
+    assert ({k: v for k, v in res.report.items() if k not in strip}
+            == {k: v for k, v in crowd.report.items() if k not in strip})
+
+
 def test_a_crowd_with_clips_and_in_place_root_motion(tmp_path, nav_cache_dir):
     cfg = BakeConfig(seconds=2.0, seed=1, creatures=2, rig=load_rig_config(DEFAULT_RIG),
                      environment=FLOOR_ENVIRONMENT, prey=0,
@@ -203,7 +216,19 @@ def test_a_crowd_with_clips_and_in_place_root_motion(tmp_path, nav_cache_dir):
                                           ("1001", ["--creatures", "[1, 1000]"]),
                                           ("x", ["--creatures", "integer"])])
 def test_creatures_option_errors(value, words, capsys, tmp_path):
-    code = main(["bake", "--creatures", value, "--out", str(tmp_path / "x")])
+    check_option_error(["--creatures", value], words, capsys, tmp_path)
+
+
+@pytest.mark.parametrize("value, words", [("0", ["--workers", "[1, 1024]"]),
+                                          ("1025", ["--workers", "[1, 1024]"]),
+                                          ("two", ["--workers", "integer"])])
+def test_workers_option_errors(value, words, capsys, tmp_path):
+    check_option_error(["--workers", value, "--creatures", "2"], words, capsys, tmp_path)
+
+
+def check_option_error(args, words, capsys, tmp_path):
+    """One line, exit 2, no traceback, nothing written."""
+    code = main(["bake", *args, "--out", str(tmp_path / "x")])
     err = capsys.readouterr().err
     assert code == 2
     lines = [ln for ln in err.strip().splitlines() if ln.strip()]

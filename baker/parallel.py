@@ -1,0 +1,94 @@
+"""A crowd's per-creature work on forked worker processes (`baker bake --workers N`).
+
+fork_map(fn, n, workers) returns [fn(0), ..., fn(n - 1)], in that order, with the calls shared
+among up to `workers` processes forked from this one. A child inherits everything `fn` reads
+(the environment, its Embree scene, the run records) by copy-on-write, so only the index goes
+to it and only the result comes back (pickled). Each call does exactly what it does in this
+process, so the results, and the files, are the same bits whatever the number of workers.
+
+The calls run here, one after another, when there is one worker or one call, where fork is not
+the platform's safe way to start a process (it is on Linux; macOS and Windows start fresh
+interpreters, which would have to load the level again), and inside a daemonic process (a
+`baker batch` worker, which may not have children: the batch already keeps the cores busy).
+
+Only the standard library is imported here.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+import sys
+import warnings
+
+#: the function the forked children call (set just before the pool forks them)
+_TASK = None
+
+
+def available_cpus() -> int:
+    """The CPUs this process may run on (its affinity mask where the OS has one)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - macOS, Windows
+        return max(1, os.cpu_count() or 1)
+
+
+def can_fork() -> bool:
+    """True where fork_map may fork: Linux, and not inside a daemonic process."""
+    return sys.platform.startswith("linux") and not multiprocessing.current_process().daemon
+
+
+def _child_signals() -> None:
+    """A child leaves Ctrl-C to its parent (which stops the pool) and dies at SIGTERM (the
+    pool's terminate), instead of raising baker.signals.Interrupted in a task."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        signal.set_wakeup_fd(-1)
+    except ValueError:  # pragma: no cover - not the main thread
+        pass
+
+
+def _call(i: int):
+    return _TASK(i)
+
+
+def fork_map(fn, n: int, workers: int) -> list:
+    """[fn(i) for i in range(n)], on up to `workers` forked processes (see the module).
+
+    A child that dies (killed, out of memory) stops the map with a BakerError; an exception in
+    the parent (a signal's Interrupted) ends the children at once."""
+    global _TASK
+    workers = min(int(workers), int(n))
+    if workers <= 1 or not can_fork():
+        return [fn(i) for i in range(n)]
+    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
+
+    from baker.errors import BakerError
+
+    before = {p.pid for p in multiprocessing.active_children()}
+    _TASK = fn
+    pool = None
+    try:
+        with warnings.catch_warnings():     # Python 3.12+: fork with the ray caster's threads
+            warnings.filterwarnings("ignore", r".*fork\(\) may lead to deadlocks",
+                                    DeprecationWarning)
+            pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
+                                       initializer=_child_signals)
+            out = list(pool.map(_call, range(n)))
+        pool.shutdown()
+        return out
+    except BrokenProcessPool:
+        raise BakerError(f"a worker process stopped (killed, or out of memory) with {workers} "
+                         "workers; try fewer", where="--workers") from None
+    finally:
+        _TASK = None
+        if pool is not None:
+            ours = [p for p in multiprocessing.active_children() if p.pid not in before]
+            for p in ours:
+                p.terminate()
+            for p in ours:
+                p.join(5.0)
+            pool.shutdown(wait=False, cancel_futures=True)

@@ -1,0 +1,72 @@
+"""baker.parallel.fork_map: the results in order whatever the number of workers, a task's
+exception raised in the parent, a killed child reported as one user-facing error, and the
+calls run in this process where it may not fork."""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+
+import numpy as np
+import pytest
+
+from baker import parallel
+from baker.errors import BakerError
+from baker.parallel import fork_map
+
+forks = pytest.mark.skipif(not parallel.can_fork(), reason="fork_map forks on Linux only")
+
+
+@forks
+@pytest.mark.parametrize("workers", [1, 2, 3, 8])
+def test_results_come_back_in_order_whatever_the_workers(workers):
+    data = np.random.default_rng(5).normal(size=(7, 1000))     # inherited, not sent
+    out = fork_map(lambda i: (i, os.getpid(), data[i].sum()), 7, workers)
+    assert [o[0] for o in out] == list(range(7))
+    assert [o[2] for o in out] == [data[i].sum() for i in range(7)]
+    pids = {o[1] for o in out}
+    assert (pids == {os.getpid()}) == (workers == 1)           # forked children did the work
+    assert multiprocessing.active_children() == []
+
+
+@forks
+def test_a_tasks_exception_is_raised_in_the_parent():
+    def task(i):
+        if i == 3:
+            raise ValueError("bad creature 3")
+        return i
+
+    with pytest.raises(ValueError, match="bad creature 3"):
+        fork_map(task, 6, 2)
+    assert multiprocessing.active_children() == []
+
+
+@forks
+def test_a_killed_child_is_one_error_naming_the_option():
+    def task(i):
+        if i == 1:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return i
+
+    with pytest.raises(BakerError) as e:
+        fork_map(task, 4, 2)
+    assert e.value.where == "--workers" and "worker process stopped" in str(e.value)
+    assert multiprocessing.active_children() == []
+
+
+def test_one_call_or_one_worker_runs_here():
+    pid = os.getpid()
+    assert fork_map(lambda i: os.getpid(), 1, 4) == [pid]
+    assert fork_map(lambda i: os.getpid(), 3, 1) == [pid] * 3
+    assert fork_map(lambda i: i, 0, 2) == []
+
+
+def test_a_daemonic_process_does_not_fork(monkeypatch):
+    monkeypatch.setattr(multiprocessing.current_process(), "daemon", True, raising=False)
+    assert not parallel.can_fork()
+    assert fork_map(lambda i: os.getpid(), 3, 2) == [os.getpid()] * 3
+
+
+def test_available_cpus_is_positive():
+    assert parallel.available_cpus() >= 1
