@@ -11,6 +11,11 @@ other bundled scene (`floor`: environments/rainforest_floor.glb, 60 s, no prey).
 
     python benchmarks/quality_sweep.py                      # 50 default seeds, 10 per other scene
     python benchmarks/quality_sweep.py --scenes default --default-seeds 8 --seed-base 5000
+
+--creatures N bakes crowds: every creature of a bake is judged on every limit (the bake's row
+holds each limit's worst creature), and the crowd's own checks count as two more limits:
+`crowd_spines_apart` (no two creatures' spine joints closer than twice the body radius) and
+`crowd_leg_bones_in_other_bodies` (no walking or ultimate leg bone through another body).
 """
 
 from __future__ import annotations
@@ -80,13 +85,14 @@ def scene_environment(scene: str, work: Path) -> Path | None:
     return path if path.exists() else None
 
 
-def make_config(env: Path, scene: str, seed: int, seconds: float, out: Path, cache: Path):
+def make_config(env: Path, scene: str, seed: int, seconds: float, out: Path, cache: Path,
+                creatures: int = 1):
     from baker.config import DEFAULT_RIG, BakeConfig, load_rig_config, override_rig
 
     rig = override_rig(load_rig_config(DEFAULT_RIG), scale=SCENES[scene]["scale"])
     return BakeConfig(environment=env, seconds=seconds, fps=30, seed=seed, rig=rig, out=out,
                       formats=("glb", "usd"), nav_cache_dir=cache,
-                      prey=SCENES[scene].get("prey", 0))
+                      prey=SCENES[scene].get("prey", 0), creatures=creatures, workers=1)
 
 
 def ensure_validator() -> bool:
@@ -121,10 +127,10 @@ def usd_validator_errors(path: Path) -> int:
     return sum(e.GetType() == UsdValidation.ValidationErrorType.Error for e in ctx.Validate(stage))
 
 
-def sim_world_positions(result) -> dict[str, np.ndarray]:
-    """{joint name: (F, 3) float64 world positions} of every driven joint, as the simulation
-    placed them (its own float64 numbers, offset by the environment's origin)."""
-    traj = result.trajectory
+def sim_world_positions(result, creature: int = 0) -> dict[str, np.ndarray]:
+    """{joint name: (F, 3) float64 world positions} of every driven joint of a creature, as the
+    simulation placed them (its own float64 numbers, offset by the environment's origin)."""
+    traj = result.trajectories[creature]
     origin = np.asarray(result.report.get("environment", {}).get("origin", (0.0, 0.0, 0.0)),
                         dtype=np.float64)
     spine = ("head",) + tuple(f"trunk_{k:02d}" for k in range(1, traj.spine_positions.shape[1]))
@@ -134,12 +140,44 @@ def sim_world_positions(result) -> dict[str, np.ndarray]:
     return out
 
 
+def judge_creatures(res, glb: Path, usd: Path, creatures: int) -> tuple[dict, dict]:
+    """(metrics, worst) of a bake: each limit's value is its worst creature's (a crowd's
+    `worst` entries name the creature), diagnostics their largest."""
+    from baker.inspect import LIMITS, judge, read_glb, read_usd
+
+    results = [judge(read_glb(glb, creature=i), read_usd(usd, i),
+                     sim=sim_world_positions(res, i)) for i in range(creatures)]
+    if creatures == 1:
+        return results[0]["metrics"], results[0]["worst"]
+    m, worst = dict(results[0]["metrics"]), {}
+    ops = {name: op for name, op, _ in LIMITS}
+    for name in list(m):
+        vals = [(r["metrics"].get(name), i) for i, r in enumerate(results)]
+        vals = [(v, i) for v, i in vals if isinstance(v, (int, float))]
+        if not vals:
+            continue
+        v, i = (min if ops.get(name) == ">=" else max)(vals)
+        m[name] = v
+        if name in results[i]["worst"]:
+            worst[name] = dict(results[i]["worst"][name], creature=i)
+    return m, worst
+
+
+def crowd_failures(report: dict) -> list[str]:
+    """The crowd's own checks (the report's `crowd`) that a bake breaks."""
+    crowd = report.get("crowd")
+    if not crowd:
+        return []
+    return (["crowd_spines_apart"] * (not crowd["spines_apart"])
+            + ["crowd_leg_bones_in_other_bodies"] * bool(crowd["leg_bones_in_other_bodies"]))
+
+
 def bake_and_judge(scene: str, seed: int, seconds: float, work: str, keep: bool = False,
-                   cache: str | None = None) -> dict:
-    """One sweep job: bake, read both files back, judge, validate. Returns a row.
-    cache: navigation cache folder (default: WORK/navcache)."""
+                   cache: str | None = None, creatures: int = 1) -> dict:
+    """One sweep job: bake, read both files back, judge (every creature), validate. Returns a
+    row. cache: navigation cache folder (default: WORK/navcache)."""
     from baker.context import Context
-    from baker.inspect import failures, judge, read_glb, read_usd
+    from baker.inspect import failures
     from baker.pipeline import bake
 
     work = Path(work)
@@ -150,18 +188,22 @@ def bake_and_judge(scene: str, seed: int, seconds: float, work: str, keep: bool 
     row = {"scene": scene, "seed": seed, "seconds": seconds}
     try:
         res = bake(make_config(env, scene, seed, seconds, out,
-                               Path(cache) if cache else work / "navcache"), ctx=Context())
+                               Path(cache) if cache else work / "navcache", creatures),
+                   ctx=Context())
     except Exception as ex:  # noqa: BLE001 - a crashing bake is a result of the sweep
         row.update(error=f"{type(ex).__name__}: {ex}", failures=["bake"])
         return row
     row["bake_s"] = time.perf_counter() - t0
     glb, usd = out.with_suffix(".glb"), out.with_suffix(".usd")
-    result = judge(read_glb(glb), read_usd(usd), sim=sim_world_positions(res))
-    m = result["metrics"]
+    m, worst = judge_creatures(res, glb, usd, creatures)
     g_err = gltf_validator_errors(glb)
     m["validator_errors"] = None if g_err is None else g_err + usd_validator_errors(usd)
     m["distance_walked_m"] = res.report["metrics"]["distance_walked_m"]
-    row.update(metrics=m, worst=result["worst"], failures=failures(m),
+    crowd = res.report.get("crowd") or {}
+    for key in ("min_spine_gap_body_radii", "leg_bones_in_other_bodies"):
+        if key in crowd:
+            m["crowd_" + key] = crowd[key]
+    row.update(metrics=m, worst=worst, failures=failures(m) + crowd_failures(res.report),
                judge_s=time.perf_counter() - t0 - row["bake_s"])
     if not keep:
         for p in (glb, usd, out.with_suffix(".json")):
@@ -195,11 +237,14 @@ def print_table(rows: list[dict], scenes: list[str]) -> None:
     print("\nPass rates (bakes meeting each limit / bakes judged on it):\n")
     print("| limit | " + " | ".join(scenes) + " |")
     print("|---|" + "---|" * len(scenes))
+    crowd = any("crowd_min_spine_gap_body_radii" in r.get("metrics", {}) for r in rows)
+    names += ["crowd_spines_apart", "crowd_leg_bones_in_other_bodies"] * crowd
     for name in ["bake"] + names:
         cells = []
         for s in scenes:
             rs = [r for r in rows if r["scene"] == s]
-            judged = [r for r in rs if name == "bake" or r.get("metrics", {}).get(name) is not None]
+            judged = [r for r in rs if name == "bake" or name.startswith("crowd_")
+                      or r.get("metrics", {}).get(name) is not None]
             ok = sum(name not in r.get("failures", []) for r in judged)
             cells.append(f"{ok}/{len(judged)}" if judged else "-")
         print(f"| {name} | " + " | ".join(cells) + " |")
@@ -219,6 +264,7 @@ def print_worst(rows: list[dict], top: int) -> None:
         for r in rs[:top]:
             w = r["worst"].get(name, {})
             where = f" {w.get('joint')}@{w.get('frame')}" if w.get("joint") else ""
+            where += f" creature {w['creature']}" if "creature" in w else ""
             parts.append(f"{r['scene']}/{r['seed']}={r['metrics'][name]:.4g}{where}")
         print(f"  {name} ({op} {bound:g}): " + "; ".join(parts))
     print("\nDiagnostics (largest values):")
@@ -245,6 +291,8 @@ def main(argv=None) -> int:
     ap.add_argument("--keep", action="store_true", help="keep the baked files")
     ap.add_argument("--json", type=Path, default=None, help="write every row here")
     ap.add_argument("--top", type=int, default=3)
+    ap.add_argument("--creatures", type=int, default=1, help="bake crowds of N (every creature "
+                    "judged; see the module)")
     args = ap.parse_args(argv)
     args.scenes = [s for s in args.scenes.split(",") if s]
     work = args.work or Path(tempfile.mkdtemp(prefix="baker-sweep-"))
@@ -262,8 +310,8 @@ def main(argv=None) -> int:
     rows = []
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=args.workers, mp_context=ctx) as pool:
-        futs = [pool.submit(bake_and_judge, s, seed, secs, str(work), args.keep)
-                for s, seed, secs in jobs]
+        futs = [pool.submit(bake_and_judge, s, seed, secs, str(work), args.keep, None,
+                            args.creatures) for s, seed, secs in jobs]
         for i, f in enumerate(as_completed(futs), 1):
             r = f.result()
             rows.append(r)
