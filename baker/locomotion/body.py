@@ -191,6 +191,109 @@ def straight_ended_smooth(xy: np.ndarray, sigma: float) -> np.ndarray:
     return gaussian_filter1d(padded, sigma, axis=0, mode="nearest")[k:k + len(xy)]
 
 
+def trail_ends(paths: np.ndarray, cums: np.ndarray, ends: np.ndarray, extent: float,
+               spacing: float, resolution: float | None = None) -> np.ndarray:
+    """The last `extent` metres of several heads' trails, as build_trail makes them from the
+    paths so far: each path resampled every `resolution` (default spacing / 8) of horizontal arc
+    length, its kinks rounded and its heights smoothed as build_trail rounds and smooths them
+    (a turn on the spot or a dithering head leaves a cusp the body's trail does not have), then
+    sampled every `resolution` of the trail's own arc length, as place_chain walks it.
+
+    paths : (n, T, 3) float, head paths, oldest first (heights within the probe)
+    cums  : (n, T) float, their horizontal arc lengths (non-decreasing)
+    ends  : (n,) int, the index of each path's last point (the head)
+    returns (n, m, 3) float, oldest first, the head's point last; a trail shorter than
+    `extent` is held at its first point before it
+    """
+    res = resolution or spacing / 8.0
+    sigma = ROUND * spacing / res
+    pad = int(4.0 * max(sigma, 2.0 * spacing / res) + 0.5)     # what smoothing a start reaches
+    n = len(paths)
+    rows = np.arange(n)
+    total = cums[rows, ends]
+    span = np.full(n, 2.0 * extent + 2.0 * pad * res)
+    m = max(int(np.ceil(extent / res)), 1) + 1
+    out = np.empty((n, m, 3))
+    todo = rows
+    while len(todo):
+        # a dithering head's raw arc length is longer than its trail's: look farther back
+        w = int(np.ceil(span[todo[0]] / res)) + 1
+        s = total[todo, None] + np.linspace(-span[todo[0]], 0.0, w)[None, :]
+        pts = _interp_rows(np.maximum(s, 0.0), np.where(np.arange(cums.shape[1]) <= ends[todo, None],
+                                                        cums[todo], total[todo, None]),
+                           paths[todo])
+        k = min(pad, w - 1)
+        xz = pts[..., [0, 2]]
+        ext = np.concatenate([2.0 * xz[:, :1] - xz[:, k:0:-1], xz,
+                              2.0 * xz[:, -1:] - xz[:, -2:-k - 2:-1]], axis=1)
+        pts[..., [0, 2]] = gaussian_filter1d(ext, sigma, axis=1, mode="nearest")[:, k:k + w]
+        pts[..., 1] = gaussian_filter1d(pts[..., 1], 2.0 * spacing / res, axis=1,
+                                        mode="nearest")
+        arc = np.concatenate([np.zeros((len(todo), 1)),
+                              np.cumsum(length(np.diff(pts, axis=1)), axis=1)], axis=1)
+        short = (s[:, 0] > 0.0) & (arc[:, -1] - arc[:, k] < extent)
+        done = ~short
+        q = arc[done, -1:] + np.linspace(-extent, 0.0, m)[None, :]
+        out[todo[done]] = _interp_rows(q, arc[done], pts[done])
+        todo = todo[short]
+        span[todo] *= 2.0
+    return out
+
+
+def _interp_rows(x: np.ndarray, xp: np.ndarray, fp: np.ndarray) -> np.ndarray:
+    """np.interp row by row, in one call: x (n, a), xp (n, b) non-decreasing rows, fp (n, b, d)
+    -> (n, a, d) (each row's values clamped to its ends)."""
+    n = len(x)
+    if n == 0:
+        return np.zeros((0, x.shape[1], fp.shape[2]))
+    x = np.clip(x, xp[:, :1], xp[:, -1:])
+    width = float((xp[:, -1] - xp[:, 0]).max()) + 1.0
+    shift = (width * np.arange(n) - xp[:, 0])[:, None]
+    flat_x, flat_xp = (x + shift).ravel(), (xp + shift).ravel()
+    return np.stack([np.interp(flat_x, flat_xp, fp[..., k].ravel()).reshape(x.shape)
+                     for k in range(fp.shape[2])], axis=-1)
+
+
+def chain_on(trails: np.ndarray, lift: np.ndarray, spacing: float,
+             resolution: float | None = None) -> np.ndarray:
+    """Follow-the-leader placement on trails as place_chain does it: the head at each trail's
+    last point, every other joint on the trail exactly `spacing` behind the joint ahead (the
+    chord, so across a fold of the trail it is not the arc length), each raised by its lift.
+
+    trails : (n, m, 3) float, oldest first, a point every `resolution` (default spacing / 8)
+             of horizontal arc length (trail_ends); lift : (n, S) float [m]
+    returns (n, S, 3) float; a joint past a trail's start is at its start
+    """
+    res = resolution or spacing / 8.0
+    n, m, _ = trails.shape
+    S = lift.shape[1]
+    rows = np.arange(n)
+    out = np.empty((n, S, 3))
+    out[:, 0] = trails[:, -1] + lift[:, :1] * UP
+    at = np.full(n, m - 2)               # the first sample behind the joint ahead
+    # bracket within four spacings back, as place_chain does (the trail can fold back)
+    look = np.arange(min(int(round(4.0 * spacing / res)) + 1, m))
+    for i in range(1, S):
+        prev = out[:, i - 1]
+        k = np.maximum(at[:, None] - look[None, :], 0)                       # (n, L)
+        cand = trails[rows[:, None], k] + lift[:, i, None, None] * UP
+        far = length(cand - prev[:, None, :]) > spacing
+        j = np.where(far.any(axis=1), np.argmax(far, axis=1), len(look) - 1)
+        # the joint lies between candidate j (a spacing or more away) and the one before it
+        # (nearer; for j = 0, the joint ahead's own point)
+        a = cand[rows, j]
+        b = np.where((j > 0)[:, None], cand[rows, np.maximum(j - 1, 0)], prev)
+        d, e = a - b, b - prev
+        qa = np.einsum("ij,ij->i", d, d)
+        qb = 2.0 * np.einsum("ij,ij->i", d, e)
+        qc = np.einsum("ij,ij->i", e, e) - spacing * spacing
+        t = (-qb + np.sqrt(np.maximum(qb * qb - 4.0 * qa * qc, 0.0))) / np.maximum(2.0 * qa, 1e-18)
+        t = np.where(far[rows, j], np.clip(t, 0.0, 1.0), 1.0)
+        out[:, i] = b + t[:, None] * d
+        at = k[rows, j]
+    return out
+
+
 def _hip_bound(rays, pts: np.ndarray, ground_pts: np.ndarray, probe: float, clearance: float,
                offset: float, drop: float) -> np.ndarray:
     """(T,) lowest trail height that keeps hips `offset` metres either side of the path (and

@@ -3,12 +3,13 @@ its own random streams (Streams(seed, creature=i)), sharing the sun, the prey an
 on shade spots and prey (behaviour.claims: a spot holds one creature, a prey has one hunter).
 
 Local avoidance: every AVOID_EVERY steps one cKDTree holds every creature's body points (its
-head and its head path sampled a spacing apart over a body length, the straight start line
-before it has walked one) and one ball query finds, for all heads at once, the other
-creatures' points near each. Each head then treats those points as obstacles on its walkable
-surface, keeping `separation` metres from them (run.follow.Follower._avoiding): it turns or
-slides along another body as it does along an edge. A body only ever lies on its own head's
-path, so a head that never comes within `separation` of another body keeps the bodies apart.
+head and its head path sampled a spacing apart over a body length, with the path's kinks
+rounded as the body's trail rounds them, and the straight start line before it has walked
+one) and one ball query finds, for all heads at once, the other creatures' points near each.
+Each head then treats those points as obstacles on its walkable surface, keeping `separation`
+metres from them (run.follow.Follower._avoiding): it turns or slides along another body as it
+does along an edge. A body only ever lies on its own head's trail, so a head that never comes
+within `separation` of another body keeps the bodies apart.
 """
 
 from __future__ import annotations
@@ -23,6 +24,8 @@ from baker.behaviour.brain import Brain, Senses
 from baker.behaviour.claims import Claims
 from baker.config import BakeConfig
 from baker.context import Context
+from baker.locomotion.body import ROUND, chain_on, trail_ends
+from baker.locomotion.cobra import lift_profile
 from baker.run.follow import Follower
 from baker.run.loop import Clock, make_prey, make_sun, record, start_line
 from baker.run.record import Recorder, RunRecord
@@ -81,36 +84,88 @@ def crowd_starts(nav, env, rig, streams: list[Streams], separation: float, at=No
 
 
 class Bodies:
-    """Every creature's head path (after its start line) and its arc length, and the body
-    points sampled from them for the neighbour query."""
+    """Every creature's head path (after its start line) and the body points sampled from it
+    for the neighbour query: where the solve will put the body (locomotion.body.trail_ends and
+    chain_on: on the path with its kinks rounded, as the body's trail has them, each joint a
+    spacing behind the one ahead, the cobra's raised front included), not along the raw path,
+    which a head's turn on the spot folds into a cusp. The paths are kept a point every
+    KEEP_EVERY of the trail's resolution (the head's current point last), for all creatures at
+    once.
 
-    def __init__(self, lines: list[np.ndarray], n_steps: int, spacing: float, segments: int):
+    lift : the cobra's lift per spine joint (segments,) [m] at a cobra amount 0..1
+    """
+
+    #: the model's trail resolution, in spacings (the solve's is an eighth: a quarter keeps
+    #: the body points within a millimetre or two of it at a quarter of the cost)
+    RESOLUTION = 0.25
+    KEEP_EVERY = 0.5
+
+    def __init__(self, lines: list[np.ndarray], n_steps: int, spacing: float, segments: int,
+                 lift=None):
         n, m = len(lines), len(lines[0])
-        self.m = m
-        self.path = np.zeros((n, m + n_steps + 1, 2))
+        self.spacing, self.segments, self.lift = spacing, segments, lift
+        self.res = self.RESOLUTION * spacing
+        # the trail the chain and its bracket (four spacings behind a joint) walk, and the
+        # raw path kept for it: two windows trail_ends may take (a dithering head's raw path
+        # is longer than its trail)
+        self.extent = (segments + 6) * spacing
+        self.window = 4.0 * self.extent + 16.0 * ROUND * spacing
+        self.path = np.zeros((n, m + n_steps + 1, 3))
         self.cum = np.zeros((n, m + n_steps + 1))
         for i, line in enumerate(lines):
-            self.path[i, :m] = line[:, [0, 2]]
-            d = np.hypot(*np.diff(line[:, [0, 2]], axis=0).T)
-            self.cum[i, 1:m] = np.cumsum(d)
-        self.back = spacing * np.arange(segments + 1)
+            self.path[i, :m] = line
+            self.cum[i, 1:m] = np.cumsum(np.hypot(*np.diff(line[:, [0, 2]], axis=0).T))
+        self.count = np.full(n, m - 1)     # index of each path's current (last) point
+        self._key = np.full((n, 2), np.nan)          # (arc length, cobra) of the points kept
+        self._points = np.zeros((n, segments + 1, 2))
 
-    def advance(self, k: int, heads: np.ndarray) -> None:
-        """Step k's heads (n, 3), for all creatures at once."""
-        j = self.m + k
-        xz = heads[:, [0, 2]]
-        self.cum[:, j] = self.cum[:, j - 1] + np.hypot(*(xz - self.path[:, j - 1]).T)
-        self.path[:, j] = xz
+    def advance(self, heads: np.ndarray) -> None:
+        """The heads after a step (n, 3), for all creatures at once: each becomes its path's current
+        point, after the one before it if that one is KEEP_EVERY resolutions on."""
+        rows = np.arange(len(heads))
+        last = self.count
+        keep = self.cum[rows, last] - self.cum[rows, np.maximum(last - 1, 0)] >= (
+            self.KEEP_EVERY * self.res)
+        at = last + keep
+        d = heads - self.path[rows, at - 1]
+        self.cum[rows, at] = self.cum[rows, at - 1] + np.hypot(d[:, 0], d[:, 2])
+        self.path[rows, at] = heads
+        self.count = at
 
-    def points(self, k: int) -> tuple[np.ndarray, np.ndarray]:
-        """(n * (segments + 1), 2) body points after step k and (same,) their creature."""
-        j = self.m + k
-        out = np.empty((len(self.path), len(self.back), 2))
-        for i in range(len(self.path)):
-            cum = self.cum[i, :j + 1]
-            idx = np.searchsorted(cum, cum[-1] - self.back).clip(0, j)
-            out[i] = self.path[i, idx]
-        return out.reshape(-1, 2), np.repeat(np.arange(len(self.path)), len(self.back))
+    def points(self, rows: np.ndarray, cobra: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
+        """(len(rows) * (segments + 1), 2) the body points of creatures `rows` (every joint's
+        and one more a spacing behind the tail) and (same,) their creature.
+        cobra : (n,) every creature's cobra amount 0..1 (None: all down)"""
+        amount = (np.zeros(len(rows)) if cobra is None or self.lift is None
+                  else np.asarray(cobra, float)[rows])
+        key = np.column_stack([self.cum[rows, self.count[rows]], amount])
+        moved = ~(key == self._key[rows]).all(axis=1)          # still heads: as they were
+        if moved.any():
+            self._points[rows[moved]] = self._place(rows[moved], amount[moved])
+            self._key[rows[moved]] = key[moved]
+        return (self._points[rows].reshape(-1, 2),
+                np.repeat(rows, self.segments + 1))
+
+    def _place(self, rows: np.ndarray, amount: np.ndarray) -> np.ndarray:
+        """(len(rows), segments + 1, 2) the body points of creatures `rows`."""
+        ends = self.count[rows]
+        starts = [int(np.searchsorted(self.cum[i, :j + 1], self.cum[i, j] - self.window))
+                  for i, j in zip(rows, ends)]
+        size = int((ends + 1 - np.array(starts)).max())
+        paths = np.empty((len(rows), size, 3))
+        cums = np.empty((len(rows), size))
+        for r, (i, a, j) in enumerate(zip(rows, starts, ends)):
+            w = j + 1 - a
+            paths[r, :w], paths[r, w:] = self.path[i, a:j + 1], self.path[i, j]
+            cums[r, :w] = self.cum[i, a:j + 1] - self.cum[i, a]
+            cums[r, w:] = cums[r, w - 1]
+        trails = trail_ends(paths, cums, np.full(len(rows), size - 1), self.extent,
+                            self.spacing, self.res)
+        lift = np.zeros((len(rows), self.segments + 1))
+        for r in np.flatnonzero(amount > 0.0):
+            lift[r, :self.segments] = self.lift(float(amount[r]))
+        return chain_on(trails, lift, self.spacing, self.res)[..., [0, 2]]
 
 
 def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
@@ -133,10 +188,12 @@ def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
                     cobra_mode=cfg.cobra, claims=claims, who=i) for i, st in enumerate(streams)]
     clock = Clock(cfg)
     lines = [start_line(nav, rig, s, h) for s, h in starts]
-    bodies = Bodies(lines, clock.n_steps, rig.body.spacing, rig.body.segments)
+    bodies = Bodies(lines, clock.n_steps, rig.body.spacing, rig.body.segments,
+                    lift=lambda a: lift_profile(np.array([a]), rig.cobra.curve, rig.cobra.height,
+                                                rig.body.segments)[0])
     heads = np.empty((n, clock.n_steps + 1, 3))
     heads[:, 0] = [s for s, _ in starts]
-    bodies.advance(0, heads[:, 0])
+    bodies.advance(heads[:, 0])
     recs = [Recorder(clock.n_frames, 0) for _ in range(n)]
     prey_rec = Recorder(clock.n_frames, len(preys))
     holder = np.full((clock.n_frames, len(preys)), -1)
@@ -149,14 +206,14 @@ def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
     for k in range(1, clock.n_steps + 1):
         t = (k - 1) * clock.dt
         if (k - 1) % AVOID_EVERY == 0 and n > 1:
-            neighbours(bodies, k - 1, heads[:, k - 1], follows, reach)
+            neighbours(bodies, heads[:, k - 1], follows, reach, cobra)
         for i in range(n):
             f = follows[i]
             wants[i] = brains[i].step(Senses(t, f.position, f.head.heading, f.agent.arrived))
             f.apply(wants[i])
             f.step(clock.dt)
             heads[i, k] = f.position
-        bodies.advance(k, heads[:, k])
+        bodies.advance(heads[:, k])
         if preys:
             step_prey(preys, t, clock.dt, heads[:, k])
         cobra += np.clip(np.array([w.cobra for w in wants]) - cobra, -ramp, ramp)
@@ -172,13 +229,21 @@ def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
                      prey_modes=prey_rec.prey_mode, prey_holder=holder)
 
 
-def neighbours(bodies: Bodies, k: int, heads: np.ndarray, follows, reach: float) -> None:
+def neighbours(bodies: Bodies, heads: np.ndarray, follows, reach: float,
+               cobra: np.ndarray | None = None) -> None:
     """Hand each follower the other creatures' body points within `reach` of its head (one
-    tree, one ball query for all heads)."""
-    pts, owner = bodies.points(k)
-    tree = cKDTree(pts)
-    near = tree.query_ball_point(heads[:, [0, 2]], reach)
-    for i, idx in enumerate(near):
+    tree, one ball query for all heads); cobra: (n,) their cobra amounts. Only the bodies of
+    creatures whose heads are near another's are placed: a body lies within bodies.extent of
+    its head."""
+    for f in follows:
+        f.others = None
+    xz = heads[:, [0, 2]]
+    need = np.unique(cKDTree(xz).query_pairs(bodies.extent + reach, output_type="ndarray"))
+    if not len(need):
+        return
+    pts, owner = bodies.points(need, cobra)
+    near = cKDTree(pts).query_ball_point(xz[need], reach)
+    for i, idx in zip(need, near):
         idx = np.asarray(idx, dtype=np.intp)
         idx = idx[owner[idx] != i]
         follows[i].others = pts[idx] if len(idx) else None
