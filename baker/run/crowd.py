@@ -83,6 +83,14 @@ def crowd_starts(nav, env, rig, streams: list[Streams], separation: float, at=No
     return out
 
 
+def tail_points(rig) -> int:
+    """Body points behind the last spine joint: out to the ultimate legs' reach behind it
+    (their bones' length), at least one."""
+    legs = rig.legs
+    reach = legs.ultimate_upper + legs.ultimate_tip if legs.enabled else 0.0
+    return max(1, int(np.ceil(reach / rig.body.spacing)))
+
+
 class Bodies:
     """Every creature's head path (after its start line) and the body points sampled from it
     for the neighbour query: where the solve will put the body (locomotion.body.trail_ends and
@@ -93,6 +101,7 @@ class Bodies:
     once.
 
     lift : the cobra's lift per spine joint (segments,) [m] at a cobra amount 0..1
+    tail : points a spacing apart behind the last joint (the ultimate legs reach behind it)
     """
 
     #: the model's trail resolution, in spacings (the solve's is an eighth: a quarter keeps
@@ -101,14 +110,15 @@ class Bodies:
     KEEP_EVERY = 0.5
 
     def __init__(self, lines: list[np.ndarray], n_steps: int, spacing: float, segments: int,
-                 lift=None):
+                 lift=None, tail: int = 1):
         n, m = len(lines), len(lines[0])
         self.spacing, self.segments, self.lift = spacing, segments, lift
+        self.size = segments + tail           # points per body
         self.res = self.RESOLUTION * spacing
         # the trail the chain and its bracket (four spacings behind a joint) walk, and the
         # raw path kept for it: two windows trail_ends may take (a dithering head's raw path
         # is longer than its trail)
-        self.extent = (segments + 6) * spacing
+        self.extent = (self.size + 5) * spacing
         self.window = 4.0 * self.extent + 16.0 * ROUND * spacing
         self.path = np.zeros((n, m + n_steps + 1, 3))
         self.cum = np.zeros((n, m + n_steps + 1))
@@ -117,7 +127,7 @@ class Bodies:
             self.cum[i, 1:m] = np.cumsum(np.hypot(*np.diff(line[:, [0, 2]], axis=0).T))
         self.count = np.full(n, m - 1)     # index of each path's current (last) point
         self._key = np.full((n, 2), np.nan)          # (arc length, cobra) of the points kept
-        self._points = np.zeros((n, segments + 1, 2))
+        self._points = np.zeros((n, self.size, 2))
 
     def advance(self, heads: np.ndarray) -> None:
         """The heads after a step (n, 3), for all creatures at once: each becomes its path's current
@@ -134,8 +144,8 @@ class Bodies:
 
     def points(self, rows: np.ndarray, cobra: np.ndarray | None = None
                ) -> tuple[np.ndarray, np.ndarray]:
-        """(len(rows) * (segments + 1), 2) the body points of creatures `rows` (every joint's
-        and one more a spacing behind the tail) and (same,) their creature.
+        """(len(rows) * size, 2) the body points of creatures `rows` (every joint's, and
+        `tail` more behind the last) and (same,) their creature.
         cobra : (n,) every creature's cobra amount 0..1 (None: all down)"""
         amount = (np.zeros(len(rows)) if cobra is None or self.lift is None
                   else np.asarray(cobra, float)[rows])
@@ -145,10 +155,10 @@ class Bodies:
             self._points[rows[moved]] = self._place(rows[moved], amount[moved])
             self._key[rows[moved]] = key[moved]
         return (self._points[rows].reshape(-1, 2),
-                np.repeat(rows, self.segments + 1))
+                np.repeat(rows, self.size))
 
     def _place(self, rows: np.ndarray, amount: np.ndarray) -> np.ndarray:
-        """(len(rows), segments + 1, 2) the body points of creatures `rows`."""
+        """(len(rows), size, 2) the body points of creatures `rows`."""
         ends = self.count[rows]
         starts = [int(np.searchsorted(self.cum[i, :j + 1], self.cum[i, j] - self.window))
                   for i, j in zip(rows, ends)]
@@ -162,7 +172,7 @@ class Bodies:
             cums[r, w:] = cums[r, w - 1]
         trails = trail_ends(paths, cums, np.full(len(rows), size - 1), self.extent,
                             self.spacing, self.res)
-        lift = np.zeros((len(rows), self.segments + 1))
+        lift = np.zeros((len(rows), self.size))
         for r in np.flatnonzero(amount > 0.0):
             lift[r, :self.segments] = self.lift(float(amount[r]))
         return chain_on(trails, lift, self.spacing, self.res)[..., [0, 2]]
@@ -190,7 +200,7 @@ def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
     lines = [start_line(nav, rig, s, h) for s, h in starts]
     bodies = Bodies(lines, clock.n_steps, rig.body.spacing, rig.body.segments,
                     lift=lambda a: lift_profile(np.array([a]), rig.cobra.curve, rig.cobra.height,
-                                                rig.body.segments)[0])
+                                                rig.body.segments)[0], tail=tail_points(rig))
     heads = np.empty((n, clock.n_steps + 1, 3))
     heads[:, 0] = [s for s, _ in starts]
     bodies.advance(heads[:, 0])
