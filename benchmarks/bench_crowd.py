@@ -4,8 +4,14 @@ scene, warm navigation cache. Prints medians, the time per creature and its grow
 100 creatures, and the smallest distance between different creatures' spine joints over all
 frames (solved spine-only: the legs do not move the spine) against twice the body radius.
 
+--bake times whole bakes instead (pipeline.bake: run, solve, pose, metrics, reduce and the
+GLB, USD and report written; warm navigation cache) for each N and each --workers count, with
+their stages, the wall time against the issue's 60 s for 100 creatures, and the judgement of
+the crowd's own checks (the report's `crowd`).
+
 Run from the repo root:  python benchmarks/bench_crowd.py [--seconds 60] [--runs 3]
 [--big-runs 1] [--sizes 1,10,100]   (--runs for N <= 10, --big-runs for larger crowds)
+                         python benchmarks/bench_crowd.py --bake [--workers 1,2] ...
 """
 
 from __future__ import annotations
@@ -51,8 +57,13 @@ def main():
     ap.add_argument("--big-runs", type=int, default=1)
     ap.add_argument("--sizes", default="1,10,100")
     ap.add_argument("--cache-dir", type=Path, default=None)
+    ap.add_argument("--bake", action="store_true", help="time whole bakes (see the module)")
+    ap.add_argument("--workers", default=None, help="with --bake: worker counts to time "
+                    "(comma separated) [default: the CPUs available]")
     args = ap.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
+    if args.bake:
+        return bench_bakes(args, sizes)
     with tempfile.TemporaryDirectory() as tmp:
         cfg = validate_bake(BakeConfig(seconds=args.seconds, fps=30, seed=0,
                                        rig=load_rig_config(DEFAULT_RIG),
@@ -85,6 +96,48 @@ def main():
                   f"(1.00 = linear)")
         if 1 in med and 10 in med:
             print(f"  growth per creature 1 -> 10:   {(med[10] / 10) / med[1]:.2f}x")
+
+
+def bench_bakes(args, sizes: list[int]) -> None:
+    """Whole bakes of N creatures on W workers: medians of the wall time and of each stage."""
+    from baker.parallel import available_cpus
+    from baker.pipeline import bake
+
+    workers = [int(w) for w in (args.workers or str(available_cpus())).split(",")]
+    with tempfile.TemporaryDirectory() as tmp:
+        cache = args.cache_dir or Path(tmp) / "cache"
+        cfg = BakeConfig(seconds=args.seconds, fps=30, seed=0, rig=load_rig_config(DEFAULT_RIG),
+                         nav_cache_dir=cache, out=Path(tmp) / "crowd")
+        bake(replace(cfg, seconds=1.0))                     # the navigation cache, warm
+        print(f"whole bakes, default scene, {args.seconds:.0f} s (medians; target for 100 "
+              "creatures: 60 s on 2 cores)")
+        per = {}
+        for n in sizes:
+            for w in workers:
+                walls, stages = [], []
+                for _ in range(args.runs if n <= 10 else args.big_runs):
+                    t = time.perf_counter()
+                    res = bake(replace(cfg, creatures=n, workers=w))
+                    walls.append(time.perf_counter() - t)
+                    stages.append(res.report["timings_s"])
+                wall = statistics.median(walls)
+                per[n, w] = wall
+                st = "  ".join(f"{k} {statistics.median(s[k] for s in stages):.1f}"
+                               for k in ("simulate", "metrics", "reduce", "export"))
+                crowd = res.report.get("crowd") or {}
+                check = ("" if not crowd else
+                         f"   spines apart {crowd['spines_apart']}, leg bones in other bodies "
+                         f"{crowd['leg_bones_in_other_bodies']}")
+                print(f"  N = {n:4d}, {w} worker{'s' * (w > 1)}: {wall:8.1f} s "
+                      f"({wall / n:6.2f} s per creature; {st}){check}", flush=True)
+        for w in workers:
+            if (10, w) in per and (100, w) in per:
+                print(f"  growth per creature 10 -> 100, {w} workers: "
+                      f"{(per[100, w] / 100) / (per[10, w] / 10):.2f}x (1.00 = linear)")
+        for n in sizes:
+            if (n, 1) in per and len(workers) > 1:
+                print(f"  N = {n}: " + ", ".join(f"{w} workers {per[n, 1] / per[n, w]:.2f}x"
+                                                  for w in workers if w != 1))
 
 
 if __name__ == "__main__":
