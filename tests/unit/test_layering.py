@@ -19,6 +19,7 @@ ALLOWED = {
     "atomic": {"signals"},
     "schema": set(),
     "streams": set(),
+    "parallel": set(),                  # a crowd's per-creature work on forked processes
     "config": {"schema"},
     "context": {"signals"},
     "environment": set(),
@@ -28,7 +29,7 @@ ALLOWED = {
     "rig": {"config"},
     "run": {"environment", "navmesh", "behaviour", "locomotion", "config", "context", "streams"},
     "solve": {"environment", "locomotion", "behaviour", "config", "run"},   # a run's record
-    "sim": {"run", "solve", "config", "context", "streams"},     # simulate: run, then solve
+    "sim": {"run", "solve", "config", "context", "streams", "parallel"},   # run, then solve
     "metrics": {"solve"},
     "clip": {"rig", "solve"},
     "rootmotion": {"clip", "rig"},
