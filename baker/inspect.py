@@ -547,16 +547,19 @@ def _judge_bones(scene: BakedScene, rays, bl: float, m: dict, worst: dict) -> No
         worst[key] = _worst(hits.astype(float), [scene.names[i] for i in j])
 
 
-def judge_creatures(glb_path: str | Path, usd_path: str | Path | None = None) -> list[dict]:
+def judge_creatures(glb_path: str | Path, usd_path: str | Path | None = None,
+                    sims: list | None = None) -> list[dict]:
     """judge() of every creature of a bake (one for a lone creature), each read from the GLB
-    (its skin) and, when given, the USD (its Skeleton)."""
+    (its skin) and, when given, the USD (its Skeleton); sims: each creature's `sim` for
+    judge() (None: none)."""
     g = GlbFile(Path(glb_path).read_bytes())
     names = [a.get("name") for a in g.doc.get("animations", [])]
     anim = "bake" if "bake" in names else 0
     out = []
     for i in range(creature_count(g.doc)):
         scene = read_glb(glb_path, anim, glb=g, creature=i)
-        out.append(judge(scene, read_usd(usd_path, i) if usd_path is not None else None))
+        out.append(judge(scene, read_usd(usd_path, i) if usd_path is not None else None,
+                         sim=None if sims is None else sims[i]))
     return out
 
 

@@ -141,12 +141,11 @@ def sim_world_positions(result, creature: int = 0) -> dict[str, np.ndarray]:
 
 
 def judge_creatures(res, glb: Path, usd: Path, creatures: int) -> tuple[dict, dict]:
-    """(metrics, worst) of a bake: each limit's value is its worst creature's (a crowd's
-    `worst` entries name the creature), diagnostics their largest."""
-    from baker.inspect import LIMITS, judge, read_glb, read_usd
+    """(metrics, worst) of a bake (inspect.judge_creatures): each limit's value is its worst
+    creature's (a crowd's `worst` entries name the creature), diagnostics their largest."""
+    from baker.inspect import LIMITS, judge_creatures as judge_each
 
-    results = [judge(read_glb(glb, creature=i), read_usd(usd, i),
-                     sim=sim_world_positions(res, i)) for i in range(creatures)]
+    results = judge_each(glb, usd, [sim_world_positions(res, i) for i in range(creatures)])
     if creatures == 1:
         return results[0]["metrics"], results[0]["worst"]
     m, worst = dict(results[0]["metrics"]), {}

@@ -178,17 +178,22 @@ def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: flo
                  high=high)
 
 
-def straight_ended_smooth(xy: np.ndarray, sigma: float) -> np.ndarray:
-    """Gaussian smoothing (sigma in samples) along axis 0 of an (n, k) path whose ends carry on
-    as straight lines (each end extended by the path's point reflection about it), so a path
-    that runs straight into its end keeps its pace there: padding with the end point itself
-    bunches the last samples up, and a body following the trail slowed down over its last
-    frames (to 63 % of its speed in the last frame of a default bake)."""
-    k = min(int(4.0 * sigma + 0.5), len(xy) - 1)
+def straight_ended_smooth(xy: np.ndarray, sigma: float, axis: int = 0,
+                          reach: int | None = None) -> np.ndarray:
+    """Gaussian smoothing (sigma in samples) along `axis` of paths whose ends carry on as
+    straight lines (each end extended by the path's point reflection about it, `reach` samples,
+    default the kernel's 4 sigma), so a path that runs straight into its end keeps its pace
+    there: padding with the end point itself bunches the last samples up, and a body following
+    the trail slowed down over its last frames (to 63 % of its speed in the last frame of a
+    default bake)."""
+    xy = np.moveaxis(xy, axis, 0)
+    k = min(int(4.0 * sigma + 0.5) if reach is None else reach, len(xy) - 1)
     if k < 1:
-        return gaussian_filter1d(xy, sigma, axis=0, mode="nearest")
-    padded = np.concatenate([2.0 * xy[0] - xy[k:0:-1], xy, 2.0 * xy[-1] - xy[-2:-k - 2:-1]])
-    return gaussian_filter1d(padded, sigma, axis=0, mode="nearest")[k:k + len(xy)]
+        out = gaussian_filter1d(xy, sigma, axis=0, mode="nearest")
+    else:
+        padded = np.concatenate([2.0 * xy[0] - xy[k:0:-1], xy, 2.0 * xy[-1] - xy[-2:-k - 2:-1]])
+        out = gaussian_filter1d(padded, sigma, axis=0, mode="nearest")[k:k + len(xy)]
+    return np.moveaxis(out, 0, axis)
 
 
 def trail_ends(paths: np.ndarray, cums: np.ndarray, ends: np.ndarray, extent: float,
@@ -223,10 +228,7 @@ def trail_ends(paths: np.ndarray, cums: np.ndarray, ends: np.ndarray, extent: fl
                                                         cums[todo], total[todo, None]),
                            paths[todo])
         k = min(pad, w - 1)
-        xz = pts[..., [0, 2]]
-        ext = np.concatenate([2.0 * xz[:, :1] - xz[:, k:0:-1], xz,
-                              2.0 * xz[:, -1:] - xz[:, -2:-k - 2:-1]], axis=1)
-        pts[..., [0, 2]] = gaussian_filter1d(ext, sigma, axis=1, mode="nearest")[:, k:k + w]
+        pts[..., [0, 2]] = straight_ended_smooth(pts[..., [0, 2]], sigma, axis=1, reach=pad)
         pts[..., 1] = gaussian_filter1d(pts[..., 1], 2.0 * spacing / res, axis=1,
                                         mode="nearest")
         arc = np.concatenate([np.zeros((len(todo), 1)),
