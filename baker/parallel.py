@@ -86,9 +86,19 @@ def fork_map(fn, n: int, workers: int) -> list:
     finally:
         _TASK = None
         if pool is not None:
-            ours = [p for p in multiprocessing.active_children() if p.pid not in before]
-            for p in ours:
-                p.terminate()
-            for p in ours:
-                p.join(5.0)
-            pool.shutdown(wait=False, cancel_futures=True)
+            _end(p for p in multiprocessing.active_children() if p.pid not in before)
+            # the pool's own thread joins them too: wait for it, so none is left when we return
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _end(children) -> None:
+    """Stop forked children: SIGTERM, and SIGKILL for one still there after 5 s (a child
+    forked with the parent's handler, before its own took over)."""
+    children = list(children)
+    for p in children:
+        p.terminate()
+    for p in children:
+        p.join(5.0)
+        if p.is_alive():
+            p.kill()
+            p.join()
