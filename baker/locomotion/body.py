@@ -557,10 +557,15 @@ def body_frames(trail: Trail, head_arc: np.ndarray, spacing: float, segments: in
         if not slow.any():
             break
         lift = np.where(slow[:, None], slower, lift)
-        again = _placed(trail, head_arc[slow], spacing, clearance, lift[slow],
-                        _raised(lift, ramp)[slow], fps)
-        bf = BodyFrames(**{k: _spliced(getattr(bf, k), getattr(again, k), slow)
-                           for k in ("positions", "rotations", "normals", "ground", "lift")})
+        # the slowed frames are placed again on their own, and the joints' directions taken
+        # over all frames (a joint's turn limit runs frame by frame)
+        again = _points(trail, head_arc[slow], spacing, clearance, lift[slow],
+                        _raised(lift, ramp)[slow])
+        pos, normals, ground = (_spliced(a, b, slow) for a, b in
+                                zip((bf.positions, bf.normals, bf.ground), again))
+        bf = BodyFrames(positions=pos, rotations=_oriented(trail, head_arc, pos, normals,
+                                                           spacing, fps),
+                        normals=normals, ground=ground, lift=lift)
     return _turn_limited(bf)
 
 
@@ -604,10 +609,26 @@ def _fast_ramps(lift: np.ndarray, slower: np.ndarray, turned: np.ndarray) -> np.
 
 def _placed(trail: Trail, head_arc: np.ndarray, spacing: float, clearance: float,
             lift: np.ndarray, raised: np.ndarray | None, fps: int) -> BodyFrames:
-    """The spine at the given frames, each joint `clearance + lift` above the trail."""
+    """The spine at the given frames (every frame from the first: the joints' directions are
+    limited frame by frame), each joint `clearance + lift` above the trail."""
+    pos, normals, ground = _points(trail, head_arc, spacing, clearance, lift, raised)
+    rot = _oriented(trail, head_arc, pos, normals, spacing, fps)
+    return BodyFrames(positions=pos, rotations=rot, normals=normals, ground=ground, lift=lift)
+
+
+def _points(trail: Trail, head_arc: np.ndarray, spacing: float, clearance: float,
+            lift: np.ndarray, raised: np.ndarray | None):
+    """(positions (F, S, 3), normals (F, S, 3), ground heights (F, S)) of the spine's joints at
+    the given frames, each on its own."""
     pos, s = place_chain(trail, head_arc, clearance + lift, spacing, raised=raised)
     normals = normalize(polyline.sample(trail.normals, trail.cum, s))
-    ground = np.interp(s, trail.cum, trail.ground)
+    return pos, normals, np.interp(s, trail.cum, trail.ground)
+
+
+def _oriented(trail: Trail, head_arc: np.ndarray, pos: np.ndarray, normals: np.ndarray,
+              spacing: float, fps: int) -> np.ndarray:
+    """(F, S, 4) the joints' rotations (xyzw) over consecutive frames: each faces the joint
+    ahead, the head along its trail, a fold's reversal swung round over a few frames."""
     forward = np.empty_like(pos)
     forward[:, 1:] = pos[:, :-1] - pos[:, 1:]
     # the head faces along its trail: the chord from half a spacing behind it (the tangent of
@@ -629,5 +650,4 @@ def _placed(trail: Trail, head_arc: np.ndarray, spacing: float, clearance: float
     folding = np.any(np.einsum("fjk,fjk->fj", f[:-1], f[1:]) < math.cos(trunk_rate), axis=0)
     for i in np.flatnonzero(folding) + 1:     # only the joints that pass a fold
         forward[:, i] = limit_turn(chords[:, i - 1], normals[:, i], trunk_rate)
-    rot = frames_to_quat(forward, normals)
-    return BodyFrames(positions=pos, rotations=rot, normals=normals, ground=ground, lift=lift)
+    return frames_to_quat(forward, normals)

@@ -49,3 +49,47 @@ def test_rearing_in_a_valley_turns_no_joint_over_the_limit(slope, past):
 def test_a_ramp_on_the_flat_keeps_its_rate():
     bf, lift = rear_in_valley(0.0, 0.05)
     assert np.array_equal(bf.lift, limit_rise(lift, RAISED_RISE * RIG.body.spacing))
+
+
+def rear_twice_on_a_circle():
+    """The head walks a circle of radius 0.3 m on the flat (a turning-radius loop, as a head
+    blocked by other bodies walks) and rears twice, each time in a single frame: both ramps
+    turn the neck too fast and are slowed, and between them the body has turned a quarter of
+    the way round."""
+    b = RIG.body
+    env = env_of(quad((-1, 0, -1), (-1, 0, 1), (1, 0, 1), (1, 0, -1)))
+    a = np.linspace(0.0, 2.0 * np.pi, 800)
+    path = np.column_stack([0.3 * np.sin(a), np.zeros_like(a), 0.3 - 0.3 * np.cos(a)])
+    lead = np.column_stack([np.linspace(-0.6, 0.0, 60, endpoint=False), np.zeros((60, 2))])
+    path = np.vstack([lead, path])
+    trail = build_trail(path, env.rays, probe=0.1, spacing=b.spacing, clearance=b.clearance)
+    frames = 150
+    head_arc = trail.arc_at(np.linspace(0.7, 0.7 + 0.006 * frames, frames))
+    amount = np.zeros(frames)
+    amount[30:55] = 1.0
+    amount[95:120] = 1.0
+    lift = lift_profile(amount, RIG.cobra.curve, RIG.cobra.height, b.segments)
+    return body_frames(trail, head_arc, b.spacing, b.segments, b.clearance, lift=lift,
+                       rays=env.rays, fps=30, ramp_time=RIG.cobra.ramp_time), lift
+
+
+def test_slowed_ramps_keep_every_joint_facing_the_joint_ahead():
+    # the slowed ramps' frames are placed again on their own; the joints' directions are
+    # taken over all frames (taken over those frames alone, a joint's turn limit saw the
+    # quarter turn between the two ramps as one frame's and swung it 90 degrees off its
+    # chord: 52 degree joint turns in a 10-creature crowd)
+    bf, lift = rear_twice_on_a_circle()
+    assert not np.array_equal(bf.lift, lift)        # both ramps were slowed
+    forward = np.einsum("fsij,j->fsi", _matrices(bf.rotations[:, 1:]), [0.0, 0.0, 1.0])
+    chord = bf.positions[:, :-1] - bf.positions[:, 1:]
+    chord /= np.linalg.norm(chord, axis=2, keepdims=True)
+    off = np.degrees(np.arccos(np.clip(np.einsum("fsi,fsi->fs", forward, chord), -1, 1)))
+    assert off.max() < 1.0, off.max()
+    turn = np.degrees(quat_angle(bf.rotations[:-1], bf.rotations[1:]))
+    assert turn.max() < 30.0, turn.max()
+
+
+def _matrices(q: np.ndarray) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_quat(q.reshape(-1, 4)).as_matrix().reshape(q.shape[:-1] + (3, 3))
