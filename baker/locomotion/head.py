@@ -73,6 +73,10 @@ class HeadSteer:
         self.position = self.base.copy()
         self._u_side = 0.0   # the side a U-turn in progress turns to (+1 left, -1 right)
         self._creep = 0.0    # metres still to walk slowly after a turn on the spot
+        # cornered, hold still instead of turning on the spot (set by the follower: other
+        # creatures' bodies corner it, and they move on); held: it did this step
+        self.hold = False
+        self.held = False
         # the direction the slither offset is measured across: the heading, followed only as
         # the base travels (a turn on the spot does not swing the head round the base)
         self.sway_dir = self.heading.copy()
@@ -256,6 +260,9 @@ class HeadSteer:
                 return t, s
         # cornered: turn on the spot toward the nearest free direction up to a right angle off
         # (toward the agent's side first), else toward the agent
+        if self.hold:
+            self.held = True
+            return 0.0, 0.0
         turn = self.max_yaw_rate * dt
         want = next((t for t in (a + sd * d for d in _DEFLECT for sd in (side, -side))
                      if free(t, step, step)), ang)

@@ -9,7 +9,10 @@ one) and one ball query finds, for all heads at once, the other creatures' point
 Each head then treats those points as obstacles on its walkable surface, keeping `separation`
 metres from them (run.follow.Follower._avoiding): it turns or slides along another body as it
 does along an edge. A body only ever lies on its own head's trail, so a head that never comes
-within `separation` of another body keeps the bodies apart.
+within `separation` of another body keeps the bodies apart. A head the bodies corner while
+their creatures walk holds still for them to move on (up to run.follow.HOLD_MAX) instead of
+turning on the spot: a turn on the spot folds its trail into a cusp that its body's joints jump
+across.
 """
 
 from __future__ import annotations
@@ -257,6 +260,9 @@ def neighbours(bodies: Bodies, heads: np.ndarray, follows, reach: float,
         idx = np.asarray(idx, dtype=np.intp)
         idx = idx[owner[idx] != i]
         follows[i].others = pts[idx] if len(idx) else None
+        # the bodies near move on (their heads walk): a head they corner may wait for them
+        follows[i].others_move = bool(len(idx)) and all(
+            follows[o].head.speed > 0.0 for o in np.unique(owner[idx]))
 
 
 def step_prey(preys, t: float, dt: float, heads: np.ndarray) -> None:

@@ -59,6 +59,9 @@ MIN_TURN = 0.75
 #: [rad] directions of the rays that measure the room beside the hips (as the legs' anchors
 #: do): straight out, ahead and behind
 WALL_YAWS = np.radians([0.0, 40.0, -40.0])
+#: [s] the longest a head cornered by other creatures' bodies holds still for them to move on,
+#: before it turns on the spot
+HOLD_MAX = 4.0
 #: straight down (the ray under the head in _leg_lever)
 _DOWN = np.array([[0.0, -1.0, 0.0]])
 
@@ -124,6 +127,8 @@ class Follower:
         # (m, 2) x, z, or None; the head keeps `separation` metres from them
         self.others: np.ndarray | None = None
         self.separation = 0.0
+        self.held_for = 0.0         # [s] the head has held still, cornered by other bodies
+        self.others_move = False    # the creatures whose bodies are near all walk
 
     @property
     def position(self) -> np.ndarray:
@@ -202,7 +207,12 @@ class Follower:
         aim = agent.point_behind(self._back) if self._back > 0.0 else None
         base = head.base.copy()
         allowed = self._on_layer if self.others is None else self._avoiding(self.others)
+        head.hold = self.others is not None and self.others_move and self.held_for < HOLD_MAX
+        head.held = False
         head.step(dt, agent.position, agent.speed, allowed=allowed, aim=aim)
+        # held, or turning on the spot after holding: until the head walks on
+        stuck = head.held or (self.held_for >= HOLD_MAX and head.speed == 0.0)
+        self.held_for = self.held_for + dt if stuck else 0.0
         height = self._layer_height(head.position)
         self._walked += math.hypot(head.base[0] - base[0], head.base[2] - base[2])
         if abs(height - self.height) > self.riser:

@@ -12,11 +12,12 @@ import pytest
 from scipy.spatial.distance import cdist
 
 from baker.behaviour.claims import Claims
-from baker.config import BakeConfig, load_rig_config, DEFAULT_RIG
+from baker.config import SIM_RATE_HZ, BakeConfig, load_rig_config, DEFAULT_RIG
 from baker.context import Context
 from baker.environment.model import Sun
 from baker.navmesh import build
 from baker.run.crowd import crowd_separation, crowd_starts, run_crowd
+from baker.run.follow import HOLD_MAX, Follower
 from baker.sim.loop import simulate_crowd
 from baker.streams import Streams
 from test_navmesh_scenes import box, env_of, floor
@@ -163,3 +164,39 @@ def test_a_crowd_of_one_is_a_lone_creature(plane):
             assert a.tobytes() == b.tobytes() and a.shape == b.shape, f.name
         else:
             assert a == b, f.name
+
+
+def test_a_head_cornered_by_walking_bodies_holds_still_then_turns():
+    # a head ringed by other creatures' body points, its path behind it: it would turn on the
+    # spot, folding its trail into a cusp the body cannot follow; while those creatures walk
+    # it holds still for them to move on (up to HOLD_MAX), then turns as a lone head does
+    env = env_of(floor(0.0, 1.0, 0.0, 1.0))
+    nav = nav_of(env)
+    f = Follower(nav, env.rays, nav.nearest([0.5, 0.0, 0.5]), np.array([1.0, 0.0, 0.0]), RIG)
+    f.separation = crowd_separation(RIG)
+    f.go(nav.nearest([0.1, 0.0, 0.5]))
+    a = np.linspace(0.0, 2.0 * np.pi, 48, endpoint=False)
+    ring = 0.5 + 0.7 * f.separation * np.column_stack([np.cos(a), np.sin(a)])
+    dt = 1.0 / SIM_RATE_HZ
+    start, heading = f.head.base.copy(), f.head.heading.copy()
+
+    def steps(seconds, others, moving):
+        for _ in range(int(round(seconds / dt))):
+            f.others, f.others_move = others, moving
+            f.step(dt)
+
+    steps(0.9 * HOLD_MAX, ring, True)
+    assert np.array_equal(f.head.base, start) and np.array_equal(f.head.heading, heading)
+    steps(0.2 * HOLD_MAX, ring, True)                  # held long enough: it turns
+    assert f.head.heading @ heading < np.cos(np.radians(20.0))
+    # a ring of resting bodies: it turns without holding
+    g = Follower(nav, env.rays, nav.nearest([0.5, 0.0, 0.5]), np.array([1.0, 0.0, 0.0]), RIG)
+    g.separation = f.separation
+    g.go(nav.nearest([0.1, 0.0, 0.5]))
+    for _ in range(int(round(0.5 * HOLD_MAX / dt))):
+        g.others, g.others_move = ring, False
+        g.step(dt)
+    assert g.head.heading @ heading < np.cos(np.radians(20.0)), g.head.heading
+    steps(12.0, None, False)                           # they have moved on: it walks its path
+    assert np.hypot(*(f.head.base - [0.1, 0.0, 0.5])[[0, 2]]) < (
+        RIG.locomotion.stopping_distance + 0.05)
