@@ -11,6 +11,8 @@ Every step:
 - the head's height continues the layer it is on (never a floor above or below it);
 - when the head has been held back for REPLAN_AFTER seconds (blocked, or off the agent's
   corridor), the path is planned again from the head;
+- in a crowd, a head cornered by other creatures' bodies while they walk holds still for them
+  to move on (up to HOLD_MAX seconds) rather than turn on the spot;
 - while a sharp bend of the trail lies under the body (a hook the head made in a dead end),
   the whole creature slows so that no segment turns more than BEND_TURN in an exported frame
   as it rounds the bend: the body moves at the head's speed along the trail, and a segment
