@@ -256,13 +256,13 @@ def neighbours(bodies: Bodies, heads: np.ndarray, follows, reach: float,
         return
     pts, owner = bodies.points(need, cobra)
     near = cKDTree(pts).query_ball_point(xz[need], reach)
+    walking = np.array([f.head.speed > 0.0 for f in follows])
     for i, idx in zip(need, near):
         idx = np.asarray(idx, dtype=np.intp)
         idx = idx[owner[idx] != i]
         follows[i].others = pts[idx] if len(idx) else None
         # the bodies near move on (their heads walk): a head they corner may wait for them
-        follows[i].others_move = bool(len(idx)) and all(
-            follows[o].head.speed > 0.0 for o in np.unique(owner[idx]))
+        follows[i].others_move = bool(len(idx)) and bool(walking[owner[idx]].all())
 
 
 def step_prey(preys, t: float, dt: float, heads: np.ndarray) -> None:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from baker.config import DEFAULT_RIG, load_rig_config
-from baker.geometry.transforms import quat_angle
+from baker.geometry.transforms import normalize, quat_angle, quat_rotate
 from baker.locomotion.body import RAISED_RISE, body_frames, build_trail, limit_rise
 from baker.locomotion.cobra import lift_profile
 from test_navmesh_scenes import env_of, quad
@@ -80,16 +80,10 @@ def test_slowed_ramps_keep_every_joint_facing_the_joint_ahead():
     # chord: 52 degree joint turns in a 10-creature crowd)
     bf, lift = rear_twice_on_a_circle()
     assert not np.array_equal(bf.lift, lift)        # both ramps were slowed
-    forward = np.einsum("fsij,j->fsi", _matrices(bf.rotations[:, 1:]), [0.0, 0.0, 1.0])
-    chord = bf.positions[:, :-1] - bf.positions[:, 1:]
-    chord /= np.linalg.norm(chord, axis=2, keepdims=True)
+    forward = quat_rotate(bf.rotations[:, 1:], np.array([0.0, 0.0, 1.0]))
+    chord = normalize(bf.positions[:, :-1] - bf.positions[:, 1:])
     off = np.degrees(np.arccos(np.clip(np.einsum("fsi,fsi->fs", forward, chord), -1, 1)))
     assert off.max() < 1.0, off.max()
     turn = np.degrees(quat_angle(bf.rotations[:-1], bf.rotations[1:]))
     assert turn.max() < 30.0, turn.max()
 
-
-def _matrices(q: np.ndarray) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_quat(q.reshape(-1, 4)).as_matrix().reshape(q.shape[:-1] + (3, 3))

@@ -172,31 +172,31 @@ def test_a_head_cornered_by_walking_bodies_holds_still_then_turns():
     # it holds still for them to move on (up to HOLD_MAX), then turns as a lone head does
     env = env_of(floor(0.0, 1.0, 0.0, 1.0))
     nav = nav_of(env)
-    f = Follower(nav, env.rays, nav.nearest([0.5, 0.0, 0.5]), np.array([1.0, 0.0, 0.0]), RIG)
-    f.separation = crowd_separation(RIG)
-    f.go(nav.nearest([0.1, 0.0, 0.5]))
     a = np.linspace(0.0, 2.0 * np.pi, 48, endpoint=False)
-    ring = 0.5 + 0.7 * f.separation * np.column_stack([np.cos(a), np.sin(a)])
+    ring = 0.5 + 0.7 * crowd_separation(RIG) * np.column_stack([np.cos(a), np.sin(a)])
     dt = 1.0 / SIM_RATE_HZ
-    start, heading = f.head.base.copy(), f.head.heading.copy()
 
-    def steps(seconds, others, moving):
+    def cornered():
+        f = Follower(nav, env.rays, nav.nearest([0.5, 0.0, 0.5]), np.array([1.0, 0.0, 0.0]), RIG)
+        f.separation = crowd_separation(RIG)
+        f.go(nav.nearest([0.1, 0.0, 0.5]))
+        return f
+
+    def steps(f, seconds, others, moving):
         for _ in range(int(round(seconds / dt))):
             f.others, f.others_move = others, moving
             f.step(dt)
 
-    steps(0.9 * HOLD_MAX, ring, True)
+    f = cornered()
+    start, heading = f.head.base.copy(), f.head.heading.copy()
+    steps(f, 0.9 * HOLD_MAX, ring, True)
     assert np.array_equal(f.head.base, start) and np.array_equal(f.head.heading, heading)
-    steps(0.2 * HOLD_MAX, ring, True)                  # held long enough: it turns
+    steps(f, 0.2 * HOLD_MAX, ring, True)               # held long enough: it turns
     assert f.head.heading @ heading < np.cos(np.radians(20.0))
     # a ring of resting bodies: it turns without holding
-    g = Follower(nav, env.rays, nav.nearest([0.5, 0.0, 0.5]), np.array([1.0, 0.0, 0.0]), RIG)
-    g.separation = f.separation
-    g.go(nav.nearest([0.1, 0.0, 0.5]))
-    for _ in range(int(round(0.5 * HOLD_MAX / dt))):
-        g.others, g.others_move = ring, False
-        g.step(dt)
+    g = cornered()
+    steps(g, 0.5 * HOLD_MAX, ring, False)
     assert g.head.heading @ heading < np.cos(np.radians(20.0)), g.head.heading
-    steps(12.0, None, False)                           # they have moved on: it walks its path
+    steps(f, 12.0, None, False)                        # they have moved on: it walks its path
     assert np.hypot(*(f.head.base - [0.1, 0.0, 0.5])[[0, 2]]) < (
         RIG.locomotion.stopping_distance + 0.05)
