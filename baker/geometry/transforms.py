@@ -121,6 +121,57 @@ def limit_rotation(q: np.ndarray, max_angle: float) -> np.ndarray:
     return out
 
 
+#: the fractions of the way from the feasible midpoint toward the wanted rotation that
+#: limit_rotation_in_chain tries at once (the last it may take is kept)
+_CHAIN_STEPS = np.linspace(0.0, 1.0, 257)
+
+
+def limit_rotation_in_chain(q: np.ndarray, parent: np.ndarray, max_angle: float) -> np.ndarray:
+    """Unit quaternions (F, 4) that follow `q` but turn at most `max_angle` radians a frame,
+    both in the world and relative to `parent` (F, 4), whose own turn in a frame must be at most
+    `max_angle` too. Where q turns too fast, a frame's output is limit_rotation's (the previous
+    output slerped toward q's by the most it may); where that turns too far against the parent,
+    it is the rotation nearest q's, within both limits, on the arc toward q's from the midpoint
+    between the previous output and the previous output carried along by the parent's turn.
+    Frames are processed one by one only from the first too-fast frame until the output has
+    caught up again; elsewhere the output is q itself."""
+    F = len(q)
+    if F < 2:
+        return q
+    carry = quat_mul(parent[1:], quat_conj(parent[:-1]))     # the parent's turn in a frame
+    local = quat_mul(quat_conj(parent), q)
+    fast = np.flatnonzero((quat_angle(q[:-1], q[1:]) > max_angle)
+                          | (quat_angle(local[:-1], local[1:]) > max_angle))
+    if len(fast) == 0:
+        return q
+    out = q.copy()
+    f = int(fast[0]) + 1
+    while f < F:
+        prev = out[f - 1]
+        carried = quat_mul(carry[f - 1], prev)
+        a = float(quat_angle(prev, q[f]))
+        if a <= max_angle and float(quat_angle(carried, q[f])) <= max_angle:
+            nxt = fast[fast >= f]
+            if len(nxt) == 0:
+                break
+            f = max(f + 1, int(nxt[0]) + 1)
+            continue
+        out[f] = quat_slerp(prev, q[f], min(max_angle / max(a, 1e-12), 1.0))
+        if float(quat_angle(carried, out[f])) > max_angle:
+            out[f] = _nearest_within(prev, carried, q[f], max_angle)
+        f += 1
+    return out
+
+
+def _nearest_within(a: np.ndarray, b: np.ndarray, want: np.ndarray, max_angle: float):
+    """The rotation within `max_angle` of both unit quaternions a and b (4,), no more than
+    `max_angle` apart, that lies furthest toward `want` on the arc from their midpoint."""
+    mid = quat_slerp(a, b, 0.5)
+    tries = quat_slerp(np.broadcast_to(mid, (len(_CHAIN_STEPS), 4)), want, _CHAIN_STEPS)
+    ok = np.flatnonzero((quat_angle(tries, a) <= max_angle) & (quat_angle(tries, b) <= max_angle))
+    return tries[ok[-1]] if len(ok) else mid
+
+
 def quat_slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Spherical interpolation from unit quaternions a to b (..., 4) at t (...), the short way
     round; nearly equal rotations fall back to a normalized lerp."""

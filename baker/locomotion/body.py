@@ -19,8 +19,8 @@ from scipy.ndimage import gaussian_filter1d, label, maximum_filter1d
 from baker.environment.rays import RayCaster
 from baker.geometry import polyline
 from baker.geometry.conventions import UP
-from baker.geometry.transforms import (frames_to_quat, length, limit_rotation, normalize,
-                                       quat_angle)
+from baker.geometry.transforms import (frames_to_quat, length, limit_rotation,
+                                       limit_rotation_in_chain, normalize, quat_angle)
 from baker.locomotion.cobra import limit_lift
 
 
@@ -570,12 +570,15 @@ def body_frames(trail: Trail, head_arc: np.ndarray, spacing: float, segments: in
 
 
 def _turn_limited(bf: BodyFrames) -> BodyFrames:
-    """The spine with no joint turning more than SPINE_FRAME_TURN in a frame (its positions
-    as they are)."""
+    """The spine with no joint turning more than SPINE_FRAME_TURN in a frame, in the world or
+    relative to the joint ahead (its positions as they are): where the trail folds into a cusp
+    two neighbouring joints would swing round it in opposite senses, each at the limit, and
+    turn twice the limit against each other."""
     lim = math.radians(SPINE_FRAME_TURN)
     rot = bf.rotations
-    for j in np.flatnonzero((quat_angle(rot[:-1], rot[1:]) > lim).any(axis=0)):
-        rot[:, j] = limit_rotation(rot[:, j], lim)
+    rot[:, 0] = limit_rotation(rot[:, 0], lim)
+    for j in range(1, rot.shape[1]):
+        rot[:, j] = limit_rotation_in_chain(rot[:, j], rot[:, j - 1], lim)
     return bf
 
 
