@@ -8,6 +8,7 @@ are shifted in float64 before rounding); that keeps millimetre precision on kilo
 from __future__ import annotations
 
 import logging
+import threading
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -22,6 +23,19 @@ log = logging.getLogger(__name__)
 _AXES6 = np.array([[0, 1, 0], [0, -1, 0], [1, 0, 0], [-1, 0, 0], [0, 0, 1], [0, 0, -1]], float)
 #: rays per Embree call (bounds the float32 staging buffers)
 CHUNK_RAYS = 1 << 20
+#: a batch is cast on several threads only when each gets at least this many rays (a thread's
+#: start costs about as much as casting a few hundred rays)
+THREAD_MIN_RAYS = 16384
+#: at most this many threads cast one batch
+MAX_THREADS = 8
+
+
+def _threads() -> int:
+    """Threads a large batch of rays is cast on: the CPUs this process may use, at most
+    MAX_THREADS."""
+    from baker.parallel import available_cpus
+
+    return min(available_cpus(), MAX_THREADS)
 
 
 @dataclass(frozen=True)
@@ -107,8 +121,36 @@ class RayCaster:
             return t, prim
         dist = None if max_distance is None else np.broadcast_to(
             np.asarray(max_distance, dtype=np.float64), (n,))
-        for a in range(0, n, CHUNK_RAYS):
-            b = min(n, a + CHUNK_RAYS)
+        parts = min(_threads(), n // THREAD_MIN_RAYS)
+        if parts <= 1:
+            self._embree(origins, directions, dist, uv, t, prim, 0, n)
+            return t, prim
+        # Embree's query runs with the GIL released: the rays are split into contiguous
+        # parts, each cast on its own thread into its own rows (the same bits as one thread)
+        edges = np.linspace(0, n, parts + 1).astype(np.int64)
+        errors: list[BaseException] = []
+
+        def part(a, b):
+            try:
+                self._embree(origins, directions, dist, uv, t, prim, a, b)
+            except BaseException as e:  # noqa: BLE001 - re-raised in the calling thread
+                errors.append(e)
+
+        workers = [threading.Thread(target=part, args=(int(edges[k]), int(edges[k + 1])),
+                                    daemon=True) for k in range(1, parts)]
+        for w in workers:
+            w.start()
+        part(int(edges[0]), int(edges[1]))
+        for w in workers:
+            w.join()
+        if errors:
+            raise errors[0]
+        return t, prim
+
+    def _embree(self, origins, directions, dist, uv, t, prim, start: int, stop: int) -> None:
+        """Cast rays start..stop on Embree, CHUNK_RAYS at a time, into t, prim (and uv)."""
+        for a in range(start, stop, CHUNK_RAYS):
+            b = min(stop, a + CHUNK_RAYS)
             o = np.empty((b - a, 3), np.float32)
             np.subtract(origins[a:b], self.shift, out=o, casting="same_kind")
             d = np.ascontiguousarray(directions[a:b], dtype=np.float32)
@@ -124,7 +166,6 @@ class RayCaster:
             if uv is not None:
                 uv[a:b, 0] = np.where(hit, r["u"], 0.0)
                 uv[a:b, 1] = np.where(hit, r["v"], 0.0)
-        return t, prim
 
     def _cast_fallback(self, origins, directions, max_distance):  # pragma: no cover
         n = len(origins)

@@ -22,7 +22,7 @@ ALLOWED = {
     "parallel": set(),                  # a crowd's per-creature work on forked processes
     "config": {"schema"},
     "context": {"signals"},
-    "environment": set(),
+    "environment": {"parallel"},        # large ray batches cast on every CPU
     "navmesh": {"environment", "config", "atomic"},
     "locomotion": {"environment", "config", "rig"},
     "behaviour": {"environment", "navmesh", "locomotion", "config"},
