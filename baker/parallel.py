@@ -1,4 +1,5 @@
-"""A crowd's per-creature work on forked worker processes (`baker bake --workers N`).
+"""A crowd's per-creature work on forked worker processes (`baker bake --workers N`), and
+large GIL-free work (ray batches, the navigation build's tiles) on threads.
 
 fork_map(fn, n, workers) returns [fn(0), ..., fn(n - 1)], in that order, with the calls shared
 among up to `workers` processes forked from this one. A child inherits everything `fn` reads
@@ -10,6 +11,9 @@ The calls run here, one after another, when there is one worker or one call, whe
 the platform's safe way to start a process (it is on Linux; macOS and Windows start fresh
 interpreters, which would have to load the level again), and inside a daemonic process (a
 `baker batch` worker, which may not have children: the batch already keeps the cores busy).
+
+thread_map(fn, items) is the same map on threads of this process, for calls that spend their
+time in numpy or Embree with the GIL released.
 
 Only the standard library is imported here.
 """
@@ -102,3 +106,17 @@ def _end(children) -> None:
         if p.is_alive():
             p.kill()
             p.join()
+
+
+def thread_map(fn, items, threads: int | None = None) -> list:
+    """[fn(x) for x in items], in that order, on up to `threads` threads (default: the CPUs
+    this process may use). For work that releases the GIL (numpy on large arrays, Embree's
+    queries); each call must write only what it returns."""
+    items = list(items)
+    threads = min(len(items), available_cpus() if threads is None else int(threads))
+    if threads <= 1:
+        return [fn(x) for x in items]
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(threads) as pool:
+        return list(pool.map(fn, items))

@@ -37,6 +37,7 @@ from baker.errors import NavError
 from baker.navmesh import budget
 from baker.navmesh.query import NavSurface
 from baker.navmesh.surface import DIRS, OPPOSITE, NavData
+from baker.parallel import thread_map
 
 log = logging.getLogger(__name__)
 
@@ -469,12 +470,11 @@ def _samples(caster: _Caster, grid: _Grid, ytop, solids, slope, height, timings,
     x0, z0, nx, nz, cell = grid.x0, grid.z0, grid.nx, grid.nz, grid.cell
     ncols = nx * nz
     face_comp, comp_closed, comp_wind = solids
-    parts = []
     cos_slope = math.cos(slope) - 1e-9
-    for c0 in range(0, ncols, TILE_COLUMNS):
-        parts.append(_walkable_hits(caster, x0, z0, nx, nz, cell, ytop, c0,
-                                    min(ncols, c0 + TILE_COLUMNS), face_comp, comp_closed,
-                                    comp_wind, cos_slope, height, timings))
+    # the bands are independent, each on a thread (numpy and Embree release the GIL)
+    parts = thread_map(lambda c0: _walkable_hits(
+        caster, x0, z0, nx, nz, cell, ytop, c0, min(ncols, c0 + TILE_COLUMNS), face_comp,
+        comp_closed, comp_wind, cos_slope, height, timings), range(0, ncols, TILE_COLUMNS))
     nh = sum(p[4] for p in parts)
     t = time.perf_counter()
     scol = np.concatenate([p[0] for p in parts])
@@ -513,17 +513,21 @@ def _links(caster: _Caster, grid: _Grid, s: _Samples, step, height, slope, h_off
     grad = {0: gx, 1: gz}
     blockers = _blocker_columns(caster, grid.x0, grid.z0, nx, nz, cell,
                                 min(slope, math.atan2(h_off, cell)))
-    for d in (0, 1):
-        for r0 in range(0, n, TILE_SAMPLES):   # tiles in sample order: writes as in one piece
-            r = slice(r0, min(n, r0 + TILE_SAMPLES))
-            nb = _link_axis(d, r, scol, s.ix, s.iz, sy, sceil, nx, nz, s.col_start, counts,
-                            step, height, grad[d])
-            src = np.nonzero(nb >= 0)[0]
-            tt = nb[src]
-            src += r0
-            src, tt = _unblocked(caster, s, blockers, d, src, tt, h_off, cell)
-            links[src, d] = tt
-            links[tt, OPPOSITE[d]] = src
+
+    def tile(d_r0):
+        d, r0 = d_r0
+        nb = _link_axis(d, slice(r0, min(n, r0 + TILE_SAMPLES)), scol, s.ix, s.iz, sy, sceil,
+                        nx, nz, s.col_start, counts, step, height, grad[d])
+        src = np.nonzero(nb >= 0)[0]
+        tt = nb[src]
+        src += r0
+        return _unblocked(caster, s, blockers, d, src, tt, h_off, cell)
+
+    # the tiles are found on threads, and written in sample order (as in one piece)
+    tiles = [(d, r0) for d in (0, 1) for r0 in range(0, n, TILE_SAMPLES)]
+    for (d, _), (src, tt) in zip(tiles, thread_map(tile, tiles)):
+        links[src, d] = tt
+        links[tt, OPPOSITE[d]] = src
     # keep symmetric links only: two layers of one column may have claimed the same sample
     msrc = np.nonzero(counts[scol] > 1)[0]
     for d in (0, 1):

@@ -23,7 +23,7 @@ ALLOWED = {
     "config": {"schema"},
     "context": {"signals"},
     "environment": {"parallel"},        # large ray batches cast on every CPU
-    "navmesh": {"environment", "config", "atomic"},
+    "navmesh": {"environment", "config", "atomic", "parallel"},   # the build's tiles on threads
     "locomotion": {"environment", "config", "rig"},
     "behaviour": {"environment", "navmesh", "locomotion", "config"},
     "rig": {"config"},
