@@ -37,7 +37,7 @@ from baker.errors import NavError
 from baker.navmesh import budget
 from baker.navmesh.query import NavSurface
 from baker.navmesh.surface import DIRS, OPPOSITE, NavData
-from baker.parallel import thread_map
+from baker.parallel import available_cpus, thread_map
 
 log = logging.getLogger(__name__)
 
@@ -49,10 +49,17 @@ MAX_PASSES = 256
 #: raises NavError asking for a larger cell size or smaller bounds instead of running out of
 #: memory.
 MAX_COLUMNS = 40_000_000
-#: Columns ray-cast and reduced to walkable samples at a time (bounds the per-hit memory).
+#: Columns ray-cast and reduced to walkable samples at a time, over all threads (bounds the
+#: per-hit memory: each of n threads takes bands of TILE_COLUMNS / n)
 TILE_COLUMNS = 1 << 20
-#: Samples linked at a time (bounds the temporaries of the link tests).
+#: Samples linked at a time, over all threads (bounds the temporaries of the link tests)
 TILE_SAMPLES = 1 << 19
+
+
+def _tile(size: int) -> int:
+    """A tile's share of `size` items in flight at once: size / the threads the build's tiles
+    run on (the results do not depend on it)."""
+    return max(1, size // available_cpus())
 #: A part narrower than this many cells in x and in z (a stem, a post) can stand between the
 #: grid lines the links are tested along: the samples around it are kept clear of it
 #: explicitly.
@@ -472,9 +479,10 @@ def _samples(caster: _Caster, grid: _Grid, ytop, solids, slope, height, timings,
     face_comp, comp_closed, comp_wind = solids
     cos_slope = math.cos(slope) - 1e-9
     # the bands are independent, each on a thread (numpy and Embree release the GIL)
+    band = _tile(TILE_COLUMNS)
     parts = thread_map(lambda c0: _walkable_hits(
-        caster, x0, z0, nx, nz, cell, ytop, c0, min(ncols, c0 + TILE_COLUMNS), face_comp,
-        comp_closed, comp_wind, cos_slope, height, timings), range(0, ncols, TILE_COLUMNS))
+        caster, x0, z0, nx, nz, cell, ytop, c0, min(ncols, c0 + band), face_comp,
+        comp_closed, comp_wind, cos_slope, height, timings), range(0, ncols, band))
     nh = sum(p[4] for p in parts)
     t = time.perf_counter()
     scol = np.concatenate([p[0] for p in parts])
@@ -516,15 +524,16 @@ def _links(caster: _Caster, grid: _Grid, s: _Samples, step, height, slope, h_off
 
     def tile(d_r0):
         d, r0 = d_r0
-        nb = _link_axis(d, slice(r0, min(n, r0 + TILE_SAMPLES)), scol, s.ix, s.iz, sy, sceil,
-                        nx, nz, s.col_start, counts, step, height, grad[d])
+        nb = _link_axis(d, slice(r0, min(n, r0 + size)), scol, s.ix, s.iz, sy, sceil, nx, nz,
+                        s.col_start, counts, step, height, grad[d])
         src = np.nonzero(nb >= 0)[0]
         tt = nb[src]
         src += r0
         return _unblocked(caster, s, blockers, d, src, tt, h_off, cell)
 
     # the tiles are found on threads, and written in sample order (as in one piece)
-    tiles = [(d, r0) for d in (0, 1) for r0 in range(0, n, TILE_SAMPLES)]
+    size = _tile(TILE_SAMPLES)
+    tiles = [(d, r0) for d in (0, 1) for r0 in range(0, n, size)]
     for (d, _), (src, tt) in zip(tiles, thread_map(tile, tiles)):
         links[src, d] = tt
         links[tt, OPPOSITE[d]] = src
