@@ -108,6 +108,29 @@ def _end(children) -> None:
             p.join()
 
 
+_ONE_ARENA = False
+
+
+def one_malloc_arena() -> None:
+    """Have glibc's malloc serve every thread from one arena (M_ARENA_MAX = 1), once, before
+    baker starts threads. By default each thread gets its own arena, whose freed blocks the
+    others do not reuse: two threads building the navigation surface raised its peak memory by
+    a fifth (0.015 m cells on the rainforest floor: 720-735 MB against 599 MB), past the
+    budget's estimate. A no-op where malloc is not glibc's."""
+    global _ONE_ARENA
+    if _ONE_ARENA:
+        return
+    _ONE_ARENA = True
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes
+
+    try:
+        ctypes.CDLL(None).mallopt(-8, 1)     # M_ARENA_MAX (malloc.h)
+    except (OSError, AttributeError):  # pragma: no cover - not glibc
+        pass
+
+
 def thread_map(fn, items, threads: int | None = None) -> list:
     """[fn(x) for x in items], in that order, on up to `threads` threads (default: the CPUs
     this process may use). For work that releases the GIL (numpy on large arrays, Embree's
@@ -117,6 +140,8 @@ def thread_map(fn, items, threads: int | None = None) -> list:
     if threads <= 1:
         return [fn(x) for x in items]
     from concurrent.futures import ThreadPoolExecutor
+
+    one_malloc_arena()
 
     with ThreadPoolExecutor(threads) as pool:
         return list(pool.map(fn, items))

@@ -16,6 +16,7 @@ import numpy as np
 import trimesh
 
 from baker.geometry.transforms import normalize
+from baker.parallel import available_cpus, one_malloc_arena
 
 log = logging.getLogger(__name__)
 
@@ -33,8 +34,6 @@ MAX_THREADS = 8
 def _threads() -> int:
     """Threads a large batch of rays is cast on: the CPUs this process may use, at most
     MAX_THREADS."""
-    from baker.parallel import available_cpus
-
     return min(available_cpus(), MAX_THREADS)
 
 
@@ -136,6 +135,7 @@ class RayCaster:
             except BaseException as e:  # noqa: BLE001 - re-raised in the calling thread
                 errors.append(e)
 
+        one_malloc_arena()
         workers = [threading.Thread(target=part, args=(int(edges[k]), int(edges[k + 1])),
                                     daemon=True) for k in range(1, parts)]
         for w in workers:
