@@ -543,8 +543,11 @@ def _links(caster: _Caster, grid: _Grid, s: _Samples, step, height, slope, h_off
         src = msrc[links[msrc, d] >= 0]
         bad = links[links[src, d], OPPOSITE[d]] != src
         links[src[bad], d] = -1
-    for d, (a1, a2) in ((4, (0, 1)), (7, (0, 3))):
-        src, u = _diagonal(links, d, a1, a2, sy, sceil, gx, gz, step, height)
+    # the two diagonals read only axis links: found on threads, then written
+    diagonals = ((4, (0, 1)), (7, (0, 3)))
+    found = thread_map(lambda da: _diagonal(links, da[0], *da[1], sy, sceil, gx, gz, step,
+                                            height), diagonals)
+    for (d, _), (src, u) in zip(diagonals, found):
         links[src, d] = u
         links[u, OPPOSITE[d]] = src
     return links
