@@ -23,7 +23,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import re
 import statistics
 import subprocess
@@ -111,11 +110,12 @@ def run_recast(binary: Path, obj: Path) -> dict:
 
 
 def run_baker(tree: Path | None = None) -> dict:
-    env = dict(os.environ)
-    if tree is not None:   # that checkout's baker first on the path
-        env["PYTHONPATH"] = os.pathsep.join([str(tree), env.get("PYTHONPATH", "")])
-    out = subprocess.run([sys.executable, __file__, "--child"], check=True, capture_output=True,
-                         text=True, cwd=ROOT, env=env).stdout
+    """One build in a fresh process, by this checkout's baker or by `tree`'s (its own copy of
+    this script, which puts its tree first on the path)."""
+    root = ROOT if tree is None else Path(tree).resolve()
+    out = subprocess.run([sys.executable, str(root / "benchmarks" / Path(__file__).name),
+                          "--child"], check=True, capture_output=True, text=True,
+                         cwd=root).stdout
     return json.loads(out.strip().splitlines()[-1])
 
 
