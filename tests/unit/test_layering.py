@@ -30,7 +30,7 @@ ALLOWED = {
     "run": {"environment", "navmesh", "behaviour", "locomotion", "config", "context", "streams"},
     "solve": {"environment", "locomotion", "behaviour", "config", "run"},   # a run's record
     "sim": {"run", "solve", "config", "context", "streams", "parallel"},   # run, then solve
-    "metrics": {"solve"},
+    "metrics": {"solve", "parallel"},        # the spine-gap search on every CPU
     "clip": {"rig", "solve"},
     "rootmotion": {"clip", "rig"},
     "export": {"clip", "rig", "solve", "environment", "config", "navmesh", "atomic",
