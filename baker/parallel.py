@@ -134,7 +134,7 @@ def one_malloc_arena() -> None:
 def thread_map(fn, items, threads: int | None = None) -> list:
     """[fn(x) for x in items], in that order, on up to `threads` threads (default: the CPUs
     this process may use). For work that releases the GIL (numpy on large arrays, Embree's
-    queries); each call must write only what it returns."""
+    queries); no call may write what another reads or writes."""
     items = list(items)
     threads = min(len(items), available_cpus() if threads is None else int(threads))
     if threads <= 1:

@@ -8,7 +8,6 @@ are shifted in float64 before rounding); that keeps millimetre precision on kilo
 from __future__ import annotations
 
 import logging
-import threading
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -16,7 +15,7 @@ import numpy as np
 import trimesh
 
 from baker.geometry.transforms import normalize
-from baker.parallel import available_cpus, one_malloc_arena
+from baker.parallel import available_cpus, thread_map
 
 log = logging.getLogger(__name__)
 
@@ -126,25 +125,9 @@ class RayCaster:
             return t, prim
         # Embree's query runs with the GIL released: the rays are split into contiguous
         # parts, each cast on its own thread into its own rows (the same bits as one thread)
-        edges = np.linspace(0, n, parts + 1).astype(np.int64)
-        errors: list[BaseException] = []
-
-        def part(a, b):
-            try:
-                self._embree(origins, directions, dist, uv, t, prim, a, b)
-            except BaseException as e:  # noqa: BLE001 - re-raised in the calling thread
-                errors.append(e)
-
-        one_malloc_arena()
-        workers = [threading.Thread(target=part, args=(int(edges[k]), int(edges[k + 1])),
-                                    daemon=True) for k in range(1, parts)]
-        for w in workers:
-            w.start()
-        part(int(edges[0]), int(edges[1]))
-        for w in workers:
-            w.join()
-        if errors:
-            raise errors[0]
+        edges = np.linspace(0, n, parts + 1).astype(np.int64).tolist()
+        thread_map(lambda k: self._embree(origins, directions, dist, uv, t, prim, edges[k],
+                                          edges[k + 1]), range(parts), threads=parts)
         return t, prim
 
     def _embree(self, origins, directions, dist, uv, t, prim, start: int, stop: int) -> None:
