@@ -397,7 +397,7 @@ def min_spine_gap(spines: np.ndarray) -> dict:
     among them. Frames are searched in chunks (_frame_space), each only out to the smallest
     gap found so far (the same first smallest pair as an unbounded search, about twice as
     fast), on every CPU."""
-    from baker.parallel import available_cpus
+    from baker.parallel import thread_count
 
     n, F, S, _ = spines.shape
     best = {"gap_m": float("inf"), "frame": -1, "creatures": [-1, -1]}
@@ -408,7 +408,7 @@ def min_spine_gap(spines: np.ndarray) -> dict:
     by_frame = np.transpose(spines, (1, 0, 2, 3)).reshape(F, n * S, 3)
     for f0, f1 in _frame_chunks(F, n * S):
         x = _frame_space(by_frame[f0:f1], f0, far)
-        d, idx = cKDTree(x).query(x, k=S + 1, workers=available_cpus(),
+        d, idx = cKDTree(x).query(x, k=S + 1, workers=thread_count(),
                                   distance_upper_bound=np.nextafter(best["gap_m"], np.inf))
         own = np.tile(owner, f1 - f0)
         found = idx < len(x)

@@ -38,6 +38,12 @@ def available_cpus() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+def thread_count() -> int:
+    """Threads for GIL-free work (thread_map): the CPUs this process may use, or 1 inside a
+    daemonic process (a `baker batch` worker: the batch already keeps the cores busy)."""
+    return 1 if multiprocessing.current_process().daemon else available_cpus()
+
+
 def can_fork() -> bool:
     """True where fork_map may fork: Linux, and not inside a daemonic process."""
     return sys.platform.startswith("linux") and not multiprocessing.current_process().daemon
@@ -132,11 +138,11 @@ def one_malloc_arena() -> None:
 
 
 def thread_map(fn, items, threads: int | None = None) -> list:
-    """[fn(x) for x in items], in that order, on up to `threads` threads (default: the CPUs
-    this process may use). For work that releases the GIL (numpy on large arrays, Embree's
+    """[fn(x) for x in items], in that order, on up to `threads` threads (default:
+    thread_count()). For work that releases the GIL (numpy on large arrays, Embree's
     queries); no call may write what another reads or writes."""
     items = list(items)
-    threads = min(len(items), available_cpus() if threads is None else int(threads))
+    threads = min(len(items), thread_count() if threads is None else int(threads))
     if threads <= 1:
         return [fn(x) for x in items]
     from concurrent.futures import ThreadPoolExecutor

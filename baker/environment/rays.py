@@ -15,7 +15,7 @@ import numpy as np
 import trimesh
 
 from baker.geometry.transforms import normalize
-from baker.parallel import available_cpus, thread_map
+from baker.parallel import thread_count, thread_map
 
 log = logging.getLogger(__name__)
 
@@ -31,9 +31,9 @@ MAX_THREADS = 8
 
 
 def _threads() -> int:
-    """Threads a large batch of rays is cast on: the CPUs this process may use, at most
+    """Threads a large batch of rays is cast on: parallel.thread_count(), at most
     MAX_THREADS."""
-    return min(available_cpus(), MAX_THREADS)
+    return min(thread_count(), MAX_THREADS)
 
 
 @dataclass(frozen=True)

@@ -37,7 +37,7 @@ from baker.errors import NavError
 from baker.navmesh import budget
 from baker.navmesh.query import NavSurface
 from baker.navmesh.surface import DIRS, OPPOSITE, NavData
-from baker.parallel import available_cpus, thread_map
+from baker.parallel import thread_count, thread_map
 
 log = logging.getLogger(__name__)
 
@@ -59,7 +59,7 @@ TILE_SAMPLES = 1 << 19
 def _tile(size: int) -> int:
     """A tile's share of `size` items in flight at once: size / the threads the build's tiles
     run on (the results do not depend on it)."""
-    return max(1, size // available_cpus())
+    return max(1, size // thread_count())
 #: A part narrower than this many cells in x and in z (a stem, a post) can stand between the
 #: grid lines the links are tested along: the samples around it are kept clear of it
 #: explicitly.

@@ -1,6 +1,7 @@
 """baker.parallel.fork_map: the results in order whatever the number of workers, a task's
 exception raised in the parent, a killed child reported as one user-facing error, and the
-calls run in this process where it may not fork."""
+calls run in this process where it may not fork; thread_map: the results in order, one thread
+inside a daemonic process (a `baker batch` worker), a call's exception raised in the caller."""
 
 from __future__ import annotations
 
@@ -70,3 +71,26 @@ def test_a_daemonic_process_does_not_fork(monkeypatch):
 
 def test_available_cpus_is_positive():
     assert parallel.available_cpus() >= 1
+
+
+def test_thread_map_keeps_the_order_and_a_daemonic_process_keeps_one_thread(monkeypatch):
+    import threading
+
+    out = parallel.thread_map(lambda i: (i, threading.get_ident()), range(40), threads=4)
+    assert [o[0] for o in out] == list(range(40))
+    assert parallel.thread_count() == parallel.available_cpus()
+    monkeypatch.setattr(multiprocessing.current_process(), "daemon", True, raising=False)
+    assert parallel.thread_count() == 1
+    here = threading.get_ident()
+    assert {o[1] for o in parallel.thread_map(lambda i: (i, threading.get_ident()),
+                                              range(5))} == {here}
+
+
+def test_an_exception_on_a_thread_is_raised_in_the_caller():
+    def fail(i):
+        if i == 3:
+            raise ValueError("bad tile")
+        return i
+
+    with pytest.raises(ValueError, match="bad tile"):
+        parallel.thread_map(fail, range(6), threads=2)
