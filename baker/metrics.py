@@ -10,6 +10,7 @@ from scipy.spatial import cKDTree
 from baker.geometry.conventions import UP
 from baker.geometry.proximity import segment_distances
 from baker.geometry.transforms import quat_conj, quat_mul
+from baker.parallel import thread_count
 from baker.solve.trajectory import Trajectory
 
 
@@ -397,8 +398,6 @@ def min_spine_gap(spines: np.ndarray) -> dict:
     among them. Frames are searched in chunks (_frame_space), each only out to the smallest
     gap found so far (the same first smallest pair as an unbounded search, about twice as
     fast), on every CPU."""
-    from baker.parallel import thread_count
-
     n, F, S, _ = spines.shape
     best = {"gap_m": float("inf"), "frame": -1, "creatures": [-1, -1]}
     if n < 2 or F == 0:

@@ -97,70 +97,52 @@ def quat_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return 2.0 * np.arccos(np.clip(d, 0.0, 1.0))
 
 
-def limit_rotation(q: np.ndarray, max_angle: float) -> np.ndarray:
+def limit_rotation(q: np.ndarray, max_angle: float,
+                   parent: np.ndarray | None = None) -> np.ndarray:
     """Unit quaternions (F, 4) that follow `q` but turn at most `max_angle` radians a frame:
     where q turns faster, each frame slerps from the previous output toward q's by the most
     it may. Frames are processed one by one only from the first too-fast turn until the output
-    has caught up again; elsewhere the output is q itself."""
-    F = len(q)
-    fast = np.flatnonzero(quat_angle(q[:-1], q[1:]) > max_angle)
-    if len(fast) == 0:
-        return q
-    out = q.copy()
-    f = int(fast[0]) + 1
-    while f < F:
-        a = float(quat_angle(out[f - 1], q[f]))
-        if a <= max_angle:
-            nxt = fast[fast >= f]
-            if len(nxt) == 0:
-                break
-            f = max(f + 1, int(nxt[0]) + 1)
-            continue
-        out[f] = quat_slerp(out[f - 1], q[f], max_angle / a)
-        f += 1
-    return out
+    has caught up again; elsewhere the output is q itself.
 
-
-#: the fractions of the way from the feasible midpoint toward the wanted rotation that
-#: limit_rotation_in_chain tries at once (the last it may take is kept)
-_CHAIN_STEPS = np.linspace(0.0, 1.0, 257)
-
-
-def limit_rotation_in_chain(q: np.ndarray, parent: np.ndarray, max_angle: float) -> np.ndarray:
-    """Unit quaternions (F, 4) that follow `q` but turn at most `max_angle` radians a frame,
-    both in the world and relative to `parent` (F, 4), whose own turn in a frame must be at most
-    `max_angle` too. Where q turns too fast, a frame's output is limit_rotation's (the previous
-    output slerped toward q's by the most it may); where that turns too far against the parent,
-    it is the rotation nearest q's, within both limits, on the arc toward q's from the midpoint
-    between the previous output and the previous output carried along by the parent's turn.
-    Frames are processed one by one only from the first too-fast frame until the output has
-    caught up again; elsewhere the output is q itself."""
+    parent : optional (F, 4) rotations of the joint ahead in a chain, themselves turning at
+    most `max_angle` a frame: the output then turns at most `max_angle` a frame relative to
+    them too. Where the slerped rotation turns too far against the parent, a frame's output is
+    the rotation nearest q's, within both limits, on the arc toward q's from the midpoint
+    between the previous output and the previous output carried along by the parent's turn."""
     F = len(q)
     if F < 2:
         return q
-    carry = quat_mul(parent[1:], quat_conj(parent[:-1]))     # the parent's turn in a frame
-    local = quat_mul(quat_conj(parent), q)
-    fast = np.flatnonzero((quat_angle(q[:-1], q[1:]) > max_angle)
-                          | (quat_angle(local[:-1], local[1:]) > max_angle))
+    fast = quat_angle(q[:-1], q[1:]) > max_angle
+    if parent is not None:
+        carry = quat_mul(parent[1:], quat_conj(parent[:-1]))     # the parent's turn a frame
+        local = quat_mul(quat_conj(parent), q)
+        fast |= quat_angle(local[:-1], local[1:]) > max_angle
+    fast = np.flatnonzero(fast)
     if len(fast) == 0:
         return q
     out = q.copy()
     f = int(fast[0]) + 1
     while f < F:
         prev = out[f - 1]
-        carried = quat_mul(carry[f - 1], prev)
+        carried = None if parent is None else quat_mul(carry[f - 1], prev)
         a = float(quat_angle(prev, q[f]))
-        if a <= max_angle and float(quat_angle(carried, q[f])) <= max_angle:
+        if a <= max_angle and (carried is None
+                               or float(quat_angle(carried, q[f])) <= max_angle):
             nxt = fast[fast >= f]
             if len(nxt) == 0:
                 break
             f = max(f + 1, int(nxt[0]) + 1)
             continue
         out[f] = quat_slerp(prev, q[f], min(max_angle / max(a, 1e-12), 1.0))
-        if float(quat_angle(carried, out[f])) > max_angle:
+        if carried is not None and float(quat_angle(carried, out[f])) > max_angle:
             out[f] = _nearest_within(prev, carried, q[f], max_angle)
         f += 1
     return out
+
+
+#: the fractions of the way from the feasible midpoint toward the wanted rotation that
+#: limit_rotation tries at once in a chain (the last it may take is kept)
+_CHAIN_STEPS = np.linspace(0.0, 1.0, 257)
 
 
 def _nearest_within(a: np.ndarray, b: np.ndarray, want: np.ndarray, max_angle: float):

@@ -19,8 +19,8 @@ from scipy.ndimage import gaussian_filter1d, label, maximum_filter1d
 from baker.environment.rays import RayCaster
 from baker.geometry import polyline
 from baker.geometry.conventions import UP
-from baker.geometry.transforms import (frames_to_quat, length, limit_rotation,
-                                       limit_rotation_in_chain, normalize, quat_angle)
+from baker.geometry.transforms import (frames_to_quat, length, limit_rotation, normalize,
+                                       quat_angle)
 from baker.locomotion.cobra import limit_lift
 
 
@@ -576,9 +576,8 @@ def _turn_limited(bf: BodyFrames) -> BodyFrames:
     turn twice the limit against each other."""
     lim = math.radians(SPINE_FRAME_TURN)
     rot = bf.rotations
-    rot[:, 0] = limit_rotation(rot[:, 0], lim)
-    for j in range(1, rot.shape[1]):
-        rot[:, j] = limit_rotation_in_chain(rot[:, j], rot[:, j - 1], lim)
+    for j in range(rot.shape[1]):     # head to tail: each joint after the one ahead of it
+        rot[:, j] = limit_rotation(rot[:, j], lim, parent=rot[:, j - 1] if j else None)
     return bf
 
 

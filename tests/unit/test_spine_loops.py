@@ -3,7 +3,7 @@ crowd turning on the spot) leaves a knot in its trail. Each joint that passes th
 round at the body's turn limit; two neighbours can swing in opposite senses and turn twice the
 limit against each other (48 degrees in crowds, against the 30 degree quality limit).
 locomotion.body limits every spine joint's turn in a frame relative to the joint ahead as well
-as in the world (transforms.limit_rotation_in_chain)."""
+as in the world (transforms.limit_rotation with the joint ahead as its parent)."""
 
 from __future__ import annotations
 
@@ -13,9 +13,8 @@ import numpy as np
 import pytest
 
 from baker.config import DEFAULT_RIG, load_rig_config
-from baker.geometry.transforms import (limit_rotation, limit_rotation_in_chain, normalize,
-                                       quat_about, quat_angle, quat_conj, quat_mul,
-                                       quat_rotate)
+from baker.geometry.transforms import (limit_rotation, normalize, quat_about, quat_angle,
+                                       quat_conj, quat_mul, quat_rotate)
 from baker.locomotion import body
 from baker.locomotion.body import SPINE_FRAME_TURN, body_frames, build_trail
 from test_navmesh_scenes import env_of, quad
@@ -39,14 +38,14 @@ def test_a_child_swinging_against_its_parent_keeps_both_limits():
     turn = np.where(f < 10, 0.0, np.radians(20.0) * np.minimum(f - 10, 9))
     parent = quat_about(np.tile(Y, (30, 1)), turn)
     want = quat_about(np.tile(Y, (30, 1)), -turn)
-    out = limit_rotation_in_chain(want, parent, LIMIT)
+    out = limit_rotation(want, LIMIT, parent=parent)
     world = quat_angle(out[:-1], out[1:])
     local = quat_mul(quat_conj(parent), out)
     assert world.max() <= LIMIT + 1e-9
     assert quat_angle(local[:-1], local[1:]).max() <= LIMIT + 1e-9
     assert np.array_equal(out[:11], want[:11])      # followed exactly until it turns too fast
     # and a wanted rotation within both limits is returned as it is
-    assert limit_rotation_in_chain(parent, parent, LIMIT) is parent
+    assert limit_rotation(parent, LIMIT, parent=parent) is parent
 
 
 def knot(radius: float, degrees: float, speed: float, frames: int = 125):
