@@ -7,6 +7,7 @@ import numpy as np
 
 from scipy.spatial import cKDTree
 
+from baker.geometry.arrays import unique
 from baker.geometry.conventions import UP
 from baker.geometry.proximity import segment_distances
 from baker.geometry.transforms import quat_conj, quat_mul
@@ -492,7 +493,7 @@ def legs_through_others(trajs, legs_cfg, radius: float) -> dict:
         if not inside.any():
             continue
         deepest = min(deepest, float(d[inside].min()))
-        hit = np.unique(i[inside])
+        hit = unique(i[inside])
         out["bone_frames"] += len(hit)
         np.add.at(per, bone_owner[hit % (n * B)], 1)
         hit_frames.update((f0 + hit // (n * B)).tolist())

@@ -20,6 +20,7 @@ Only the standard library is imported here.
 
 from __future__ import annotations
 
+import functools
 import multiprocessing
 import os
 import signal
@@ -151,3 +152,18 @@ def thread_map(fn, items, threads: int | None = None) -> list:
 
     with ThreadPoolExecutor(threads) as pool:
         return list(pool.map(fn, items))
+
+
+def in_background(fn, *args):
+    """Start fn(*args) on a thread of its own. Returns a callable that waits for fn's result
+    (or raises its error). For work that releases the GIL, overlapping other such work. When
+    baker runs on one thread (thread_count() == 1), fn runs at the first wait instead."""
+    if thread_count() <= 1:
+        return functools.cache(lambda: fn(*args))
+    from concurrent.futures import ThreadPoolExecutor
+
+    one_malloc_arena()
+    pool = ThreadPoolExecutor(1)
+    future = pool.submit(fn, *args)
+    pool.shutdown(wait=False)   # the thread ends with fn
+    return future.result

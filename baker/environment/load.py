@@ -38,6 +38,7 @@ import numpy as np
 
 from baker.environment.model import EnvMesh, Environment, Sun
 from baker.errors import EnvironmentLoadError
+from baker.geometry.arrays import unique
 
 log = logging.getLogger(__name__)
 
@@ -261,11 +262,11 @@ def _clean(v, f, n):
     if len(f):
         tri = v[f]
         area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-        scale = max(float(np.ptp(v[np.unique(f)], axis=0).max()), 1e-9)
+        scale = max(float(np.ptp(v[unique(f)], axis=0).max()), 1e-9)
         f = f[area2 > (scale * 1e-9) ** 2]
     if len(f) == 0:
         return None
-    used = np.unique(f)
+    used = unique(f)
     remap = np.full(len(v), -1, dtype=np.int64)
     remap[used] = np.arange(len(used))
     nv = v[used]

@@ -34,10 +34,11 @@ from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 from baker.errors import NavError
+from baker.geometry.arrays import unique
 from baker.navmesh import budget
 from baker.navmesh.query import NavSurface
 from baker.navmesh.surface import DIRS, OPPOSITE, NavData
-from baker.parallel import thread_count, thread_map
+from baker.parallel import in_background, thread_count, thread_map
 
 log = logging.getLogger(__name__)
 
@@ -183,13 +184,15 @@ def _cast_layers(caster: _Caster, x0, z0, nx, nz, cell, ytop, col0=0, col1=None)
     return col[order], y[order], prim[order]
 
 
-def _walkable_hits(caster, x0, z0, nx, nz, cell, ytop, c0, c1, face_comp, comp_closed,
-                   comp_wind, cos_slope, height, timings):
+def _walkable_hits(caster, x0, z0, nx, nz, cell, ytop, c0, c1, solids, cos_slope, height,
+                   timings):
     """Heightfield of columns c0..c1-1 reduced to its walkable hits:
-    (col, y, ceiling y, triangle, number of hits)."""
+    (col, y, ceiling y, triangle, number of hits). solids() gives _solid_components of the
+    mesh."""
     t = time.perf_counter()
     hcol, hy, hprim = _cast_layers(caster, x0, z0, nx, nz, cell, ytop, c0, c1)
     timings["layers"] = timings.get("layers", 0.0) + time.perf_counter() - t
+    face_comp, comp_closed, comp_wind = solids()
     t = time.perf_counter()
     nh = len(hcol)
     first = np.ones(nh, dtype=bool)
@@ -361,7 +364,8 @@ def build_data(env, agent, *, bounds=None, coarse_factor: int = 4,
                        "(baker bake --nav-build lazy builds only where the creature goes)",
                        where=env.source)
     caster = _Caster(env)
-    solids = _solid_components(mesh)
+    # the closed solids are found while the first columns are cast (they are read after it)
+    solids = in_background(_solid_components, mesh)
     timings["setup"] = time.perf_counter() - t0
 
     grid = _Grid(x0, z0, nx, nz, cell)
@@ -473,16 +477,15 @@ class _Samples:
 def _samples(caster: _Caster, grid: _Grid, ytop, solids, slope, height, timings,
              where) -> _Samples:
     """1.-2. the column heightfield and its walkable samples, in bands of columns (bounded
-    memory). solids: _solid_components of the mesh."""
+    memory). solids(): _solid_components of the mesh."""
     x0, z0, nx, nz, cell = grid.x0, grid.z0, grid.nx, grid.nz, grid.cell
     ncols = nx * nz
-    face_comp, comp_closed, comp_wind = solids
     cos_slope = math.cos(slope) - 1e-9
     # the bands are independent, each on a thread (numpy and Embree release the GIL)
     band = _tile(TILE_COLUMNS)
     parts = thread_map(lambda c0: _walkable_hits(
-        caster, x0, z0, nx, nz, cell, ytop, c0, min(ncols, c0 + band), face_comp,
-        comp_closed, comp_wind, cos_slope, height, timings), range(0, ncols, band))
+        caster, x0, z0, nx, nz, cell, ytop, c0, min(ncols, c0 + band), solids, cos_slope,
+        height, timings), range(0, ncols, band))
     nh = sum(p[4] for p in parts)
     t = time.perf_counter()
     scol = np.concatenate([p[0] for p in parts])
@@ -627,7 +630,7 @@ def _clearance(caster: _Caster, grid: _Grid, s: _Samples, links, radius, h_off,
     if posts is not None and len(posts[0]):
         near, dp = _beside_posts(grid, s, posts, h_off, height)
         dist = np.minimum(dist, _segment_min(near, dp, len(dist), np.inf))
-        border = np.union1d(border, near)
+        border = unique(np.concatenate([border, near]))
     w = np.where(np.arange(8) < 4, cell, cell * math.sqrt(2.0))
     iters = int(math.ceil(radius / cell)) + 1
     active = border
@@ -650,7 +653,7 @@ def _clearance(caster: _Caster, grid: _Grid, s: _Samples, links, radius, h_off,
                 u = nb[head]
                 dist[u] = np.minimum(dist[u], np.minimum.reduceat(nd, np.nonzero(head)[0]))
                 changed.append(u)
-        active = np.unique(np.concatenate(changed)) if changed else np.zeros(0, np.int64)
+        active = unique(np.concatenate(changed)) if changed else np.zeros(0, np.int64)
         active = active[dist[active] < radius + cell * 1.5]
     return dist
 
@@ -796,7 +799,7 @@ def _coarse(positions, cells, links, k, nz):
         if len(key) > 1:  # neighbours along a block border mostly repeat the same pair
             key = key[np.concatenate([[True], key[1:] != key[:-1]])]
         keys.append(key)
-    key = np.unique(np.concatenate(keys))
+    key = unique(np.concatenate(keys))
     cs, cd = key // nc, key % nc
     cs, cd = np.concatenate([cs, cd]), np.concatenate([cd, cs])
     o = np.argsort(cs, kind="stable")

@@ -94,3 +94,20 @@ def test_an_exception_on_a_thread_is_raised_in_the_caller():
 
     with pytest.raises(ValueError, match="bad tile"):
         parallel.thread_map(fail, range(6), threads=2)
+
+
+def test_in_background_gives_the_result_or_the_error(monkeypatch):
+    from baker import parallel
+
+    for threads in (1, 2):
+        monkeypatch.setattr(parallel, "thread_count", lambda: threads)
+        calls = []
+        got = parallel.in_background(lambda a, b: calls.append(1) or a + b, 2, 3)
+        assert got() == 5 and got() == 5 and calls == [1]
+
+        def boom():
+            raise ValueError("no")
+
+        wait = parallel.in_background(boom)
+        with pytest.raises(ValueError, match="no"):
+            wait()
