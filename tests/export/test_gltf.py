@@ -209,3 +209,29 @@ def test_single_frame_clip_validates(tmp_path, small_env, rig, trajectory):
                      ground_heights=trajectory.ground_heights[:1])
     report = _report(tmp_path, build_glb(small_env, rig, build_clip(one, rig), extras={}))
     assert issues_summary(report, 0) == [] and issues_summary(report, 1) == []
+
+
+def test_document_is_pygltflibs_json():
+    """gltf._document gives the dict pygltflib's own JSON pass gives (keys, order, values),
+    empty and None values dropped, extension dicts kept, attributes included."""
+    import json
+
+    import pygltflib as gl
+
+    from baker.export.gltf import _document
+
+    g = gl.GLTF2(asset=gl.Asset(generator="baker", extras={"a": [1, 2.5], "b": {}}))
+    g.nodes = [gl.Node(name="n", children=[], translation=[0.0, 1.0, 2.5],
+                       extensions={"KHR_lights_punctual": {"light": 0}}),
+               gl.Node(name="", mesh=0, rotation=(0.0, 0.0, 0.0, 1.0))]
+    g.meshes = [gl.Mesh(primitives=[gl.Primitive(attributes=gl.Attributes(POSITION=0, NORMAL=1),
+                                                 indices=2)])]
+    g.accessors = [gl.Accessor(bufferView=0, componentType=gl.FLOAT, count=3, type=gl.VEC3,
+                               min=[0.0, 0.0, 0.0], max=[1.0, 1.0, 1.0])]
+    g.extensionsUsed = ["KHR_lights_punctual"]
+    g.scenes = [gl.Scene(name="Scene", nodes=[0, 1])]
+    g.scene = 0
+    want = json.loads(g.gltf_to_json(separators=(",", ":"), indent=None))
+    got = _document(g)
+    assert got == want
+    assert json.dumps(got) == json.dumps(want)      # the same key order
