@@ -18,7 +18,8 @@ def in_shade(rays, points: np.ndarray, sun_dir: np.ndarray, lift: float) -> np.n
     points : (n, 3) world, sun_dir : (3,) or (n, 3) unit vectors toward the sun
     """
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3) + lift * UP
-    d = np.broadcast_to(np.asarray(sun_dir, dtype=np.float64), pts.shape)
+    d = np.empty_like(pts)
+    d[...] = sun_dir
     return rays.occluded(pts, d)
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +28,8 @@ class SunPath:
 
     def at(self, t) -> np.ndarray:
         """(..., 3) directions toward the sun at times t (seconds)."""
+        if isinstance(t, float) and self.moving:
+            return self._at_scalar(t)
         t = np.asarray(t, dtype=np.float64)
         if not self.moving:
             return np.broadcast_to(self.keys[0], t.shape + (3,)).copy()
@@ -34,6 +37,20 @@ class SunPath:
         i = np.minimum(u.astype(int), len(self.keys) - 2)
         f = (u - i)[..., None]
         return normalize(self.keys[i] * (1 - f) + self.keys[i + 1] * f)
+
+    def _at_scalar(self, t: float) -> np.ndarray:
+        """at(t) for one time (the run stage asks every step), in Python floats: the same
+        operations in the same order, so the same bits (transforms.normalize: the squares
+        summed left to right)."""
+        last = len(self.keys) - 1
+        u = min(max(t / max(self.duration, 1e-9), 0.0), 1.0) * last
+        i = min(int(u), last - 1)
+        f = u - i
+        g = 1 - f
+        k0, k1 = self.keys[i].tolist(), self.keys[i + 1].tolist()
+        x, y, z = (k0[0] * g + k1[0] * f, k0[1] * g + k1[1] * f, k0[2] * g + k1[2] * f)
+        n = max(math.sqrt(x * x + y * y + z * z), 1e-12)
+        return np.array([x / n, y / n, z / n])
 
 
 def sun_path(keys: np.ndarray | None, fixed: np.ndarray, duration: float,

@@ -28,6 +28,9 @@ CHUNK_RAYS = 1 << 20
 THREAD_MIN_RAYS = 16384
 #: at most this many threads cast one batch
 MAX_THREADS = 8
+#: a batch of at most this many rays (the run stage's per-step probes) is cast in one Embree
+#: call without the staging and the masks of large batches, whose cost is many times the cast's
+SMALL_RAYS = 64
 
 
 def _threads() -> int:
@@ -105,6 +108,8 @@ class RayCaster:
         origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
         directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
         n = len(origins)
+        if 0 < n <= SMALL_RAYS and self._scene is not None:
+            return self._small(origins, directions, max_distance, uv)
         t = np.full(n, np.inf)
         prim = np.full(n, -1, dtype=np.int32)
         if n == 0 or len(self.faces) == 0:
@@ -119,7 +124,7 @@ class RayCaster:
             return t, prim
         dist = None if max_distance is None else np.broadcast_to(
             np.asarray(max_distance, dtype=np.float64), (n,))
-        parts = min(_threads(), n // THREAD_MIN_RAYS)
+        parts = min(_threads(), n // THREAD_MIN_RAYS) if n >= 2 * THREAD_MIN_RAYS else 1
         if parts <= 1:
             self._embree(origins, directions, dist, uv, t, prim, 0, n)
             return t, prim
@@ -129,6 +134,28 @@ class RayCaster:
         thread_map(lambda k: self._embree(origins, directions, dist, uv, t, prim, edges[k],
                                           edges[k + 1]), range(parts), threads=parts)
         return t, prim
+
+    def _small(self, origins, directions, max_distance, uv):
+        """_run for a batch of 1..SMALL_RAYS rays on Embree: one call, the same bits as
+        _embree (origins shifted in float64, then rounded to float32; distances capped at
+        3e38)."""
+        n = len(origins)
+        o = (origins - self.shift).astype(np.float32)
+        d = directions.astype(np.float32)
+        if max_distance is None:
+            r = self._scene.run(o, d, output=1)
+        else:
+            m = np.minimum(np.asarray(max_distance, dtype=np.float64), 3e38)
+            dists = (np.full(n, m, dtype=np.float32) if m.ndim == 0
+                     else np.broadcast_to(m, (n,)).astype(np.float32))
+            r = self._scene.run(o, d, dists=dists, output=1)
+        prim = r["primID"]
+        hit = prim >= 0
+        t = np.where(hit, r["tfar"].astype(np.float64), np.inf)
+        if uv is not None:
+            uv[:, 0] = np.where(hit, r["u"], 0.0)
+            uv[:, 1] = np.where(hit, r["v"], 0.0)
+        return t, prim.astype(np.int32, copy=False)
 
     def _embree(self, origins, directions, dist, uv, t, prim, start: int, stop: int) -> None:
         """Cast rays start..stop on Embree, CHUNK_RAYS at a time, into t, prim (and uv)."""
