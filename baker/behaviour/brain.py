@@ -207,10 +207,10 @@ class Brain(IntentSource):
         # the head, then a ring of points around it (light/dark contrast), in one ray batch
         pts = np.vstack([head[None], head + self._ring])
         h = self.nav.surface_height(pts)
+        # a ring point on the surface (put at its layer's height, so walkable there) or not
         ok = np.isfinite(h)
         ok[0] = True
         pts[1:, 1] = np.where(ok[1:], h[1:], pts[1:, 1])
-        ok[1:] &= self.nav.is_walkable(pts[1:])
         shade = perception.in_shade(self.rays, pts, sun, self.rig.body.clearance) & ok
         self.shaded = bool(shade[0])
         if self.shade_on and shade.any() and s.t - self._last_memory >= self.b.shade_memory_interval:

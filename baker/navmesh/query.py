@@ -288,6 +288,8 @@ def _locate(s: NavSurface, points: np.ndarray, tol: float, _retry: bool = True):
     (-1, NaN) when none is within tol vertically."""
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     n = len(pts)
+    if 0 < n <= _FEW and s.n_samples > 0:
+        return _locate_few(s, pts, tol, _retry)
     best = np.full(n, -1, dtype=np.int64)
     besth = np.full(n, np.nan)
     bestd = np.full(n, np.inf)
@@ -330,6 +332,54 @@ def _locate(s: NavSurface, points: np.ndarray, tol: float, _retry: bool = True):
         some = np.nonzero(got.any(axis=0))[0]
         best[miss[some]] = b2[first[some], some]
         besth[miss[some]] = h2[first[some], some]
+    return best, besth
+
+
+#: _locate takes a batch of at most this many points one at a time, in Python floats (the
+#: per-step queries of one point or a few): far cheaper than the array passes there
+_FEW = 4
+#: the nudges _locate tries, in order, for a point on a cell border (times 1e-6 cells)
+_NUDGES = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0), (1.0, 1.0), (-1.0, -1.0),
+           (1.0, -1.0), (-1.0, 1.0))
+
+
+def _locate_few(s: NavSurface, pts: np.ndarray, tol: float, retry: bool):
+    """_locate for a few points, one at a time in Python floats: the same samples tried in the
+    same order with the same arithmetic (_plane_y's), so the same results."""
+    best, besth = [], []
+    eps = 1e-6 * s.cell_size
+    for x, y, z in pts.tolist():
+        k, h = _locate_one(s, x, y, z, tol)
+        if k < 0 and retry:
+            for ex, ez in _NUDGES:
+                k, h = _locate_one(s, x + ex * eps, y + 0.0, z + ez * eps, tol)
+                if k >= 0:
+                    break
+        best.append(k)
+        besth.append(h)
+    return np.array(best, dtype=np.int64), np.array(besth, dtype=np.float64)
+
+
+def _locate_one(s: NavSurface, x: float, y: float, z: float, tol: float) -> tuple[int, float]:
+    """(sample, plane height) of the sample in the column of (x, z) whose plane height is
+    closest to y (the first of equals), or (-1, NaN) when none is within tol."""
+    c = s.cell_size
+    if not (math.isfinite(x) and math.isfinite(z)):
+        return -1, math.nan
+    ix = math.floor((x - s.origin[0]) / c)
+    iz = math.floor((z - s.origin[1]) / c)
+    nx, nz = s.shape
+    if not (0 <= ix < nx and 0 <= iz < nz):
+        return -1, math.nan
+    col = ix * nz + iz
+    best, besth, bestd = -1, math.nan, math.inf
+    for k, ((px, py, pz), (nxk, nyk, nzk)) in enumerate(_column_planes(s, col)):
+        h = py - (nxk * (x - px) + nzk * (z - pz)) / nyk
+        d = abs(h - y)
+        if d < bestd and d <= tol:
+            best, besth, bestd = k, h, d
+    if best >= 0:
+        best += int(s.col_start[col])
     return best, besth
 
 
