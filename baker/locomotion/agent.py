@@ -28,6 +28,7 @@ class PathAgent:
         self.speed = 0.0
         self._points = self.position[None, :].copy()
         self._cum = [0.0]           # arc lengths as Python floats, for the step loop's look-ups
+        self._rows = self._points.tolist()   # the points as Python floats, for the same
         self._s = 0.0
 
     def set_path(self, points: np.ndarray) -> None:
@@ -37,6 +38,7 @@ class PathAgent:
             pts = np.vstack([self.position, pts])
         self._points = pts
         self._cum = polyline.arc_lengths(pts).tolist()
+        self._rows = pts.tolist()
         self._s = 0.0
 
     def point_behind(self, distance: float) -> np.ndarray:
@@ -58,14 +60,16 @@ class PathAgent:
         return self.remaining <= self.stopping_distance + 1e-9 and self.speed == 0.0
 
     def _at(self, s: float) -> np.ndarray:
-        """Point at arc length s (scalar fast path of polyline.sample, for the step loop)."""
-        cum, pts = self._cum, self._points
+        """Point at arc length s (scalar fast path of polyline.sample, for the step loop; in
+        Python floats, the same operations as on the (3,) rows)."""
+        cum = self._cum
         if len(cum) == 1:
-            return pts[0].copy()
+            return self._points[0].copy()
         i = min(max(bisect_right(cum, s) - 1, 0), len(cum) - 2)   # np.searchsorted "right"
         seg = cum[i + 1] - cum[i]
         t = (s - cum[i]) / seg if seg > 0 else 0.0
-        return pts[i] + t * (pts[i + 1] - pts[i])
+        (ax, ay, az), (bx, by, bz) = self._rows[i], self._rows[i + 1]
+        return np.array([ax + t * (bx - ax), ay + t * (by - ay), az + t * (bz - az)])
 
     def largest_rise(self, back: float, ahead: float) -> float:
         """Largest height jump [m] between neighbouring path points from `back` metres behind the

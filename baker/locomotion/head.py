@@ -97,15 +97,15 @@ class HeadSteer:
         aim     : optional point to steer toward instead of the agent (a point of the agent's
                   path the head can see); the speed still keeps the head a lead behind the agent
         """
-        to = agent_pos - self.base
-        to[1] = 0.0
-        dist = math.hypot(to[0], to[2])
-        if aim is not None and math.hypot(aim[0] - self.base[0], aim[2] - self.base[2]) > 1e-9:
+        # in Python floats (the same operations, so the same bits as on the (3,) arrays)
+        bx, by, bz = self.base.tolist()
+        ax, ay, az = (float(v) for v in agent_pos[:3])
+        tx, tz = ax - bx, az - bz
+        dist = math.hypot(tx, tz)
+        if aim is not None and math.hypot(aim[0] - bx, aim[2] - bz) > 1e-9:
             # steer at the aim point; the agent is as far as the way round through it
-            to = aim - self.base
-            to[1] = 0.0
-            dist = math.hypot(to[0], to[2]) + math.hypot(agent_pos[0] - aim[0],
-                                                         agent_pos[2] - aim[2])
+            tx, tz = float(aim[0]) - bx, float(aim[2]) - bz
+            dist = math.hypot(tx, tz) + math.hypot(ax - aim[0], az - aim[2])
         # Speed: match the agent, plus a gain that closes the gap to the lead distance.
         gain = 4.0
         u = max(0.0, min(agent_speed + gain * (dist - self.lead), CATCH_UP * self.max_speed,
@@ -119,10 +119,12 @@ class HeadSteer:
                 # just out of a turn on the spot: walk away from the corner it leaves in the
                 # trail at the tight turns' speed, until the body's slow-down can see it
                 step = min(step, self.tight_speed * dt)
-            want = to / max(math.hypot(to[0], to[2]), 1e-12)
+            m = max(math.hypot(tx, tz), 1e-12)
+            wx, wz = tx / m, tz / m
             # Turn toward the agent by at most step / turn_radius: the path's curvature is bounded.
-            cross = self.heading[2] * want[0] - self.heading[0] * want[2]
-            dot = self.heading[0] * want[0] + self.heading[2] * want[2]
+            hx, _, hz = self.heading.tolist()
+            cross = hz * wx - hx * wz
+            dot = hx * wx + hz * wz
             ang = math.atan2(cross, dot)
             ang = self._u_turn(ang, allowed)
             lim = step / self.turn_radius
@@ -131,14 +133,14 @@ class HeadSteer:
                 step = min(step, self.max_yaw_rate * self.turn_radius * dt)
                 lim = step / self.turn_radius
             a = max(-lim, min(lim, ang))
-            if allowed is not None and allowed(self.base[0], self.base[2]):
+            if allowed is not None and allowed(bx, bz):
                 a, step = self._contain(a, ang, step, dt, allowed)
             self._creep = max(0.0, self._creep - step)
             c, s = math.cos(a), math.sin(a)
-            hx, hz = self.heading[0], self.heading[2]
-            self.heading = np.array([c * hx + s * hz, 0.0, -s * hx + c * hz])
-            self.base = self.base + self.heading * step
-            self.base[1] = agent_pos[1]
+            hx, hz = c * hx + s * hz, -s * hx + c * hz
+            self.heading = np.array([hx, 0.0, hz])
+            bx, by, bz = bx + hx * step, float(agent_pos[1]), bz + hz * step
+            self.base = np.array([bx, by, bz])
             u = step / dt
         self.speed = u
         # Slither: frequency ~ speed; lateral amplitude = v * A(v) / w(v) rises with speed. The
@@ -152,12 +154,15 @@ class HeadSteer:
         dmax = 0.1 * u * dt
         self.lateral_amp += max(-dmax, min(dmax, want - self.lateral_amp))
         w = min(1.0, u * dt / (0.5 * self.turn_radius))
-        d = self.sway_dir + w * (self.heading - self.sway_dir)
-        n = math.hypot(d[0], d[2])
+        sx, _, sz = self.sway_dir.tolist()
+        hx, _, hz = self.heading.tolist()
+        dx, dz = sx + w * (hx - sx), sz + w * (hz - sz)
+        n = math.hypot(dx, dz)
         if n > 1e-9:
-            self.sway_dir = d / n
-        left = np.array([self.sway_dir[2], 0.0, -self.sway_dir[0]])
-        self.position = self.base + left * (self.lateral_amp * math.sin(self.phase))
+            sx, sz = dx / n, dz / n
+            self.sway_dir = np.array([sx, 0.0, sz])
+        k = self.lateral_amp * math.sin(self.phase)
+        self.position = np.array([bx + sz * k, by + 0.0 * k, bz + -sx * k])
 
     def _u_turn(self, ang: float, allowed) -> float:
         """A target more than a right angle off the heading is a U-turn: it keeps to the side it
