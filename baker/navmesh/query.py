@@ -260,10 +260,13 @@ def _members(s: NavSurface):
 
 
 def _coarse_lists(s: NavSurface):
+    """The coarse graph as plain lists for A*: CSR indptr and indices, the representatives'
+    (x, y, z), and per node its [(neighbour, edge length), ...] once A* has expanded it (None
+    before: searches from nearby starts expand the same nodes)."""
     c = s._cache.get("coarse_lists")
     if c is None:
         c = (s.coarse_indptr.tolist(), s.coarse_indices.tolist(),
-             s.positions[s.coarse_rep].astype(np.float64).tolist())
+             s.positions[s.coarse_rep].astype(np.float64).tolist(), [None] * len(s.coarse_rep))
         s._cache["coarse_lists"] = c
     return c
 
@@ -335,6 +338,8 @@ def _locate(s: NavSurface, points: np.ndarray, tol: float, _retry: bool = True):
     return best, besth
 
 
+#: _walk remembers up to this many walks per surface (then starts afresh)
+_WALKS_KEPT = 1 << 16
 #: _locate takes a batch of at most this many points one at a time, in Python floats (the
 #: per-step queries of one point or a few): far cheaper than the array passes there
 _FEW = 4
@@ -553,7 +558,20 @@ def _random_point_coarse(s: NavSurface, p, radius, comp, rng, tries: int = 64):
 def _walk(s: NavSurface, s0: int, a: np.ndarray, b: np.ndarray, s1: int = -1):
     """Follow links from sample s0 (whose column holds a) along the straight XZ segment a-b.
     Returns the sample reached in b's column, or -1 when a column on the way has no linked
-    sample on this layer (or the end is not s1 when s1 >= 0)."""
+    sample on this layer (or the end is not s1 when s1 >= 0). Remembered per surface (paths
+    planned again and again walk the same chains between the same points)."""
+    key = (int(s0), float(a[0]), float(a[2]), float(b[0]), float(b[2]), int(s1))
+    walks = s._cache.get("walks")
+    if walks is None or len(walks) >= _WALKS_KEPT:
+        walks = s._cache["walks"] = {}
+    out = walks.get(key)
+    if out is None:
+        out = walks[key] = _walk_links(s, s0, a, b, s1)
+    return out
+
+
+def _walk_links(s: NavSurface, s0: int, a: np.ndarray, b: np.ndarray, s1: int) -> int:
+    """_walk's walk itself."""
     c = s.cell_size
     L = math.hypot(b[0] - a[0], b[2] - a[2])
     n = int(math.ceil(L / (0.25 * c))) + 1
@@ -679,10 +697,15 @@ def _closest_in_component(s: NavSurface, comp: int, b: np.ndarray) -> int:
     return int(idx[int(np.argmin(dd))])
 
 
-def _astar(start: int, goal: int, neighbours, point) -> list[int] | None:
+def _edge_length(p, q) -> float:
+    """Euclidean distance between two (x, y, z) float triples (A*'s edge cost)."""
+    return math.sqrt((q[0] - p[0]) ** 2 + (q[1] - p[1]) ** 2 + (q[2] - p[2]) ** 2)
+
+
+def _astar(start: int, goal: int, edges, point) -> list[int] | None:
     """A* with Euclidean costs and heuristic.
 
-    neighbours(u) -> iterable of node ids; point(u) -> (x, y, z) floats.
+    edges(u) -> iterable of (node id, edge length _edge_length); point(u) -> (x, y, z) floats.
     Returns the node path start..goal, or None when goal is unreachable.
     """
     sqrt = math.sqrt
@@ -702,15 +725,14 @@ def _astar(start: int, goal: int, neighbours, point) -> list[int] | None:
         if u in closed:
             continue
         closed.add(u)
-        ux, uy, uz = point(u)
-        for v in neighbours(u):
+        for v, w in edges(u):
             if v in closed:
                 continue
-            vx, vy, vz = point(v)
-            ng = gu + sqrt((vx - ux) ** 2 + (vy - uy) ** 2 + (vz - uz) ** 2)
+            ng = gu + w
             if ng < g.get(v, math.inf):
                 g[v] = ng
                 parent[v] = u
+                vx, vy, vz = point(v)
                 h = sqrt((vx - gx) ** 2 + (vy - gy) ** 2 + (vz - gz) ** 2)
                 heapq.heappush(heap, (ng + h, ng, v))
     return None
@@ -718,18 +740,31 @@ def _astar(start: int, goal: int, neighbours, point) -> list[int] | None:
 
 def _coarse_astar(s: NavSurface, u0: int, u1: int) -> list[int] | None:
     """A* over the coarse graph (plain lists: the hot path of long queries)."""
-    indptr, indices, pos = _coarse_lists(s)
-    return _astar(u0, u1, lambda u: indices[indptr[u]:indptr[u + 1]], pos.__getitem__)
+    indptr, indices, pos, adj = _coarse_lists(s)
+
+    def edges(u):
+        e = adj[u]
+        if e is None:
+            p = pos[u]
+            e = adj[u] = [(v, _edge_length(p, pos[v])) for v in indices[indptr[u]:indptr[u + 1]]]
+        return e
+
+    return _astar(u0, u1, edges, pos.__getitem__)
 
 
 def _fine_astar(s: NavSurface, a: int, b: int, allowed: set[int]) -> list[int] | None:
     """A* over sample links, restricted to samples whose coarse node is in `allowed`."""
     pos, co, links = s.positions, s.coarse_of, s.links
 
-    def neighbours(u):
-        return [v for v in links[u].tolist() if v >= 0 and int(co[v]) in allowed]
+    def point(u):
+        return tuple(float(x) for x in pos[u])
 
-    return _astar(a, b, neighbours, lambda u: tuple(float(x) for x in pos[u]))
+    def edges(u):
+        p = point(u)
+        return [(v, _edge_length(p, point(v))) for v in links[u].tolist()
+                if v >= 0 and int(co[v]) in allowed]
+
+    return _astar(a, b, edges, point)
 
 
 def find_path(s: NavSurface, a, b) -> PathResult:
