@@ -32,7 +32,7 @@ import numpy as np
 from baker.behaviour.intent import Intent
 from baker.config import RigConfig
 from baker.geometry import polyline
-from baker.geometry.transforms import cross, normalize
+from baker.geometry.transforms import normalize
 from baker.locomotion.agent import PathAgent
 from baker.locomotion.body import project_to_surface
 from baker.locomotion.head import HeadSteer, way_points
@@ -273,7 +273,8 @@ class Follower:
         if np.linalg.norm(f) < 1e-9:
             f = self.head.heading - (self.head.heading @ n) * n
         f = f / max(np.linalg.norm(f), 1e-12)
-        left = cross(n, f)
+        (n0, n1, n2), (f0, f1, f2) = n.tolist(), f.tolist()
+        left = np.array([n1 * f2 - n2 * f1, n2 * f0 - n0 * f2, n0 * f1 - n1 * f0])  # cross(n, f)
         ground = np.array([p[0], self.height, p[2]])
         h, side_x, side_cos, sin, cos = self._lever_rays
         t, prim = self.rays.cast(ground + h * n + side_x * left,
