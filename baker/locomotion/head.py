@@ -99,7 +99,7 @@ class HeadSteer:
         """
         # in Python floats (the same operations, so the same bits as on the (3,) arrays)
         bx, by, bz = self.base.tolist()
-        ax, ay, az = (float(v) for v in agent_pos[:3])
+        ax, ay, az = np.asarray(agent_pos, dtype=np.float64).tolist()
         tx, tz = ax - bx, az - bz
         dist = math.hypot(tx, tz)
         if aim is not None and math.hypot(aim[0] - bx, aim[2] - bz) > 1e-9:
@@ -139,7 +139,7 @@ class HeadSteer:
             c, s = math.cos(a), math.sin(a)
             hx, hz = c * hx + s * hz, -s * hx + c * hz
             self.heading = np.array([hx, 0.0, hz])
-            bx, by, bz = bx + hx * step, float(agent_pos[1]), bz + hz * step
+            bx, by, bz = bx + hx * step, ay, bz + hz * step
             self.base = np.array([bx, by, bz])
             u = step / dt
         self.speed = u

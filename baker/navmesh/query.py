@@ -341,8 +341,8 @@ def _locate(s: NavSurface, points: np.ndarray, tol: float, _retry: bool = True):
 #: _walk remembers up to this many walks per surface (then starts afresh)
 _WALKS_KEPT = 1 << 16
 #: _locate takes a batch of at most this many points one at a time, in Python floats (the
-#: per-step queries of one point or a few): far cheaper than the array passes there
-_FEW = 4
+#: per-step queries, of one point or a ring of a few dozen): cheaper than the array passes
+_FEW = 32
 #: the nudges _locate tries, in order, for a point on a cell border (times 1e-6 cells)
 _NUDGES = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0), (1.0, 1.0), (-1.0, -1.0),
            (1.0, -1.0), (-1.0, 1.0))
