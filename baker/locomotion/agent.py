@@ -29,6 +29,7 @@ class PathAgent:
         self._points = self.position[None, :].copy()
         self._cum = [0.0]           # arc lengths as Python floats, for the step loop's look-ups
         self._rows = self._points.tolist()   # the points as Python floats, for the same
+        self._placed = None         # the position step() put at _s on the current path
         self._s = 0.0
 
     def set_path(self, points: np.ndarray) -> None:
@@ -40,6 +41,7 @@ class PathAgent:
         self._cum = polyline.arc_lengths(pts).tolist()
         self._rows = pts.tolist()
         self._s = 0.0
+        self._placed = None
 
     def point_behind(self, distance: float) -> np.ndarray:
         """The path's point `distance` metres behind the agent (its start at most)."""
@@ -100,5 +102,8 @@ class PathAgent:
         self.speed = min(max(target, self.speed - dv), self.speed + dv)
         if free <= 0.0:
             self.speed = max(self.speed - dv, 0.0)
-        self._s = min(self._s + self.speed * dt, self._cum[-1])
-        self.position = self._at(self._s)
+        s = min(self._s + self.speed * dt, self._cum[-1])
+        if s == self._s and self.position is self._placed:
+            return        # standing still on the same path: the same point
+        self._s = s
+        self.position = self._placed = self._at(s)
