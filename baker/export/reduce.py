@@ -885,6 +885,9 @@ class _Player:
         self.slide = np.zeros((j_count, max(f_count - 1, 0)))
         self.viol = np.zeros((j_count, f_count), dtype=bool)
         self.segments = None        # ((segments, keys) of translations, of rotations) last played
+        self.row = np.zeros(j_count, dtype=np.int64)        # each joint's row in its level
+        for level in x.levels:
+            self.row[level] = np.arange(len(level))
 
     def play(self, keep_t: np.ndarray, keep_r: np.ndarray) -> np.ndarray:
         """Play the keys keep_t, keep_r (J, F) bool; returns viol."""
@@ -914,10 +917,12 @@ class _Player:
                 target_t, target_r = moved[parents], turned[parents]
             if not (target_t.any() or dirty_t[level].any() or dirty_r[level].any()):
                 continue                                    # nothing below moves either
-            self._targets(level, (target_t | new_t[level]) & keep_t[level],
-                          (target_r | new_r[level]) & keep_r[level], root)
-            st = dirty_t[level] | _touches(target_t & keep_t[level], seg_t, level)
-            sr = dirty_r[level] | _touches(target_r & keep_r[level], seg_r, level)
+            # frames played from a key whose stored value changed (a new key's frames are
+            # dirty: their segment changed)
+            changed_t, changed_r = self._targets(level, (target_t | new_t[level]) & keep_t[level],
+                                                 (target_r | new_r[level]) & keep_r[level], root)
+            st = dirty_t[level] | _touches(changed_t, seg_t, level)
+            sr = dirty_r[level] | _touches(changed_r, seg_r, level)
             self._sample(level, st, sr, seg_t, seg_r)
             turned[level] = sr | target_r
             moved[level] = st | turned[level] | target_t
@@ -941,15 +946,21 @@ class _Player:
             self._targets(level, ~keep_t[level], ~keep_r[level], self.x.parents[level[0]] < 0)
 
     def _targets(self, level: np.ndarray, target_t: np.ndarray, target_r: np.ndarray,
-                 root: bool) -> None:
+                 root: bool) -> tuple[np.ndarray, np.ndarray]:
         """The key values of the joints `level`: translations at the frames target_t, rotations
         at the frames target_r (L, F) bool (new keys, and keys where the parent's pose, or only
-        its rotation, moved)."""
+        its rotation, moved). Returns ((L, F), (L, F)) bool: the frames whose stored value vt,
+        vq changed (bit for bit)."""
         x, f_count = self.x, self.x.t0.shape[1]
+        changed_t = np.zeros(target_t.shape, dtype=bool)
+        changed_r = np.zeros(target_r.shape, dtype=bool)
+        row = self.row              # joint -> its row in `level`
         for j, f, i in _pair_blocks(target_t, level, f_count):
             tt = _take(_flat(x.t0), i) if root else self._target_t(i, x.parents[j] * f_count + f)
             _put(_flat(self.tt), i, tt)
-            _put(_flat(self.vt), i, tt)
+            vt = tt.astype(np.float32)
+            changed_t[row[j], f] = _bits_differ(_take(_flat(self.vt), i), vt)
+            _put(_flat(self.vt), i, vt)
         for j, f, i in _pair_blocks(target_r, level, f_count):
             tq = _take(_flat(x.q0), i) if root else self._target_q(i, x.parents[j] * f_count + f)
             if x.short:                 # requantize the targets that changed
@@ -958,10 +969,16 @@ class _Player:
                 ic = i[changed]
                 codes = quantize_rotations(tq[changed])
                 _put(_flat(self.codes), ic, codes)
-                _put(_flat(self.vq), ic, dequantize_rotations(codes))
+                vq = dequantize_rotations(codes)
+                changed_r[row[j[changed]], f[changed]] = _bits_differ(_take(_flat(self.vq), ic),
+                                                                      vq)
+                _put(_flat(self.vq), ic, vq)
             else:
-                _put(_flat(self.vq), i, _unit_f32(tq))
+                vq = _unit_f32(tq)
+                changed_r[row[j], f] = _bits_differ(_take(_flat(self.vq), i), vq)
+                _put(_flat(self.vq), i, vq)
             _put(_flat(self.tq), i, tq)
+        return changed_t, changed_r
 
     def _target_t(self, i: np.ndarray, ip: np.ndarray) -> np.ndarray:
         """(N, 3) the translation targets of the pairs i (flat) of non-root joints, given their
@@ -1151,6 +1168,15 @@ def _resegment(segments: tuple, played: np.ndarray, keep: np.ndarray) -> np.ndar
         segments[0][rows], segments[1][rows] = prev, nxt
         played[rows] = keep[rows]
     return dirty
+
+
+def _bits_differ(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N,) bool: rows of a and b (N, W) float32 that differ in any bit (-0.0 from 0.0, too)."""
+    ne = a.view(np.int32) != b.view(np.int32)
+    out = ne[:, 0]
+    for k in range(1, ne.shape[1]):
+        out = out | ne[:, k]
+    return out
 
 
 def _touches(changed: np.ndarray, segments, level: np.ndarray) -> np.ndarray:
