@@ -409,17 +409,20 @@ def _norm(a: np.ndarray) -> np.ndarray:
     return np.sqrt(_dot(a, a))
 
 
-def _spans(segments, rows: np.ndarray, frames: np.ndarray, times: np.ndarray,
-           seg_rows: np.ndarray | None = None) -> tuple:
+def _spans(segments, rows: np.ndarray, frames: np.ndarray, times: np.ndarray) -> tuple:
     """Where the pairs (rows[i], frames[i]) are played from: (i0, i1) the flat indices (row
     * F + key frame) of the keys around them, alpha, and whether each is past the last key
-    (`last`) or on a channel with no key (`fixed`). segments: `_segments` of the keys, read at
-    seg_rows (default: rows)."""
+    (`last`) or on a channel with no key (`fixed`). segments: `_segments` of the keys."""
     prev, nxt = segments
     f_count = prev.shape[1]
-    at = (rows if seg_rows is None else seg_rows) * f_count + frames
-    prev, nxt, a, fixed, last = _around(np.take(prev, at), np.take(nxt, at), frames, times,
-                                        f_count)
+    at = rows * f_count + frames
+    return _spans_at(np.take(prev, at), np.take(nxt, at), rows, frames, times, f_count)
+
+
+def _spans_at(prev: np.ndarray, nxt: np.ndarray, rows: np.ndarray, frames: np.ndarray,
+              times: np.ndarray, f_count: int) -> tuple:
+    """`_spans` given the pairs' segment key frames prev, nxt (`_segments` read there)."""
+    prev, nxt, a, fixed, last = _around(prev, nxt, frames, times, f_count)
     base = rows * f_count
     return base + prev, base + nxt, a, fixed, last
 
@@ -606,41 +609,49 @@ def _local_keys(values: np.ndarray, stored: np.ndarray, times: np.ndarray, rotat
     pending = np.zeros((c_count, f_count), dtype=bool)
     pending[~is_static] = True
     pending[dense] = False
-    while True:
-        rows = np.flatnonzero(pending.any(axis=1))
-        if not len(rows):
-            break
-        ri, fi = np.nonzero(pending[rows])              # ri: index into rows
-        segments = _segments(keep[rows])
-        err = _local_errors(flat_vals, flat_kept, static, times, rotation, segments, rows, ri, fi)
-        bad = np.flatnonzero((err > tol[rows[ri]]) & ~keep[rows[ri], fi])
-        group = ri * (f_count + 1) + segments[0][ri, fi] + 1
-        _key_worst(keep, rows[ri[bad]], fi[bad], group[bad], err[bad])
-        split = np.zeros(len(rows) * (f_count + 1), dtype=bool)
-        split[group[bad]] = True
-        again = split[group]
-        pending[rows] = False
-        pending[rows[ri[again]], fi[again]] = True
+    flat_keep, flat_tol = keep.reshape(-1), np.repeat(tol, f_count)
+    pending = np.flatnonzero(pending)          # flat pairs c * F + f, ascending
+    while len(pending):
+        # the keys around each pending pair: every channel with one keys its first and last
+        # frame, so the last key at or before a pair is on its own channel, and so is the
+        # first key after it unless the pair is its channel's last frame (then none: F)
+        keys = np.flatnonzero(flat_keep)
+        at = np.searchsorted(keys, pending, side="right")
+        prev = np.take(keys, at - 1)
+        c, f = np.divmod(pending, f_count)
+        nxt = np.take(keys, np.minimum(at, len(keys) - 1)) - c * f_count
+        nxt[(at == len(keys)) | (nxt >= f_count)] = f_count
+        err = _local_errors(flat_vals, flat_kept, static, times, rotation, c, f,
+                            prev - c * f_count, nxt)
+        bad = np.flatnonzero((err > np.take(flat_tol, pending)) & ~np.take(flat_keep, pending))
+        _key_worst(keep, c[bad], f[bad], prev[bad], err[bad])      # group: the segment's key
+        split = np.zeros(c_count * f_count, dtype=bool)
+        split[prev[bad]] = True
+        pending = pending[np.take(split, prev)]
+        rows = c[np.r_[True, c[1:] != c[:-1]]]                     # the channels evaluated
         full = keep[rows].sum(axis=1) > bound
-        keep[rows[full]] = True              # promoted in the end anyway (keys only grow)
-        pending[rows[full]] = False
+        if full.any():                  # promoted in the end anyway (keys only grow)
+            keep[rows[full]] = True
+            open_ = np.ones(c_count, dtype=bool)
+            open_[rows[full]] = False
+            pending = pending[np.take(open_, pending // f_count)]
     return keep, static
 
 
 def _local_errors(flat_vals: np.ndarray, flat_kept: np.ndarray, static: np.ndarray,
-                  times: np.ndarray, rotation: bool, segments: tuple, rows: np.ndarray,
-                  ri: np.ndarray, fi: np.ndarray) -> np.ndarray:
-    """(N,) the local pass's errors at the pairs (channel rows[ri], frame fi), played from
-    `flat_kept` between the keys `segments` (of the channels rows), against `flat_vals` (C * F,
+                  times: np.ndarray, rotation: bool, c: np.ndarray, f: np.ndarray,
+                  prev: np.ndarray, nxt: np.ndarray) -> np.ndarray:
+    """(N,) the local pass's errors at the pairs (channel c, frame f), played from `flat_kept`
+    between the key frames prev and nxt (`_segments` read there), against `flat_vals` (C * F,
     W), in blocks of _PAIRS."""
-    f_count = segments[0].shape[1]
-    err = np.empty(len(ri))
-    for k in range(0, len(ri), _PAIRS):
-        r, f = ri[k:k + _PAIRS], fi[k:k + _PAIRS]
-        c = rows[r]
-        est = _interp(flat_kept, static, c, _spans(segments, c, f, times, seg_rows=r),
+    f_count = len(flat_vals) // len(static)
+    err = np.empty(len(c))
+    for k in range(0, len(c), _PAIRS):
+        cb, fb = c[k:k + _PAIRS], f[k:k + _PAIRS]
+        est = _interp(flat_kept, static, cb, _spans_at(prev[k:k + _PAIRS], nxt[k:k + _PAIRS],
+                                                       cb, fb, times, f_count),
                       rotation)                                                   # (W, n)
-        v = _take(flat_vals, c * f_count + f).T.astype(np.float64, order="C")
+        v = _take(flat_vals, cb * f_count + fb).T.astype(np.float64, order="C")
         if rotation:
             err[k:k + _PAIRS] = _angle(v, est)
         else:
