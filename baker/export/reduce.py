@@ -216,14 +216,14 @@ def quantize_rotations(q: np.ndarray) -> np.ndarray:
     normalizing it, so a code of length s gives s^2 R + (1 - s^2) I, off by |s^2 - 1| |R - I|."""
     q = np.asarray(q, dtype=np.float64)
     flat = q.reshape(-1, 4)
-    if len(flat) > _CHUNK:          # row by row: blocks keep the (N, 16) temporaries in cache
+    if len(flat) > _CHUNK:          # in blocks: they keep the (16, N) temporaries in cache
         return np.concatenate([_quantize(flat[i:i + _CHUNK]) for i in
                                range(0, len(flat), _CHUNK)]).reshape(q.shape)
     return _quantize(flat).reshape(q.shape)
 
 
 #: rows per block of quantize_rotations
-_CHUNK = 8192
+_CHUNK = 2048
 
 
 def _quantize(q: np.ndarray) -> np.ndarray:
@@ -1024,17 +1024,17 @@ class _Player:
     def _sample(self, level, st, sr, seg_t, seg_r) -> None:
         """Played local values of the joints `level` at the frames st (translations) and sr
         (rotations) (L, F) bool; and Blender's nlerp of the rotations."""
-        x, f_count = self.x, self.x.t0.shape[1]
-        for j, f, i in _pair_blocks(st, level, f_count):
-            played = _interp(_flat(self.vt), self.static_t, j, _spans(seg_t, j, f, x.times),
+        x, parents = self.x, self.x.parents
+        for b in _level_blocks(st, level, parents):
+            played = _interp(_flat(self.vt), self.static_t, b.j, _spans(seg_t, b.j, b.f, x.times),
                              False)
-            _scatter(_cols(self.tr), i, played.astype(np.float32))
-        for j, f, i in _pair_blocks(sr, level, f_count):
-            slerped, lerped = _interp(_flat(self.vq), self.static_r, j,
-                                      _spans(seg_r, j, f, x.times), True, both=True)
-            _scatter(_cols(self.rr), i, slerped.astype(np.float32))
+            b.put(self.tr, played.astype(np.float32))
+        for b in _level_blocks(sr, level, parents):
+            slerped, lerped = _interp(_flat(self.vq), self.static_r, b.j,
+                                      _spans(seg_r, b.j, b.f, x.times), True, both=True)
+            b.put(self.rr, slerped.astype(np.float32))
             lerped /= np.sqrt(_inner(lerped, lerped))                  # _unit
-            _scatter(_cols(self.nlerp), i, lerped)
+            b.put(self.nlerp, lerped)
 
     def _pose(self, level: np.ndarray, turned: np.ndarray, moved: np.ndarray,
               root: bool) -> None:
@@ -1114,31 +1114,33 @@ def _pair_blocks(mask: np.ndarray, level: np.ndarray, f_count: int):
         yield j, f, j * f_count + f
 
 
-#: `_level_blocks` poses a whole level when at least this share of its pairs is to be posed
+#: `_level_blocks` poses (samples) a whole level when at least this share of its pairs is to be
 _DENSE = 0.5
 
 
 def _level_blocks(mask: np.ndarray, level: np.ndarray, parents: np.ndarray):
-    """The blocks (`_Pairs` or `_Rows`) in which `_Player._pose` poses the True pairs of mask
-    (L, F) of the joints `level` (parents: the skeleton's). When most of the level is to be
-    posed, all of it is, as one `_Rows`: whole rows are copied in and out instead of gathering
-    and scattering pairs, and a pair posed again from unchanged inputs gets the same bits (the
-    player's arrays hold what a fresh playback gives, see `_Player`)."""
+    """The blocks (`_Pairs` or `_Rows`) in which `_Player._pose` poses (and `_sample` samples)
+    the True pairs of mask (L, F) of the joints `level` (parents: the skeleton's). When most of
+    the level is to be posed, all of it is, as one `_Rows`: whole rows are copied in and out
+    instead of gathering and scattering pairs, and a pair posed again from unchanged inputs
+    gets the same bits (the player's arrays hold what a fresh playback gives, see
+    `_Player`)."""
     n = np.count_nonzero(mask)
     if n and n >= _DENSE * mask.size:
-        yield _Rows(level, parents[level])
+        yield _Rows(level, parents[level], mask.shape[1])
         return
     for j, f, i in _pair_blocks(mask, level, mask.shape[1]):
-        yield _Pairs(i, parents[j] * mask.shape[1] + f)
+        yield _Pairs(i, parents[j] * mask.shape[1] + f, j, f)
 
 
 class _Pairs:
-    """A block of (joint, frame) pairs: i, their flat indices j * F + f, and ip, their
+    """A block of (joint, frame) pairs j, f: i, their flat indices j * F + f, and ip, their
     parents'. own(a) and parent(a) gather the pairs' and the parents' pairs' values of a
-    component-first (..., J, F) array as (..., N); set(a, v) writes v (..., N) to the pairs."""
+    component-first (..., J, F) array as (..., N); set(a, v) and put(a, v) write v (..., N) to
+    the pairs."""
 
-    def __init__(self, i: np.ndarray, ip: np.ndarray):
-        self.i, self.ip = i, ip
+    def __init__(self, i: np.ndarray, ip: np.ndarray, j: np.ndarray, f: np.ndarray):
+        self.i, self.ip, self.j, self.f = i, ip, j, f
 
     def own(self, a: np.ndarray) -> np.ndarray:
         return _gather(_cols(a), self.i)
@@ -1149,13 +1151,28 @@ class _Pairs:
     def set(self, a: np.ndarray, v: np.ndarray) -> None:
         _scatter(_cols(a), self.i, v)
 
+    put = set
+
 
 class _Rows:
-    """Every frame of the joints `level` (with their `parents`), as a `_Pairs` block, with
-    (..., L, F) arrays."""
+    """Every frame of the joints `level` (with their `parents`; F frames), as a `_Pairs`
+    block, with (..., L, F) arrays; put(a, v) writes v (..., L * F) (the pairs j, f: row by
+    row)."""
 
-    def __init__(self, level: np.ndarray, parents: np.ndarray):
-        self.level, self.parents = level, parents
+    def __init__(self, level: np.ndarray, parents: np.ndarray, f_count: int):
+        self.level, self.parents, self.f_count = level, parents, f_count
+        self.rows = list(enumerate(level.tolist()))
+
+    @property
+    def j(self) -> np.ndarray:
+        return np.repeat(self.level, self.f_count)
+
+    @property
+    def f(self) -> np.ndarray:
+        return np.tile(np.arange(self.f_count), len(self.level))
+
+    def put(self, a: np.ndarray, v: np.ndarray) -> None:
+        self.set(a, v.reshape(v.shape[:-1] + (len(self.level), self.f_count)))
 
     def own(self, a: np.ndarray) -> np.ndarray:
         return np.take(a, self.level, axis=-2)
@@ -1164,7 +1181,8 @@ class _Rows:
         return np.take(a, self.parents, axis=-2)
 
     def set(self, a: np.ndarray, v: np.ndarray) -> None:
-        a[..., self.level, :] = v
+        for k, j in self.rows:          # row by row: several times faster than a[..., level, :]
+            a[..., j, :] = v[..., k, :]
 
 
 def _resegment(segments: tuple, played: np.ndarray, keep: np.ndarray) -> np.ndarray:
