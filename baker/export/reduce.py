@@ -462,6 +462,9 @@ def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def _slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
     """slerp of component-first quaternions a, b (4, ...): a new (4, ...) array."""
+    if a.ndim != 2:                     # as (4, N) pairs
+        t = np.broadcast_to(np.asarray(t, dtype=np.float64), a.shape[1:])
+        return _slerp(a.reshape(4, -1), b.reshape(4, -1), t.reshape(-1)).reshape(a.shape)
     d = _inner(a, b)
     flip = d < 0.0
     if flip.any():
@@ -470,11 +473,13 @@ def _slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
     t = np.broadcast_to(np.asarray(t, dtype=np.float64), d.shape)
     near = d >= 0.9995
     wa, wb = 1.0 - t, t.copy()          # near: lerp weights (the result is normalized below)
-    far = ~near                         # the sines only here (a third of the pairs are near)
-    theta = np.arccos(np.minimum(d[far], 1.0))
-    s = np.sin(theta)
-    wa[far] = np.sin(wa[far] * theta) / s
-    wb[far] = np.sin(wb[far] * theta) / s
+    far = np.flatnonzero(~near)         # the sines only here (a third of the pairs are near)
+    if len(far):
+        theta = np.arccos(np.minimum(np.take(d, far), 1.0))
+        s = np.sin(theta)
+        tf = np.take(wb, far)
+        np.put(wa, far, np.sin((1.0 - tf) * theta) / s)
+        np.put(wb, far, np.sin(tf * theta) / s)
     out = a * wa
     out += np.multiply(b, wb, out=np.empty(out.shape))
     out /= np.where(near, np.sqrt(_inner(out, out)), 1.0)
@@ -591,10 +596,14 @@ def _local_keys(values: np.ndarray, stored: np.ndarray, times: np.ndarray, rotat
     static = first.copy()
     is_static = np.zeros(c_count, dtype=bool)
     for value in ([first] if preferred is None else [np.asarray(preferred, np.float32), first]):
-        held = np.broadcast_to(np.asarray(value, np.float64)[None], values.shape)
-        ok = ~is_static & (_errors(values, held, rotation).max(axis=1) <= tol)
+        rows = np.flatnonzero(~is_static)           # the channels not static yet
+        if not len(rows):
+            break
+        sub = np.take(values, rows, axis=1)
+        held = np.broadcast_to(np.asarray(value, np.float64)[rows][None], sub.shape)
+        ok = rows[_errors(sub, held, rotation).max(axis=1) <= tol[rows]]
         static[ok] = value[ok]
-        is_static |= ok
+        is_static[ok] = True
     keep = np.zeros((c_count, f_count), dtype=bool)
     keep[~is_static, 0] = True
     keep[~is_static, -1] = True
@@ -897,6 +906,10 @@ class _Player:
         self.viol = np.zeros((j_count, f_count), dtype=bool)
         self.segments = None        # ((segments, keys) of translations, of rotations) last played
         self.row = np.zeros(j_count, dtype=np.int64)        # each joint's row in its level
+        if x.planted is not None:   # the joints planted at two frames in a row, and those pairs
+            both = x.planted[:, 1:] & x.planted[:, :-1]
+            feet = np.flatnonzero(both.any(axis=1))
+            self.planted_pairs = feet, both[feet]
         for level in x.levels:
             self.row[level] = np.arange(len(level))
 
@@ -1041,7 +1054,8 @@ class _Player:
         """World poses of the joints `level`, as the three players pose them: rotations at the
         frames `turned`, positions at the frames `moved` (L, F) bool."""
         parents = self.x.parents
-        for b in _level_blocks(turned, level, parents):
+        memo = {}                       # whole-level blocks: the parents' rows, gathered once
+        for b in _level_blocks(turned, level, parents, memo):
             rr = b.own(self.rr)                                         # (4, ...)
             if root:
                 b.set(self.mat, _raw_matrix(rr))
@@ -1052,7 +1066,7 @@ class _Player:
                 b.set(self.wq, _qmul(b.parent(self.wq), _unit_cf(rr)))
                 b.set(self.wn, _qmul(b.parent(self.wn), b.own(self.nlerp)))
         worlds = (self.pos, self.unit, self.blender)
-        for b in _level_blocks(moved, level, parents):
+        for b in _level_blocks(moved, level, parents, memo):
             tr = b.own(self.tr)                                         # (3, ...)
             if root:
                 poses = (tr, tr, tr)
@@ -1089,7 +1103,9 @@ class _Player:
         f_count = moved.shape[1]
         if x.planted is None or f_count < 2:
             return
-        j, f = np.nonzero(x.planted[:, 1:] & x.planted[:, :-1] & (moved[:, 1:] | moved[:, :-1]))
+        feet, both = self.planted_pairs
+        j, f = np.nonzero(both & (moved[feet, 1:] | moved[feet, :-1]))
+        j = feet[j]
         i = j * f_count + f
         pos0 = _cols(self.pos0)
         slide = np.zeros(len(j))
@@ -1118,16 +1134,17 @@ def _pair_blocks(mask: np.ndarray, level: np.ndarray, f_count: int):
 _DENSE = 0.5
 
 
-def _level_blocks(mask: np.ndarray, level: np.ndarray, parents: np.ndarray):
+def _level_blocks(mask: np.ndarray, level: np.ndarray, parents: np.ndarray,
+                  memo: dict | None = None):
     """The blocks (`_Pairs` or `_Rows`) in which `_Player._pose` poses (and `_sample` samples)
     the True pairs of mask (L, F) of the joints `level` (parents: the skeleton's). When most of
     the level is to be posed, all of it is, as one `_Rows`: whole rows are copied in and out
     instead of gathering and scattering pairs, and a pair posed again from unchanged inputs
     gets the same bits (the player's arrays hold what a fresh playback gives, see
-    `_Player`)."""
+    `_Player`). memo: a `_Rows` memo of the parents' rows (see there), or None."""
     n = np.count_nonzero(mask)
     if n and n >= _DENSE * mask.size:
-        yield _Rows(level, parents[level], mask.shape[1])
+        yield _Rows(level, parents[level], mask.shape[1], memo)
         return
     for j, f, i in _pair_blocks(mask, level, mask.shape[1]):
         yield _Pairs(i, parents[j] * mask.shape[1] + f, j, f)
@@ -1157,10 +1174,12 @@ class _Pairs:
 class _Rows:
     """Every frame of the joints `level` (with their `parents`; F frames), as a `_Pairs`
     block, with (..., L, F) arrays; put(a, v) writes v (..., L * F) (the pairs j, f: row by
-    row)."""
+    row). memo (a dict, or None): parent(a) keeps the rows it gathers there, by array, for
+    blocks of the same level that do not change the parents' arrays meanwhile."""
 
-    def __init__(self, level: np.ndarray, parents: np.ndarray, f_count: int):
-        self.level, self.parents, self.f_count = level, parents, f_count
+    def __init__(self, level: np.ndarray, parents: np.ndarray, f_count: int,
+                 memo: dict | None = None):
+        self.level, self.parents, self.f_count, self.memo = level, parents, f_count, memo
         self.rows = list(enumerate(level.tolist()))
 
     @property
@@ -1178,7 +1197,11 @@ class _Rows:
         return np.take(a, self.level, axis=-2)
 
     def parent(self, a: np.ndarray) -> np.ndarray:
-        return np.take(a, self.parents, axis=-2)
+        if self.memo is None:
+            return np.take(a, self.parents, axis=-2)
+        if id(a) not in self.memo:
+            self.memo[id(a)] = np.take(a, self.parents, axis=-2)
+        return self.memo[id(a)]
 
     def set(self, a: np.ndarray, v: np.ndarray) -> None:
         for k, j in self.rows:          # row by row: several times faster than a[..., level, :]
