@@ -310,12 +310,12 @@ def _around(prev: np.ndarray, nxt: np.ndarray, frames: np.ndarray, times: np.nda
     (past the last key)."""
     fixed = prev < 0
     last = nxt >= f_count
-    prev = np.clip(prev, 0, f_count - 1)
+    prev = np.minimum(np.maximum(prev, 0), f_count - 1)
     nxt = np.where(last, prev, nxt)
     t = np.asarray(times, dtype=np.float32).astype(np.float64)
-    t_prev = np.take(t, prev)
-    span = np.take(t, nxt) - t_prev
-    a = np.where(span > 0, (np.take(t, frames) - t_prev) / np.where(span > 0, span, 1.0), 0.0)
+    t_prev = t.take(prev)
+    span = t.take(nxt) - t_prev
+    a = np.where(span > 0, (t.take(frames) - t_prev) / np.where(span > 0, span, 1.0), 0.0)
     return prev, nxt, a, fixed, last
 
 
@@ -344,12 +344,12 @@ def _flat(a: np.ndarray) -> np.ndarray:
 def _take(a: np.ndarray, i: np.ndarray) -> np.ndarray:
     """a[i], the rows i of a (np.take: the same copy, several times faster than fancy
     indexing for rows of a few values)."""
-    return np.take(a, i, axis=0)
+    return a.take(i, axis=0)
 
 
 def _take_t(a: np.ndarray, i: np.ndarray) -> np.ndarray:
     """(W, N) the rows i of a (M, W), component-first and contiguous."""
-    return np.ascontiguousarray(np.take(a, i, axis=0).T)
+    return np.ascontiguousarray(a.take(i, axis=0).T)
 
 
 def _put(a: np.ndarray, i: np.ndarray, v: np.ndarray) -> None:
@@ -378,7 +378,7 @@ def _cols(a: np.ndarray) -> np.ndarray:
 def _gather(a: np.ndarray, i: np.ndarray) -> np.ndarray:
     """(..., N) the columns i of a component-first (..., M) array, contiguous: each component
     a flat array over the pairs, ready for the kernels (no transposing copy)."""
-    return np.take(a, i, axis=-1)
+    return a.take(i, axis=-1)
 
 
 def _scatter(a: np.ndarray, i: np.ndarray, v: np.ndarray) -> None:
@@ -400,7 +400,12 @@ def _inner(a: np.ndarray, b: np.ndarray, out: np.ndarray | None = None) -> np.nd
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(...) np.sum(a * b, axis=-1) of (..., W) a, b (`_inner` over the last axis)."""
-    return _inner(np.moveaxis(a, -1, 0), np.moveaxis(b, -1, 0))
+    return _inner(_last_first(a), _last_first(b))
+
+
+def _last_first(a: np.ndarray) -> np.ndarray:
+    """np.moveaxis(a, -1, 0), a view, without its overhead."""
+    return a.transpose((a.ndim - 1,) + tuple(range(a.ndim - 1)))
 
 
 def _norm(a: np.ndarray) -> np.ndarray:
@@ -416,7 +421,7 @@ def _spans(segments, rows: np.ndarray, frames: np.ndarray, times: np.ndarray) ->
     prev, nxt = segments
     f_count = prev.shape[1]
     at = rows * f_count + frames
-    return _spans_at(np.take(prev, at), np.take(nxt, at), rows, frames, times, f_count)
+    return _spans_at(prev.take(at), nxt.take(at), rows, frames, times, f_count)
 
 
 def _spans_at(prev: np.ndarray, nxt: np.ndarray, rows: np.ndarray, frames: np.ndarray,
@@ -777,12 +782,17 @@ def _target(clip: Clip, parents, planted, tol: float, short: bool, tight=None) -
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(3, ...) a x b of (3, ...) vectors (np.cross's arithmetic, without its overhead)."""
-    out = np.empty((3,) + np.broadcast_shapes(a[0].shape, b[0].shape))
+    out = np.empty((3,) + _pair_shape(a[0], b[0]))
     tmp = np.empty(out.shape[1:])
     for k, (p, q) in enumerate(((1, 2), (2, 0), (0, 1))):
         np.multiply(a[p], b[q], out=out[k])
         out[k] -= np.multiply(a[q], b[p], out=tmp)
     return out
+
+
+def _pair_shape(a: np.ndarray, b: np.ndarray) -> tuple:
+    """The broadcast shape of a and b (mostly equal shapes: no np.broadcast_shapes call)."""
+    return a.shape if a.shape == b.shape else np.broadcast_shapes(a.shape, b.shape)
 
 
 def _qrot(q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -806,7 +816,7 @@ _QMUL = (((3, 0), (0, 3, 1), (1, 2, 1), (2, 1, -1)),
 
 def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """geometry.transforms.quat_mul: the Hamilton product a b of (4, ...) xyzw quaternions."""
-    out = np.empty((4,) + np.broadcast_shapes(a[0].shape, b[0].shape))
+    out = np.empty((4,) + _pair_shape(a[0], b[0]))
     tmp = np.empty(out.shape[1:])
     for o, ((i, j), *terms) in zip(out, _QMUL):
         np.multiply(a[i], b[j], out=o)
@@ -1194,13 +1204,13 @@ class _Rows:
         self.set(a, v.reshape(v.shape[:-1] + (len(self.level), self.f_count)))
 
     def own(self, a: np.ndarray) -> np.ndarray:
-        return np.take(a, self.level, axis=-2)
+        return a.take(self.level, axis=-2)
 
     def parent(self, a: np.ndarray) -> np.ndarray:
         if self.memo is None:
-            return np.take(a, self.parents, axis=-2)
+            return a.take(self.parents, axis=-2)
         if id(a) not in self.memo:
-            self.memo[id(a)] = np.take(a, self.parents, axis=-2)
+            self.memo[id(a)] = a.take(self.parents, axis=-2)
         return self.memo[id(a)]
 
     def set(self, a: np.ndarray, v: np.ndarray) -> None:
@@ -1238,11 +1248,11 @@ def _touches(changed: np.ndarray, segments, level: np.ndarray) -> np.ndarray:
     rows = np.flatnonzero(changed.any(axis=1))
     if len(rows):
         f_count = changed.shape[1]
-        prev = np.clip(segments[0][level[rows]], 0, f_count - 1)
+        prev = np.minimum(np.maximum(segments[0][level[rows]], 0), f_count - 1)
         nxt = np.minimum(segments[1][level[rows]], f_count - 1)
         sub = changed[rows].ravel()
         base = np.arange(len(rows))[:, None] * f_count
-        out[rows] = np.take(sub, base + prev) | np.take(sub, base + nxt)
+        out[rows] = sub.take(base + prev) | sub.take(base + nxt)
     return out
 
 
