@@ -437,9 +437,15 @@ def _interp(flat_values: np.ndarray, static: np.ndarray, rows: np.ndarray, span:
     """(W, N) float64, component-first: the values (C * F, W) played at the pairs of `span`
     (`_spans`), slerped or lerped; element for element what `_sample_cf` gives there. static
     (C, W). With `both`, (slerped, lerped)."""
-    i0, i1, a, fixed, last = span
-    v0 = _take(flat_values, i0).T.astype(np.float64, order="C")               # (W, N)
-    v1 = _take(flat_values, i1).T.astype(np.float64, order="C")
+    v0 = _take(flat_values, span[0]).T.astype(np.float64, order="C")          # (W, N)
+    v1 = _take(flat_values, span[1]).T.astype(np.float64, order="C")
+    return _interp_keys(v0, v1, static, rows, span, rotation, both)
+
+
+def _interp_keys(v0: np.ndarray, v1: np.ndarray, static: np.ndarray, rows: np.ndarray,
+                 span: tuple, rotation: bool, both: bool = False):
+    """`_interp` given the key values v0, v1 (W, N) float64 around the pairs of `span`."""
+    _, _, a, fixed, last = span
     held = np.asarray(static, np.float64)[rows[fixed]].T if fixed.any() else None
     outs = []
     for slerped in ((True, False) if both else (rotation,)):
@@ -554,9 +560,15 @@ def _add_worst(keep: np.ndarray, score: np.ndarray, candidate: np.ndarray) -> in
     if not cand.any():
         return 0
     before = int(keep.sum())
-    prev = np.maximum.accumulate(np.where(keep, np.arange(f_count), -1), axis=1)
-    ci, fi = np.nonzero(cand)
-    _key_worst(keep, ci, fi, ci * (f_count + 1) + prev[ci, fi] + 1, score[ci, fi])
+    p = np.flatnonzero(cand)
+    ci, fi = np.divmod(p, f_count)
+    keys = np.flatnonzero(keep)             # the last key before each candidate, on its channel
+    prev = np.full(len(p), -1)
+    if len(keys):
+        at = np.searchsorted(keys, p)
+        prev = np.where(at > 0, keys.take(np.maximum(at - 1, 0)) - ci * f_count, -1)
+        prev[prev < 0] = -1                 # on an earlier channel: none
+    _key_worst(keep, ci, fi, ci * (f_count + 1) + prev + 1, score.reshape(-1).take(p))
     _close(keep)
     return int(keep.sum()) - before
 
@@ -625,6 +637,9 @@ def _local_keys(values: np.ndarray, stored: np.ndarray, times: np.ndarray, rotat
     pending[dense] = False
     flat_keep, flat_tol = keep.reshape(-1), np.repeat(tol, f_count)
     pending = np.flatnonzero(pending)          # flat pairs c * F + f, ascending
+    if len(pending):
+        columns = _value_columns(flat_vals, rotation)
+        kept_cols = columns[0] if stored is values else _value_columns(flat_kept, False)[0]
     while len(pending):
         # the keys around each pending pair: every channel with one keys its first and last
         # frame, so the last key at or before a pair is on its own channel, and so is the
@@ -635,7 +650,7 @@ def _local_keys(values: np.ndarray, stored: np.ndarray, times: np.ndarray, rotat
         c, f = np.divmod(pending, f_count)
         nxt = np.take(keys, np.minimum(at, len(keys) - 1)) - c * f_count
         nxt[(at == len(keys)) | (nxt >= f_count)] = f_count
-        err = _local_errors(flat_vals, flat_kept, static, times, rotation, c, f,
+        err = _local_errors(columns, kept_cols, static, times, rotation, c, f,
                             prev - c * f_count, nxt)
         bad = np.flatnonzero((err > np.take(flat_tol, pending)) & ~np.take(flat_keep, pending))
         _key_worst(keep, c[bad], f[bad], prev[bad], err[bad])      # group: the segment's key
@@ -652,26 +667,38 @@ def _local_keys(values: np.ndarray, stored: np.ndarray, times: np.ndarray, rotat
     return keep, static
 
 
-def _local_errors(flat_vals: np.ndarray, flat_kept: np.ndarray, static: np.ndarray,
-                  times: np.ndarray, rotation: bool, c: np.ndarray, f: np.ndarray,
-                  prev: np.ndarray, nxt: np.ndarray) -> np.ndarray:
-    """(N,) the local pass's errors at the pairs (channel c, frame f), played from `flat_kept`
-    between the key frames prev and nxt (`_segments` read there), against `flat_vals` (C * F,
-    W), in blocks of _PAIRS."""
-    f_count = len(flat_vals) // len(static)
+def _local_errors(vals: tuple, kept: np.ndarray, static: np.ndarray, times: np.ndarray,
+                  rotation: bool, c: np.ndarray, f: np.ndarray, prev: np.ndarray,
+                  nxt: np.ndarray) -> np.ndarray:
+    """(N,) the local pass's errors at the pairs (channel c, frame f), played from `kept`
+    between the key frames prev and nxt (`_segments` read there), against vals = (the values,
+    their lengths) (`_value_columns`), in blocks of _PAIRS. kept and the values: (W, C * F)
+    float64, component-first."""
+    values, lengths = vals
+    f_count = values.shape[1] // len(static)
     err = np.empty(len(c))
     for k in range(0, len(c), _PAIRS):
         cb, fb = c[k:k + _PAIRS], f[k:k + _PAIRS]
-        est = _interp(flat_kept, static, cb, _spans_at(prev[k:k + _PAIRS], nxt[k:k + _PAIRS],
-                                                       cb, fb, times, f_count),
-                      rotation)                                                   # (W, n)
-        v = _take(flat_vals, cb * f_count + fb).T.astype(np.float64, order="C")
-        if rotation:
-            err[k:k + _PAIRS] = _angle(v, est)
+        span = _spans_at(prev[k:k + _PAIRS], nxt[k:k + _PAIRS], cb, fb, times, f_count)
+        est = _interp_keys(kept.take(span[0], axis=1), kept.take(span[1], axis=1), static, cb,
+                           span, rotation)                                        # (W, n)
+        i = cb * f_count + fb
+        v = values.take(i, axis=1)
+        if rotation:                    # _angle(v, est), with v's lengths computed once
+            d = np.abs(_inner(v, est))
+            d /= lengths.take(i) * np.sqrt(_inner(est, est))
+            err[k:k + _PAIRS] = 2.0 * np.arccos(np.clip(d, 0.0, 1.0, out=d))
         else:
             est -= v
             err[k:k + _PAIRS] = np.sqrt(_inner(est, est))
     return err
+
+
+def _value_columns(flat: np.ndarray, rotation: bool) -> tuple:
+    """(values (W, C * F) float64 component-first, their lengths (C * F,) or None) of
+    (C * F, W) values: what `_local_errors` reads every round, computed once."""
+    values = np.ascontiguousarray(flat.T, dtype=np.float64)
+    return values, np.sqrt(_inner(values, values)) if rotation else None
 
 
 def _tight_misses(vals: np.ndarray, kept: np.ndarray, times: np.ndarray, rotation: bool,
@@ -698,8 +725,24 @@ def _tight_misses(vals: np.ndarray, kept: np.ndarray, times: np.ndarray, rotatio
 
 def ancestors(parents) -> np.ndarray:
     """(J, D) int64: row k lists joint k, its parent, its grandparent ... up to the root, padded
-    with -1 (D: the longest chain)."""
+    with -1 (D: the longest chain). Read-only (kept for the next call with the same parents)."""
     parents = np.asarray(parents)
+    key = (parents.dtype.str, parents.tobytes())
+    out = _ANCESTORS.get(key)
+    if out is None:
+        out = _ancestors(parents)
+        out.setflags(write=False)
+        if len(_ANCESTORS) > 16:
+            _ANCESTORS.clear()
+        _ANCESTORS[key] = out
+    return out
+
+
+#: `ancestors` by parents array
+_ANCESTORS: dict = {}
+
+
+def _ancestors(parents: np.ndarray) -> np.ndarray:
     chains = []
     for k in range(len(parents)):
         c = [k]
