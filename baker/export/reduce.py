@@ -41,14 +41,16 @@ joint below it, and the errors of the 20 spine joints add up at the tail and the
 Speed (the same keys as a plain implementation): the local pass evaluates only the segments it
 split in its previous round and keys a channel at every frame at once when more of its frames
 than `_promote`'s bound miss even between their neighbours; the refinement's playback (`_Player`)
-is kept between rounds and replays only the (joint, frame) pairs whose keys, key values or parent
+is kept between rounds and replays only the (joint, frame) pairs whose keys, stored key values
+(bit for bit: a recomputed key that quantizes to the same code changes nothing) or parent
 changed, world rotations and positions apart, in blocks of `_PAIRS` pairs, and computes key
 values at key frames only (those of the other frames, which the files store but no player reads,
 once at the end). Both work component-first: each x, y, z (w) is a flat array over the pairs,
 and the sums over 3 or 4 components are written out left to right instead of np.sum /
 np.linalg.norm over a small axis. The player stores its played and world poses that way too
 ((W, J, F)), so a block's components are gathered contiguous and written back without transposing
-copies, and a level with most of its pairs to pose is posed whole, row by row. That is
+copies, and a level with most of its pairs to pose (sample) is posed (sampled) whole, row by
+row. That is
 operation for operation the plain arithmetic, so the values are the same bit for bit
 (tests/export/test_reduce.py checks a replay against a fresh playback).
 
@@ -921,8 +923,8 @@ class _Player:
     `_errors`).
 
     `play` recomputes only the (joint, frame) pairs whose result can change since the last play:
-    frames whose segment (the keys around them) changed, frames whose segment's key values
-    changed, and frames whose parent moved. The arrays then hold exactly what a first play of
+    frames whose segment (the keys around them) changed, frames whose segment's stored key
+    values changed (bit for bit), and frames whose parent moved. The arrays then hold exactly what a first play of
     the same keys gives.
 
     Stored key values vt (J, F, 3), vq (J, F, 4) float32 and codes (J, F, 4) int16 (SHORT
