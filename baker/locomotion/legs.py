@@ -98,6 +98,8 @@ MARGIN_FRAMES = 4
 MIN_DUTY = 0.4
 #: frames ahead in which a planted foot is checked against its hip (reach, under the body)
 LIFT_WINDOW = 48
+#: ... or fewer, the shortest of these that reaches the stance's end (LIFT_WINDOW last)
+WINDOWS = (8, 16, 32, LIFT_WINDOW)
 #: a swinging foot's angle about its hip stays within this of straight out [rad]
 SWEEP_LIMIT = np.radians(80.0)
 #: knee swivels about the hip->foot axis tried when a leg bone would go through something [rad]
@@ -350,49 +352,65 @@ class _Frames:
         """How far from its hip a foothold is looked for (project_footholds' `reach`)."""
         return PLAN_REACH * (self.lay.l1 + self.lay.l2)
 
-    def first_bad(self, rays, hold, start, stop, sight=False):
-        """(L,) first frame in [start, stop) where a foot planted at `hold` (L, 3) would be out
-        of reach, too far behind, or under the body (with `sight`, also: hidden from its hip
-        behind a wall); F where there is none. Checked LIFT_WINDOW frames at a time."""
+    def first_bad(self, rays, hold, start, stop, sight=False, legs=None):
+        """(n,) first frame in [start, stop) where a foot of leg `legs` (n,) planted at `hold`
+        (n, 3) would be out of reach, too far behind, or under the body (with `sight`, also:
+        hidden from its hip behind a wall); F where there is none (legs None: one row per leg,
+        n = L). Checked LIFT_WINDOW frames at a time, or the shortest of WINDOWS that reaches
+        a row's stop; each row on its own, so rows of any legs and stances may share a call.
+        A bad frame after stop may be found or not: stop - 1 or more then means none before
+        stop."""
         F, L = self.shape
-        lay, hip, span = self.lay, self.hip, self.span
-        legs = np.arange(L)
-        win_ext = np.arange(LIFT_WINDOW + 1)[None, :]
-        out = np.full(L, F, dtype=np.int64)
+        legs = np.arange(L) if legs is None else legs
+        out = np.full(len(legs), F, dtype=np.int64)
         t0 = start
         start = start.copy()
         open_ = start < stop
         while open_.any():
-            ll = legs[open_]
-            fw_ext = np.clip(start[open_, None] - 1 + win_ext, 0, F - 1)
-            rel_ext = quat_rotate(self.q_inv[fw_ext, ll[:, None]],
-                                  hold[open_, None, :] - hip[fw_ext, ll[:, None]])
-            fw, rel = fw_ext[:, 1:], rel_ext[:, 1:]
-            n_ext = np.sqrt(np.einsum("lwi,lwi->lw", rel_ext, rel_ext))
-            bad = ((rel[..., 0] * lay.side[ll, None] < self.out_min[ll, None])
-                   | (n_ext[:, 1:] > span) | (rel[..., 2] < -self.a_back[ll, None]))
-            # a fast turn would swing the planted leg round its hip too fast: lift first
-            cos_t = np.einsum("lwi,lwi->lw", rel, rel_ext[:, :-1]) / np.maximum(
-                n_ext[:, 1:] * n_ext[:, :-1], 1e-300)
-            bad |= cos_t < np.cos(STANCE_TURN)
-            # ... or turn one of its bones too fast in a frame (near a straight or folded knee)
-            bad |= _stance_turns(hip[fw_ext, ll[:, None]], hold[open_],
-                                 self.fwd[fw_ext, ll[:, None]], self.left[fw_ext, ll[:, None]],
-                                 self.q_inv[fw_ext, ll[:, None]], lay, ll,
-                                 self.lg.knee_out) > SWING_TURN
-            if sight:
-                hp = hip[fw, ll[:, None]].reshape(-1, 3)
-                v = np.broadcast_to(hold[open_, None, :], fw.shape + (3,)).reshape(-1, 3) - hp
-                dist = np.linalg.norm(v, axis=1)
-                aim = v + 0.02 * span * self.up[fw, ll[:, None]].reshape(-1, 3)
-                bad |= rays.first_hit(hp, aim, max_distance=dist).hit.reshape(fw.shape)
-            found = bad.any(1)
-            # lift one frame before it happens: a fast body can stretch a leg a lot in a frame
-            first = fw[found, np.argmax(bad[found], 1)]
-            out[ll[found]] = np.maximum(first - 1, np.minimum(t0[ll[found]], first))
-            start[open_] += LIFT_WINDOW
+            rows = np.nonzero(open_)[0]
+            # up to stop (inclusive: a bad frame at stop lifts the foot at stop - 1)
+            need = stop[rows] - start[rows] + 1
+            for lo, width in zip((0,) + WINDOWS[:-1], WINDOWS):
+                g = rows[(need > lo) & ((need <= width) | (width == WINDOWS[-1]))]
+                if len(g) == 0:
+                    continue
+                fw, bad = self._window_bad(rays, hold[g], start[g], legs[g], width, sight)
+                found = bad.any(1)
+                # lift one frame before it happens: a fast body can stretch a leg a lot in a
+                # frame
+                first = fw[found, np.argmax(bad[found], 1)]
+                out[g[found]] = np.maximum(first - 1, np.minimum(t0[g[found]], first))
+                start[g] += width
             open_ &= (out == F) & (start < stop)
         return out
+
+    def _window_bad(self, rays, hold, start, ll, width: int, sight: bool):
+        """(fw (n, width) frames start.., bad (n, width) bool) for first_bad: feet of legs ll
+        (n,) planted at hold (n, 3), checked over `width` frames from `start` (n,)."""
+        F = self.shape[0]
+        lay, hip, span = self.lay, self.hip, self.span
+        fw_ext = np.clip(start[:, None] - 1 + np.arange(width + 1)[None, :], 0, F - 1)
+        rel_ext = quat_rotate(self.q_inv[fw_ext, ll[:, None]],
+                              hold[:, None, :] - hip[fw_ext, ll[:, None]])
+        fw, rel = fw_ext[:, 1:], rel_ext[:, 1:]
+        n_ext = np.sqrt(np.einsum("lwi,lwi->lw", rel_ext, rel_ext))
+        bad = ((rel[..., 0] * lay.side[ll, None] < self.out_min[ll, None])
+               | (n_ext[:, 1:] > span) | (rel[..., 2] < -self.a_back[ll, None]))
+        # a fast turn would swing the planted leg round its hip too fast: lift first
+        cos_t = np.einsum("lwi,lwi->lw", rel, rel_ext[:, :-1]) / np.maximum(
+            n_ext[:, 1:] * n_ext[:, :-1], 1e-300)
+        bad |= cos_t < np.cos(STANCE_TURN)
+        # ... or turn one of its bones too fast in a frame (near a straight or folded knee)
+        bad |= _stance_turns(hip[fw_ext, ll[:, None]], hold, self.fwd[fw_ext, ll[:, None]],
+                             self.left[fw_ext, ll[:, None]], self.q_inv[fw_ext, ll[:, None]],
+                             lay, ll, self.lg.knee_out) > SWING_TURN
+        if sight:
+            hp = hip[fw, ll[:, None]].reshape(-1, 3)
+            v = np.broadcast_to(hold[:, None, :], fw.shape + (3,)).reshape(-1, 3) - hp
+            dist = np.linalg.norm(v, axis=1)
+            aim = v + 0.02 * span * self.up[fw, ll[:, None]].reshape(-1, 3)
+            bad |= rays.first_hit(hp, aim, max_distance=dist).hit.reshape(fw.shape)
+        return fw, bad
 
 
 def _leg_frames(bf: BodyFrames, cfg: RigConfig) -> _Frames:
@@ -582,13 +600,24 @@ def _lift_unusable(rays, lf: _Frames, cfg: RigConfig, st: _Steps, holds: np.ndar
     where they would now fall out of reach, under the body or behind a wall (the next swing
     starts sooner; with `land`, one left hanging lands early, _land_early). True when a foot
     lands early on a new hold."""
-    F = lf.shape[0]
+    F, L = lf.shape
     Ts, LOs = st.Ts, st.LOs
+    C = len(Ts) - 1
+    # every stance in one batch (first_bad's rows are independent); a stance whose touchdown
+    # or hold an early landing then changes is checked again
+    def check(c, legs):
+        return lf.first_bad(rays, holds[c, legs].reshape(-1, 3),
+                            np.minimum(Ts[c, legs], F - 1).ravel(),
+                            np.minimum(LOs[c, legs] + 1, F).ravel(), sight=True,
+                            legs=np.broadcast_to(legs, np.shape(Ts[c, legs])).ravel())
+    bad = check(slice(0, C), np.arange(L)).reshape(C, L)
+    seen_T, seen_hold = Ts[:C].copy(), holds[:C].copy()
     landed = False
-    for c in range(len(Ts) - 1):
-        bad = lf.first_bad(rays, holds[c], np.minimum(Ts[c], F - 1),
-                           np.minimum(LOs[c] + 1, F), sight=True)
-        LOs[c] = np.clip(np.minimum(LOs[c], bad), Ts[c], F)
+    for c in range(C):
+        again = np.nonzero((Ts[c] != seen_T[c]) | np.any(holds[c] != seen_hold[c], axis=-1))[0]
+        if len(again):
+            bad[c, again] = check(c, again)
+        LOs[c] = np.clip(np.minimum(LOs[c], bad[c]), Ts[c], F)
         if land:
             landed |= _land_early(rays, lf, cfg, st, holds, anchor, times, c)
     return landed
