@@ -251,22 +251,85 @@ def _world_paced(q_seg, sid, turn):
     return _run_progress(step, first, runs)
 
 
+class _Answers:
+    """A RayCaster's answers about leg poses, kept for the poses asked about again (a swing
+    nothing improves is tried with the same candidates in every round, clipped and eased
+    candidates repeat poses): whether a bone passes through something, the foot's distance to
+    the surface and, once asked for, whether the foot is inside a solid. Poses are told apart
+    by the exact bits of their hip, knee and foot; the bones' ray lengths must be the same in
+    every question (one joint_space_swings call)."""
+
+    def __init__(self, rays, reach=None):
+        self.rays, self.reach = rays, reach
+        self.rows = {}                          # a pose's hash -> its row
+        self.n = 0
+        self.key = np.zeros((0, 9), np.uint64)  # each row's hip, knee, foot (bits)
+        self.bone = np.zeros(0, bool)
+        self.dist = np.zeros(0)
+        self.inside = np.zeros(0, np.int8)      # -1: not asked yet
+
+    @classmethod
+    def of(cls, rays) -> "_Answers":
+        return rays if isinstance(rays, cls) else cls(rays)
+
+    def ask(self, hip, mid, end, inner, reach):
+        """(bone (n,) bool, dist (n,), inside (n,) bool: asked for `inner` entries only) of
+        poses hip -> mid -> end (n, 3); reach: the two bones' ray lengths."""
+        if reach != self.reach:
+            self.__init__(self.rays, reach)     # other bones: nothing known holds
+        key = np.concatenate([hip, mid, end], axis=1).view(np.uint64)
+        h = np.zeros(len(key), np.uint64)
+        for c in range(9):
+            h = (h ^ key[:, c]) * np.uint64(0x100000001B3)
+        row = np.fromiter((self.rows.get(x, -1) for x in h.tolist()), np.int64, len(h))
+        known = row >= 0
+        known[known] = (self.key[row[known]] == key[known]).all(axis=1)
+        new = np.nonzero(~known)[0]
+        if len(new):
+            _, first, inv = np.unique(h[new], return_index=True, return_inverse=True)
+            if not (key[new[first]][inv] == key[new]).all():     # a hash shared: ask each
+                first, inv = np.arange(len(new)), np.arange(len(new))
+            row[new] = self._add(key[new[first]], h[new[first]], hip[new[first]],
+                                 mid[new[first]], end[new[first]], reach)[inv]
+        ask = np.nonzero(inner & (self.inside[row] < 0))[0]
+        if len(ask):
+            r, first = np.unique(row[ask], return_index=True)
+            self.inside[r] = self.rays.inside(end[ask[first]])
+        return self.bone[row], self.dist[row], self.inside[row] == 1
+
+    def _add(self, key, h, hip, mid, end, reach) -> np.ndarray:
+        """The rows of new poses (m,): both bones' rays in one batch (each ray's hit is its
+        own: Embree casts them one by one), the feet's distances to the surface, uncapped."""
+        m = len(key)
+        prim = self.rays.cast(np.concatenate([hip, mid]),
+                              np.concatenate([normalize(mid - hip), normalize(end - mid)]),
+                              np.repeat(reach, m))[1]
+        rows = np.arange(self.n, self.n + m)
+        if self.n + m > len(self.bone):
+            size = max(2 * len(self.bone), self.n + m, 1024)
+            self.key = np.resize(self.key, (size, 9))
+            self.bone, self.dist = np.resize(self.bone, size), np.resize(self.dist, size)
+            self.inside = np.resize(self.inside, size)
+        self.key[rows] = key
+        self.bone[rows] = (prim[:m] >= 0) | (prim[m:] >= 0)
+        self.dist[rows] = self.rays.closest(end, np.inf)[0]
+        self.inside[rows] = -1
+        self.rows.update(zip(h.tolist(), rows.tolist()))
+        self.n += m
+        return rows
+
+
 def _node_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner):
     """(cost (n,), q_u, q_t, feet (n, 3), touch (n,) bool) of single poses: a bone through the
     environment (HARD); an inner pose's foot inside a solid (1, HARD deeper than `deep`); touch:
-    the foot within `contact` of a surface."""
+    the foot within `contact` of a surface. rays: a RayCaster or its _Answers."""
     q_u, q_t, mid, end = _pose(q_seg, hip, U, T, l1, l2)
-    # both bones' rays in one batch (each ray's hit is its own: Embree casts them one by one)
-    n = len(hip)
-    prim = rays.cast(np.concatenate([hip, mid]),
-                     np.concatenate([normalize(mid - hip), normalize(end - mid)]),
-                     np.repeat([l1 - 1e-9, max(l2 - lim.tol, 0.0)], n))[1]
-    cost = HARD * ((prim[:n] >= 0) | (prim[n:] >= 0))
-    # each foot's distance to the surface, uncapped: the touch and the depth are both read
-    # from it (the same distance a capped query returns within its cap)
-    d = rays.closest(end, np.inf)[0]
-    k = np.nonzero(inner)[0]
-    k = k[rays.inside(end[k])]
+    # the touch and the depth are both read from the foot's distance to the surface (the
+    # same distance a capped query returns within its cap)
+    bone, d, inside = _Answers.of(rays).ask(hip, mid, end, inner,
+                                            [l1 - 1e-9, max(l2 - lim.tol, 0.0)])
+    cost = HARD * bone
+    k = np.nonzero(inner & inside)[0]
     cost[k] += 1.0
     if lim.deep > 0.0 and len(k):
         k = k[~(d[k] <= lim.deep)]
@@ -347,6 +410,7 @@ def joint_space_swings(rays, hip, q_seg, q_u, q_t, mid, end, swing, side, l1, l2
     over what it could not. The longer swing is kept where it costs less.
     returns (q_u, q_t, mid, end, swing), each (F, L, ...); swing with the earlier lifts
     """
+    rays = _Answers(rays)               # poses asked about again are not cast again
     args = (rays, hip, q_seg, side, l1, l2, lim, rounds)
     out, sw, cost = _swings_pass(*args, q_u, q_t, mid, end, swing)
     tries = _second_tries(sw, cost)
@@ -501,85 +565,171 @@ def _candidates() -> list:
 CANDIDATES = tuple(_candidates())
 
 
-def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, own, best,
-          todo, redone, plan) -> None:
-    """The swings flagged in `todo` (best: their current cost) get the best joint-space
-    candidate: U_all, T_all (local poses), feet (F, L, 3), own (per-entry own costs) and
-    redone (F, L) are updated in place."""
+#: the joint-space candidates whose poses of a swing depend on the other swings tried with it
+#: (their progress is a running sum over every entry tried), so each is tried with exactly the
+#: swings still open
+SHARED = ("even", "even/world", "peak")
+#: _redo tries several candidates in one batch of rays while each costs fewer entries than this
+BATCH_ENTRIES = 2048
+
+
+@dataclass
+class _Trial:
+    """The entries of the swings _redo improves, and what their candidate poses are made of:
+    swing id, frame, leg, progress, inner, segment rotation, hip, weight and neighbours' feet of
+    each entry; its current, planned, first and last poses; the progress at which its swing
+    first crowds a neighbour (u_c), paced by the segment's turn (u_world), and the frames to
+    the nearer end of its swing (from_end)."""
+
+    sk: np.ndarray
+    f: np.ndarray
+    lg: np.ndarray
+    u: np.ndarray
+    inner: np.ndarray
+    qs: np.ndarray
+    hp: np.ndarray
+    wk: np.ndarray
+    near: np.ndarray
+    U0: np.ndarray
+    T0: np.ndarray
+    U_plan: np.ndarray
+    T_plan: np.ndarray
+    U_first: np.ndarray
+    U_last: np.ndarray
+    T_first: np.ndarray
+    T_last: np.ndarray
+    u_c: np.ndarray
+    u_world: np.ndarray
+    from_end: np.ndarray
+
+    def pose(self, cand, j, side, l1, l2, turn, chosen_U, chosen_T):
+        """(U, T) local poses of entries j under candidate `cand` (see _candidates); "peak"
+        spreads the chosen poses chosen_U, chosen_T."""
+        kind, profile, r, swivel, flex, delay, yaw = cand
+        sj, uj, s = self.sk[j], self.u[j], side[self.lg[j]]
+        if kind.endswith("/world"):       # paced by the turn the segment leaves the leg
+            kind, uj = kind[:-6], self.u_world[j]
+        cap = np.inf
+        if kind.endswith("/eased"):
+            kind, cap = kind[:-6], RAISE_STEP * turn * self.from_end[j]
+        if delay > 0:
+            uj = np.clip((uj - delay) / (1.0 - delay), 0.0, 1.0)
+        elif delay < 0:
+            uj = np.clip(uj / (1.0 + delay), 0.0, 1.0)
+        axis = np.broadcast_to(_Z, (len(j), 3))
+        if kind == "plan":
+            U, T = self.U_plan[j], self.T_plan[j]
+        elif kind == "even":
+            U, T = _retimed(self.U_plan[j], self.T_plan[j], sj, uj)
+        elif kind == "peak":
+            U, T = _peak_spread(chosen_U[j], chosen_T[j], sj, int(r))
+        elif kind == "bump":              # the current swing, lifted round its crowded frame
+            bump = np.nan_to_num(np.exp(-((uj - self.u_c[j]) / BUMP_WIDTH) ** 2)
+                                 * np.sin(np.pi * uj))
+            U = quat_mul(quat_about(axis, s * r * bump), self.U0[j])
+            T = self.T0[j]
+        else:
+            U = quat_mul(quat_about(axis, s * np.minimum(r * profile(uj), cap)),
+                         quat_slerp(self.U_first[j], self.U_last[j], uj))
+            T = quat_slerp(self.T_first[j], self.T_last[j], uj)
+        if swivel:
+            U = _swivel(U, T, swivel * profile(uj), l1, l2)
+        if yaw:
+            U = quat_mul(quat_about(np.broadcast_to(_Y, (len(j), 3)), s * yaw
+                                    * np.sin(np.pi * uj)), U)
+        if flex:
+            T = _flex(U, T, flex * profile(uj), l1, l2)
+        return U, T
+
+
+def _trial(lim, hip, q_seg, U_all, T_all, sw: _Swings, feet, todo, plan) -> _Trial:
+    """The _Trial of the swings flagged in `todo`."""
     k = np.nonzero(todo[sw.sid])[0]
     sk, f, lg, u, inner = sw.sid[k], sw.f[k], sw.lg[k], sw.u[k], sw.inner[k]
-    qs, hp = q_seg[f, lg], hip[f, lg]
-    U0, T0 = U_all[f, lg], T_all[f, lg]
+    qs = q_seg[f, lg]
     first, last = sw.start[k], sw.last[k]
-    chosen_U, chosen_T, chosen_own = U0.copy(), T0.copy(), own[k].copy()
     near = sw.near(feet, k)
-    wk = lim.weight(f)
-    axis = np.broadcast_to(_Z, (len(k), 3))
-    U_first, U_last = U_all[sw.f[first], sw.lg[first]], U_all[sw.f[last], sw.lg[last]]
-    T_first, T_last = T_all[sw.f[first], sw.lg[first]], T_all[sw.f[last], sw.lg[last]]
-    U_plan, T_plan = plan[0][f, lg], plan[1][f, lg]
     # where each swing first crowds a neighbour now: a local lift there is a candidate too
     crowd = _crowding(feet[f, lg], inner, near, lim) > 0
     u_c = np.full(sw.n, np.nan)
     ck = np.nonzero(crowd)[0][::-1]
     u_c[sk[ck]] = u[ck]
-    u_c = u_c[sk]
     # paces: the segment's turn left to the leg (".../world"), raises eased from either end of
     # the swing (".../eased")
-    u_world = _world_paced(qs, sk, lim.turn)
-    from_end = np.minimum(f - sw.a[sk], sw.b[sk] - f)
-    for kind, profile, r, swivel, flex, delay, yaw in CANDIDATES:
+    return _Trial(sk, f, lg, u, inner, qs, hip[f, lg], lim.weight(f), near, U_all[f, lg],
+                  T_all[f, lg], plan[0][f, lg], plan[1][f, lg],
+                  U_all[sw.f[first], sw.lg[first]], U_all[sw.f[last], sw.lg[last]],
+                  T_all[sw.f[first], sw.lg[first]], T_all[sw.f[last], sw.lg[last]], u_c[sk],
+                  _world_paced(qs, sk, lim.turn), np.minimum(f - sw.a[sk], sw.b[sk] - f))
+
+
+def _judged(rays, lim, tr: _Trial, j, poses, l1, l2, n: int) -> list:
+    """[(own cost (len(j),), score (n,) per swing)] of each candidate's poses (U, T) of entries
+    j, all in one batch of rays (each entry's faults are its own)."""
+    m, sj = len(poses), tr.sk[j]
+    same = np.tile(np.r_[sj[1:] == sj[:-1], False], m)[:-1]       # no step between candidates
+    cost, end = _own_faults(rays, lim, np.tile(tr.hp[j], (m, 1)), np.tile(tr.qs[j], (m, 1)),
+                            np.concatenate([p[0] for p in poses]),
+                            np.concatenate([p[1] for p in poses]), l1, l2,
+                            np.tile(tr.inner[j], m), same)
+    out = []
+    for c_own, e in zip(np.split(cost, m), np.split(end, m)):
+        c_own *= tr.wk[j]
+        score = np.bincount(sj, weights=c_own + tr.wk[j] * _crowding(e, tr.inner[j], tr.near[j],
+                                                                     lim), minlength=n)
+        out.append((c_own, score))
+    return out
+
+
+def _block(i: int, entries: int) -> range:
+    """The candidates _redo tries in one batch from CANDIDATES[i], for `entries` entries each:
+    a "peak" alone (it spreads the poses chosen so far), else up to the next "peak" while the
+    batch keeps within BATCH_ENTRIES."""
+    if CANDIDATES[i][0] == "peak":
+        return range(i, i + 1)
+    end = i + max(1, BATCH_ENTRIES // max(entries, 1))
+    while end > i + 1 and any(c[0] == "peak" for c in CANDIDATES[i:end]):
+        end -= 1
+    return range(i, min(end, len(CANDIDATES)))
+
+
+def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, own, best,
+          todo, redone, plan) -> None:
+    """The swings flagged in `todo` (best: their current cost) get the best joint-space
+    candidate: U_all, T_all (local poses), feet (F, L, 3), own (per-entry own costs) and
+    redone (F, L) are updated in place. Candidates are tried in order, each on the swings it
+    has not brought to no cost yet; several at once (_block), then taken in turn as if one by
+    one (one tried with swings that closed in the meantime is tried again, when SHARED)."""
+    k = np.nonzero(todo[sw.sid])[0]
+    tr = _trial(lim, hip, q_seg, U_all, T_all, sw, feet, todo, plan)
+    chosen_U, chosen_T, chosen_own = tr.U0.copy(), tr.T0.copy(), own[k].copy()
+    i = 0
+    while i < len(CANDIDATES):
         open_ = todo & (best > 0)
         if not open_.any():
             break
-        j = np.nonzero(open_[sk])[0]          # entries of the swings still to improve
-        sj = sk[j]
-        uj = u[j]
-        if kind.endswith("/world"):       # paced by the turn the segment leaves the leg
-            kind, uj = kind[:-6], u_world[j]
-        cap = np.inf
-        if kind.endswith("/eased"):
-            kind, cap = kind[:-6], RAISE_STEP * lim.turn * from_end[j]
-        if delay > 0:
-            uj = np.clip((uj - delay) / (1.0 - delay), 0.0, 1.0)
-        elif delay < 0:
-            uj = np.clip(uj / (1.0 + delay), 0.0, 1.0)
-        if kind == "plan":
-            U, T = U_plan[j], T_plan[j]
-        elif kind == "even":
-            U, T = _retimed(U_plan[j], T_plan[j], sj, uj)
-        elif kind == "peak":
-            U, T = _peak_spread(chosen_U[j], chosen_T[j], sj, int(r))
-        elif kind == "bump":              # the current swing, lifted round its crowded frame
-            bump = np.nan_to_num(np.exp(-((uj - u_c[j]) / BUMP_WIDTH) ** 2) * np.sin(np.pi * uj))
-            U = quat_mul(quat_about(axis[j], side[lg[j]] * r * bump), U0[j])
-            T = T0[j]
-        else:
-            U = quat_mul(quat_about(axis[j], side[lg[j]] * np.minimum(r * profile(uj), cap)),
-                         quat_slerp(U_first[j], U_last[j], uj))
-            T = quat_slerp(T_first[j], T_last[j], uj)
-        if swivel:
-            U = _swivel(U, T, swivel * profile(uj), l1, l2)
-        if yaw:
-            U = quat_mul(quat_about(np.broadcast_to(_Y, (len(j), 3)), side[lg[j]] * yaw
-                                    * np.sin(np.pi * uj)), U)
-        if flex:
-            T = _flex(U, T, flex * profile(uj), l1, l2)
-        c_own, end = _own_faults(rays, lim, hp[j], qs[j], U, T, l1, l2, inner[j],
-                                 sj[1:] == sj[:-1])
-        c_own *= wk[j]
-        score = np.bincount(sj, weights=c_own + wk[j] * _crowding(end, inner[j], near[j], lim),
-                            minlength=sw.n)
-        take = open_ & (score < best)
-        best[take] = score[take]
-        sel = take[sj]
-        chosen_U[j[sel]], chosen_T[j[sel]], chosen_own[j[sel]] = U[sel], T[sel], c_own[sel]
-    changed = (np.any(chosen_U != U0, axis=-1) | np.any(chosen_T != T0, axis=-1)) & inner
+        j = np.nonzero(open_[tr.sk])[0]          # entries of the swings still to improve
+        block = _block(i, len(j))
+        poses = [tr.pose(CANDIDATES[x], j, side, l1, l2, lim.turn, chosen_U, chosen_T)
+                 for x in block]
+        for x, (U, T), (c_own, score) in zip(block, poses,
+                                              _judged(rays, lim, tr, j, poses, l1, l2, sw.n)):
+            now = todo & (best > 0)
+            if x > i and (not now.any() or (CANDIDATES[x][0] in SHARED
+                                            and not np.array_equal(now, open_))):
+                break
+            take = now & (score < best)
+            best[take] = score[take]
+            sel = take[tr.sk[j]]
+            chosen_U[j[sel]], chosen_T[j[sel]], chosen_own[j[sel]] = U[sel], T[sel], c_own[sel]
+            i = x + 1
+    f, lg = tr.f, tr.lg
+    changed = (np.any(chosen_U != tr.U0, axis=-1) | np.any(chosen_T != tr.T0, axis=-1)) & tr.inner
     U_all[f[changed], lg[changed]] = chosen_U[changed]
     T_all[f[changed], lg[changed]] = chosen_T[changed]
     own[k] = chosen_own
     redone[f[changed], lg[changed]] = True
-    feet[f[changed], lg[changed]] = _pose(qs[changed], hp[changed], chosen_U[changed],
+    feet[f[changed], lg[changed]] = _pose(tr.qs[changed], tr.hp[changed], chosen_U[changed],
                                           chosen_T[changed], l1, l2)[3]
 
 
