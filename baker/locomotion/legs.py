@@ -973,8 +973,8 @@ def _clear_swings(rays, target: np.ndarray, inside: np.ndarray, clear: float, re
     surface along its normal until they are at least `clear` metres from every surface; a foot
     inside a solid (RayCaster.inside) with a face within `reach` comes out through that face."""
     target = target.copy()
+    f, l = np.nonzero(inside)
     for _ in range(rounds):
-        f, l = np.nonzero(inside)
         p = target[f, l]
         d, c, tri = rays.closest(p, max(reach, clear))
         found = np.isfinite(d)
@@ -983,6 +983,7 @@ def _clear_swings(rays, target: np.ndarray, inside: np.ndarray, clear: float, re
         fix = buried | (d < clear * (1.0 - 1e-6))
         if not fix.any():
             break
+        # only the feet moved can need it again (the others' answers stay the same)
         f, l, p, c, tri, buried = f[fix], l[fix], p[fix], c[fix], tri[fix], buried[fix]
         n = rays.face_normals[tri]
         # out the face's front, unless the foot is in the open behind it (under a one-sided

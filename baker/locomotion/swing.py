@@ -37,6 +37,7 @@ only where the swing then breaks a limit in fewer frames.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import repeat
 
 import numpy as np
 
@@ -281,7 +282,7 @@ class _Answers:
         h = np.zeros(len(key), np.uint64)
         for c in range(9):
             h = (h ^ key[:, c]) * np.uint64(0x100000001B3)
-        row = np.fromiter((self.rows.get(x, -1) for x in h.tolist()), np.int64, len(h))
+        row = np.fromiter(map(self.rows.get, h.tolist(), repeat(-1)), np.int64, len(h))
         known = row >= 0
         known[known] = (self.key[row[known]] == key[known]).all(axis=1)
         new = np.nonzero(~known)[0]
