@@ -38,7 +38,7 @@ import numpy as np
 
 from baker.environment.model import EnvMesh, Environment, Sun
 from baker.errors import EnvironmentLoadError
-from baker.geometry.arrays import unique
+from baker.geometry.transforms import cross, length
 
 log = logging.getLogger(__name__)
 
@@ -261,12 +261,12 @@ def _clean(v, f, n):
     f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
     if len(f):
         tri = v[f]
-        area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-        scale = max(float(np.ptp(v[unique(f)], axis=0).max()), 1e-9)
+        area2 = length(cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
+        scale = max(float(np.ptp(v[_used(f, len(v))], axis=0).max()), 1e-9)
         f = f[area2 > (scale * 1e-9) ** 2]
     if len(f) == 0:
         return None
-    used = unique(f)
+    used = _used(f, len(v))
     remap = np.full(len(v), -1, dtype=np.int64)
     remap[used] = np.arange(len(used))
     nv = v[used]
@@ -276,10 +276,17 @@ def _clean(v, f, n):
         n = np.asarray(n, dtype=np.float64).reshape(-1, 3)
         if len(n) == len(v):
             n = n[used]
-            length = np.linalg.norm(n, axis=1, keepdims=True)
-            if np.all(np.isfinite(n)) and np.all(length > 1e-8):
-                nn = (n / length).astype(np.float32)
+            size = np.linalg.norm(n, axis=1, keepdims=True)
+            if np.all(np.isfinite(n)) and np.all(size > 1e-8):
+                nn = (n / size).astype(np.float32)
     return nv, nf, nn
+
+
+def _used(f: np.ndarray, nv: int) -> np.ndarray:
+    """The sorted indices of the nv vertices that faces f use (np.unique(f), by a mask)."""
+    mask = np.zeros(nv, dtype=bool)
+    mask[f.reshape(-1)] = True
+    return np.flatnonzero(mask)
 
 
 def _fix_winding(f: np.ndarray, m: np.ndarray) -> np.ndarray:
