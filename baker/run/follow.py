@@ -285,15 +285,34 @@ class Follower:
     def _avoiding(self, others: np.ndarray):
         """The head's surface test in a crowd: on its layer, and at least `separation` from
         every other creature's body point (or, where it already is closer, no closer than it
-        is), so other bodies are obstacles the head turns or slides along as it does edges."""
+        is), so other bodies are obstacles the head turns or slides along as it does edges.
+
+        A point is measured only against the body points that can come within `separation`
+        of it: those not much farther from the head's base than it is (the points are kept
+        nearest the base first, each with its distance from the base less a margin far above
+        the rounding of these distances)."""
         ox, oz = others[:, 0], others[:, 1]
         b = self.head.base
-        need = min(self.separation ** 2, float(((ox - b[0]) ** 2 + (oz - b[2]) ** 2).min()))
+        d2 = (ox - b[0]) ** 2 + (oz - b[2]) ** 2
+        need = min(self.separation ** 2, float(d2.min()))
         need -= 1e-12
+        order = np.argsort(d2, kind="stable")
+        near = list(zip((np.sqrt(d2[order]) - 1e-6).tolist(), ox[order].tolist(),
+                        oz[order].tolist()))
+        root = math.sqrt(max(need, 0.0))
+        bx, bz = float(b[0]), float(b[2])
         on_layer = self._on_layer
 
         def allowed(x: float, z: float) -> bool:
-            return float(((ox - x) ** 2 + (oz - z) ** 2).min()) >= need and on_layer(x, z)
+            # ((ox - x) ** 2 + (oz - z) ** 2).min() >= need, over the points that can be
+            # closer than `separation`
+            reach = math.hypot(x - bx, z - bz) + root
+            for d, px, pz in near:
+                if d > reach:
+                    break
+                if (px - x) * (px - x) + (pz - z) * (pz - z) < need:
+                    return False
+            return on_layer(x, z)
 
         return allowed
 
