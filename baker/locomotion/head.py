@@ -196,19 +196,20 @@ class HeadSteer:
         beyond a gap in the surface is never reached. Points tested on their own would see
         through a zero-thickness wall that has walkable ground on both sides; walked, the arc
         meets the gap the agent radius leaves round the wall."""
-        hx, hz = self.heading[0], self.heading[2]
+        hx, _, hz = self.heading.tolist()      # Python floats: the same bits, sooner
         lx, lz = side * hz, -side * hx
         r = self.turn_radius if radius is None else radius
-        cx, cz = self.base[0] + r * lx, self.base[2] + r * lz
-        px, pz = self.base[0], self.base[2]
+        px, _, pz = self.base.tolist()
+        cx, cz = px + r * lx, pz + r * lz
         d = math.pi * r / _ARC_STEPS
         n = 0
-        for k in range(1, _ARC_STEPS + 1):
-            c, s = _ARC_COS[k], _ARC_SIN[k]
+        for c, s in zip(_ARC_COS[1:], _ARC_SIN[1:]):
             qx, qz = cx + r * (-lx * c + hx * s), cz + r * (-lz * c + hz * s)
             m = max(1, math.ceil(math.hypot(qx - px, qz - pz) / d - 1e-9))
-            if all(allowed(px + (qx - px) * i / m, pz + (qz - pz) * i / m)
-                   for i in range(1, m + 1)):
+            for i in range(1, m + 1):
+                if not allowed(px + (qx - px) * i / m, pz + (qz - pz) * i / m):
+                    break
+            else:
                 n += 1
                 px, pz = qx, qz
         return n
@@ -224,8 +225,8 @@ class HeadSteer:
         body's chord placement cannot follow (joints jump across it); a reversal on circles of
         min_radius is a loop it follows.
         """
-        hx, hz = self.heading[0], self.heading[2]
-        bx, bz = self.base[0], self.base[2]
+        hx, _, hz = self.heading.tolist()      # Python floats: the same bits, sooner
+        bx, _, bz = self.base.tolist()
         side = 1.0 if ang >= a else -1.0
         # a turn sharper than the wanted one is slowed so that the heading turns no faster
         # than CONTAIN_YAW times the yaw-rate limit, on circles of at least min_radius
@@ -252,14 +253,17 @@ class HeadSteer:
                 return t, s
         # nothing clear that far ahead: the tightest turn to the side with more room round its
         # circle (the agent's first; a U-turn goes on that way), else any turn whose step stays
-        # on; on the spot only at the very edge
+        # on; on the spot only at the very edge. (The rooms are measured only when the step of
+        # a tightest turn stays on: else the side does not matter.)
         sides = (side, -side)
-        room = [self._circle_room(sd, allowed, self.min_radius) for sd in sides]
-        sd = sides[int(room[1] > room[0])]
-        if free(sd * tight, slow, slow):
-            if self._u_side != 0.0:
-                self._u_side = sd
-            return sd * tight, slow
+        clear = [free(sd * tight, slow, slow) for sd in sides]
+        if clear[0] or clear[1]:
+            room = [self._circle_room(sd, allowed, self.min_radius) for sd in sides]
+            k = int(room[1] > room[0])
+            if clear[k]:
+                if self._u_side != 0.0:
+                    self._u_side = sides[k]
+                return sides[k] * tight, slow
         for t, s in turns:
             if free(t, s, s):
                 return t, s
