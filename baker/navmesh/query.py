@@ -378,7 +378,7 @@ def _locate_one(s: NavSurface, x: float, y: float, z: float, tol: float) -> tupl
         return -1, math.nan
     col = ix * nz + iz
     best, besth, bestd = -1, math.nan, math.inf
-    for k, ((px, py, pz), (nxk, nyk, nzk)) in enumerate(_column_planes(s, col)):
+    for k, (px, py, pz, nxk, nyk, nzk) in enumerate(_column_planes(s, col)):
         h = py - (nxk * (x - px) + nzk * (z - pz)) / nyk
         d = abs(h - y)
         if d < bestd and d <= tol:
@@ -398,24 +398,35 @@ def layer_height(s: NavSurface, x: float, y: float, z: float, tol: float) -> flo
     nx, nz = s.shape
     if not (0 <= ix < nx and 0 <= iz < nz):
         return math.nan
+    col = ix * nz + iz
+    planes = s._cache.get("column_planes", _NO_COLUMNS).get(col)     # _column_planes, inline
+    if planes is None:
+        planes = _column_planes(s, col)
     best, bestd = math.nan, tol
-    for (px, py, pz), (nxk, nyk, nzk) in _column_planes(s, ix * nz + iz):
+    for px, py, pz, nxk, nyk, nzk in planes:
         h = py - (nxk * (x - px) + nzk * (z - pz)) / nyk
-        if abs(h - y) <= bestd:
-            best, bestd = h, abs(h - y)
+        d = abs(h - y)
+        if d <= bestd:
+            best, bestd = h, d
     return best
 
 
+#: no column read yet (layer_height's look-up before _column_planes makes the table)
+_NO_COLUMNS: dict = {}
+
+
 def _column_planes(s: NavSurface, col: int) -> list:
-    """[(position, normal), ...] of the samples of column `col`, top to bottom, as Python floats
-    (each column read from the arrays once per surface: layer_height runs every step)."""
+    """[(x, y, z, nx, ny, nz), ...] the position and normal of each sample of column `col`, top
+    to bottom, as Python floats (each column read from the arrays once per surface:
+    layer_height runs every step)."""
     cols = s._cache.get("column_planes")
     if cols is None:
         cols = s._cache["column_planes"] = {}
     planes = cols.get(col)
     if planes is None:
         a, b = int(s.col_start[col]), int(s.col_start[col + 1])
-        planes = cols[col] = list(zip(s.positions[a:b].tolist(), s.normals[a:b].tolist()))
+        planes = cols[col] = [(*p, *n) for p, n in zip(s.positions[a:b].tolist(),
+                                                       s.normals[a:b].tolist())]
     return planes
 
 

@@ -301,7 +301,7 @@ class Follower:
                         oz[order].tolist()))
         root = math.sqrt(max(need, 0.0))
         bx, bz = float(b[0]), float(b[2])
-        on_layer = self._on_layer
+        layer_height, y, tol = self.nav.layer_height, self.height, self.tol
 
         def allowed(x: float, z: float) -> bool:
             # ((ox - x) ** 2 + (oz - z) ** 2).min() >= need, over the points that can be
@@ -312,7 +312,8 @@ class Follower:
                     break
                 if (px - x) * (px - x) + (pz - z) * (pz - z) < need:
                     return False
-            return on_layer(x, z)
+            h = layer_height(x, y, z, tol)
+            return h == h                                 # on the layer: not NaN
 
         return allowed
 
