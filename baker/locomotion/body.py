@@ -275,10 +275,11 @@ def chain_on(trails: np.ndarray, lift: np.ndarray, spacing: float,
     at = np.full(n, m - 2)               # the first sample behind the joint ahead
     # bracket within four spacings back, as place_chain does (the trail can fold back)
     look = np.arange(min(int(round(4.0 * spacing / res)) + 1, m))
+    raise_by = lift[:, :, None, None] * UP                                  # (n, S, 1, 3)
     for i in range(1, S):
         prev = out[:, i - 1]
         k = np.maximum(at[:, None] - look[None, :], 0)                       # (n, L)
-        cand = trails[rows[:, None], k] + lift[:, i, None, None] * UP
+        cand = trails[rows[:, None], k] + raise_by[:, i]
         far = length(cand - prev[:, None, :]) > spacing
         j = np.where(far.any(axis=1), np.argmax(far, axis=1), len(look) - 1)
         # the joint lies between candidate j (a spacing or more away) and the one before it

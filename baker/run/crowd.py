@@ -27,6 +27,7 @@ from baker.behaviour.brain import Brain, Senses
 from baker.behaviour.claims import Claims
 from baker.config import BakeConfig
 from baker.context import Context
+from baker.geometry.arrays import unique
 from baker.locomotion.body import ROUND, chain_on, trail_ends
 from baker.locomotion.cobra import lift_profile
 from baker.run.follow import Follower
@@ -251,7 +252,7 @@ def neighbours(bodies: Bodies, heads: np.ndarray, follows, reach: float,
     for f in follows:
         f.others = None
     xz = heads[:, [0, 2]]
-    need = np.unique(cKDTree(xz).query_pairs(bodies.extent + reach, output_type="ndarray"))
+    need = unique(cKDTree(xz).query_pairs(bodies.extent + reach, output_type="ndarray"))
     if not len(need):
         return
     pts, owner = bodies.points(need, cobra)
