@@ -190,16 +190,15 @@ def build_clip(traj: Trajectory, rig: Rig, name: str = "bake", fps: int | None =
                           f"{frame_err:.3g} frames): resample the trajectory first")
 
     j_count = skel.n_joints
-    # world transforms of every joint: spine from the trajectory, the rest by rest-pose FK below
+    # world transforms of every joint, joint-major (J, F, .): the spine from the trajectory,
+    # the rest by rest-pose FK (_local_transforms)
     rot = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
-    local_t = np.broadcast_to(skel.rest_translations, (f_count, j_count, 3)).copy()
-    local_q = np.broadcast_to(skel.rest_rotations, (f_count, j_count, 4)).copy()
-    world_t = np.zeros((f_count, j_count, 3))
-    world_q = np.zeros((f_count, j_count, 4))
+    world_t = np.zeros((j_count, f_count, 3))
+    world_q = np.zeros((j_count, f_count, 4))
     driven = np.zeros(j_count, dtype=bool)
     driven[spine] = True
-    world_t[:, spine] = pos
-    world_q[:, spine] = rot
+    world_t[spine] = pos.transpose(1, 0, 2)
+    world_q[spine] = rot.transpose(1, 0, 2)
     if traj.joint_names:       # limbs: world frames of named joints
         limb = np.array([skel.index(n) for n in traj.joint_names], dtype=np.int64)
         lp = np.asarray(traj.joint_positions, dtype=np.float64)
@@ -210,23 +209,9 @@ def build_clip(traj: Trajectory, rig: Rig, name: str = "bake", fps: int | None =
         if not (np.all(np.isfinite(lp)) and np.all(np.isfinite(lq))):
             raise ExportError("the trajectory has non-finite limb positions or rotations")
         driven[limb] = True
-        world_t[:, limb] = lp - shift
-        world_q[:, limb] = lq / np.linalg.norm(lq, axis=-1, keepdims=True)
-    for j, p in enumerate(skel.parents):
-        if driven[j]:
-            if p < 0:
-                local_t[:, j] = world_t[:, j]
-                local_q[:, j] = world_q[:, j]
-            else:
-                inv = quat_conj(world_q[:, p])
-                local_t[:, j] = quat_rotate(inv, world_t[:, j] - world_t[:, p])
-                local_q[:, j] = quat_mul(inv, world_q[:, j])
-        elif p >= 0:   # undriven joint: follow its parent in the rest pose
-            world_t[:, j] = world_t[:, p] + quat_rotate(world_q[:, p], local_t[:, j])
-            world_q[:, j] = quat_mul(world_q[:, p], local_q[:, j])
-        else:
-            world_t[:, j] = local_t[:, j]
-            world_q[:, j] = local_q[:, j]
+        world_t[limb] = (lp - shift).transpose(1, 0, 2)
+        world_q[limb] = (lq / np.linalg.norm(lq, axis=-1, keepdims=True)).transpose(1, 0, 2)
+    local_t, local_q = _local_transforms(skel, driven, world_t, world_q)
 
     rotations = sign_continuous(normalize_quats_f32(local_q))
     clip = Clip(name=name, times=times_for(f_count, fps),
@@ -236,6 +221,41 @@ def build_clip(traj: Trajectory, rig: Rig, name: str = "bake", fps: int | None =
     for arr in (clip.times, clip.translations, clip.rotations, clip.scales):
         arr.setflags(write=False)
     return clip
+
+
+def _local_transforms(skel, driven: np.ndarray, world_t: np.ndarray, world_q: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """(F, J, 3) float64 local translations and (F, J, 4) local rotations of every joint.
+
+    driven  : (J,) bool, the joints whose world frames are given
+    world_t : (J, F, 3) / world_q (J, F, 4) world frames, joint-major; the undriven joints'
+              are filled in here: each follows its parent in the rest pose
+    A driven joint's local transform is its world frame relative to its parent's (a root's is
+    its world frame); an undriven joint keeps its rest transform. The joints are taken a depth
+    of the skeleton at a time (parents before children), with the arithmetic of one joint at
+    a time."""
+    parents = np.asarray(skel.parents, dtype=np.int64)
+    f_count = world_t.shape[1]
+    local_t = np.repeat(np.asarray(skel.rest_translations, np.float64)[:, None], f_count, axis=1)
+    local_q = np.repeat(np.asarray(skel.rest_rotations, np.float64)[:, None], f_count, axis=1)
+    depth = np.zeros(len(parents), dtype=np.int64)
+    for j, p in enumerate(parents):
+        depth[j] = depth[p] + 1 if p >= 0 else 0
+    roots = np.nonzero((parents < 0) & ~driven)[0]
+    world_t[roots], world_q[roots] = local_t[roots], local_q[roots]
+    for level in range(1, int(depth.max(initial=0)) + 1):    # undriven: rest pose FK
+        js = np.nonzero((depth == level) & ~driven)[0]
+        ps = parents[js]
+        world_t[js] = world_t[ps] + quat_rotate(world_q[ps], local_t[js])
+        world_q[js] = quat_mul(world_q[ps], local_q[js])
+    js = np.nonzero(driven & (parents >= 0))[0]
+    ps = parents[js]
+    inv = quat_conj(world_q[ps])
+    local_t[js] = quat_rotate(inv, world_t[js] - world_t[ps])
+    local_q[js] = quat_mul(inv, world_q[js])
+    top = np.nonzero(driven & (parents < 0))[0]
+    local_t[top], local_q[top] = world_t[top], world_q[top]
+    return local_t.transpose(1, 0, 2), local_q.transpose(1, 0, 2)
 
 
 def node_tracks(traj: Trajectory, shift=None) -> tuple[NodeTrack, ...]:
