@@ -449,10 +449,10 @@ def legs_through_others(trajs, legs_cfg, radius: float) -> dict:
     """Leg bones of one creature passing through another creature's body: each other body is a
     chain of capsules of `radius` metres around its spine segments (neighbouring spine joints),
     and a leg bone (leg_bones) counts once per frame when it comes closer than `radius` to any
-    of them. Candidate pairs come from one k-d tree per chunk of frames (segment midpoints, in
-    _frame_space), then exact segment-to-segment distances. The bones are stacked a chunk of
-    frames at a time (all creatures' bones over all frames at once are gigabytes in a
-    100-creature minute).
+    of them. Candidate pairs are the bone and segment midpoints of different creatures within
+    reach of each other (_cross_pairs), then exact segment-to-segment distances. The bones are
+    stacked a chunk of frames at a time (all creatures' bones over all frames at once are
+    gigabytes in a 100-creature minute).
 
     returns {"bone_frames": (frame, bone) pairs inside another body, "frames": frames with
              one, "by_creature": [pairs per creature], "deepest_m": smallest bone-to-spine
@@ -471,20 +471,12 @@ def legs_through_others(trajs, legs_cfg, radius: float) -> dict:
         float(np.linalg.norm(e - s_, axis=-1).max()) for s_, e, _ in bones)
     far = 2.0 * float(np.ptp(sp.reshape(-1, 3), axis=0).max()) + 4.0 * reach + 1.0
     bone_owner = np.repeat(np.arange(n), B)
-    seg_owner = np.repeat(np.arange(n), S - 1)
     hit_frames, deepest = set(), np.inf
     for f0, f1 in _frame_chunks(F, n * max(B, S)):
         a = np.stack([bn[0][f0:f1] for bn in bones], axis=1)       # (fc, n, B, 3)
         b = np.stack([bn[1][f0:f1] for bn in bones], axis=1)
         pc, qc = p[f0:f1], q[f0:f1]
-        mids_b = _frame_space((0.5 * (a + b)).reshape(f1 - f0, n * B, 3), f0, far)
-        mids_s = _frame_space((0.5 * (pc + qc)).reshape(f1 - f0, n * (S - 1), 3), f0, far)
-        pairs = cKDTree(mids_b).sparse_distance_matrix(cKDTree(mids_s), reach,
-                                                       output_type="ndarray")
-        i, j = pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
-        ob, os_ = bone_owner[i % (n * B)], seg_owner[j % (n * (S - 1))]
-        keep = ob != os_
-        i, j, ob = i[keep], j[keep], ob[keep]
+        i, j = _cross_pairs(0.5 * (a + b), 0.5 * (pc + qc), f0, far, reach)
         if not len(i):
             continue
         d = segment_distances(a.reshape(-1, 3)[i], b.reshape(-1, 3)[i],
@@ -501,6 +493,52 @@ def legs_through_others(trajs, legs_cfg, radius: float) -> dict:
     out["by_creature"] = [int(x) for x in per]
     out["deepest_m"] = None if not np.isfinite(deepest) else deepest
     return out
+
+
+def _cross_pairs(bones: np.ndarray, segs: np.ndarray, f0: int, far: float, reach: float
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Every (bone, segment) pair of different creatures in the same frame whose midpoints are
+    at most `reach` apart, for a chunk of frames f0..: (i, j) int64 flat indices into the
+    chunk's (fc, n, B) bones and (fc, n, M) segments.
+
+    bones : (fc, n, B, 3) bone midpoints, segs (fc, n, M, 3) segment midpoints
+
+    A creature's own bones and spine segments are never paired (near each other, they are
+    most of the pairs a k-d search of all creatures together finds). Only creature pairs
+    whose bounding boxes over the chunk come within reach are searched: the bones of one
+    inside the other's segments' box (grown by reach) against the segments inside its bones'
+    box, by k-d trees of those points in _frame_space (the same points and distances as one
+    search of all creatures)."""
+    fc, n, B, _ = bones.shape
+    m = segs.shape[2]
+    pad = reach * (1.0 + 1e-9)      # the boxes keep every pair the k-d search takes
+    by_b = bones.transpose(1, 0, 2, 3).reshape(n, fc * B, 3)
+    by_s = segs.transpose(1, 0, 2, 3).reshape(n, fc * m, 3)
+    lo_b, hi_b = by_b.min(axis=1) - pad, by_b.max(axis=1) + pad
+    lo_s, hi_s = by_s.min(axis=1), by_s.max(axis=1)
+    near = np.all((lo_b[:, None] <= hi_s[None]) & (lo_s[None] <= hi_b[:, None]), axis=-1)
+    np.fill_diagonal(near, False)
+    ii, jj = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+    for c, d in np.argwhere(near).tolist():
+        ib = np.nonzero(np.all((by_b[c] >= lo_s[d] - pad) & (by_b[c] <= hi_s[d] + pad),
+                               axis=1))[0]
+        js = np.nonzero(np.all((by_s[d] >= lo_b[c]) & (by_s[d] <= hi_b[c]), axis=1))[0]
+        if not len(ib) or not len(js):
+            continue
+        pairs = cKDTree(_frame_rows(by_b[c], ib, B, f0, far)).sparse_distance_matrix(
+            cKDTree(_frame_rows(by_s[d], js, m, f0, far)), reach, output_type="ndarray")
+        i, j = ib[pairs["i"]], js[pairs["j"]]
+        ii.append((i // B) * (n * B) + c * B + i % B)
+        jj.append((j // m) * (n * m) + d * m + j % m)
+    return np.concatenate(ii), np.concatenate(jj)
+
+
+def _frame_rows(points: np.ndarray, rows: np.ndarray, per_frame: int, f0: int,
+                gap: float) -> np.ndarray:
+    """Rows `rows` of one creature's points (fc * per_frame, 3) of frames f0.. as
+    _frame_space puts them: (len(rows), 4), the frame * gap 4th."""
+    frame = (f0 + rows // per_frame).astype(np.float64) * gap
+    return np.column_stack([points[rows], frame])
 
 
 def crowd_metrics(trajs, legs_cfg, body_radius: float) -> dict:
