@@ -394,30 +394,35 @@ def min_spine_gap(spines: np.ndarray) -> dict:
     returns {"gap_m": metres (inf for fewer than two creatures), "frame": int,
              "creatures": [i, j]} (frame and pair -1 when there is none)
 
-    For every joint the k-d tree finds its S + 1 nearest joints of the same frame: at most S
-    of them (itself included) are its own creature's, so the nearest other creature's joint is
-    among them. Frames are searched in chunks (_frame_space), each only out to the smallest
-    gap found so far (the same first smallest pair as an unbounded search, about twice as
-    fast), on every CPU."""
+    Frames are searched in chunks (_frame_space). In each, pairs of creatures are taken in
+    order of the distance between their bounding boxes over the chunk, while that is not more
+    than the smallest gap found so far: a k-d tree of one creature's joints is asked for the
+    nearest to each of the other's (its own joints are never searched). Among equal gaps the
+    first frame wins, then the lower creature and its first joint (the pair an unbounded
+    search of all joints together finds)."""
     n, F, S, _ = spines.shape
     best = {"gap_m": float("inf"), "frame": -1, "creatures": [-1, -1]}
     if n < 2 or F == 0:
         return best
     far = 2.0 * float(np.ptp(spines.reshape(-1, 3), axis=0).max()) + 1.0
-    owner = np.repeat(np.arange(n), S)
-    by_frame = np.transpose(spines, (1, 0, 2, 3)).reshape(F, n * S, 3)
+    c_idx, d_idx = np.triu_indices(n, 1)
     for f0, f1 in _frame_chunks(F, n * S):
-        x = _frame_space(by_frame[f0:f1], f0, far)
-        d, idx = cKDTree(x).query(x, k=S + 1, workers=thread_count(),
-                                  distance_upper_bound=np.nextafter(best["gap_m"], np.inf))
-        own = np.tile(owner, f1 - f0)
-        found = idx < len(x)
-        d = np.where(found & (own[np.where(found, idx, 0)] != own[:, None]), d, np.inf)
-        k = int(np.argmin(d))
-        row, col = np.unravel_index(k, d.shape)
-        if d[row, col] < best["gap_m"]:
-            best = {"gap_m": float(d[row, col]), "frame": int(f0 + row // (n * S)),
-                    "creatures": sorted([int(own[row]), int(own[idx[row, col]])])}
+        pts = spines[:, f0:f1].reshape(n, -1, 3)
+        lo, hi = pts.min(axis=1), pts.max(axis=1)
+        apart = np.maximum(0.0, np.maximum(lo[:, None] - hi[None], lo[None] - hi[:, None]))
+        bound = np.sqrt(np.sum(apart * apart, axis=-1))[c_idx, d_idx] * (1.0 - 1e-9)
+        found = (float("inf"),)
+        for k in np.argsort(bound, kind="stable").tolist():
+            if bound[k] > min(found[0], best["gap_m"]):
+                break
+            c, d = int(c_idx[k]), int(d_idx[k])
+            dist, _ = cKDTree(_frame_space(spines[d, f0:f1], f0, far)).query(
+                _frame_space(spines[c, f0:f1], f0, far),
+                distance_upper_bound=np.nextafter(min(found[0], best["gap_m"]), np.inf))
+            row = int(np.argmin(dist))
+            found = min(found, (float(dist[row]), f0 + row // S, c, row % S, d))
+        if found[0] < best["gap_m"]:
+            best = {"gap_m": found[0], "frame": found[1], "creatures": [found[2], found[4]]}
     return best
 
 
