@@ -289,13 +289,56 @@ def build_glb(env: Environment, rig: Rig | None, clip: Clip | None, *, extras: d
 def _document(gltf: gl.GLTF2) -> dict:
     """The glTF JSON document of `gltf` as a dict: json.loads(gltf.gltf_to_json()), the same
     keys in the same order, without pygltflib's deep copy of every value and its JSON round
-    trip (most of the export's time in a crowd: 350k calls for 20 creatures)."""
-    return gl.delete_empty_keys(_plain(gltf))
+    trip (most of the export's time in a crowd: 350k calls for 20 creatures). One pass builds
+    it and drops the empty keys (_pruned)."""
+    return _pruned(_items(gltf))
+
+
+def _items(obj):
+    """The (key, value) pairs _plain(obj) has when it is a dict (a pygltflib dataclass, its
+    Attributes or a dict), else None."""
+    kind = type(obj)
+    if kind in _LEAVES or kind is list or kind is tuple:
+        return None
+    if kind is dict:
+        return obj.items()
+    if isinstance(obj, gl.Attributes):
+        return obj.__dict__.items()
+    fields = _FIELDS.get(type(obj))
+    if fields is None and dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        fields = _FIELDS[type(obj)] = tuple(f.name for f in dataclasses.fields(obj))
+    if fields is not None:
+        return [(name, getattr(obj, name)) for name in fields]
+    return obj.items() if isinstance(obj, dict) else None
+
+
+def _pruned(items) -> dict:
+    """gl.delete_empty_keys(dict of _plain's values of items), built in one pass: a key whose
+    plain value is None or empty is left out; a dict value (not an "extensions" one) and the
+    dicts in a list value are pruned in turn (a dict emptied by its pruning stays, as there)."""
+    out = {}
+    for key, value in items:
+        if value is None:
+            continue
+        inner = _items(value)
+        if inner is not None:
+            if len(inner):
+                out[key] = _plain(value) if key == "extensions" else _pruned(inner)
+        elif isinstance(value, (list, tuple)):
+            if len(value):
+                out[key] = (list(value) if all(type(v) in _LEAVES for v in value) else
+                            [_plain(v) if (sub := _items(v)) is None else _pruned(sub)
+                             for v in value])
+        elif not (hasattr(value, "__iter__") and len(value) == 0):
+            out[key] = value
+    return out
 
 
 def _plain(obj):
     """pygltflib's gltf_asdict(obj) without copying the values: new dicts and lists, the
     same leaves (ints, floats, strings)."""
+    if type(obj) in _LEAVES:
+        return obj
     if isinstance(obj, gl.Attributes):
         return {k: _plain(v) for k, v in obj.__dict__.items()}
     fields = _FIELDS.get(type(obj))
@@ -304,12 +347,16 @@ def _plain(obj):
     if fields is not None:
         return {name: _plain(getattr(obj, name)) for name in fields}
     if isinstance(obj, (list, tuple)):
+        if all(type(v) in _LEAVES for v in obj):
+            return list(obj)
         return [_plain(v) for v in obj]
     if isinstance(obj, dict):
         return {k: _plain(v) for k, v in obj.items()}
     return obj
 
 
+#: the types of JSON leaves: _plain keeps them as they are
+_LEAVES = frozenset((int, float, str, bool))
 #: the field names of each pygltflib dataclass
 _FIELDS: dict = {}
 
