@@ -32,7 +32,7 @@ from baker.errors import ExportError
 from baker.geometry.transforms import quat_conj, quat_mul, quat_rotate
 from baker.rig.build import Rig
 from baker.rig.mesh import SkinnedMesh
-from baker.rig.skeleton import Skeleton
+from baker.rig.skeleton import Skeleton, forward_kinematics
 
 MODES = ("world", "root", "in-place")
 ROOT = "root"
@@ -123,11 +123,24 @@ def apply_root_motion(clip: Clip, rig: Rig, mode: str, ground=None
     if mode == "world":
         return clip, rig, None
     rooted = with_root(rig)
-    parents = rig.skeleton.parents
-    wt, wq = clip.world(parents)
-    wt = wt - clip.placement
-    root_t, root_q = root_frames(wt[:, rig.spine], clip.fps, ground)
+    root_t, root_q = root_frames(_spine_world(clip, rig), clip.fps, ground)
     return _rooted_clip(clip, rooted, root_t, root_q, mode)
+
+
+def _spine_world(clip: Clip, rig: Rig) -> np.ndarray:
+    """(F, S, 3) float64 world positions of the spine joints less the placement: clip.world's,
+    posing only the spine joints and their ancestors (the same bits)."""
+    parents = np.asarray(rig.skeleton.parents, dtype=np.int64)
+    need = np.zeros(len(parents), dtype=bool)
+    for j in np.asarray(rig.spine, dtype=np.int64).tolist():
+        while j >= 0 and not need[j]:
+            need[j], j = True, int(parents[j])
+    sub = np.flatnonzero(need)                       # parents before children, as there
+    at = np.full(len(parents), -1, dtype=np.int64)
+    at[sub] = np.arange(len(sub))
+    wt, _ = forward_kinematics(at[parents[sub]], clip.translations[:, sub],
+                               clip.rotations[:, sub])
+    return (wt + clip.placement)[:, at[np.asarray(rig.spine)]] - clip.placement
 
 
 def _rooted_clip(clip: Clip, rooted: Rig, root_t, root_q, mode: str):
