@@ -139,3 +139,25 @@ def test_five_creatures_on_a_small_plane_keep_their_spines_apart():
     assert m["spines_apart"] and m["min_spine_gap_m"] >= 2.0 * RADIUS
     assert m["min_spine_gap_m"] < 0.5          # on a 2 m plane they do come near each other
     assert m["leg_bones_in_other_bodies"] == 0
+
+
+def test_cross_pairs_are_one_search_of_all_creatures_less_their_own_pairs():
+    """_cross_pairs finds the pairs one k-d search of every creature's bones and segments
+    (_frame_space) finds, less each creature's own: the same (i, j) set."""
+    from scipy.spatial import cKDTree
+
+    from baker.metrics import _cross_pairs, _frame_space
+
+    rng = np.random.default_rng(3)
+    fc, n, B, M, f0, far, reach = 4, 6, 5, 3, 7, 50.0, 0.08
+    path = rng.uniform(-0.2, 0.2, (1, n, 1, 3)) + np.linspace(0.0, 0.1, fc)[:, None, None, None]
+    bones = path + rng.normal(0.0, 0.05, (fc, n, B, 3))
+    segs = path + rng.normal(0.0, 0.05, (fc, n, M, 3))
+    i, j = _cross_pairs(bones, segs, f0, far, reach)
+    found = cKDTree(_frame_space(bones.reshape(fc, n * B, 3), f0, far)).sparse_distance_matrix(
+        cKDTree(_frame_space(segs.reshape(fc, n * M, 3), f0, far)), reach, output_type="ndarray")
+    ai, aj = found["i"].astype(np.int64), found["j"].astype(np.int64)
+    other = (ai % (n * B)) // B != (aj % (n * M)) // M
+    assert len(i) > 0 and (ai // (n * B) == aj // (n * M)).all()
+    assert sorted(zip(i.tolist(), j.tolist())) == sorted(zip(ai[other].tolist(),
+                                                             aj[other].tolist()))
