@@ -255,10 +255,10 @@ def _world_paced(q_seg, sid, turn):
 class _Answers:
     """A RayCaster's answers about leg poses, kept for the poses asked about again (a swing
     nothing improves is tried with the same candidates in every round, clipped and eased
-    candidates repeat poses): whether a bone passes through something, the foot's distance to
-    the surface and, once asked for, whether the foot is inside a solid. Poses are told apart
-    by the exact bits of their hip, knee and foot; the bones' ray lengths must be the same in
-    every question (one joint_space_swings call)."""
+    candidates repeat poses): whether a bone passes through something and, once asked for,
+    the foot's distance to the surface and whether the foot is inside a solid. Poses are told
+    apart by the exact bits of their hip, knee and foot; the bones' ray lengths must be the
+    same in every question (one joint_space_swings call)."""
 
     def __init__(self, rays, reach=None):
         self.rays, self.reach = rays, reach
@@ -266,7 +266,7 @@ class _Answers:
         self.n = 0
         self.key = np.zeros((0, 9), np.uint64)  # each row's hip, knee, foot (bits)
         self.bone = np.zeros(0, bool)
-        self.dist = np.zeros(0)
+        self.dist = np.zeros(0)                 # NaN: not asked yet
         self.inside = np.zeros(0, np.int8)      # -1: not asked yet
 
     @classmethod
@@ -276,6 +276,12 @@ class _Answers:
     def ask(self, hip, mid, end, inner, reach):
         """(bone (n,) bool, dist (n,), inside (n,) bool: asked for `inner` entries only) of
         poses hip -> mid -> end (n, 3); reach: the two bones' ray lengths."""
+        row = self.row_of(hip, mid, end, reach)
+        return self.bone[row], self.dist_of(row, end), self.inside_of(row, end, inner)
+
+    def row_of(self, hip, mid, end, reach) -> np.ndarray:
+        """(n,) the rows of poses hip -> mid -> end (n, 3), new poses added (their bones asked
+        about); reach: the two bones' ray lengths."""
         if reach != self.reach:
             self.__init__(self.rays, reach)     # other bones: nothing known holds
         key = np.concatenate([hip, mid, end], axis=1).view(np.uint64)
@@ -292,15 +298,29 @@ class _Answers:
                 first, inv = np.arange(len(new)), np.arange(len(new))
             row[new] = self._add(key[new[first]], h[new[first]], hip[new[first]],
                                  mid[new[first]], end[new[first]], reach)[inv]
+        return row
+
+    def dist_of(self, row, end) -> np.ndarray:
+        """(n,) the distances of feet `end` (n, 3), of poses in rows `row`, to the surface,
+        uncapped."""
+        ask = np.nonzero(np.isnan(self.dist[row]))[0]
+        if len(ask):
+            r, first = np.unique(row[ask], return_index=True)
+            self.dist[r] = self.rays.closest(end[ask[first]], np.inf)[0]
+        return self.dist[row]
+
+    def inside_of(self, row, end, inner) -> np.ndarray:
+        """(n,) bool whether feet `end` (n, 3), of poses in rows `row`, are inside a solid:
+        asked for `inner` entries only (the others: as far as known)."""
         ask = np.nonzero(inner & (self.inside[row] < 0))[0]
         if len(ask):
             r, first = np.unique(row[ask], return_index=True)
             self.inside[r] = self.rays.inside(end[ask[first]])
-        return self.bone[row], self.dist[row], self.inside[row] == 1
+        return self.inside[row] == 1
 
     def _add(self, key, h, hip, mid, end, reach) -> np.ndarray:
-        """The rows of new poses (m,): both bones' rays in one batch (each ray's hit is its
-        own: Embree casts them one by one), the feet's distances to the surface, uncapped."""
+        """The rows of new poses (m,), both bones' rays in one batch (each ray's hit is its
+        own: Embree casts them one by one)."""
         m = len(key)
         prim = self.rays.cast(np.concatenate([hip, mid]),
                               np.concatenate([normalize(mid - hip), normalize(end - mid)]),
@@ -313,7 +333,7 @@ class _Answers:
             self.inside = np.resize(self.inside, size)
         self.key[rows] = key
         self.bone[rows] = (prim[:m] >= 0) | (prim[m:] >= 0)
-        self.dist[rows] = self.rays.closest(end, np.inf)[0]
+        self.dist[rows] = np.nan
         self.inside[rows] = -1
         self.rows.update(zip(h.tolist(), rows.tolist()))
         self.n += m
@@ -346,12 +366,67 @@ def _own_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same):
     slides more than `slide`. A near miss costs 1, a broken limit HARD (see Limits)."""
     cost, q_u, q_t, end, touch = _node_faults(rays, lim, hip, q_seg, U, T, l1, l2, inner)
     if len(U) > 1:
-        steps = np.maximum.reduce([quat_angle(x[:-1], x[1:]) for x in (U, T, q_u, q_t)])
         slide = length(np.diff(end, axis=0))
         cost[:-1] += same & touch[:-1] & touch[1:] & (slide > lim.slide)
-        cost[:-1] += same & (steps > lim.turn)
-        cost[:-1] += (HARD - 1.0) * (same & (steps > lim.breaking_turn))
+        cost[:-1] += _turn_faults(lim, U, T, q_u, q_t, same)
     return cost, end
+
+
+def _turn_faults(lim: Limits, U, T, q_u, q_t, same) -> np.ndarray:
+    """(n-1,) the cost of a joint turning more than `turn` (1) or the breaking turn (HARD)
+    from each entry to the next of the same swing (`same`); U, T, q_u, q_t: (n, 4) local and
+    world rotations of the upper and tip bones."""
+    steps = np.maximum.reduce([quat_angle(x[:-1], x[1:]) for x in (U, T, q_u, q_t)])
+    return (same & (steps > lim.turn)) + (HARD - 1.0) * (same & (steps > lim.breaking_turn))
+
+
+def _bounded_faults(rays: "_Answers", lim: Limits, hip, q_seg, U, T, l1, l2, inner, same, w,
+                    near, key, bound):
+    """(cost (n,), score (len(bound),)) of flat swing frames as _own_faults, weighted by `w`
+    (n,), and each group's score: the sum of its entries' weighted costs and crowding of the
+    neighbours' feet `near` (n, 2, 3); entries are grouped by `key` (n,). The faults are found
+    cheapest first (turns and crowding, bones through something, feet inside a solid, touching
+    feet that slide), each only for the groups whose score so far is below `bound`: a group's
+    cost and score are whole where its score is below `bound`, else its score is at least
+    `bound`."""
+    q_u, q_t, mid, end = _pose(q_seg, hip, U, T, l1, l2)
+    n = len(U)
+    cost = np.zeros(n)
+    crowd = w * _crowding(end, inner, near, lim)
+    if n > 1:
+        cost[:-1] += _turn_faults(lim, U, T, q_u, q_t, same)
+    row = np.full(n, -1)
+    reach = [l1 - 1e-9, max(l2 - lim.tol, 0.0)]
+
+    def live(where):
+        """Entries among `where` (n,) bool of the groups still below their bound, weighted."""
+        score = np.bincount(key, weights=cost * w + crowd, minlength=len(bound))
+        return np.nonzero(where & (w > 0) & (score < bound)[key])[0]
+
+    def rows(k):
+        new = k[row[k] < 0]
+        if len(new):
+            row[new] = rays.row_of(hip[new], mid[new], end[new], reach)
+        return row[k]
+
+    k = live(np.ones(n, bool))
+    r = rows(k)                 # (may grow the answers' arrays)
+    cost[k] += HARD * rays.bone[r]
+    k = live(inner)
+    k = k[rays.inside_of(rows(k), end[k], np.ones(len(k), bool))]
+    cost[k] += 1.0
+    if lim.deep > 0.0 and len(k):
+        k = k[~(rays.dist_of(rows(k), end[k]) <= lim.deep)]
+    cost[k] += HARD - 1.0
+    if n > 1:
+        slides = np.r_[same & (length(np.diff(end, axis=0)) > lim.slide), False]
+        k = live(slides)
+        both = np.unique(np.r_[k, k + 1])
+        touch = np.zeros(n, bool)
+        touch[both] = rays.dist_of(rows(both), end[both]) < lim.contact
+        cost[k] += touch[k] & touch[k + 1]
+    cost *= w
+    return cost, np.bincount(key, weights=cost + crowd, minlength=len(bound))
 
 
 def _crowding(end, inner, near_feet, lim: Limits):
@@ -664,22 +739,19 @@ def _trial(lim, hip, q_seg, U_all, T_all, sw: _Swings, feet, todo, plan) -> _Tri
                   _world_paced(qs, sk, lim.turn), np.minimum(f - sw.a[sk], sw.b[sk] - f))
 
 
-def _judged(rays, lim, tr: _Trial, j, poses, l1, l2, n: int) -> list:
+def _judged(rays, lim, tr: _Trial, j, poses, l1, l2, best) -> list:
     """[(own cost (len(j),), score (n,) per swing)] of each candidate's poses (U, T) of entries
-    j, all in one batch of rays (each entry's faults are its own)."""
-    m, sj = len(poses), tr.sk[j]
+    j, all in one batch of rays (each entry's faults are its own): whole for the swings it
+    scores below their `best` (n,) now, else a score of at least `best` (_bounded_faults)."""
+    m, sj, n = len(poses), tr.sk[j], len(best)
     same = np.tile(np.r_[sj[1:] == sj[:-1], False], m)[:-1]       # no step between candidates
-    cost, end = _own_faults(rays, lim, np.tile(tr.hp[j], (m, 1)), np.tile(tr.qs[j], (m, 1)),
-                            np.concatenate([p[0] for p in poses]),
-                            np.concatenate([p[1] for p in poses]), l1, l2,
-                            np.tile(tr.inner[j], m), same)
-    out = []
-    for c_own, e in zip(np.split(cost, m), np.split(end, m)):
-        c_own *= tr.wk[j]
-        score = np.bincount(sj, weights=c_own + tr.wk[j] * _crowding(e, tr.inner[j], tr.near[j],
-                                                                     lim), minlength=n)
-        out.append((c_own, score))
-    return out
+    key = (np.arange(m)[:, None] * n + sj).ravel()                 # candidate x swing
+    cost, score = _bounded_faults(rays, lim, np.tile(tr.hp[j], (m, 1)), np.tile(tr.qs[j], (m, 1)),
+                                  np.concatenate([p[0] for p in poses]),
+                                  np.concatenate([p[1] for p in poses]), l1, l2,
+                                  np.tile(tr.inner[j], m), same, np.tile(tr.wk[j], m),
+                                  np.tile(tr.near[j], (m, 1, 1)), key, np.tile(best, m))
+    return list(zip(np.split(cost, m), np.split(score, m)))
 
 
 def _block(i: int, entries: int) -> range:
@@ -714,7 +786,7 @@ def _redo(rays, lim, hip, q_seg, U_all, T_all, side, l1, l2, sw: _Swings, feet, 
         poses = [tr.pose(CANDIDATES[x], j, side, l1, l2, lim.turn, chosen_U, chosen_T)
                  for x in block]
         for x, (U, T), (c_own, score) in zip(block, poses,
-                                              _judged(rays, lim, tr, j, poses, l1, l2, sw.n)):
+                                              _judged(rays, lim, tr, j, poses, l1, l2, best)):
             now = todo & (best > 0)
             if x > i and (not now.any() or (CANDIDATES[x][0] in SHARED
                                             and not np.array_equal(now, open_))):
