@@ -232,28 +232,24 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     ok = (h.hit.reshape(k, n) & facing & (out_dist >= np.broadcast_to(min_out, (n,))[None])
           & (drop <= MAX_DROP * out_dist)
           & (np.linalg.norm(pts - hips[None], axis=-1) < reach))
-    # a hold is a top surface in the open: not a face inside another solid (a ray that starts
-    # inside a step finds the step's own bottom, or a buried face)
-    kk, nn = np.nonzero(ok)
-    if len(kk):
-        ok[kk, nn] = ~rays.inside(pts[kk, nn] + 0.01 * reach * up[nn])
-    # the hip must see its foothold (no wall or log side between them)
-    kk, nn = np.nonzero(ok)
-    if len(kk):
-        v = pts[kk, nn] - hips[nn]
-        dist = np.linalg.norm(v, axis=1)
-        lift = 0.02 * reach * up[nn]               # aim just above the hold: it lies on a surface
-        blocked = rays.first_hit(hips[nn], v + lift, max_distance=dist).hit
-        ok[kk[blocked], nn[blocked]] = False
-    # holds away from a step's edge are preferred: the surface `edge` around them is level
-    # (a foot at a stair's nosing or at the foot of a riser leaves its tip bone no room)
-    kk, nn = np.nonzero(ok)
-    if len(kk):
-        level = is_level(rays, pts[kk, nn], up[nn], inward[nn], edge)
-        flat = np.zeros_like(ok)
-        flat[kk[level], nn[level]] = True
-        prefer = flat.any(axis=0)
-        ok &= np.where(prefer[None, :], flat, True)
+    # of the candidates that pass, a foot takes the first that is usable and level (_usable),
+    # else the first usable: each foot's first is checked alone, the rest only for the feet
+    # whose first is not both
+    has = ok.any(axis=0)
+    p1 = np.nonzero(has)[0]
+    c1 = np.argmax(ok, axis=0)[p1]
+    use1, flat1 = _usable(rays, pts, up, inward, hips, reach, edge, c1, p1)
+    rest = has.copy()
+    rest[p1[use1 & flat1]] = False
+    more = ok & rest[None, :]
+    more[c1[rest[p1]], p1[rest[p1]]] = False
+    kk, nn = np.nonzero(more)
+    use2, flat2 = _usable(rays, pts, up, inward, hips, reach, edge, kk, nn)
+    ok = np.zeros_like(ok)
+    flat = np.zeros_like(ok)
+    ok[c1, p1], flat[c1, p1] = use1, use1 & flat1
+    ok[kk, nn], flat[kk, nn] = use2, use2 & flat2
+    ok &= np.where(flat.any(axis=0)[None, :], flat, True)
     # without a usable hold the foot still goes on the surface, never into it: the first
     # candidate that meets an upward face, out of reach or not (IK leaves such a foot short,
     # in the air), else the point itself
@@ -263,6 +259,30 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     out = points.copy()
     out[any_ok] = pts[first[any_ok], np.nonzero(any_ok)[0]]
     return out
+
+
+def _usable(rays, pts, up, inward, hips, reach: float, edge: float, kk, nn):
+    """(usable (m,) bool, level (m,) bool) of candidate footholds pts[kk, nn] (pts (k, n, 3);
+    up, inward, hips (n, 3)) for project_footholds: a hold is a top surface in the open (not a
+    face inside another solid: a ray that starts inside a step finds the step's own bottom, or
+    a buried face) that its hip sees (no wall or log side between them); level (is_level, read
+    for usable holds only): the surface `edge` around it is level (a foot at a stair's nosing
+    or at the foot of a riser leaves its tip bone no room)."""
+    ok = np.zeros(len(kk), bool)
+    level = np.zeros(len(kk), bool)
+    if len(kk) == 0:
+        return ok, level
+    ok[:] = ~rays.inside(pts[kk, nn] + 0.01 * reach * up[nn])
+    i = np.nonzero(ok)[0]
+    if len(i):
+        v = pts[kk[i], nn[i]] - hips[nn[i]]
+        dist = np.linalg.norm(v, axis=1)
+        lift = 0.02 * reach * up[nn[i]]            # aim just above the hold: it lies on a surface
+        ok[i[rays.first_hit(hips[nn[i]], v + lift, max_distance=dist).hit]] = False
+    i = np.nonzero(ok)[0]
+    if len(i):
+        level[i] = is_level(rays, pts[kk[i], nn[i]], up[nn[i]], inward[nn[i]], edge)
+    return ok, level
 
 
 def _faces_up(normals: np.ndarray, up: np.ndarray) -> np.ndarray:
