@@ -36,7 +36,7 @@ only where the swing then breaks a limit in fewer frames.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from itertools import repeat
 
 import numpy as np
@@ -677,12 +677,26 @@ class _Trial:
     u_c: np.ndarray
     u_world: np.ndarray
     from_end: np.ndarray
+    #: the slerps of the last entries asked about, per pace and delay (_arc)
+    arcs: dict = field(default_factory=dict)
+
+    def _arc(self, j, uj, key):
+        """(U, T) the slerps from the first to the last pose of entries j at progress uj,
+        kept for the next candidates of the same entries, pace and delay (`key`): one per key."""
+        got = self.arcs.get(key)
+        if got is not None and np.array_equal(got[0], j):
+            return got[1], got[2]
+        U = quat_slerp(self.U_first[j], self.U_last[j], uj)
+        T = quat_slerp(self.T_first[j], self.T_last[j], uj)
+        self.arcs[key] = (j, U, T)
+        return U, T
 
     def pose(self, cand, j, side, l1, l2, turn, chosen_U, chosen_T):
         """(U, T) local poses of entries j under candidate `cand` (see _candidates); "peak"
         spreads the chosen poses chosen_U, chosen_T."""
         kind, profile, r, swivel, flex, delay, yaw = cand
         sj, uj, s = self.sk[j], self.u[j], side[self.lg[j]]
+        pace = (kind.endswith("/world"), delay)
         if kind.endswith("/world"):       # paced by the turn the segment leaves the leg
             kind, uj = kind[:-6], self.u_world[j]
         cap = np.inf
@@ -705,9 +719,8 @@ class _Trial:
             U = quat_mul(quat_about(axis, s * r * bump), self.U0[j])
             T = self.T0[j]
         else:
-            U = quat_mul(quat_about(axis, s * np.minimum(r * profile(uj), cap)),
-                         quat_slerp(self.U_first[j], self.U_last[j], uj))
-            T = quat_slerp(self.T_first[j], self.T_last[j], uj)
+            U, T = self._arc(j, uj, pace)
+            U = quat_mul(quat_about(axis, s * np.minimum(r * profile(uj), cap)), U)
         if swivel:
             U = _swivel(U, T, swivel * profile(uj), l1, l2)
         if yaw:
