@@ -170,9 +170,10 @@ def _flex(U, T, angle, l1, l2):
     """Tip-bone local rotations T (n, 4) bent by `angle` (n,) about the knee's hinge (the upper
     bone's local +X), the way that draws the foot toward the hip (tucks the leg in)."""
     out = []
+    knee = quat_rotate(U, l1 * _Y)
     for sgn in (1.0, -1.0):
         Tk = quat_mul(quat_about(np.broadcast_to(_X, U.shape[:-1] + (3,)), sgn * angle), T)
-        foot = quat_rotate(U, l1 * _Y) + quat_rotate(quat_mul(U, Tk), l2 * _Y)
+        foot = knee + quat_rotate(quat_mul(U, Tk), l2 * _Y)
         out.append((Tk, length(foot)))
     return np.where((out[0][1] <= out[1][1])[:, None], out[0][0], out[1][0])
 
@@ -421,9 +422,14 @@ def _bounded_faults(rays: "_Answers", lim: Limits, hip, q_seg, U, T, l1, l2, inn
     if n > 1:
         slides = np.r_[same & (length(np.diff(end, axis=0)) > lim.slide), False]
         k = live(slides)
-        both = np.unique(np.r_[k, k + 1])
+        # the even entry of each pair first: a pair whose even entry is clear of the surface
+        # is settled without the other
         touch = np.zeros(n, bool)
-        touch[both] = rays.dist_of(rows(both), end[both]) < lim.contact
+        odd = k % 2 == 1
+        e = np.unique(np.where(odd, k + 1, k))
+        touch[e] = rays.dist_of(rows(e), end[e]) < lim.contact
+        e = np.unique(np.where(odd, k, k + 1)[touch[k] | touch[k + 1]])
+        touch[e] = rays.dist_of(rows(e), end[e]) < lim.contact
         cost[k] += touch[k] & touch[k + 1]
     cost *= w
     return cost, np.bincount(key, weights=cost + crowd, minlength=len(bound))
