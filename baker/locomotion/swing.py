@@ -256,17 +256,16 @@ def _world_paced(q_seg, sid, turn):
 class _Answers:
     """A RayCaster's answers about leg poses, kept for the poses asked about again (a swing
     nothing improves is tried with the same candidates in every round, clipped and eased
-    candidates repeat poses): whether a bone passes through something and, once asked for,
-    the foot's distance to the surface and whether the foot is inside a solid. Poses are told
-    apart by the exact bits of their hip, knee and foot; the bones' ray lengths must be the
-    same in every question (one joint_space_swings call)."""
+    candidates repeat poses): once asked for, the foot's distance to the surface and whether
+    the foot is inside a solid (whether a bone passes through something is cast afresh: two
+    rays cost less than looking a pose up). Poses are told apart by the exact bits of their
+    hip, knee and foot."""
 
-    def __init__(self, rays, reach=None):
-        self.rays, self.reach = rays, reach
+    def __init__(self, rays):
+        self.rays = rays
         self.rows = {}                          # a pose's hash -> its row
         self.n = 0
         self.key = np.zeros((0, 9), np.uint64)  # each row's hip, knee, foot (bits)
-        self.bone = np.zeros(0, bool)
         self.dist = np.zeros(0)                 # NaN: not asked yet
         self.inside = np.zeros(0, np.int8)      # -1: not asked yet
 
@@ -277,14 +276,22 @@ class _Answers:
     def ask(self, hip, mid, end, inner, reach):
         """(bone (n,) bool, dist (n,), inside (n,) bool: asked for `inner` entries only) of
         poses hip -> mid -> end (n, 3); reach: the two bones' ray lengths."""
-        row = self.row_of(hip, mid, end, reach)
-        return self.bone[row], self.dist_of(row, end), self.inside_of(row, end, inner)
+        row = self.row_of(hip, mid, end)
+        return (self.bones(hip, mid, end, reach), self.dist_of(row, end),
+                self.inside_of(row, end, inner))
 
-    def row_of(self, hip, mid, end, reach) -> np.ndarray:
-        """(n,) the rows of poses hip -> mid -> end (n, 3), new poses added (their bones asked
-        about); reach: the two bones' ray lengths."""
-        if reach != self.reach:
-            self.__init__(self.rays, reach)     # other bones: nothing known holds
+    def bones(self, hip, mid, end, reach) -> np.ndarray:
+        """(n,) bool: either bone of poses hip -> mid -> end (n, 3) passes through something
+        (both bones' rays in one batch; each ray's hit is its own: Embree casts them one by
+        one); reach: the two bones' ray lengths."""
+        n = len(hip)
+        prim = self.rays.cast(np.concatenate([hip, mid]),
+                              np.concatenate([normalize(mid - hip), normalize(end - mid)]),
+                              np.repeat(reach, n))[1]
+        return (prim[:n] >= 0) | (prim[n:] >= 0)
+
+    def row_of(self, hip, mid, end) -> np.ndarray:
+        """(n,) the rows of poses hip -> mid -> end (n, 3), new poses added."""
         key = np.concatenate([hip, mid, end], axis=1).view(np.uint64)
         h = np.zeros(len(key), np.uint64)
         for c in range(9):
@@ -297,8 +304,7 @@ class _Answers:
             _, first, inv = np.unique(h[new], return_index=True, return_inverse=True)
             if not (key[new[first]][inv] == key[new]).all():     # a hash shared: ask each
                 first, inv = np.arange(len(new)), np.arange(len(new))
-            row[new] = self._add(key[new[first]], h[new[first]], hip[new[first]],
-                                 mid[new[first]], end[new[first]], reach)[inv]
+            row[new] = self._add(key[new[first]], h[new[first]])[inv]
         return row
 
     def dist_of(self, row, end) -> np.ndarray:
@@ -319,21 +325,15 @@ class _Answers:
             self.inside[r] = self.rays.inside(end[ask[first]])
         return self.inside[row] == 1
 
-    def _add(self, key, h, hip, mid, end, reach) -> np.ndarray:
-        """The rows of new poses (m,), both bones' rays in one batch (each ray's hit is its
-        own: Embree casts them one by one)."""
+    def _add(self, key, h) -> np.ndarray:
+        """The rows of new poses (m,), nothing asked about them yet."""
         m = len(key)
-        prim = self.rays.cast(np.concatenate([hip, mid]),
-                              np.concatenate([normalize(mid - hip), normalize(end - mid)]),
-                              np.repeat(reach, m))[1]
         rows = np.arange(self.n, self.n + m)
-        if self.n + m > len(self.bone):
-            size = max(2 * len(self.bone), self.n + m, 1024)
+        if self.n + m > len(self.dist):
+            size = max(2 * len(self.dist), self.n + m, 1024)
             self.key = np.resize(self.key, (size, 9))
-            self.bone, self.dist = np.resize(self.bone, size), np.resize(self.dist, size)
-            self.inside = np.resize(self.inside, size)
+            self.dist, self.inside = np.resize(self.dist, size), np.resize(self.inside, size)
         self.key[rows] = key
-        self.bone[rows] = (prim[:m] >= 0) | (prim[m:] >= 0)
         self.dist[rows] = np.nan
         self.inside[rows] = -1
         self.rows.update(zip(h.tolist(), rows.tolist()))
@@ -407,12 +407,11 @@ def _bounded_faults(rays: "_Answers", lim: Limits, hip, q_seg, U, T, l1, l2, inn
     def rows(k):
         new = k[row[k] < 0]
         if len(new):
-            row[new] = rays.row_of(hip[new], mid[new], end[new], reach)
+            row[new] = rays.row_of(hip[new], mid[new], end[new])
         return row[k]
 
     k = live(np.ones(n, bool))
-    r = rows(k)                 # (may grow the answers' arrays)
-    cost[k] += HARD * rays.bone[r]
+    cost[k] += HARD * rays.bones(hip[k], mid[k], end[k], reach)
     k = live(inner)
     k = k[rays.inside_of(rows(k), end[k], np.ones(len(k), bool))]
     cost[k] += 1.0
