@@ -365,11 +365,9 @@ def _own_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same):
     through the environment; an inner frame's foot inside a solid; a joint turning more than
     `turn` to the next entry; a foot touching a surface in this and the next entry while it
     slides more than `slide`. A near miss costs 1, a broken limit HARD (see Limits)."""
-    cost, q_u, q_t, end, touch = _node_faults(rays, lim, hip, q_seg, U, T, l1, l2, inner)
-    if len(U) > 1:
-        slide = length(np.diff(end, axis=0))
-        cost[:-1] += same & touch[:-1] & touch[1:] & (slide > lim.slide)
-        cost[:-1] += _turn_faults(lim, U, T, q_u, q_t, same)
+    n = len(U)
+    cost, _, end = _bounded_faults(_Answers.of(rays), lim, hip, q_seg, U, T, l1, l2, inner, same,
+                                   np.ones(n), None, np.zeros(n, np.int64), np.array([np.inf]))
     return cost, end
 
 
@@ -383,9 +381,10 @@ def _turn_faults(lim: Limits, U, T, q_u, q_t, same) -> np.ndarray:
 
 def _bounded_faults(rays: "_Answers", lim: Limits, hip, q_seg, U, T, l1, l2, inner, same, w,
                     near, key, bound):
-    """(cost (n,), score (len(bound),)) of flat swing frames as _own_faults, weighted by `w`
-    (n,), and each group's score: the sum of its entries' weighted costs and crowding of the
-    neighbours' feet `near` (n, 2, 3); entries are grouped by `key` (n,). The faults are found
+    """(cost (n,), score (len(bound),), feet (n, 3)) of flat swing frames as _own_faults,
+    weighted by `w` (n,), and each group's score: the sum of its entries' weighted costs and
+    crowding of the neighbours' feet `near` (n, 2, 3; None: no crowding); entries are grouped
+    by `key` (n,). The faults are found
     cheapest first (turns and crowding, bones through something, feet inside a solid, touching
     feet that slide), each only for the groups whose score so far is below `bound`: a group's
     cost and score are whole where its score is below `bound`, else its score is at least
@@ -393,7 +392,7 @@ def _bounded_faults(rays: "_Answers", lim: Limits, hip, q_seg, U, T, l1, l2, inn
     q_u, q_t, mid, end = _pose(q_seg, hip, U, T, l1, l2)
     n = len(U)
     cost = np.zeros(n)
-    crowd = w * _crowding(end, inner, near, lim)
+    crowd = np.zeros(n) if near is None else w * _crowding(end, inner, near, lim)
     if n > 1:
         cost[:-1] += _turn_faults(lim, U, T, q_u, q_t, same)
     row = np.full(n, -1)
@@ -431,7 +430,7 @@ def _bounded_faults(rays: "_Answers", lim: Limits, hip, q_seg, U, T, l1, l2, inn
         touch[e] = rays.dist_of(rows(e), end[e]) < lim.contact
         cost[k] += touch[k] & touch[k + 1]
     cost *= w
-    return cost, np.bincount(key, weights=cost + crowd, minlength=len(bound))
+    return cost, np.bincount(key, weights=cost + crowd, minlength=len(bound)), end
 
 
 def _crowding(end, inner, near_feet, lim: Limits):
@@ -764,11 +763,11 @@ def _judged(rays, lim, tr: _Trial, j, poses, l1, l2, best) -> list:
     m, sj, n = len(poses), tr.sk[j], len(best)
     same = np.tile(np.r_[sj[1:] == sj[:-1], False], m)[:-1]       # no step between candidates
     key = (np.arange(m)[:, None] * n + sj).ravel()                 # candidate x swing
-    cost, score = _bounded_faults(rays, lim, np.tile(tr.hp[j], (m, 1)), np.tile(tr.qs[j], (m, 1)),
-                                  np.concatenate([p[0] for p in poses]),
-                                  np.concatenate([p[1] for p in poses]), l1, l2,
-                                  np.tile(tr.inner[j], m), same, np.tile(tr.wk[j], m),
-                                  np.tile(tr.near[j], (m, 1, 1)), key, np.tile(best, m))
+    cost, score, _ = _bounded_faults(
+        rays, lim, np.tile(tr.hp[j], (m, 1)), np.tile(tr.qs[j], (m, 1)),
+        np.concatenate([p[0] for p in poses]), np.concatenate([p[1] for p in poses]), l1, l2,
+        np.tile(tr.inner[j], m), same, np.tile(tr.wk[j], m), np.tile(tr.near[j], (m, 1, 1)), key,
+        np.tile(best, m))
     return list(zip(np.split(cost, m), np.split(score, m)))
 
 
