@@ -384,11 +384,10 @@ def _bounded_faults(rays: "_Answers", lim: Limits, hip, q_seg, U, T, l1, l2, inn
     """(cost (n,), score (len(bound),), feet (n, 3)) of flat swing frames as _own_faults,
     weighted by `w` (n,), and each group's score: the sum of its entries' weighted costs and
     crowding of the neighbours' feet `near` (n, 2, 3; None: no crowding); entries are grouped
-    by `key` (n,). The faults are found
-    cheapest first (turns and crowding, bones through something, feet inside a solid, touching
-    feet that slide), each only for the groups whose score so far is below `bound`: a group's
-    cost and score are whole where its score is below `bound`, else its score is at least
-    `bound`."""
+    by `key` (n,). The faults are found cheapest first (turns and crowding, bones through
+    something, feet inside a solid, touching feet that slide), each only for the groups whose
+    score so far is below `bound`: a group's cost and score are whole where its score is below
+    `bound`, else its score is at least `bound`."""
     q_u, q_t, mid, end = _pose(q_seg, hip, U, T, l1, l2)
     n = len(U)
     cost = np.zeros(n)
