@@ -29,6 +29,8 @@ import warnings
 
 #: the function the forked children call (set just before the pool forks them)
 _TASK = None
+#: in a fork_map child: the processes of its pool (they share this machine's CPUs)
+_SHARE = 1
 
 
 def available_cpus() -> int:
@@ -41,13 +43,24 @@ def available_cpus() -> int:
 
 def thread_count() -> int:
     """Threads for GIL-free work (thread_map): the CPUs this process may use, or 1 inside a
-    daemonic process (a `baker batch` worker: the batch already keeps the cores busy)."""
-    return 1 if multiprocessing.current_process().daemon else available_cpus()
+    daemonic process (a `baker batch` worker: the batch already keeps the cores busy); in a
+    fork_map child, its share of them (one each for two workers on two CPUs)."""
+    if multiprocessing.current_process().daemon:
+        return 1
+    return max(1, available_cpus() // _SHARE)
 
 
 def can_fork() -> bool:
     """True where fork_map may fork: Linux, and not inside a daemonic process."""
     return sys.platform.startswith("linux") and not multiprocessing.current_process().daemon
+
+
+def _child_start(workers: int) -> None:
+    """A fork_map child: its share of the CPUs (thread_count), and its signals
+    (_child_signals)."""
+    global _SHARE
+    _SHARE = max(1, int(workers))
+    _child_signals()
 
 
 def _child_signals() -> None:
@@ -87,7 +100,7 @@ def fork_map(fn, n: int, workers: int) -> list:
             warnings.filterwarnings("ignore", r".*fork\(\) may lead to deadlocks",
                                     DeprecationWarning)
             pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
-                                       initializer=_child_signals)
+                                       initializer=_child_start, initargs=(workers,))
             out = list(pool.map(_call, range(n)))
         pool.shutdown()
         return out

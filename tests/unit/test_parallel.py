@@ -111,3 +111,13 @@ def test_in_background_gives_the_result_or_the_error(monkeypatch):
         wait = parallel.in_background(boom)
         with pytest.raises(ValueError, match="no"):
             wait()
+
+
+@forks
+def test_a_fork_map_child_takes_its_share_of_the_cpus(monkeypatch):
+    """Two workers on four CPUs cast on two threads each; on two CPUs, one each (the pool
+    keeps the cores busy). The parent keeps all of them."""
+    for cpus, share in ((4, 2), (2, 1), (1, 1)):
+        monkeypatch.setattr(parallel, "available_cpus", lambda: cpus)
+        assert fork_map(lambda i: parallel.thread_count(), 2, 2) == [share, share]
+        assert parallel.thread_count() == cpus
