@@ -272,28 +272,37 @@ def chain_on(trails: np.ndarray, lift: np.ndarray, spacing: float,
     rows = np.arange(n)
     out = np.empty((n, S, 3))
     out[:, 0] = trails[:, -1] + lift[:, :1] * UP
-    at = np.full(n, m - 2)               # the first sample behind the joint ahead
     # bracket within four spacings back, as place_chain does (the trail can fold back)
-    look = np.arange(min(int(round(4.0 * spacing / res)) + 1, m))
+    L = min(int(round(4.0 * spacing / res)) + 1, m)
+    look = np.arange(L)
+    # the trail with its first point repeated L - 1 times before it: a sample before the
+    # start is the start, without clamping each joint's indices
+    padded = np.concatenate([np.repeat(trails[:, :1], L - 1, axis=1), trails], axis=1)
+    at = np.full(n, m - 2 + L - 1)       # the first sample behind the joint ahead (in padded)
     raise_by = lift[:, :, None, None] * UP                                  # (n, S, 1, 3)
+    # the joint ahead, then the candidates behind it; a True after the candidates: "none far"
+    cand = np.empty((n, L + 1, 3))
+    far = np.ones((n, L + 1), dtype=bool)
     for i in range(1, S):
-        prev = out[:, i - 1]
-        k = np.maximum(at[:, None] - look[None, :], 0)                       # (n, L)
-        cand = trails[rows[:, None], k] + raise_by[:, i]
-        far = length(cand - prev[:, None, :]) > spacing
-        j = np.where(far.any(axis=1), np.argmax(far, axis=1), len(look) - 1)
+        prev = cand[:, 0] = out[:, i - 1]
+        np.add(padded[rows[:, None], at[:, None] - look], raise_by[:, i], out=cand[:, 1:])
+        v = cand[:, 1:] - prev[:, None, :]
+        v *= v
+        np.greater(np.sqrt(v[..., 0] + v[..., 1] + v[..., 2]), spacing, out=far[:, :L])
+        first = np.argmax(far, axis=1)             # L: none is a spacing or more away
+        j = np.minimum(first, L - 1)
         # the joint lies between candidate j (a spacing or more away) and the one before it
         # (nearer; for j = 0, the joint ahead's own point)
-        a = cand[rows, j]
-        b = np.where((j > 0)[:, None], cand[rows, np.maximum(j - 1, 0)], prev)
+        a, b = cand[rows, j + 1], cand[rows, j]
         d, e = a - b, b - prev
         qa = np.einsum("ij,ij->i", d, d)
         qb = 2.0 * np.einsum("ij,ij->i", d, e)
         qc = np.einsum("ij,ij->i", e, e) - spacing * spacing
         t = (-qb + np.sqrt(np.maximum(qb * qb - 4.0 * qa * qc, 0.0))) / np.maximum(2.0 * qa, 1e-18)
-        t = np.where(far[rows, j], np.clip(t, 0.0, 1.0), 1.0)
+        # np.clip(t, 0.0, 1.0)'s bits (a -0.0 and a NaN kept) at a fraction of its cost
+        t = np.where(first < L, np.minimum(np.maximum(0.0, t), 1.0), 1.0)
         out[:, i] = b + t[:, None] * d
-        at = k[rows, j]
+        at = np.maximum(at - j, L - 1)
     return out
 
 
