@@ -275,17 +275,21 @@ def chain_on(trails: np.ndarray, lift: np.ndarray, spacing: float,
     # bracket within four spacings back, as place_chain does (the trail can fold back)
     L = min(int(round(4.0 * spacing / res)) + 1, m)
     look = np.arange(L)
-    # the trail with its first point repeated L - 1 times before it: a sample before the
-    # start is the start, without clamping each joint's indices
-    padded = np.concatenate([np.repeat(trails[:, :1], L - 1, axis=1), trails], axis=1)
-    at = np.full(n, m - 2 + L - 1)       # the first sample behind the joint ahead (in padded)
+    # the trails with their first points repeated L - 1 times before them, one after the
+    # other: a sample before a start is the start, without clamping each joint's indices
+    M = m + L - 1
+    flat = np.concatenate([np.repeat(trails[:, :1], L - 1, axis=1), trails], axis=1).reshape(-1, 3)
+    at = rows * M + (M - 2)              # the first sample behind the joint ahead (in flat)
+    start = rows * M + (L - 1)
     raise_by = lift[:, :, None, None] * UP                                  # (n, S, 1, 3)
     # the joint ahead, then the candidates behind it; a True after the candidates: "none far"
     cand = np.empty((n, L + 1, 3))
+    cands = cand.reshape(-1, 3)
+    ahead = rows * (L + 1)
     far = np.ones((n, L + 1), dtype=bool)
     for i in range(1, S):
         prev = cand[:, 0] = out[:, i - 1]
-        np.add(padded[rows[:, None], at[:, None] - look], raise_by[:, i], out=cand[:, 1:])
+        np.add(flat[at[:, None] - look], raise_by[:, i], out=cand[:, 1:])
         v = cand[:, 1:] - prev[:, None, :]
         v *= v
         np.greater(np.sqrt(v[..., 0] + v[..., 1] + v[..., 2]), spacing, out=far[:, :L])
@@ -293,7 +297,8 @@ def chain_on(trails: np.ndarray, lift: np.ndarray, spacing: float,
         j = np.minimum(first, L - 1)
         # the joint lies between candidate j (a spacing or more away) and the one before it
         # (nearer; for j = 0, the joint ahead's own point)
-        a, b = cand[rows, j + 1], cand[rows, j]
+        b = cands[ahead + j]
+        a = cands[ahead + j + 1]
         d, e = a - b, b - prev
         qa = np.einsum("ij,ij->i", d, d)
         qb = 2.0 * np.einsum("ij,ij->i", d, e)
@@ -302,7 +307,7 @@ def chain_on(trails: np.ndarray, lift: np.ndarray, spacing: float,
         # np.clip(t, 0.0, 1.0)'s bits (a -0.0 and a NaN kept) at a fraction of its cost
         t = np.where(first < L, np.minimum(np.maximum(0.0, t), 1.0), 1.0)
         out[:, i] = b + t[:, None] * d
-        at = np.maximum(at - j, L - 1)
+        at = np.maximum(at - j, start)
     return out
 
 
