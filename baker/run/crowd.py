@@ -17,6 +17,7 @@ across.
 
 from __future__ import annotations
 
+import functools
 import logging
 
 import numpy as np
@@ -40,6 +41,8 @@ log = logging.getLogger(__name__)
 
 #: steps between neighbour queries (the body points change as the heads move on)
 AVOID_EVERY = 4
+#: cobra lift profiles kept by amount (Bodies.lift)
+LIFT_CACHE = 64
 #: start draws per creature before the one farthest from the others is taken
 START_TRIES = 48
 
@@ -202,9 +205,13 @@ def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
                     cobra_mode=cfg.cobra, claims=claims, who=i) for i, st in enumerate(streams)]
     clock = Clock(cfg)
     lines = [start_line(nav, rig, s, h) for s, h in starts]
+    # a raised cobra's amount stays at 1 (and the bodies are placed every few steps): the
+    # profiles of the last amounts are kept (Bodies copies them)
     bodies = Bodies(lines, clock.n_steps, rig.body.spacing, rig.body.segments,
-                    lift=lambda a: lift_profile(np.array([a]), rig.cobra.curve, rig.cobra.height,
-                                                rig.body.segments)[0], tail=tail_points(rig))
+                    lift=functools.lru_cache(maxsize=LIFT_CACHE)(
+                        lambda a: lift_profile(np.array([a]), rig.cobra.curve, rig.cobra.height,
+                                               rig.body.segments)[0]),
+                    tail=tail_points(rig))
     heads = np.empty((n, clock.n_steps + 1, 3))
     heads[:, 0] = [s for s, _ in starts]
     bodies.advance(heads[:, 0])
