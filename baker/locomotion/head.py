@@ -239,9 +239,12 @@ class HeadSteer:
             into."""
             c, sn = math.cos(t), math.sin(t)
             dx, dz = c * hx + sn * hz, -sn * hx + c * hz
-            return (allowed(bx + dx * s, bz + dz * s)
-                    and all(allowed(bx + dx * r, bz + dz * r)
-                            for r in way_points(bx, bz, dx, dz, s, reach, self.grid)))
+            if not allowed(bx + dx * s, bz + dz * s):
+                return False
+            for r in way_points(bx, bz, dx, dz, s, reach, self.grid):
+                if not allowed(bx + dx * r, bz + dz * r):
+                    return False
+            return True
 
         turns = ((a, step), *((max(-tight, min(tight, a + sd * f * tight)), slow)
                               for f in _TIGHT for sd in (side, -side)))
