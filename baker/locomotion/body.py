@@ -282,23 +282,29 @@ def chain_on(trails: np.ndarray, lift: np.ndarray, spacing: float,
     at = rows * M + (M - 2)              # the first sample behind the joint ahead (in flat)
     start = rows * M + (L - 1)
     raise_by = lift[:, :, None, None] * UP                                  # (n, S, 1, 3)
-    # the joint ahead, then the candidates behind it; a True after the candidates: "none far"
-    cand = np.empty((n, L + 1, 3))
-    cands = cand.reshape(-1, 3)
-    ahead = rows * (L + 1)
-    far = np.ones((n, L + 1), dtype=bool)
+    # joints no trail raises (every raise +0.0): x + 0.0 taken once for all of them
+    plain = (~((raise_by != 0.0) | np.signbit(raise_by)).any(axis=(0, 2, 3))).tolist()
+    flat0 = flat + 0.0
+    first_of = rows * L
+    far = np.ones((n, L + 1), dtype=bool)    # a True after the candidates: "none far"
     for i in range(1, S):
-        prev = cand[:, 0] = out[:, i - 1]
-        np.add(flat[at[:, None] - look], raise_by[:, i], out=cand[:, 1:])
-        v = cand[:, 1:] - prev[:, None, :]
+        prev = out[:, i - 1]
+        if plain[i]:
+            cand = np.take(flat0, at[:, None] - look, axis=0)                    # (n, L, 3)
+        else:
+            cand = np.take(flat, at[:, None] - look, axis=0)
+            cand += raise_by[:, i]
+        v = cand - prev[:, None, :]
         v *= v
         np.greater(np.sqrt(v[..., 0] + v[..., 1] + v[..., 2]), spacing, out=far[:, :L])
         first = np.argmax(far, axis=1)             # L: none is a spacing or more away
         j = np.minimum(first, L - 1)
         # the joint lies between candidate j (a spacing or more away) and the one before it
         # (nearer; for j = 0, the joint ahead's own point)
-        b = cands[ahead + j]
-        a = cands[ahead + j + 1]
+        k = first_of + j
+        cands = cand.reshape(-1, 3)
+        a = np.take(cands, k, axis=0)
+        b = np.where((j > 0)[:, None], np.take(cands, k - 1, axis=0), prev)
         d, e = a - b, b - prev
         qa = np.einsum("ij,ij->i", d, d)
         qb = 2.0 * np.einsum("ij,ij->i", d, e)
