@@ -26,9 +26,9 @@ def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     p = np.multiply(a, b)
     if p.dtype != np.float64 or p.shape[-1:] not in ((3,), (4,)):
         return np.sum(p, axis=-1)
-    out = p[..., 0] + p[..., 1]
+    out = np.add(p[..., 0], p[..., 1])
     for k in range(2, p.shape[-1]):
-        out = out + p[..., k]
+        out += p[..., k]
     return out
 
 
@@ -44,15 +44,23 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     without its axis handling, which costs more than the products on small batches; each
     component is written into the result in place (no stacking: several times faster on
     large batches)."""
-    a = np.asarray(a, dtype=np.float64)
-    b = np.asarray(b, dtype=np.float64)
+    a = _float64(a)
+    b = _float64(b)
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    for k, (p, q, r, s) in enumerate(((a1, b2, a2, b1), (a2, b0, a0, b2), (a0, b1, a1, b0))):
-        o = np.multiply(p, q, out=out[..., k])
-        o -= r * s
+    out = np.empty(a.shape if a.shape == b.shape else np.broadcast_shapes(a.shape, b.shape))
+    o = np.multiply(a1, b2, out=out[..., 0])
+    o -= a2 * b1
+    o = np.multiply(a2, b0, out=out[..., 1])
+    o -= a0 * b2
+    o = np.multiply(a0, b1, out=out[..., 2])
+    o -= a1 * b0
     return out
+
+
+def _float64(a) -> np.ndarray:
+    """np.asarray(a, dtype=np.float64), without its call for what already is one."""
+    return a if type(a) is np.ndarray and a.dtype == np.float64 else np.asarray(a, np.float64)
 
 
 def frames_to_quat(forward: np.ndarray, up: np.ndarray) -> np.ndarray:
@@ -78,11 +86,26 @@ def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     written into the result in place, not stacked)."""
     ax, ay, az, aw = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
     bx, by, bz, bw = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape), dtype=np.result_type(a, b))
-    out[..., 0] = aw * bx + ax * bw + ay * bz - az * by
-    out[..., 1] = aw * by - ax * bz + ay * bw + az * bx
-    out[..., 2] = aw * bz + ax * by - ay * bx + az * bw
-    out[..., 3] = aw * bw - ax * bx - ay * by - az * bz
+    same = a.shape == b.shape and a.dtype == b.dtype
+    out = np.empty(a.shape if same else np.broadcast_shapes(a.shape, b.shape),
+                   dtype=a.dtype if same else np.result_type(a, b))
+    # each sum left to right, accumulated in its column of the result
+    o = np.multiply(aw, bx, out=out[..., 0])
+    o += ax * bw
+    o += ay * bz
+    o -= az * by
+    o = np.multiply(aw, by, out=out[..., 1])
+    o -= ax * bz
+    o += ay * bw
+    o += az * bx
+    o = np.multiply(aw, bz, out=out[..., 2])
+    o += ax * by
+    o -= ay * bx
+    o += az * bw
+    o = np.multiply(aw, bw, out=out[..., 3])
+    o -= ax * bx
+    o -= ay * by
+    o -= az * bz
     return out
 
 
@@ -179,8 +202,15 @@ def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Rotate vectors v (..., 3) by unit quaternions q (..., 4), xyzw."""
     qv = q[..., :3]
     w = q[..., 3:4]
-    t = 2.0 * cross(qv, v)
-    return v + w * t + cross(qv, t)
+    t = cross(qv, v)
+    t *= 2.0
+    out = w * t                 # v + w * t + cross(qv, t), summed in that order in place
+    if np.shape(v) == out.shape or np.broadcast_shapes(np.shape(v), out.shape) == out.shape:
+        out = np.add(v, out, out=out)
+    else:
+        out = v + out
+    out += cross(qv, t)
+    return out
 
 
 def make_sign_continuous(q: np.ndarray, axis: int = 0) -> np.ndarray:
