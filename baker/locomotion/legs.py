@@ -410,8 +410,8 @@ class _Frames:
         F = self.shape[0]
         lay, hip, span = self.lay, self.hip, self.span
         fw_ext = np.clip(start[:, None] - 1 + np.arange(width + 1)[None, :], 0, F - 1)
-        rel_ext = quat_rotate(self.q_inv[fw_ext, ll[:, None]],
-                              hold[:, None, :] - hip[fw_ext, ll[:, None]])
+        q_inv, hip_ext = self.q_inv[fw_ext, ll[:, None]], hip[fw_ext, ll[:, None]]
+        rel_ext = quat_rotate(q_inv, hold[:, None, :] - hip_ext)
         fw, rel = fw_ext[:, 1:], rel_ext[:, 1:]
         n_ext = np.sqrt(np.einsum("lwi,lwi->lw", rel_ext, rel_ext))
         bad = ((rel[..., 0] * lay.side[ll, None] < self.out_min[ll, None])
@@ -421,9 +421,9 @@ class _Frames:
             n_ext[:, 1:] * n_ext[:, :-1], 1e-300)
         bad |= cos_t < np.cos(STANCE_TURN)
         # ... or turn one of its bones too fast in a frame (near a straight or folded knee)
-        bad |= _stance_turns(hip[fw_ext, ll[:, None]], hold, self.fwd[fw_ext, ll[:, None]],
-                             self.left[fw_ext, ll[:, None]], self.q_inv[fw_ext, ll[:, None]],
-                             lay, ll, self.lg.knee_out) > SWING_TURN
+        bad |= _stance_turns(hip_ext, hold, self.fwd[fw_ext, ll[:, None]],
+                             self.left[fw_ext, ll[:, None]], q_inv, lay, ll,
+                             self.lg.knee_out) > SWING_TURN
         if sight:
             hp = hip[fw, ll[:, None]].reshape(-1, 3)
             v = np.broadcast_to(hold[:, None, :], fw.shape + (3,)).reshape(-1, 3) - hp
@@ -1065,10 +1065,11 @@ def _stance_turns(hip, hold, fwd, left, q_inv, lay, legs, knee_out) -> np.ndarra
     sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
     sw = (lambda a: np.swapaxes(a, 0, 1))
     m, hg = quat_rotate(q_inv, sol.mid - hip), quat_rotate(q_inv, sol.hinge)
-    steps = np.maximum.reduce([_frame_steps(sw(hip), sw(sol.mid), sw(sol.hinge)),
-                               _frame_steps(sw(sol.mid), sw(sol.end), sw(sol.hinge)),
-                               _frame_steps(np.zeros_like(sw(m)), sw(m), sw(hg))])
-    return steps.T
+    # the three bones' steps in one call (frames first, the bones next)
+    steps = _frame_steps(np.stack([sw(hip), sw(sol.mid), np.zeros_like(sw(m))], axis=1),
+                         np.stack([sw(sol.mid), sw(sol.end), sw(m)], axis=1),
+                         np.stack([sw(sol.hinge), sw(sol.hinge), sw(hg)], axis=1))
+    return steps.max(axis=1).T
 
 
 def _frame_steps(a: np.ndarray, b: np.ndarray, hinge: np.ndarray) -> np.ndarray:
