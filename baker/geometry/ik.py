@@ -65,7 +65,10 @@ def two_bone_ik(root: np.ndarray, target: np.ndarray, pole: np.ndarray,
     d_raw = length(v)
     u = v / np.maximum(d_raw, 1e-12)[..., None]
     # degenerate target at the root: reach along the pole's perpendicular fallback
-    u = np.where((d_raw > 1e-12)[..., None], u, normalize(cross(pole, [0.0, 0.0, 1.0]) + 1e-9))
+    # (its np.where skipped where no target is degenerate: the same array)
+    ok = d_raw > 1e-12
+    if not (ok.all() and np.shape(pole) == u.shape):
+        u = np.where(ok[..., None], u, normalize(cross(pole, [0.0, 0.0, 1.0]) + 1e-9))
     lo = np.abs(l1 - l2) + 1e-6 * (l1 + l2)
     hi = l1 + l2
     d = soft_clamp(d_raw, lo, hi)
@@ -73,8 +76,12 @@ def two_bone_ik(root: np.ndarray, target: np.ndarray, pole: np.ndarray,
     w = p - dot(p, u)[..., None] * u
     wn = length(w)[..., None]
     # pole (anti)parallel to the chain: pick any perpendicular, deterministically
-    alt = cross(u, np.where(np.abs(u[..., 1:2]) < 0.9, [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]))
-    w = np.where(wn > 1e-9, w / np.maximum(wn, 1e-300), normalize(alt))
+    # (skipped as above where no pole is)
+    if (wn > 1e-9).all() and w.shape == u.shape:
+        w = w / np.maximum(wn, 1e-300)
+    else:
+        alt = cross(u, np.where(np.abs(u[..., 1:2]) < 0.9, [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]))
+        w = np.where(wn > 1e-9, w / np.maximum(wn, 1e-300), normalize(alt))
     a = (l1 * l1 - l2 * l2 + d * d) / (2.0 * d)
     h = np.sqrt(np.maximum(l1 * l1 - a * a, 0.0))
     mid = root + a[..., None] * u + h[..., None] * w
