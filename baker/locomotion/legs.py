@@ -1035,7 +1035,7 @@ def _even_swings(target, hip, q, q_inv, cidx, LOs, Ts, sw, limit):
     f, l = np.nonzero(big)
     c = cidx[f + 1, l]
     c = np.where(sw[f + 1, l], c, cidx[f, l])                  # the swing this step belongs to
-    out = target.copy()
+    pieces = []
     for cc, ll in set(zip(c.tolist(), l.tolist())):
         a, b = int(LOs[cc, ll]), int(min(Ts[cc + 1, ll], F - 1))
         if b - a < 2:
@@ -1047,8 +1047,21 @@ def _even_swings(target, hip, q, q_inv, cidx, LOs, Ts, sw, limit):
         want = cum[-1] * np.arange(b - a + 1) / (b - a)
         j = np.clip(np.searchsorted(cum, want, side="right") - 1, 0, b - a - 1)
         t = np.clip((want - cum[j]) / np.maximum(cum[j + 1] - cum[j], 1e-12), 0.0, 1.0)
-        new = seg[j] + (seg[j + 1] - seg[j]) * t[:, None]
-        out[a + 1:b, ll] = hip[a + 1:b, ll] + quat_rotate(q[a + 1:b, ll], new[1:-1])
+        pieces.append((a, b, ll, seg[j] + (seg[j + 1] - seg[j]) * t[:, None]))
+    return _placed_pieces(target.copy(), hip, q, pieces)
+
+
+def _placed_pieces(out, hip, q, pieces):
+    """`out` (F, L, 3) with frames a+1..b-1 of leg ll set to hip + q applied to new[1:-1], for
+    each (a, b, ll, new (b-a+1, 3)) of `pieces` in turn (all rotated in one call)."""
+    if not pieces:
+        return out
+    rot = quat_rotate(np.concatenate([q[a + 1:b, ll] for a, b, ll, _ in pieces]),
+                      np.concatenate([new[1:-1] for *_, new in pieces]))
+    at = 0
+    for a, b, ll, _ in pieces:
+        out[a + 1:b, ll] = hip[a + 1:b, ll] + rot[at:at + b - a - 1]
+        at += b - a - 1
     return out
 
 
@@ -1115,7 +1128,7 @@ def _even_joint_swings(target, hip, q, q_inv, fwd, left, lay, knee_out, cidx, LO
     rel = quat_rotate(q_inv, target - hip)
     f, l = np.nonzero(big)
     c = np.where(sw[f + 1, l], cidx[f + 1, l], cidx[f, l])     # the swing this step belongs to
-    out = target.copy()
+    pieces = []
     for cc, ll in set(zip(c.tolist(), l.tolist())):
         a, b = int(LOs[cc, ll]) - 1, int(min(Ts[cc + 1, ll], F - 1))
         a = max(a, 0)
@@ -1126,10 +1139,9 @@ def _even_joint_swings(target, hip, q, q_inv, fwd, left, lay, knee_out, cidx, LO
         want = cum[-1] * np.arange(b - a + 1) / (b - a)
         j = np.clip(np.searchsorted(cum, want, side="right") - 1, 0, b - a - 1)
         t = np.clip((want - cum[j]) / np.maximum(cum[j + 1] - cum[j], 1e-12), 0.0, 1.0)
-        new = seg[j] + (seg[j + 1] - seg[j]) * t[:, None]
-        out[a + 1:b, ll] = hip[a + 1:b, ll] + quat_rotate(q[a + 1:b, ll], new[1:-1])
+        pieces.append((a, b, ll, seg[j] + (seg[j + 1] - seg[j]) * t[:, None]))
         moved[a + 1:b, ll] = True
-    return out, moved
+    return _placed_pieces(target.copy(), hip, q, pieces), moved
 
 
 def _pull_in_swings(rays, hip, target, sw, fwd, left, lay, knee_out, tol):
