@@ -170,13 +170,32 @@ def thread_map(fn, items, threads: int | None = None) -> list:
 def in_background(fn, *args):
     """Start fn(*args) on a thread of its own. Returns a callable that waits for fn's result
     (or raises its error). For work that releases the GIL, overlapping other such work. When
-    baker runs on one thread (thread_count() == 1), fn runs at the first wait instead."""
+    baker runs on one thread (thread_count() == 1), fn runs at the first wait instead.
+
+    The thread is a daemon: a bake stopped by a signal (baker.signals raises in the main
+    thread, possibly while the thread starts) exits without waiting for it. (A
+    ThreadPoolExecutor's worker, interrupted between its start and its registration, was
+    never told to stop, and the interpreter waited for it at exit for ever.)"""
     if thread_count() <= 1:
         return functools.cache(lambda: fn(*args))
-    from concurrent.futures import ThreadPoolExecutor
+    import threading
 
     one_malloc_arena()
-    pool = ThreadPoolExecutor(1)
-    future = pool.submit(fn, *args)
-    pool.shutdown(wait=False)   # the thread ends with fn
-    return future.result
+    box: dict = {}
+
+    def run() -> None:
+        try:
+            box["value"] = fn(*args)
+        except BaseException as exc:  # handed to the caller by wait()
+            box["error"] = exc
+
+    thread = threading.Thread(target=run, name="baker-background", daemon=True)
+    thread.start()
+
+    def wait():
+        thread.join()
+        if "error" in box:
+            raise box["error"]
+        return box["value"]
+
+    return wait

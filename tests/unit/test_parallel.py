@@ -121,3 +121,32 @@ def test_a_fork_map_child_takes_its_share_of_the_cpus(monkeypatch):
         monkeypatch.setattr(parallel, "available_cpus", lambda: cpus)
         assert fork_map(lambda i: parallel.thread_count(), 2, 2) == [share, share]
         assert parallel.thread_count() == cpus
+
+
+def test_an_interrupted_process_does_not_wait_for_its_background_work():
+    """A bake stopped by a signal while in_background's work runs exits at once: the thread is
+    a daemon. (A ThreadPoolExecutor worker interrupted between its start and its registration
+    was waited for at exit for ever: `baker navmesh` hung after SIGINT.)"""
+    import subprocess
+    import sys
+
+    code = ("import time\n"
+            "from baker import parallel\n"
+            "parallel.thread_count = lambda: 2\n"
+            "wait = parallel.in_background(time.sleep, 600)\n"
+            "raise SystemExit(3)\n")
+    # the work would take 600 s; the process must end long before (the timeout only stops a
+    # hang, it measures nothing)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=120)
+    assert done.returncode == 3
+
+
+def test_in_background_runs_on_a_daemon_thread(monkeypatch):
+    import threading
+
+    from baker import parallel
+
+    monkeypatch.setattr(parallel, "thread_count", lambda: 2)
+    wait = parallel.in_background(lambda: (threading.current_thread().daemon,
+                                           threading.current_thread() is threading.main_thread()))
+    assert wait() == (True, False)
