@@ -4,8 +4,6 @@ queries the walkable surface) in one call."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from baker.geometry.conventions import UP
@@ -20,16 +18,7 @@ def in_shade(rays, points: np.ndarray, sun_dir: np.ndarray, lift: float) -> np.n
     points : (n, 3) world, sun_dir : (3,) or (n, 3) unit vectors toward the sun
     """
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3) + lift * UP
-    sun = np.asarray(sun_dir, dtype=np.float64)
-    if sun.shape != (3,):
-        return rays.occluded(pts, np.broadcast_to(sun, pts.shape))
-    # one direction for every ray, normalized once as rays.occluded normalizes each
-    # (transforms.normalize's arithmetic, in Python floats)
-    x, y, z = sun.tolist()
-    n = max(math.sqrt(x * x + y * y + z * z), 1e-12)
-    d = np.empty_like(pts)
-    d[...] = (x / n, y / n, z / n)
-    return rays.cast(pts, d, np.inf)[1] >= 0
+    return rays.occluded(pts, sun_dir)
 
 
 def obstacle_ahead(rays, head: np.ndarray, heading: np.ndarray, probe: float,

@@ -136,19 +136,11 @@ class RayCaster:
         return t, prim
 
     def _small(self, origins, directions, max_distance, uv):
-        """_run for a batch of 1..SMALL_RAYS rays on Embree: one call, the same bits as
-        _embree (origins shifted in float64, then rounded to float32; distances capped at
-        3e38)."""
-        n = len(origins)
-        o = (origins - self.shift).astype(np.float32)
-        d = directions.astype(np.float32)
-        if max_distance is None:
-            r = self._scene.run(o, d, output=1)
-        else:
-            m = np.minimum(np.asarray(max_distance, dtype=np.float64), 3e38)
-            dists = (np.full(n, m, dtype=np.float32) if m.ndim == 0
-                     else np.broadcast_to(m, (n,)).astype(np.float32))
-            r = self._scene.run(o, d, dists=dists, output=1)
+        """_run for a batch of 1..SMALL_RAYS rays on Embree: one _query, without the staging of
+        large batches (the same bits)."""
+        dist = None if max_distance is None else np.broadcast_to(
+            np.asarray(max_distance, dtype=np.float64), (len(origins),))
+        r = self._query(origins, directions, dist)
         prim = r["primID"]
         hit = prim >= 0
         t = np.where(hit, r["tfar"].astype(np.float64), np.inf)
@@ -157,18 +149,22 @@ class RayCaster:
             uv[:, 1] = np.where(hit, r["v"], 0.0)
         return t, prim.astype(np.int32, copy=False)
 
+    def _query(self, origins, directions, dist) -> dict:
+        """Embree's answer (primID, tfar, u, v, ...) for rays origins, directions (n, 3) float64
+        and dist (n,) float64 or None (unbounded): the origins shifted in float64, then rounded
+        to float32, the distances capped at 3e38."""
+        o = np.empty(origins.shape, np.float32)
+        np.subtract(origins, self.shift, out=o, casting="same_kind")
+        d = np.ascontiguousarray(directions, dtype=np.float32)
+        if dist is None:
+            return self._scene.run(o, d, output=1)
+        return self._scene.run(o, d, dists=np.minimum(dist, 3e38).astype(np.float32), output=1)
+
     def _embree(self, origins, directions, dist, uv, t, prim, start: int, stop: int) -> None:
         """Cast rays start..stop on Embree, CHUNK_RAYS at a time, into t, prim (and uv)."""
         for a in range(start, stop, CHUNK_RAYS):
             b = min(stop, a + CHUNK_RAYS)
-            o = np.empty((b - a, 3), np.float32)
-            np.subtract(origins[a:b], self.shift, out=o, casting="same_kind")
-            d = np.ascontiguousarray(directions[a:b], dtype=np.float32)
-            if dist is None:
-                r = self._scene.run(o, d, output=1)
-            else:
-                r = self._scene.run(o, d, dists=np.minimum(dist[a:b], 3e38).astype(np.float32),
-                                    output=1)
+            r = self._query(origins[a:b], directions[a:b], None if dist is None else dist[a:b])
             p = r["primID"]
             hit = p >= 0
             prim[a:b] = p
@@ -289,6 +285,15 @@ class RayCaster:
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray,
                  max_distance: float | np.ndarray = np.inf) -> np.ndarray:
-        """(n,) bool: True where something blocks the ray within max_distance."""
-        directions = normalize(np.asarray(directions, dtype=np.float64).reshape(-1, 3))
-        return self.cast(origins, directions, max_distance)[1] >= 0
+        """(n,) bool: True where something blocks the ray within max_distance. directions:
+        (n, 3) (or anything that broadcasts to it), or one (3,) direction for every ray
+        (normalized once)."""
+        origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
+        d = np.asarray(directions, dtype=np.float64)
+        if d.shape == (3,):
+            one = normalize(d)
+            d = np.empty_like(origins)
+            d[...] = one
+        else:
+            d = normalize(np.broadcast_to(d, origins.shape))
+        return self.cast(origins, d, max_distance)[1] >= 0

@@ -304,9 +304,7 @@ def _items(obj):
         return obj.items()
     if isinstance(obj, gl.Attributes):
         return obj.__dict__.items()
-    fields = _FIELDS.get(type(obj))
-    if fields is None and dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        fields = _FIELDS[type(obj)] = tuple(f.name for f in dataclasses.fields(obj))
+    fields = _fields_of(obj)
     if fields is not None:
         return [(name, getattr(obj, name)) for name in fields]
     return obj.items() if isinstance(obj, dict) else None
@@ -346,9 +344,7 @@ def _plain(obj):
         return obj
     if isinstance(obj, gl.Attributes):
         return {k: _plain(v) for k, v in obj.__dict__.items()}
-    fields = _FIELDS.get(type(obj))
-    if fields is None and dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        fields = _FIELDS[type(obj)] = tuple(f.name for f in dataclasses.fields(obj))
+    fields = _fields_of(obj)
     if fields is not None:
         return {name: _plain(getattr(obj, name)) for name in fields}
     if isinstance(obj, (list, tuple)):
@@ -358,6 +354,14 @@ def _plain(obj):
     if isinstance(obj, dict):
         return {k: _plain(v) for k, v in obj.items()}
     return obj
+
+
+def _fields_of(obj) -> tuple | None:
+    """The field names of a dataclass instance (kept per class), else None."""
+    fields = _FIELDS.get(type(obj))
+    if fields is None and dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        fields = _FIELDS[type(obj)] = tuple(f.name for f in dataclasses.fields(obj))
+    return fields
 
 
 #: the types of JSON leaves: _plain keeps them as they are
@@ -574,22 +578,6 @@ def _clip_channels(clip: Clip, node_of: np.ndarray, node_by_name: dict[str, int]
             yield node_by_name[tr.node], path, keys, 0
 
 
-class _KeyFrames:
-    """keys.frames(c) of Keys objects, found for all their channels at once on first use (the
-    same int64 arrays; None for a static channel). Holds the Keys it was asked about."""
-
-    def __init__(self) -> None:
-        self.known: dict[int, tuple] = {}
-
-    def __call__(self, keys, c: int) -> np.ndarray | None:
-        if id(keys) not in self.known:
-            rows, cols = np.nonzero(keys.keep)
-            ends = np.cumsum(np.bincount(rows, minlength=len(keys.keep)))
-            per = np.split(cols.astype(np.int64), ends[:-1])
-            self.known[id(keys)] = (keys, [f if len(f) else None for f in per])
-        return self.known[id(keys)][1][c]
-
-
 def _drop_static_channels(gltf: gl.GLTF2, parts, node_by_name: dict[str, int]) -> frozenset:
     """The (node, path) channels that are static with the same value in every animation of the
     file that drives them (all reduced): they are written as the node's TRS and get no channel.
@@ -597,10 +585,9 @@ def _drop_static_channels(gltf: gl.GLTF2, parts, node_by_name: dict[str, int]) -
     if not parts or any(c.keys is None for c, _ in parts):
         return frozenset()
     value: dict = {}
-    frames = _KeyFrames()
     for c, node_of in parts:
         for node, path, keys, i in _clip_channels(c, node_of, node_by_name):
-            v = None if frames(keys, i) is not None else tuple(float(x) for x in keys.static[i])
+            v = None if keys.frames(i) is not None else tuple(float(x) for x in keys.static[i])
             if value.get((node, path), v) != v:
                 v = None
             value[(node, path)] = v
@@ -626,9 +613,8 @@ def _add_reduced_channels(gltf: gl.GLTF2, b: _Builder, parts, node_by_name: dict
     time_of: dict[bytes, int] = {}
     samplers, channels = [], []
     channels_of = (ch for c, node_of in parts for ch in _clip_channels(c, node_of, node_by_name))
-    frames_of = _KeyFrames()
     for node, path, keys, i in channels_of:
-        frames = frames_of(keys, i)
+        frames = keys.frames(i)
         if frames is None and (node, path) in dropped:
             continue
         if frames is None:                           # static, but not in every animation

@@ -84,6 +84,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -148,8 +149,16 @@ class Keys:
 
     def frames(self, c: int) -> np.ndarray | None:
         """(K,) int64 kept frame indices of channel c, ascending, or None when it is static."""
-        f = np.flatnonzero(self.keep[c])
-        return f if len(f) else None
+        return self._frames[c]
+
+    @cached_property
+    def _frames(self) -> list:
+        """frames(c) of every channel, found at once on first use (the exporters ask for every
+        channel; one pass over `keep` instead of one per channel). `keep` does not change once
+        the Keys is made."""
+        rows, cols = np.nonzero(self.keep)
+        ends = np.cumsum(np.bincount(rows, minlength=len(self.keep)))
+        return [f if len(f) else None for f in np.split(cols.astype(np.int64), ends[:-1])]
 
     def play(self, times: np.ndarray, rotation: bool) -> np.ndarray:
         """(F, C, W) float32: every channel as a player evaluates it at every frame."""

@@ -324,9 +324,7 @@ def _locate(s: NavSurface, points: np.ndarray, tol: float, _retry: bool = True):
         # eight nudges in one batch; each point takes the first of them (in this order) to hit
         miss = np.nonzero(best < 0)[0]
         eps = 1e-6 * s.cell_size
-        nudge = np.array([[eps, 0.0, 0.0], [-eps, 0.0, 0.0], [0.0, 0.0, eps], [0.0, 0.0, -eps],
-                          [eps, 0.0, eps], [-eps, 0.0, -eps], [eps, 0.0, -eps],
-                          [-eps, 0.0, eps]])
+        nudge = np.array([(ex * eps, 0.0, ez * eps) for ex, ez in _NUDGES])
         q = (pts[miss][None, :, :] + nudge[:, None, :]).reshape(-1, 3)
         b2, h2 = _locate(s, q, tol, _retry=False)
         b2, h2 = b2.reshape(len(nudge), len(miss)), h2.reshape(len(nudge), len(miss))
