@@ -84,10 +84,8 @@ class _Caster:
 
     def cast_down(self, col: np.ndarray, oy: np.ndarray, x0, z0, nz, cell):
         """Downward rays from height oy (n,) through the centres of columns col (n,)."""
-        o = np.stack([x0 + (col // nz + 0.5) * cell, oy, z0 + (col % nz + 0.5) * cell], 1)
-        d = np.zeros_like(o)
-        d[:, 1] = -1.0
-        return self.rays.cast(o, d)
+        ix, iz = np.divmod(col, nz)
+        return self.rays.cast_columns(x0 + (ix + 0.5) * cell, oy, z0 + (iz + 0.5) * cell)
 
 
 def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -575,13 +573,11 @@ def _unblocked(caster: _Caster, s: _Samples, blockers, d, src, tt, h_off, cell):
 def _diagonal(links, d, a1, a2, sy, sceil, gx, gz, step, height):
     """Diagonal links (src, u) in direction d: both L-shaped paths of axis links (a1 then a2,
     a2 then a1) reach u, within the step height and with the agent height free above."""
-    n = len(links)
-    s1 = np.nonzero(links[:, a1] >= 0)[0]
-    u1 = np.full(n, -1, dtype=np.int32)
-    u1[s1] = links[links[s1, a1], a2]
-    s2 = np.nonzero(links[:, a2] >= 0)[0]
-    u2 = np.full(n, -1, dtype=np.int32)
-    u2[s2] = links[links[s2, a2], a1]
+    # the two axis columns, contiguous (gathers from the (n, 8) rows are strided); -1 (none)
+    # reads the last sample, masked out
+    l1, l2 = np.ascontiguousarray(links[:, a1]), np.ascontiguousarray(links[:, a2])
+    u1 = np.where(l1 >= 0, l2[l1], -1)
+    u2 = np.where(l2 >= 0, l1[l2], -1)
     src = np.nonzero((u1 >= 0) & (u1 == u2))[0]
     ok = np.empty(len(src), dtype=bool)
     for r0 in range(0, len(src), TILE_SAMPLES):
@@ -766,10 +762,15 @@ def _segment_min(group: np.ndarray, values: np.ndarray, n: int, empty) -> np.nda
 
 
 def _csr(links: np.ndarray, mask: np.ndarray) -> csr_matrix:
+    """The graph of the links (n, k) where mask (n, k): float64 weights and int32 indices, the
+    types connected_components works in (other types cost it a converted copy, and with its
+    rows' indices unsorted a sort as well)."""
     n = len(links)
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(mask.sum(axis=1), out=indptr[1:])
-    return csr_matrix((np.ones(int(indptr[-1]), np.int8), links[mask], indptr), shape=(n, n))
+    counts = mask.view(np.int8).sum(axis=1, dtype=np.int32)
+    indptr = np.zeros(n + 1, dtype=np.int32 if n * links.shape[1] < 2**31 else np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    return csr_matrix((np.ones(int(indptr[-1])), links[mask].astype(np.int32, copy=False),
+                       indptr), shape=(n, n))
 
 
 def _coarse(positions, cells, links, k, nz):

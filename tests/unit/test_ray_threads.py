@@ -55,3 +55,22 @@ def test_an_error_on_a_casting_thread_reaches_the_caller(caster, monkeypatch):
     monkeypatch.setattr(RayCaster, "_embree", failing)
     with pytest.raises(MemoryError):
         caster.cast(o, d)
+
+
+@pytest.mark.parametrize("threads", [1, 3])
+@pytest.mark.parametrize("n", [5, 3 * THREAD_MIN_RAYS + 5])
+def test_column_casts_are_the_bits_of_the_general_cast(caster, monkeypatch, threads, n):
+    """cast_columns (the navigation build's downward rays, origins staged coordinate by
+    coordinate, one shared direction) answers exactly as cast() with (n, 3) arrays, on one
+    thread or several, in small and large batches; CHUNK_RAYS small enough to take several
+    chunks a thread."""
+    monkeypatch.setattr(rays_module, "_threads", lambda: threads)
+    monkeypatch.setattr(rays_module, "CHUNK_RAYS", THREAD_MIN_RAYS // 2 + 3)
+    rng = np.random.default_rng(n + threads)
+    o = np.array([1000.0, 4.0, -500.0]) + rng.uniform(-1.5, 1.5, (n, 3))
+    down = np.broadcast_to([0.0, -1.0, 0.0], o.shape)
+    t, prim = caster.cast_columns(o[:, 0].copy(), o[:, 1].copy(), o[:, 2].copy())
+    t0, prim0 = caster.cast(o, down)
+    assert t.tobytes() == t0.tobytes() and prim.tobytes() == prim0.tobytes()
+    if n > 100:
+        assert 0.2 < (prim >= 0).mean() < 1.0
