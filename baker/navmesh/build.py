@@ -30,7 +30,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix, csr_matrix
+from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 from baker.errors import NavError
@@ -101,20 +101,19 @@ def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     f = np.asarray(mesh.faces, dtype=np.int64)
     if len(f) == 0:
         return np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.int8)
-    lo = v.min(axis=0)
-    ext = float(np.ptp(v, axis=0).max()) or 1.0
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    ext = float((hi - lo).max()) or 1.0
     q = np.round((v - lo) / (ext * 1e-6)).astype(np.int64)  # weld within 1e-6 of the extent
     key = (q[:, 0] << 42) | (q[:, 1] << 21) | q[:, 2]
     _, vid = np.unique(key, return_inverse=True)
     vid = vid.reshape(-1)
-    F = vid[f]
+    f0, f1, f2 = (np.ascontiguousarray(vid[f[:, k]]) for k in range(3))
     nv = int(vid.max()) + 1
-    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])  # directed, as wound
-    e = e[e[:, 0] != e[:, 1]]
-    es = np.sort(e, axis=1)
-    g = coo_matrix((np.ones(len(es), np.int8), (es[:, 0], es[:, 1])), shape=(nv, nv)).tocsr()
-    ncomp, vcomp = connected_components(g, directed=True, connection="weak")
-    key = es[:, 0] * nv + es[:, 1]
+    # the edges as wound (a -> b), without the collapsed ones, and each as (low, high)
+    a, b = np.concatenate([f0, f1, f2]), np.concatenate([f1, f2, f0])
+    real = a != b
+    a, b = a[real], b[real]
+    key = np.minimum(a, b) * nv + np.maximum(a, b)
     o = np.argsort(key)
     ks = key[o]
     head = np.ones(len(ks), dtype=bool)
@@ -122,17 +121,23 @@ def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     first = np.nonzero(head)[0]
     cnt = np.diff(np.append(first, len(ks)))
     uk = ks[first]
+    # the vertex graph: each edge once, rows and their columns sorted (the canonical form
+    # connected_components would make of it), float64 (its own type: no converted copy)
+    indptr = np.zeros(nv + 1, dtype=np.int64)
+    np.cumsum(np.bincount(uk // nv, minlength=nv), out=indptr[1:])
+    g = csr_matrix((np.ones(len(uk)), uk % nv, indptr), shape=(nv, nv))
+    ncomp, vcomp = connected_components(g, directed=True, connection="weak")
     closed = np.ones(ncomp, dtype=bool)
     closed[vcomp[(uk[cnt != 2] // nv)]] = False
     # consistently wound: each edge is used once in each direction. Only closed components
     # (every edge used exactly twice) are judged, so it is enough that the two uses of such
     # an edge go opposite ways
     uniq_d = np.ones(ncomp, dtype=bool)
-    fwd = (e[:, 0] < e[:, 1])[o]
+    fwd = (a < b)[o]
     two = first[cnt == 2]
     uniq_d[vcomp[uk[cnt == 2][fwd[two] == fwd[two + 1]] // nv]] = False
-    fc = vcomp[F[:, 0]]
-    c = v - (lo + 0.5 * np.ptp(v, axis=0))
+    fc = vcomp[f0]
+    c = v - (lo + 0.5 * (hi - lo))
     vol = np.einsum("ij,ij->i", c[f[:, 0]], np.cross(c[f[:, 1]], c[f[:, 2]]))
     vol = np.bincount(fc, vol, minlength=ncomp)
     closed &= np.abs(vol) > 1e-15 * ext ** 3  # a flat closed sheet (a two-sided triangle)
