@@ -42,6 +42,18 @@ def _threads() -> int:
     return min(thread_count(), MAX_THREADS)
 
 
+def _in_parts(n: int, cast) -> None:
+    """cast(start, stop) over rays 0..n-1: in one call, or, for a large batch, in contiguous
+    parts each on its own thread (Embree's query runs with the GIL released; each part writes
+    its own rows: the same bits as one thread)."""
+    parts = min(_threads(), n // THREAD_MIN_RAYS) if n >= 2 * THREAD_MIN_RAYS else 1
+    if parts <= 1:
+        cast(0, n)
+        return
+    edges = np.linspace(0, n, parts + 1).astype(np.int64).tolist()
+    thread_map(lambda k: cast(edges[k], edges[k + 1]), range(parts), threads=parts)
+
+
 @dataclass(frozen=True)
 class Hits:
     """Result of a batch of first-hit ray casts.
@@ -127,15 +139,7 @@ class RayCaster:
             return t, prim
         dist = None if max_distance is None else np.broadcast_to(
             np.asarray(max_distance, dtype=np.float64), (n,))
-        parts = min(_threads(), n // THREAD_MIN_RAYS) if n >= 2 * THREAD_MIN_RAYS else 1
-        if parts <= 1:
-            self._embree(origins, directions, dist, uv, t, prim, 0, n)
-            return t, prim
-        # Embree's query runs with the GIL released: the rays are split into contiguous
-        # parts, each cast on its own thread into its own rows (the same bits as one thread)
-        edges = np.linspace(0, n, parts + 1).astype(np.int64).tolist()
-        thread_map(lambda k: self._embree(origins, directions, dist, uv, t, prim, edges[k],
-                                          edges[k + 1]), range(parts), threads=parts)
+        _in_parts(n, lambda a, b: self._embree(origins, directions, dist, uv, t, prim, a, b))
         return t, prim
 
     def _small(self, origins, directions, max_distance, uv):
@@ -188,8 +192,6 @@ class RayCaster:
             return self.cast(o, np.broadcast_to(_DOWN, o.shape))
         t = np.full(n, np.inf)
         prim = np.full(n, -1, dtype=np.int32)
-        if len(self.faces) == 0:
-            return t, prim
 
         def part(a: int, b: int) -> None:
             for c0 in range(a, b, CHUNK_RAYS):
@@ -203,12 +205,7 @@ class RayCaster:
                 prim[c0:c1] = p
                 t[c0:c1][hit] = r["tfar"][hit]
 
-        parts = min(_threads(), n // THREAD_MIN_RAYS) if n >= 2 * THREAD_MIN_RAYS else 1
-        edges = np.linspace(0, n, parts + 1).astype(np.int64).tolist()
-        if parts <= 1:
-            part(0, n)
-        else:
-            thread_map(lambda k: part(edges[k], edges[k + 1]), range(parts), threads=parts)
+        _in_parts(n, part)
         return t, prim
 
     def _cast_fallback(self, origins, directions, max_distance):  # pragma: no cover
