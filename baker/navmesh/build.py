@@ -744,13 +744,14 @@ def _blocker_columns(caster: _Caster, x0, z0, nx, nz, cell, angle) -> np.ndarray
     j0 = np.clip(np.floor((lo[:, 2] - z0) / cell).astype(np.int64) - 1, 0, nz)
     j1 = np.clip(np.floor((hi[:, 2] - z0) / cell).astype(np.int64) + 2, 0, nz)
     w = nz + 1
-    idx = np.concatenate([i0 * w + j0, i1 * w + j0, i0 * w + j1, i1 * w + j1])
-    sign = np.repeat(np.array([1.0, -1.0, -1.0, 1.0]), len(i0))
-    # corner counts by bincount (exact small integers), not np.add.at
-    diff = np.bincount(idx, sign, minlength=(nx + 1) * w).astype(np.int32)
+    size = (nx + 1) * w
+    # corner counts by bincount (exact integers), not np.add.at; summed in place
+    diff = (np.bincount(np.concatenate([i0 * w + j0, i1 * w + j1]), minlength=size)
+            - np.bincount(np.concatenate([i1 * w + j0, i0 * w + j1]), minlength=size))
     diff = diff.reshape(nx + 1, w)
-    cov = np.cumsum(np.cumsum(diff, axis=0), axis=1)[:nx, :nz]
-    return (cov > 0).reshape(-1)
+    np.cumsum(diff, axis=0, out=diff)
+    np.cumsum(diff, axis=1, out=diff)
+    return (diff[:nx, :nz] > 0).reshape(-1)
 
 
 def _segment_min(group: np.ndarray, values: np.ndarray, n: int, empty) -> np.ndarray:
