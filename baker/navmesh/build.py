@@ -706,8 +706,7 @@ def _islands(links, keep, cell, min_island_area, where):
     Returns (sel: kept sample indices, links renumbered to them, component of each (largest
     first), component areas)."""
     ax = links[:, :4]
-    axm = (ax >= 0) & keep[:, None]
-    axm[axm] = keep[ax[axm]]
+    axm = (ax >= 0) & keep[:, None] & keep[ax]        # (-1, no link, reads the last: masked)
     ncomp, comp = connected_components(_csr(ax, axm), directed=True, connection="strong")
     size = np.bincount(comp[keep], minlength=ncomp)
     big = size * cell * cell >= min_island_area
