@@ -115,6 +115,10 @@ class Follower:
         behind = step * np.arange(math.ceil((body.length + body.spacing) / step), -1, -1)
         self._trail = [(-d, float(start[0] - d * heading[0]), float(start[2] - d * heading[2]),
                         math.inf) for d in behind]
+        # the trail's (x, z) as rows _xz[_lo:_hi] of one buffer (bend_radius reads them as an
+        # array every time the trail changes: a list of tuples would be converted each time)
+        self._xz = np.array([t[1:3] for t in self._trail] * 2)
+        self._lo, self._hi = 0, len(self._trail)
         self._walked = 0.0          # horizontal metres the head has walked
         self._riser_at = -np.inf    # ... when it last went up or down a riser
         self._steps = 0
@@ -245,16 +249,31 @@ class Follower:
             lever = (self._leg_lever(p, p[0] - back[1], p[2] - back[2])
                      if math.isfinite(self.stance_speed) else math.inf)
             self._trail.append((self._walked, float(p[0]), float(p[2]), lever))
+            self._push(float(p[0]), float(p[2]))
             while self._walked - self._trail[0][0] > self.body_length + self.spacing:
                 self._trail.pop(0)
+                self._lo += 1
         elif self._measured:
             return            # the trail is as it was: so are its bend and lever
         self._measured = True
-        radius = bend_radius(np.array(self._trail)[:, 1:3], int(round(0.5 / BEND_SAMPLE)))
+        radius = bend_radius(self._xz[self._lo:self._hi], int(round(0.5 / BEND_SAMPLE)))
         lever = min(t[3] for t in self._trail)
         if radius != self.bend or lever != self.lever:
             self.bend, self.lever = radius, lever
             self._apply_speed()
+
+    def _push(self, x: float, z: float) -> None:
+        """Append (x, z) to the trail's rows, moving them to the buffer's start (or into one
+        twice the size) when it is full."""
+        if self._hi == len(self._xz):
+            rows = self._xz[self._lo:self._hi]
+            if 2 * len(rows) > len(self._xz):
+                self._xz = np.concatenate([rows, np.empty_like(rows)])
+            else:
+                self._xz[:len(rows)] = rows.copy()
+            self._lo, self._hi = 0, len(rows)
+        self._xz[self._hi] = x, z
+        self._hi += 1
 
     def _leg_lever(self, p: np.ndarray, dx: float, dz: float) -> float:
         """[m] the legs' lever (folded_lever) where the hips pass the head's point p, the
