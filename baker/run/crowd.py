@@ -31,7 +31,7 @@ from baker.context import Context
 from baker.geometry.arrays import unique
 from baker.locomotion.body import ROUND, chain_on, trail_ends
 from baker.locomotion.cobra import lift_profile
-from baker.run.follow import Follower
+from baker.run.follow import Follower, measure_levers
 from baker.run.loop import Clock, make_prey, make_sun, record, start_line
 from baker.run.record import Recorder, RunRecord
 from baker.run.start import choose_start, middle_anchor
@@ -228,6 +228,7 @@ def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
         t = (k - 1) * clock.dt
         if (k - 1) % AVOID_EVERY == 0 and n > 1:
             neighbours(bodies, heads[:, k - 1], follows, reach, cobra)
+        measure_levers(follows)         # the legs' levers this step measures, in one batch
         for i in range(n):
             f = follows[i]
             wants[i] = brains[i].step(Senses(t, f.position, f.head.heading, f.agent.arrived))

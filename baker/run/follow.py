@@ -109,6 +109,8 @@ class Follower:
         self.stance_speed = STANCE_TURN * fps if legged else math.inf
         self._hip = (hip_x, body.clearance + hip_y, rig.legs.upper_length, rig.legs.reach)
         self._lever_rays = _lever_rays(*self._hip[:3])
+        # (key, lever) measured ahead of the step for a crowd (measure_levers)
+        self._lever_ready: tuple | None = None
         # (walked, x, z, the legs' lever there) under the body: the straight start line behind
         # the head first, so a turn back at the start is a bend under the body like any other
         step = BEND_SAMPLE * body.spacing
@@ -224,6 +226,7 @@ class Follower:
         if abs(height - self.height) > self.riser:
             self._riser_at = self._walked
         self.height = height
+        self._lever_ready = None        # measured for this step only
 
     def _terrain(self, gap: float) -> None:
         """Slow to rough_speed while a riser is under the body (the head went over one within a
@@ -279,11 +282,37 @@ class Follower:
         """[m] the legs' lever (folded_lever) where the hips pass the head's point p, the
         trail heading (dx, dz) there: one batch of rays outward from both hips, along the
         surface, straight out, ahead and behind, at hip and knee height, as the legs' anchors
-        measure the room beside them."""
-        hip_x, _, _, reach = self._hip
+        measure the room beside them. (A crowd measures every creature's at once:
+        measure_levers.)"""
+        if self._lever_ready is not None:
+            key, lever = self._lever_ready
+            self._lever_ready = None
+            if key == (float(p[0]), float(p[2]), self.height, float(dx), float(dz)):
+                return lever
         # the ground's normal from a ray cast down (rays.cast_down's ray), facing up
-        prim = self.rays.cast(np.array([[p[0], self.height + self.probe, p[2]]]), _DOWN,
-                              2.0 * self.probe)[1][0]
+        prim = self.rays.cast(np.array([self._ground_ray(p)]), _DOWN, 2.0 * self.probe)[1][0]
+        o, d = self._side_rays(p, dx, dz, prim)
+        return self._lever_of(*self.rays.cast(o, d, 1.2 * self._hip[3]))
+
+    def lever_request(self) -> tuple | None:
+        """(p, dx, dz): the point and trail heading at which this step's _bends will measure
+        the legs' lever (read before the step: the head, its height and the trail are as the
+        last step left them), or None when it will not."""
+        if (self._steps + 1) % AIM_EVERY or not math.isfinite(self.stance_speed):
+            return None
+        if self._walked - self._trail[-1][0] < BEND_SAMPLE * self.spacing:
+            return None
+        p = self.head.position
+        back = self._trail[-int(round(1.0 / BEND_SAMPLE))]
+        return p, p[0] - back[1], p[2] - back[2]
+
+    def _ground_ray(self, p: np.ndarray) -> list:
+        """The origin of the ray cast down for the ground's normal under p."""
+        return [p[0], self.height + self.probe, p[2]]
+
+    def _side_rays(self, p: np.ndarray, dx: float, dz: float, prim: int):
+        """((12, 3), (12, 3)) the origins and directions of the rays out from the hips, over
+        the ground face `prim` (-1: none, flat) under p."""
         n = self.rays.face_normals[prim] if prim >= 0 else np.array([0.0, 1.0, 0.0])
         if n[1] < 0.0:
             n = -n
@@ -295,9 +324,12 @@ class Follower:
         (n0, n1, n2), (f0, f1, f2) = n.tolist(), f.tolist()
         left = np.array([n1 * f2 - n2 * f1, n2 * f0 - n0 * f2, n0 * f1 - n1 * f0])  # cross(n, f)
         ground = np.array([p[0], self.height, p[2]])
-        h, side_x, side_cos, sin, cos = self._lever_rays
-        t, prim = self.rays.cast(ground + h * n + side_x * left,
-                                 normalize(side_cos * left + sin * f), 1.2 * reach)
+        h, side_x, side_cos, sin, _ = self._lever_rays
+        return ground + h * n + side_x * left, normalize(side_cos * left + sin * f)
+
+    def _lever_of(self, t: np.ndarray, prim: np.ndarray) -> float:
+        """The lever from the side rays' hits (t, prim)."""
+        hip_x, reach, cos = self._hip[0], self._hip[3], self._lever_rays[4]
         free = np.where(prim >= 0, t * cos[:, 0], np.inf)
         return float(folded_lever(free.min(), reach, hip_x))
 
@@ -408,6 +440,27 @@ class Follower:
             return y
         g, _, hit = project_to_surface(self.rays, np.array([[p[0], self.height, p[2]]]), self.probe)
         return float(g[0, 1]) if hit[0] else self.height
+
+
+def measure_levers(follows) -> None:
+    """The legs' levers that the followers' next steps will measure (Follower.lever_request),
+    for all of them in two ray batches (the ground rays, then the hips' rays): each follower's
+    own casts give the same bits, one ray at a time. Each is kept on its follower, with the
+    inputs it was measured at, for its _bends."""
+    asks = [(f, r) for f in follows if (r := f.lever_request()) is not None]
+    if not asks:
+        return
+    rays = asks[0][0].rays
+    o = np.array([f._ground_ray(p) for f, (p, _, _) in asks])
+    prim = rays.cast(o, np.broadcast_to(_DOWN, o.shape),
+                     np.array([2.0 * f.probe for f, _ in asks]))[1]
+    sides = [f._side_rays(p, dx, dz, int(k)) for (f, (p, dx, dz)), k in zip(asks, prim)]
+    m = len(sides[0][0])
+    t, hit = rays.cast(np.concatenate([o for o, _ in sides]), np.concatenate([d for _, d in sides]),
+                       np.repeat([1.2 * f._hip[3] for f, _ in asks], m))
+    for i, (f, (p, dx, dz)) in enumerate(asks):
+        f._lever_ready = ((float(p[0]), float(p[2]), f.height, float(dx), float(dz)),
+                          f._lever_of(t[i * m:(i + 1) * m], hit[i * m:(i + 1) * m]))
 
 
 def _lever_rays(hip_x: float, hip_y: float, l1: float) -> np.ndarray:

@@ -17,7 +17,8 @@ from baker.context import Context
 from baker.environment.model import Sun
 from baker.navmesh import build
 from baker.run.crowd import crowd_separation, crowd_starts, run_crowd
-from baker.run.follow import HOLD_MAX, Follower
+from baker.locomotion.legs import folded_lever
+from baker.run.follow import HOLD_MAX, Follower, measure_levers
 from baker.sim.loop import simulate_crowd
 from baker.streams import Streams
 from test_navmesh_scenes import box, env_of, floor
@@ -200,3 +201,35 @@ def test_a_head_cornered_by_walking_bodies_holds_still_then_turns():
     steps(f, 12.0, None, False)                        # they have moved on: it walks its path
     assert np.hypot(*(f.head.base - [0.1, 0.0, 0.5])[[0, 2]]) < (
         RIG.locomotion.stopping_distance + 0.05)
+
+
+def test_the_levers_measured_for_the_whole_crowd_are_each_creatures_own():
+    """measure_levers casts every follower's lever rays in two batches ahead of the step; each
+    lever is the one the follower measures on its own (bit for bit), and the step uses it.
+    The legs are on (the lever bounds their speed) and a wall runs beside three creatures'
+    paths, so many levers are folded (shorter than in the open)."""
+    rig = load_rig_config(DEFAULT_RIG)
+    env = env_of(floor(-1.0, 1.0, -1.0, 1.0), box((0.3, 0.0, -1.0), (0.4, 0.1, 0.6)))
+    nav = build(env, rig.navigation)
+    # three along the wall (at the eroded edge beside it), one in the open
+    starts = [(0.29, -0.8), (0.29, -0.3), (0.25, 0.0), (-0.5, 0.2)]
+    follows = [Follower(nav, env.rays, nav.nearest(np.array([x, 0.0, z])),
+                        np.array([0.0, 0.0, 1.0]), rig) for x, z in starts]
+    for f, (x, _) in zip(follows, starts):
+        f.go(nav.nearest(np.array([0.29 if x > 0.0 else -0.3, 0.0, 0.8])))
+    levers = []
+    for _ in range(1200):
+        asks = [(f, f.lever_request()) for f in follows]
+        measure_levers(follows)
+        for f, ask in asks:
+            assert (ask is None) == (f._lever_ready is None)
+            if ask is not None:
+                ready, f._lever_ready = f._lever_ready, None
+                assert ready[1] == f._leg_lever(*ask)          # measured on its own
+                f._lever_ready = ready
+                levers.append(ready[1])
+        for f in follows:
+            f.step(1.0 / SIM_RATE_HZ)
+            assert f._lever_ready is None                        # used (or dropped) by the step
+    open_ground = folded_lever(np.inf, rig.legs.reach, follows[0]._hip[0])
+    assert len(levers) > 400 and (np.array(levers) < 0.8 * open_ground).sum() > 100
