@@ -119,6 +119,8 @@ class Brain(IntentSource):
         self._out_of_range = math.inf   # when the hunted prey last went out of range
         self._gap, self._next_gap, self._gaining = math.inf, 0.0, False  # gaining on the prey
         self._now = 0.0
+        # (senses, _sense's answer) measured ahead of the step for a crowd (sense_together)
+        self._sensed: tuple | None = None
         # two rings of points around the head where shade is noticed (8 at half the sense
         # radius, 16 at the full radius)
         r = self.b.shade_sense_radius
@@ -198,20 +200,28 @@ class Brain(IntentSource):
         self.warning = 1.0 if self.state == "warning" else 0.0
         return self.intent()
 
+    def perceives(self, t: float) -> bool:
+        """This step (at time t) perceives."""
+        return t + 1e-9 >= self._next_perception
+
+    def _looks_ahead(self) -> bool:
+        """The perception looks for an obstacle to rear at (in the state the step starts in)."""
+        return self.cobra_mode == "auto" and self.state in ("wander", "seek_shade", "cobra")
+
+    def _sense(self, s: Senses) -> tuple:
+        """What a perception measures: (sun, the head on its layer, the head and the ring of
+        points around it (25, 3) on their layers, their shade (25,) bool, an obstacle ahead
+        (None when not looked for)); measured for a whole crowd at once by
+        sense_together."""
+        if self._sensed is not None:
+            key, sensed = self._sensed
+            self._sensed = None
+            if key == (s.t, *s.head.tolist(), *s.heading.tolist()):
+                return sensed
+        return sense_together([self], [s])[0]
+
     def _perceive(self, s: Senses) -> None:
-        sun = self.sun.at(s.t)
-        head = s.head.copy()
-        h = self.nav.surface_height(head[None])[0]
-        if np.isfinite(h):
-            head[1] = h
-        # the head, then a ring of points around it (light/dark contrast), in one ray batch
-        pts = np.vstack([head[None], head + self._ring])
-        h = self.nav.surface_height(pts)
-        # a ring point on the surface (put at its layer's height, so walkable there) or not
-        ok = np.isfinite(h)
-        ok[0] = True
-        pts[1:, 1] = np.where(ok[1:], h[1:], pts[1:, 1])
-        shade = perception.in_shade(self.rays, pts, sun, self.rig.body.clearance) & ok
+        sun, head, pts, shade, obstacle = self._sense(s)
         self.shaded = bool(shade[0])
         if self.shade_on and shade.any() and s.t - self._last_memory >= self.b.shade_memory_interval:
             here = self.nav.component_of(head)
@@ -221,13 +231,10 @@ class Brain(IntentSource):
                     self.shade_spots.append(p.copy())
                     self._last_memory = s.t
                     break
-        if self.cobra_mode == "auto" and self.state in ("wander", "seek_shade", "cobra"):
+        if obstacle is not None:
             # SEED: rearing is for climbing onto objects taller than the step height (and
             # lower than the cobra height)
-            step = self.rig.navigation.step_height
-            self._obstacle = perception.obstacle_ahead(
-                self.rays, s.head, s.heading, self.rig.cobra.obstacle_probe, low=step,
-                high=self.rig.cobra.height)
+            self._obstacle = obstacle
             if self._obstacle and self.state != "cobra":
                 # rear up for a look over it, then carry on with the same path
                 self._resume = (self.state, self.target)
@@ -419,3 +426,40 @@ class Brain(IntentSource):
 
 def _r(p) -> list[float]:
     return [round(float(x), 4) for x in p]
+
+
+def sense_together(brains: list[Brain], senses: list[Senses]) -> list[tuple]:
+    """Brain._sense for several brains (a crowd's that perceive this step, sharing the
+    surface, the rays, the sun and the rig) in one surface query and one ray batch per kind,
+    the same answers bit for bit as each brain's own; each is also kept on its brain, with the
+    senses it was measured for, for its step."""
+    b0 = brains[0]
+    sun = b0.sun.at(senses[0].t)
+    heads = np.array([s.head for s in senses], dtype=np.float64)
+    h = b0.nav.surface_height(heads)
+    heads[np.isfinite(h), 1] = h[np.isfinite(h)]
+    # the head, then a ring of points around it (light/dark contrast), in one ray batch
+    pts = np.concatenate([heads[:, None], heads[:, None] + b0._ring[None]], axis=1)
+    m = pts.shape[1]
+    h = b0.nav.surface_height(pts.reshape(-1, 3)).reshape(len(brains), m)
+    # a ring point on the surface (put at its layer's height, so walkable there) or not
+    ok = np.isfinite(h)
+    ok[:, 0] = True
+    pts[:, 1:, 1] = np.where(ok[:, 1:], h[:, 1:], pts[:, 1:, 1])
+    shade = (perception.in_shade(b0.rays, pts.reshape(-1, 3), sun, b0.rig.body.clearance)
+             .reshape(len(brains), m) & ok)
+    look = [i for i, b in enumerate(brains) if b._looks_ahead()]
+    ahead = {}
+    if look:
+        rig = b0.rig
+        hit = perception.obstacles_ahead(
+            b0.rays, np.array([senses[i].head for i in look]),
+            np.array([senses[i].heading for i in look]), rig.cobra.obstacle_probe,
+            low=rig.navigation.step_height, high=rig.cobra.height)
+        ahead = dict(zip(look, hit.tolist()))
+    out = []
+    for i, (b, s) in enumerate(zip(brains, senses)):
+        sensed = (sun, heads[i], pts[i], shade[i], ahead.get(i))
+        b._sensed = ((s.t, *s.head.tolist(), *s.heading.tolist()), sensed)
+        out.append(sensed)
+    return out

@@ -25,10 +25,17 @@ def obstacle_ahead(rays, head: np.ndarray, heading: np.ndarray, probe: float,
                    low: float, high: float) -> bool:
     """True when something blocks the way ahead at `low` height above the head's surface point
     but not at `high`: an obstacle taller than a step and low enough to rear up at."""
-    o = np.array([head + low * UP, head + high * UP])
-    d = np.tile(heading, (2, 1))
-    hit = rays.occluded(o, d, probe)
-    return bool(hit[0] and not hit[1])
+    return bool(obstacles_ahead(rays, head[None], heading[None], probe, low, high)[0])
+
+
+def obstacles_ahead(rays, heads: np.ndarray, headings: np.ndarray, probe: float,
+                    low: float, high: float) -> np.ndarray:
+    """obstacle_ahead for several heads (n, 3) and their headings (n, 3) at once: (n,) bool."""
+    heads = np.asarray(heads, dtype=np.float64)
+    o = np.stack([heads + low * UP, heads + high * UP], axis=1).reshape(-1, 3)
+    d = np.repeat(np.asarray(headings, dtype=np.float64), 2, axis=0)
+    hit = rays.occluded(o, d, probe).reshape(-1, 2)
+    return hit[:, 0] & ~hit[:, 1]
 
 
 def on_another_floor(nav, head: np.ndarray, target: np.ndarray, rise: float) -> bool:

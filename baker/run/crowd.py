@@ -24,7 +24,7 @@ import numpy as np
 
 from scipy.spatial import cKDTree
 
-from baker.behaviour.brain import Brain, Senses
+from baker.behaviour.brain import Brain, Senses, sense_together
 from baker.behaviour.claims import Claims
 from baker.config import BakeConfig
 from baker.context import Context
@@ -229,9 +229,12 @@ def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
         if (k - 1) % AVOID_EVERY == 0 and n > 1:
             neighbours(bodies, heads[:, k - 1], follows, reach, cobra)
         measure_levers(follows)         # the legs' levers this step measures, in one batch
+        due = [i for i in range(n) if brains[i].perceives(t)]
+        if due:                         # and what the brains perceiving this step sense
+            sense_together([brains[i] for i in due], [senses(t, follows[i]) for i in due])
         for i in range(n):
             f = follows[i]
-            wants[i] = brains[i].step(Senses(t, f.position, f.head.heading, f.agent.arrived))
+            wants[i] = brains[i].step(senses(t, f))
             f.apply(wants[i])
             f.step(clock.dt)
             heads[i, k] = f.position
@@ -272,6 +275,11 @@ def neighbours(bodies: Bodies, heads: np.ndarray, follows, reach: float,
         follows[i].others = pts[idx] if len(idx) else None
         # the bodies near move on (their heads walk): a head they corner may wait for them
         follows[i].others_move = bool(len(idx)) and bool(walking[owner[idx]].all())
+
+
+def senses(t: float, f: Follower) -> Senses:
+    """What a creature's brain is told at time t about its follower."""
+    return Senses(t, f.position, f.head.heading, f.agent.arrived)
 
 
 def step_prey(preys, t: float, dt: float, heads: np.ndarray) -> None:
