@@ -186,7 +186,7 @@ class Brain(IntentSource):
         self._now = t
         self.new_target = False
         self.halt = False
-        if t + 1e-9 >= self._next_perception:
+        if self.perceives(t):
             self._next_perception = t + 1.0 / self.b.perception_rate
             self._perceive(s)
         decide = t + 1e-9 >= self._next_decision
@@ -218,7 +218,9 @@ class Brain(IntentSource):
             self._sensed = None
             if key == (s.t, *s.head.tolist(), *s.heading.tolist()):
                 return sensed
-        return sense_together([self], [s])[0]
+        sensed = sense_together([self], [s])[0]
+        self._sensed = None
+        return sensed
 
     def _perceive(self, s: Senses) -> None:
         sun, head, pts, shade, obstacle = self._sense(s)

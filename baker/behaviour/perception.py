@@ -21,16 +21,11 @@ def in_shade(rays, points: np.ndarray, sun_dir: np.ndarray, lift: float) -> np.n
     return rays.occluded(pts, sun_dir)
 
 
-def obstacle_ahead(rays, head: np.ndarray, heading: np.ndarray, probe: float,
-                   low: float, high: float) -> bool:
-    """True when something blocks the way ahead at `low` height above the head's surface point
-    but not at `high`: an obstacle taller than a step and low enough to rear up at."""
-    return bool(obstacles_ahead(rays, head[None], heading[None], probe, low, high)[0])
-
-
 def obstacles_ahead(rays, heads: np.ndarray, headings: np.ndarray, probe: float,
                     low: float, high: float) -> np.ndarray:
-    """obstacle_ahead for several heads (n, 3) and their headings (n, 3) at once: (n,) bool."""
+    """(n,) bool: for each head (n, 3) and its heading (n, 3), something blocks the way ahead
+    at `low` height above the head's surface point but not at `high`: an obstacle taller than
+    a step and low enough to rear up at."""
     heads = np.asarray(heads, dtype=np.float64)
     o = np.stack([heads + low * UP, heads + high * UP], axis=1).reshape(-1, 3)
     d = np.repeat(np.asarray(headings, dtype=np.float64), 2, axis=0)

@@ -13,6 +13,12 @@ within `separation` of another body keeps the bodies apart. A head the bodies co
 their creatures walk holds still for them to move on (up to run.follow.HOLD_MAX) instead of
 turning on the spot: a turn on the spot folds its trail into a cusp that its body's joints jump
 across.
+
+What the creatures measure on their own the same way every step is measured for all of them
+at once before the step, in one surface query and one ray batch per kind: the legs' levers
+(run.follow.measure_levers) and what the brains perceiving in that step sense
+(behaviour.brain.sense_together); each creature checks that they were measured for what its
+step reads, and the answers are the same bits as its own.
 """
 
 from __future__ import annotations
