@@ -216,11 +216,9 @@ class Brain(IntentSource):
         if self._sensed is not None:
             key, sensed = self._sensed
             self._sensed = None
-            if key == (s.t, *s.head.tolist(), *s.heading.tolist()):
+            if key == _senses_key(s):
                 return sensed
-        sensed = sense_together([self], [s])[0]
-        self._sensed = None
-        return sensed
+        return sense_together([self], [s], keep=False)[0]
 
     def _perceive(self, s: Senses) -> None:
         sun, head, pts, shade, obstacle = self._sense(s)
@@ -430,11 +428,16 @@ def _r(p) -> list[float]:
     return [round(float(x), 4) for x in p]
 
 
-def sense_together(brains: list[Brain], senses: list[Senses]) -> list[tuple]:
+def _senses_key(s: Senses) -> tuple:
+    """What a perception's measures depend on, as Python floats."""
+    return (s.t, *s.head.tolist(), *s.heading.tolist())
+
+
+def sense_together(brains: list[Brain], senses: list[Senses], keep: bool = True) -> list[tuple]:
     """Brain._sense for several brains (a crowd's that perceive this step, sharing the
     surface, the rays, the sun and the rig) in one surface query and one ray batch per kind,
-    the same answers bit for bit as each brain's own; each is also kept on its brain, with the
-    senses it was measured for, for its step."""
+    the same answers bit for bit as each brain's own; with `keep`, each is also kept on its
+    brain, with the senses it was measured for, for its step."""
     b0 = brains[0]
     sun = b0.sun.at(senses[0].t)
     heads = np.array([s.head for s in senses], dtype=np.float64)
@@ -462,6 +465,7 @@ def sense_together(brains: list[Brain], senses: list[Senses]) -> list[tuple]:
     out = []
     for i, (b, s) in enumerate(zip(brains, senses)):
         sensed = (sun, heads[i], pts[i], shade[i], ahead.get(i))
-        b._sensed = ((s.t, *s.head.tolist(), *s.heading.tolist()), sensed)
+        if keep:
+            b._sensed = (_senses_key(s), sensed)
         out.append(sensed)
     return out

@@ -54,6 +54,16 @@ def _in_parts(n: int, cast) -> None:
     thread_map(lambda k: cast(edges[k], edges[k + 1]), range(parts), threads=parts)
 
 
+def _store(r: dict, t: np.ndarray, prim: np.ndarray, a: int, b: int) -> np.ndarray:
+    """Write Embree's answer r for rays a..b into prim and (at the hits) t; returns the hits
+    (b - a,) bool."""
+    p = r["primID"]
+    hit = p >= 0
+    prim[a:b] = p
+    t[a:b][hit] = r["tfar"][hit]
+    return hit
+
+
 @dataclass(frozen=True)
 class Hits:
     """Result of a batch of first-hit ray casts.
@@ -172,10 +182,7 @@ class RayCaster:
         for a in range(start, stop, CHUNK_RAYS):
             b = min(stop, a + CHUNK_RAYS)
             r = self._query(origins[a:b], directions[a:b], None if dist is None else dist[a:b])
-            p = r["primID"]
-            hit = p >= 0
-            prim[a:b] = p
-            t[a:b][hit] = r["tfar"][hit]
+            hit = _store(r, t, prim, a, b)
             if uv is not None:
                 uv[a:b, 0] = np.where(hit, r["u"], 0.0)
                 uv[a:b, 1] = np.where(hit, r["v"], 0.0)
@@ -199,11 +206,7 @@ class RayCaster:
                 o = np.empty((c1 - c0, 3), np.float32)
                 for k, v in enumerate((x, y, z)):
                     np.subtract(v[c0:c1], self.shift[k], out=o[:, k], casting="same_kind")
-                r = self._scene.run(o, _DOWN32, output=1)
-                p = r["primID"]
-                hit = p >= 0
-                prim[c0:c1] = p
-                t[c0:c1][hit] = r["tfar"][hit]
+                _store(self._scene.run(o, _DOWN32, output=1), t, prim, c0, c1)
 
         _in_parts(n, part)
         return t, prim

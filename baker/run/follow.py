@@ -248,8 +248,7 @@ class Follower:
         stance_speed."""
         p = self.head.position
         if self._walked - self._trail[-1][0] >= BEND_SAMPLE * self.spacing:
-            back = self._trail[-int(round(1.0 / BEND_SAMPLE))]
-            lever = (self._leg_lever(p, p[0] - back[1], p[2] - back[2])
+            lever = (self._leg_lever(*self._lever_point())
                      if math.isfinite(self.stance_speed) else math.inf)
             self._trail.append((self._walked, float(p[0]), float(p[2]), lever))
             self._push(float(p[0]), float(p[2]))
@@ -287,7 +286,7 @@ class Follower:
         if self._lever_ready is not None:
             key, lever = self._lever_ready
             self._lever_ready = None
-            if key == (float(p[0]), float(p[2]), self.height, float(dx), float(dz)):
+            if key == self._lever_key(p, dx, dz):
                 return lever
         # the ground's normal from a ray cast down (rays.cast_down's ray), facing up
         prim = self.rays.cast(np.array([self._ground_ray(p)]), _DOWN, 2.0 * self.probe)[1][0]
@@ -302,9 +301,18 @@ class Follower:
             return None
         if self._walked - self._trail[-1][0] < BEND_SAMPLE * self.spacing:
             return None
+        return self._lever_point()
+
+    def _lever_point(self) -> tuple:
+        """(p, dx, dz): the head's point and the trail's heading there (from the trail point
+        a spacing back), where _bends measures the legs' lever."""
         p = self.head.position
         back = self._trail[-int(round(1.0 / BEND_SAMPLE))]
         return p, p[0] - back[1], p[2] - back[2]
+
+    def _lever_key(self, p: np.ndarray, dx: float, dz: float) -> tuple:
+        """What a lever measured at (p, dx, dz) depends on, as Python floats."""
+        return float(p[0]), float(p[2]), self.height, float(dx), float(dz)
 
     def _ground_ray(self, p: np.ndarray) -> list:
         """The origin of the ray cast down for the ground's normal under p."""
@@ -459,7 +467,7 @@ def measure_levers(follows) -> None:
     t, hit = rays.cast(np.concatenate([o for o, _ in sides]), np.concatenate([d for _, d in sides]),
                        np.repeat([1.2 * f._hip[3] for f, _ in asks], m))
     for i, (f, (p, dx, dz)) in enumerate(asks):
-        f._lever_ready = ((float(p[0]), float(p[2]), f.height, float(dx), float(dz)),
+        f._lever_ready = (f._lever_key(p, dx, dz),
                           f._lever_of(t[i * m:(i + 1) * m], hit[i * m:(i + 1) * m]))
 
 
