@@ -22,6 +22,10 @@ class BakerError(Exception):
         super().__init__(message)
         self.where = None if where is None else str(where)
 
+    def __reduce__(self):
+        # pickled (a worker process's error) with its `where`
+        return type(self), (self.what, self.where)
+
     @property
     def what(self) -> str:
         return str(self.args[0]) if self.args else ""

@@ -128,6 +128,120 @@ def _end(children) -> None:
             p.join()
 
 
+class Peer:
+    """A forked child process that answers requests in turn: `send(request)`, then
+    `receive()` gives fn(request), computed in the child while this process goes on. The child
+    inherits everything fn reads, as a fork_map child does, and keeps its own state between
+    requests (fn may change what it reads). Linux only (can_fork); `close()` ends it.
+
+    An exception in fn is raised again by receive() (as a RuntimeError naming it, when it
+    cannot be sent back); a child that dies (killed, out of memory) makes receive() raise a
+    BakerError. The child exits when this process closes the pipe or dies."""
+
+    def __init__(self, fn, threads: int = 1):
+        ctx = multiprocessing.get_context("fork")
+        self._conn, child = ctx.Pipe()
+        with warnings.catch_warnings():     # Python 3.12+: fork with the ray caster's threads
+            warnings.filterwarnings("ignore", r".*fork\(\) may lead to deadlocks",
+                                    DeprecationWarning)
+            self._proc = ctx.Process(target=_peer_serve, args=(child, fn, threads), daemon=True,
+                                     name="baker-peer")
+            self._proc.start()
+        child.close()
+        self._poller = _poller(self._conn)
+
+    def send(self, request) -> None:
+        try:
+            self._conn.send(request)
+        except OSError:
+            self._stopped()
+
+    def receive(self):
+        try:
+            _spin(self._poller)
+            kind, value = self._conn.recv()
+        except (EOFError, OSError):
+            self._stopped()
+        if kind == "error":
+            raise value
+        return value
+
+    def _stopped(self):
+        from baker.errors import BakerError
+
+        raise BakerError("a worker process stopped (killed, or out of memory); try "
+                         "--workers 1", where="--workers") from None
+
+    def close(self) -> None:
+        """End the child (at once if it is still working)."""
+        if self._proc is None:
+            return
+        proc, self._proc = self._proc, None
+        try:
+            self._conn.send(None)
+        except OSError:
+            pass
+        self._conn.close()
+        proc.join(0.5)
+        if proc.is_alive():
+            _end([proc])
+
+
+#: [s] how long a Peer's ends poll for the other's message before they sleep in the read: a
+#: process woken from a sleep on a pipe took about half a millisecond on a 2-core virtual
+#: machine, more than a small crowd's step
+SPIN = 0.02
+
+
+def _poller(conn):
+    """A select.poll object watching `conn` for a message (a cheaper check than
+    Connection.poll, which builds a selector at each call)."""
+    import select
+
+    p = select.poll()
+    p.register(conn.fileno(), select.POLLIN)
+    return p
+
+
+def _spin(poller) -> None:
+    """Poll until a message is there (or the pipe closes) or SPIN seconds pass."""
+    if poller.poll(0):
+        return
+    import time
+
+    end = time.perf_counter() + SPIN
+    while time.perf_counter() < end:
+        if poller.poll(0):
+            return
+
+
+def _peer_serve(conn, fn, threads: int) -> None:
+    """A Peer's child: answer requests until None or the pipe closes; after an error, stop."""
+    _child_start(threads)
+    poller = _poller(conn)
+    while True:
+        try:
+            _spin(poller)
+            request = conn.recv()
+        except (EOFError, OSError):
+            return
+        if request is None:
+            return
+        try:
+            reply = ("ok", fn(request))
+        except BaseException as exc:  # handed to the parent, which raises it
+            reply = ("error", exc)
+        try:
+            conn.send(reply)
+        except Exception:  # the exception itself does not pickle
+            import traceback
+
+            conn.send(("error", RuntimeError("in a worker process: " + "".join(
+                traceback.format_exception_only(reply[1])).strip())))
+        if reply[0] == "error":
+            return
+
+
 _ONE_ARENA = False
 
 

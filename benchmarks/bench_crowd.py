@@ -10,13 +10,15 @@ their stages, the wall time against the issue's 60 s for 100 creatures, and the 
 the crowd's own checks (the report's `crowd`).
 
 Run from the repo root:  python benchmarks/bench_crowd.py [--seconds 60] [--runs 3]
-[--big-runs 1] [--sizes 1,10,100]   (--runs for N <= 10, --big-runs for larger crowds)
+[--big-runs 1] [--sizes 1,10,100] [--workers 1,2]   (--runs for N <= 10, --big-runs for
+larger crowds; --workers: run each crowd on each count in turns, with their ratio)
                          python benchmarks/bench_crowd.py --bake [--workers 1,2] ...
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import statistics
 import tempfile
 import time
@@ -58,8 +60,8 @@ def main():
     ap.add_argument("--sizes", default="1,10,100")
     ap.add_argument("--cache-dir", type=Path, default=None)
     ap.add_argument("--bake", action="store_true", help="time whole bakes (see the module)")
-    ap.add_argument("--workers", default=None, help="with --bake: worker counts to time "
-                    "(comma separated) [default: the CPUs available]")
+    ap.add_argument("--workers", default=None, help="worker counts to time (comma separated) "
+                    "[default: 1 for the run stage, the CPUs available with --bake]")
     args = ap.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
     if args.bake:
@@ -74,14 +76,20 @@ def main():
         spine_rig = replace(run_cfg.rig, legs=replace(run_cfg.rig.legs, enabled=False))
         two_r = 2.0 * max(run_cfg.rig.body.width_profile)
         med = {}
-        print(f"crowd run stage, default scene, {args.seconds:.0f} s at 240 Hz (medians)")
+        workers = [int(w) for w in (args.workers or "1").split(",")]
+        print(f"crowd run stage, default scene, {args.seconds:.0f} s at 240 Hz (medians; "
+              f"workers {', '.join(map(str, workers))}, taken in turns)")
         for n in sizes:
-            times = []
+            times = {w: [] for w in workers}
+            digests = {}
             for _ in range(args.runs if n <= 10 else args.big_runs):
-                t = time.perf_counter()
-                recs, _ = run_crowd(run_cfg, env, nav, 0, n, Context())
-                times.append(time.perf_counter() - t)
-            med[n] = statistics.median(times)
+                for w in workers:
+                    t = time.perf_counter()
+                    recs, _ = run_crowd(run_cfg, env, nav, 0, n, Context(), workers=w)
+                    times[w].append(time.perf_counter() - t)
+                    digests[w] = hashlib.sha256(b"".join(
+                        r.heads.tobytes() + r.slither.tobytes() + r.cobra.tobytes()
+                        for r in recs)).hexdigest()
             gap = ""
             if n > 1:
                 spines = np.stack([solve(r, env.rays, spine_rig).spine_positions for r in recs])
@@ -89,11 +97,21 @@ def main():
                 gap = (f"   min spine gap {g * 1000:6.1f} mm" if np.isfinite(g)
                        else "   min spine gap > 500 mm")
                 gap += f" (2 x body radius {two_r * 1000:.1f} mm)"
-            print(f"  N = {n:4d}: {med[n]:8.2f} s   {med[n] / n:6.3f} s per creature"
-                  f"   ({n * args.seconds / med[n]:6.1f} creature-seconds per second){gap}")
+            for w in workers:
+                m = statistics.median(times[w])
+                med.setdefault(n, m)
+                print(f"  N = {n:4d}, {w} worker{'s' * (w > 1)}: {m:8.2f} s   {m / n:6.3f} s per "
+                      f"creature   ({n * args.seconds / m:6.1f} creature-seconds per second)"
+                      f"{gap}")
+            if len(workers) > 1:
+                first = statistics.median(times[workers[0]])
+                print(f"  N = {n:4d}: " + ", ".join(
+                    f"{w} workers {statistics.median(times[w]) / first:.2f}x of {workers[0]}"
+                    for w in workers[1:]) + ", the same heads, slither and cobra: "
+                    + ("yes" if len(set(digests.values())) == 1 else "NO"))
         if 10 in med and 100 in med:
             print(f"  growth per creature 10 -> 100: {(med[100] / 100) / (med[10] / 10):.2f}x "
-                  f"(1.00 = linear)")
+                  f"(1.00 = linear; {workers[0]} worker{'s' * (workers[0] > 1)})")
         if 1 in med and 10 in med:
             print(f"  growth per creature 1 -> 10:   {(med[10] / 10) / med[1]:.2f}x")
 

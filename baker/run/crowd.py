@@ -19,6 +19,12 @@ at once before the step, in one surface query and one ray batch per kind: the le
 (run.follow.measure_levers) and what the brains perceiving in that step sense
 (behaviour.brain.sense_together); each creature checks that they were measured for what its
 step reads, and the answers are the same bits as its own.
+
+Each step the brains decide first, one after another (they share the claims), from every
+follower's state after the last step (run.group.States); then the followers walk their
+intents. With two or more workers (and a crowd of at least run.group.PEER_FROM), half of the
+followers are stepped on a forked peer process while this one steps the other half
+(run.group.Followers): the same bits as one process.
 """
 
 from __future__ import annotations
@@ -37,7 +43,9 @@ from baker.context import Context
 from baker.geometry.arrays import unique
 from baker.locomotion.body import ROUND, chain_on, trail_ends
 from baker.locomotion.cobra import lift_profile
-from baker.run.follow import Follower, measure_levers
+from baker.navmesh.lazy import LazyNav
+from baker.run.follow import Follower
+from baker.run.group import Followers, States
 from baker.run.loop import Clock, make_prey, make_sun, record, start_line
 from baker.run.record import Recorder, RunRecord
 from baker.run.start import choose_start, middle_anchor
@@ -192,7 +200,8 @@ class Bodies:
 
 
 def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
-              separation: float | None = None) -> tuple[list[RunRecord], dict]:
+              separation: float | None = None, workers: int = 1
+              ) -> tuple[list[RunRecord], dict]:
     """Run `n` creatures together. Returns (one RunRecord per creature, the prey's record:
     dict(prey_names, prey_positions (F, P, 3), prey_modes (F, P) int8, prey_holder (F, P) int,
     the creature whose head holds each prey, -1 for none)). The prey are the bake's
@@ -227,65 +236,68 @@ def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
     ramp = clock.dt / rig.cobra.ramp_time
     wants = [b.intent() for b in brains]
     cobra = np.array([w.cobra for w in wants])
-    sample(0, recs, prey_rec, holder, wants, preys, brains, cobra, follows)
     reach = sep + 0.25 * max(f.turn_radius for f in follows) + 4.0 * AVOID_EVERY * clock.dt * (
         rig.locomotion.max_speed * rig.behaviour.onslaught_speed)
-    for k in range(1, clock.n_steps + 1):
-        t = (k - 1) * clock.dt
-        if (k - 1) % AVOID_EVERY == 0 and n > 1:
-            neighbours(bodies, heads[:, k - 1], follows, reach, cobra)
-        measure_levers(follows)         # the legs' levers this step measures, in one batch
-        due = [i for i in range(n) if brains[i].perceives(t)]
-        if due:                         # and what the brains perceiving this step sense
-            sense_together([brains[i] for i in due], [senses(t, follows[i]) for i in due])
-        for i in range(n):
-            f = follows[i]
-            wants[i] = brains[i].step(senses(t, f))
-            f.apply(wants[i])
-            f.step(clock.dt)
-            heads[i, k] = f.position
-        bodies.advance(heads[:, k])
-        if preys:
-            step_prey(preys, t, clock.dt, heads[:, k])
-        cobra += np.clip(np.array([w.cobra for w in wants]) - cobra, -ramp, ramp)
-        if k % clock.per_frame == 0:
-            sample(k // clock.per_frame, recs, prey_rec, holder, wants, preys, brains, cobra,
-                   follows)
-        if k % 2400 == 0:
-            ctx.report_progress("simulate", k / clock.n_steps)
+    group = Followers(follows, clock.dt, workers, lazy=isinstance(nav, LazyNav))
+    state = group.states
+    sample(0, recs, prey_rec, holder, wants, preys, brains, cobra, state)
+    try:
+        for k in range(1, clock.n_steps + 1):
+            t = (k - 1) * clock.dt
+            others = None
+            if (k - 1) % AVOID_EVERY == 0 and n > 1:
+                others = neighbours(bodies, heads[:, k - 1], state.speeds, reach, cobra)
+            told = [senses(t, state, i) for i in range(n)]
+            due = [i for i in range(n) if brains[i].perceives(t)]
+            if due:                     # what the brains perceiving this step sense, at once
+                sense_together([brains[i] for i in due], [told[i] for i in due])
+            for i in range(n):
+                wants[i] = brains[i].step(told[i])
+            group.step(wants, others)
+            heads[:, k] = state.positions
+            bodies.advance(heads[:, k])
+            if preys:
+                step_prey(preys, t, clock.dt, heads[:, k])
+            cobra += np.clip(np.array([w.cobra for w in wants]) - cobra, -ramp, ramp)
+            if k % clock.per_frame == 0:
+                sample(k // clock.per_frame, recs, prey_rec, holder, wants, preys, brains, cobra,
+                       state)
+            if k % 2400 == 0:
+                ctx.report_progress("simulate", k / clock.n_steps)
+    finally:
+        group.close()
     out = [record(clock, nav, rig, s, h, heads[i], recs[i], [], sun,
-                  brains[i].finish(cfg.seconds), None, follows[i].replans)
+                  brains[i].finish(cfg.seconds), None, state.replans(i))
            for i, (s, h) in enumerate(starts)]
     return out, dict(prey_names=tuple(p.name for p in preys), prey_positions=prey_rec.prey_pos,
                      prey_modes=prey_rec.prey_mode, prey_holder=holder)
 
 
-def neighbours(bodies: Bodies, heads: np.ndarray, follows, reach: float,
-               cobra: np.ndarray | None = None) -> None:
-    """Hand each follower the other creatures' body points within `reach` of its head (one
-    tree, one ball query for all heads); cobra: (n,) their cobra amounts. Only the bodies of
-    creatures whose heads are near another's are placed: a body lies within bodies.extent of
-    its head."""
-    for f in follows:
-        f.others = None
+def neighbours(bodies: Bodies, heads: np.ndarray, speeds: np.ndarray, reach: float,
+               cobra: np.ndarray | None = None) -> list[tuple]:
+    """Every creature's (the other creatures' body points within `reach` of its head, or None;
+    whether those creatures all walk), from one tree and one ball query for all heads; speeds:
+    (n,) the heads' speeds, cobra: (n,) the cobra amounts. Only the bodies of creatures whose
+    heads are near another's are placed: a body lies within bodies.extent of its head."""
+    out = [(None, False)] * len(heads)
     xz = heads[:, [0, 2]]
     need = unique(cKDTree(xz).query_pairs(bodies.extent + reach, output_type="ndarray"))
     if not len(need):
-        return
+        return out
     pts, owner = bodies.points(need, cobra)
     near = cKDTree(pts).query_ball_point(xz[need], reach)
-    walking = np.array([f.head.speed > 0.0 for f in follows])
-    for i, idx in zip(need, near):
+    walking = speeds > 0.0
+    for i, idx in zip(need.tolist(), near):
         idx = np.asarray(idx, dtype=np.intp)
         idx = idx[owner[idx] != i]
-        follows[i].others = pts[idx] if len(idx) else None
         # the bodies near move on (their heads walk): a head they corner may wait for them
-        follows[i].others_move = bool(len(idx)) and bool(walking[owner[idx]].all())
+        out[i] = ((pts[idx], bool(walking[owner[idx]].all())) if len(idx) else (None, False))
+    return out
 
 
-def senses(t: float, f: Follower) -> Senses:
-    """What a creature's brain is told at time t about its follower."""
-    return Senses(t, f.position, f.head.heading, f.agent.arrived)
+def senses(t: float, state: States, i: int) -> Senses:
+    """What creature i's brain is told at time t about its follower."""
+    return Senses(t, state.position(i), state.heading(i), state.arrived(i))
 
 
 def step_prey(preys, t: float, dt: float, heads: np.ndarray) -> None:
@@ -295,10 +307,11 @@ def step_prey(preys, t: float, dt: float, heads: np.ndarray) -> None:
         p.step(t, dt, heads[int(np.argmin(d))])
 
 
-def sample(f: int, recs, prey_rec: Recorder, holder, wants, preys, brains, cobra, follows):
+def sample(f: int, recs, prey_rec: Recorder, holder, wants, preys, brains, cobra,
+           state: States):
     """Frame f of every creature's drives, the prey and which head holds each prey."""
     for i, rec in enumerate(recs):
-        rec.sample(f, wants[i], (), float(cobra[i]), follows[i].head.phase)
+        rec.sample(f, wants[i], (), float(cobra[i]), state.phase(i))
     prey_rec.sample(f, wants[0], preys, 0.0)
     for i, b in enumerate(brains):
         if b.prey is not None:

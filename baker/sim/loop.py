@@ -37,7 +37,7 @@ def simulate_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
     up to `workers` processes: baker.parallel.fork_map, the same bits as one).
     The bake's prey ride on the first trajectory (each held at its hunter's head while fed
     on); the others have none. ctx.notes["path_replans"] lists every creature's replans."""
-    recs, prey = run_crowd(cfg, env, nav, seed, n, ctx)
+    recs, prey = run_crowd(cfg, env, nav, seed, n, ctx, workers=workers)
     ctx.notes["path_replans"] = [r.replans for r in recs]
     trajs = fork_map(lambda i: solve(recs[i], env.rays, cfg.rig), n, workers)
     if prey["prey_names"]:

@@ -16,6 +16,8 @@ from baker.config import SIM_RATE_HZ, BakeConfig, load_rig_config, DEFAULT_RIG
 from baker.context import Context
 from baker.environment.model import Sun
 from baker.navmesh import build
+from baker import parallel
+from baker.run import group
 from baker.run.crowd import crowd_separation, crowd_starts, run_crowd
 from baker.locomotion.legs import folded_lever
 from baker.run.follow import HOLD_MAX, Follower, measure_levers
@@ -233,3 +235,39 @@ def test_the_levers_measured_for_the_whole_crowd_are_each_creatures_own():
             assert f._lever_ready is None                        # used (or dropped) by the step
     open_ground = folded_lever(np.inf, rig.legs.reach, follows[0]._hip[0])
     assert len(levers) > 400 and (np.array(levers) < 0.8 * open_ground).sum() > 100
+
+
+@pytest.mark.skipif(not parallel.can_fork(), reason="a peer process forks on Linux only")
+def test_a_crowd_run_on_two_processes_is_the_same_bits_as_on_one(monkeypatch):
+    """With two workers a crowd's followers are stepped in two groups, one on a forked peer
+    (run.group): the records are the same bits as one process's, hunts, a feed and the
+    neighbours' points handed over included."""
+    monkeypatch.setattr(parallel, "available_cpus", lambda: 2)
+    monkeypatch.setattr(group, "PEER_FROM", 2)
+    env = env_of(floor(-0.7, 0.7, -0.7, 0.7))
+    nav = nav_of(env)
+    cfg = BakeConfig(seconds=6.0, rig=RIG, behaviour="hunt",
+                     prey_positions=((0.0, 0.0, 0.3), (-0.3, 0.0, -0.2)))
+    peers = []
+    real = group.Peer
+
+    def counted(*a, **kw):
+        peers.append(real(*a, **kw))
+        return peers[-1]
+
+    monkeypatch.setattr(group, "Peer", counted)
+    one = run_crowd(cfg, env, nav, 6, 6, Context(), workers=1)
+    assert not peers
+    two = run_crowd(cfg, env, nav, 6, 6, Context(), workers=2)
+    assert len(peers) == 1
+    (a, pa), (b, pb) = one, two
+    assert any(e["state"] == "feed" for r in a for e in r.events)
+    for ra, rb in zip(a, b):
+        for f in dataclasses.fields(ra):
+            x, y = getattr(ra, f.name), getattr(rb, f.name)
+            if isinstance(x, np.ndarray):
+                assert x.tobytes() == y.tobytes() and x.shape == y.shape, f.name
+            else:
+                assert x == y, f.name
+    for k in pa:
+        assert np.array_equal(pa[k], pb[k]) if isinstance(pa[k], np.ndarray) else pa[k] == pb[k]

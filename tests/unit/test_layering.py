@@ -27,7 +27,8 @@ ALLOWED = {
     "locomotion": {"environment", "config", "rig"},
     "behaviour": {"environment", "navmesh", "locomotion", "config"},
     "rig": {"config"},
-    "run": {"environment", "navmesh", "behaviour", "locomotion", "config", "context", "streams"},
+    "run": {"environment", "navmesh", "behaviour", "locomotion", "config", "context", "streams",
+            "parallel"},                # a crowd's followers stepped on a forked peer too
     "solve": {"environment", "locomotion", "behaviour", "config", "run"},   # a run's record
     "sim": {"run", "solve", "config", "context", "streams", "parallel"},   # run, then solve
     "metrics": {"solve", "parallel"},        # the spine-gap search on every CPU

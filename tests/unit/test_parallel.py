@@ -150,3 +150,53 @@ def test_in_background_runs_on_a_daemon_thread(monkeypatch):
     wait = parallel.in_background(lambda: (threading.current_thread().daemon,
                                            threading.current_thread() is threading.main_thread()))
     assert wait() == (True, False)
+
+
+@forks
+def test_a_peer_answers_in_turn_and_keeps_its_own_state():
+    box = {"total": 0}
+
+    def add(x):
+        box["total"] += x                   # the child's copy
+        return box["total"], os.getpid()
+
+    peer = parallel.Peer(add)
+    try:
+        answers = []
+        for x in (1, 2, 3):
+            peer.send(x)
+            answers.append(peer.receive())
+    finally:
+        peer.close()
+    assert [a for a, _ in answers] == [1, 3, 6] and box["total"] == 0
+    assert {p for _, p in answers} != {os.getpid()}
+    assert multiprocessing.active_children() == []
+
+
+@forks
+def test_a_peers_error_is_raised_here_with_its_option():
+    def fail(x):
+        raise BakerError(f"no room for {x}", where="--max-memory")
+
+    peer = parallel.Peer(fail)
+    try:
+        peer.send(7)
+        with pytest.raises(BakerError) as e:
+            peer.receive()
+    finally:
+        peer.close()
+    assert e.value.where == "--max-memory" and e.value.what == "no room for 7"
+    assert multiprocessing.active_children() == []
+
+
+@forks
+def test_a_killed_peer_is_one_error_naming_the_option():
+    peer = parallel.Peer(lambda x: os.kill(os.getpid(), signal.SIGKILL))
+    try:
+        peer.send(1)
+        with pytest.raises(BakerError) as e:
+            peer.receive()
+    finally:
+        peer.close()
+    assert e.value.where == "--workers" and "worker process stopped" in str(e.value)
+    assert multiprocessing.active_children() == []
