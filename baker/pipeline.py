@@ -198,7 +198,7 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
     if len(trajs) > 1:
         scene.update(crowd=[c for c, _ in others], crowd_root_motion=[p[2] for p in posed[1:]])
     with OutputSet(paths) as out:
-        glb = write_scene(cfg, paths, out, env, rig, clip, scene, ctx)
+        glb = write_scene(cfg, paths, out, env, rig, clip, scene, ctx, workers)
         # --preview: the map and the contact sheet, drawn from the GLB's bytes, committed with
         # the other files
         if cfg.preview:
@@ -298,22 +298,27 @@ def reduce_creatures(cfg: BakeConfig, rig, env, trajs, clips, segments: tuple,
     return fork_map(one, len(trajs), workers)
 
 
-def write_scene(cfg: BakeConfig, paths: dict, out, env, rig, clip, scene: dict, ctx):
-    """Step 8's GLB and USD files into the OutputSet `out`. Returns the GLB's bytes (None
-    without a GLB)."""
-    from baker.export.gltf import build_glb
-    from baker.export.usd import build_stage, save_stage
+def write_scene(cfg: BakeConfig, paths: dict, out, env, rig, clip, scene: dict, ctx,
+                workers: int = 1):
+    """Step 8's GLB and USD files into the OutputSet `out`. Returns the GLB's bytes for
+    --preview (else None). A crowd's files are written side by side on up to `workers`
+    processes (baker.parallel.fork_map: the same bytes)."""
+    keys = [k for k in ("glb", "usd", "usda") if k in paths]
+    temps = {k: out.temp(k) for k in keys}       # made here: the commit renames them
 
-    glb = None
+    def one(i: int) -> None:
+        from baker.export.gltf import build_glb
+        from baker.export.usd import build_stage, save_stage
+
+        key = keys[i]
+        if key == "glb":
+            out.write_bytes("glb", build_glb(env, rig, clip, **scene))
+        else:
+            save_stage(build_stage(env, rig, clip, fps=cfg.fps, **scene), temps[key], paths[key])
+
     with ctx.stage("export"):
-        if "glb" in paths:
-            glb = build_glb(env, rig, clip, **scene)
-            out.write_bytes("glb", glb)
-        for fmt in ("usd", "usda"):
-            if fmt in paths:
-                stage = build_stage(env, rig, clip, fps=cfg.fps, **scene)
-                save_stage(stage, out.temp(fmt), paths[fmt])
-    return glb
+        fork_map(one, len(keys), workers if scene.get("crowd") else 1)
+    return temps["glb"].read_bytes() if cfg.preview and "glb" in temps else None
 
 
 def posed_clip(cfg: BakeConfig, traj, rig, env):
