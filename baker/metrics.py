@@ -157,6 +157,15 @@ def _local_angle_steps(traj: Trajectory, parents_world: np.ndarray, child: np.nd
     return np.degrees(2.0 * np.arccos(np.clip(np.abs(dq[..., 3]), 0.0, 1.0)))
 
 
+def circular_mean_deg(x: np.ndarray) -> float | None:
+    """[deg] the circular mean of fractions of a cycle `x`, or None when there are none (a
+    creature that never strode at a steady pace)."""
+    x = np.asarray(x, dtype=np.float64)
+    if not x.size:
+        return None
+    return float(np.degrees(np.angle(np.mean(np.exp(2j * np.pi * x)))))
+
+
 def leg_metrics(traj: Trajectory, rays, legs_cfg, *, spacing: float, body_length: float,
                 lag_setting_deg: float, max_speed: float, window_s: float = 60.0) -> dict:
     """Leg and foot quality numbers over every frame (see issue 5's Done-when list).
@@ -260,16 +269,12 @@ def leg_metrics(traj: Trajectory, rays, legs_cfg, *, spacing: float, body_length
         lag = np.concatenate(lags)
         t = np.concatenate(when)
         setting = lag_setting_deg / 360.0
-
-        def circ(x):
-            return float(np.degrees(np.angle(np.mean(np.exp(2j * np.pi * x)))))
-
-        lag_mean = circ(lag)
+        lag_mean = circular_mean_deg(lag)
         n_win = max(int(np.ceil(float(traj.times[-1]) / window_s)), 1)
         for w in range(n_win):
             m = (t >= w * window_s) & (t < (w + 1) * window_s)
             if np.count_nonzero(m) >= 20:
-                windows.append(round(circ(lag[m]), 3))
+                windows.append(round(circular_mean_deg(lag[m]), 3))
         ref = setting * 360.0
         lag_drift = float(max(abs((x - ref + 180.0) % 360.0 - 180.0) for x in windows)) if windows else None
 

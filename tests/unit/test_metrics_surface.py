@@ -171,3 +171,16 @@ def test_open_sky_between_two_overlapping_leaves_is_not_inside():
     # below is nearer; below the lower leaf: inside, as under any one-sided ground
     assert not inside_geometry([[0.0, 0.006, 0.025]], env.rays).any()
     assert inside_geometry([[0.0, -0.01, 0.0]], env.rays).all()
+
+
+def test_the_circular_mean_of_no_strides_is_none_without_a_warning():
+    import warnings
+
+    from baker.metrics import circular_mean_deg
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert circular_mean_deg(np.array([])) is None
+        assert abs(circular_mean_deg(np.array([0.25, 0.25])) - 90.0) < 1e-9
+        # 350 deg and 10 deg average to 0 deg round the circle, not 180
+        assert abs(circular_mean_deg(np.array([350.0, 10.0]) / 360.0)) < 1e-9
