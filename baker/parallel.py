@@ -144,8 +144,8 @@ class Peer:
         with warnings.catch_warnings():     # Python 3.12+: fork with the ray caster's threads
             warnings.filterwarnings("ignore", r".*fork\(\) may lead to deadlocks",
                                     DeprecationWarning)
-            self._proc = ctx.Process(target=_peer_serve, args=(child, fn, threads), daemon=True,
-                                     name="baker-peer")
+            self._proc = ctx.Process(target=_peer_serve, args=(child, fn, threads, self._conn),
+                                     daemon=True, name="baker-peer")
             self._proc.start()
         child.close()
         self._poller = _poller(self._conn)
@@ -215,8 +215,11 @@ def _spin(poller) -> None:
             return
 
 
-def _peer_serve(conn, fn, threads: int) -> None:
-    """A Peer's child: answer requests until None or the pipe closes; after an error, stop."""
+def _peer_serve(conn, fn, threads: int, parent_end) -> None:
+    """A Peer's child: answer requests until None or the pipe closes; after an error, stop.
+    It closes its copy of the parent's end first, so that the pipe closes when the parent
+    dies (killed, it cannot say so)."""
+    parent_end.close()
     _child_start(threads)
     poller = _poller(conn)
     while True:
@@ -232,14 +235,24 @@ def _peer_serve(conn, fn, threads: int) -> None:
         except BaseException as exc:  # handed to the parent, which raises it
             reply = ("error", exc)
         try:
-            conn.send(reply)
-        except Exception:  # the exception itself does not pickle
-            import traceback
-
-            conn.send(("error", RuntimeError("in a worker process: " + "".join(
-                traceback.format_exception_only(reply[1])).strip())))
+            _reply(conn, reply)
+        except OSError:
+            return                      # the parent has gone (or stopped listening)
         if reply[0] == "error":
             return
+
+
+def _reply(conn, reply: tuple) -> None:
+    """Send a Peer's reply; an error that does not pickle goes as a RuntimeError naming it."""
+    try:
+        conn.send(reply)
+    except OSError:
+        raise
+    except Exception:
+        import traceback
+
+        conn.send(("error", RuntimeError("in a worker process: " + "".join(
+            traceback.format_exception_only(reply[1])).strip())))
 
 
 _ONE_ARENA = False

@@ -200,3 +200,65 @@ def test_a_killed_peer_is_one_error_naming_the_option():
         peer.close()
     assert e.value.where == "--workers" and "worker process stopped" in str(e.value)
     assert multiprocessing.active_children() == []
+
+
+@forks
+def test_a_peers_error_that_does_not_pickle_is_named():
+    class Odd(Exception):
+        def __reduce__(self):
+            raise TypeError("not picklable")
+
+    def fail(x):
+        raise Odd("a local exception class")
+
+    peer = parallel.Peer(fail)
+    try:
+        peer.send(1)
+        with pytest.raises(RuntimeError, match="in a worker process: .*Odd: a local exception"):
+            peer.receive()
+    finally:
+        peer.close()
+    assert multiprocessing.active_children() == []
+
+
+@forks
+def test_closing_a_busy_peer_ends_it_quietly(capfd):
+    peer = parallel.Peer(lambda x: __import__("time").sleep(x))
+    peer.send(600)                  # still working: closing ends it
+    peer.close()
+    assert multiprocessing.active_children() == []
+    assert "Traceback" not in capfd.readouterr().err
+
+
+@forks
+def test_a_peer_ends_when_its_parent_is_killed(tmp_path):
+    import subprocess
+    import sys
+    import time
+
+    script = tmp_path / "parent.py"
+    script.write_text("import os, sys, time\n"
+                      "from baker.parallel import Peer\n"
+                      "peer = Peer(lambda x: x)\n"
+                      "print(peer._proc.pid, flush=True)\n"
+                      "time.sleep(600)\n")
+    parent = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    child = int(parent.stdout.readline())
+    parent.kill()
+    parent.wait()
+    for _ in range(200):            # the child sees its pipe close and exits
+        if not running(child):
+            break
+        time.sleep(0.05)
+    else:
+        os.kill(child, signal.SIGKILL)
+        pytest.fail("the peer outlived its killed parent")
+
+
+def running(pid: int) -> bool:
+    """The process exists and is not a zombie (an orphan's may wait for a reaper)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except (FileNotFoundError, ProcessLookupError):
+        return False
