@@ -12,6 +12,10 @@ the platform's safe way to start a process (it is on Linux; macOS and Windows st
 interpreters, which would have to load the level again), and inside a daemonic process (a
 `baker batch` worker, which may not have children: the batch already keeps the cores busy).
 
+Peer(fn) is one forked child that answers requests in turn (send, then receive fn(request)),
+keeping its own state between them: a crowd's run steps half of its followers on one while
+this process steps the other half (run.group).
+
 thread_map(fn, items) is the same map on threads of this process, for calls that spend their
 time in numpy or Embree with the GIL released.
 
@@ -132,19 +136,20 @@ class Peer:
     """A forked child process that answers requests in turn: `send(request)`, then
     `receive()` gives fn(request), computed in the child while this process goes on. The child
     inherits everything fn reads, as a fork_map child does, and keeps its own state between
-    requests (fn may change what it reads). Linux only (can_fork); `close()` ends it.
+    requests (fn may change what it reads). Linux only (can_fork); `close()` ends it. `share`:
+    the processes sharing the CPUs (the child's ray threads are its share, thread_count).
 
     An exception in fn is raised again by receive() (as a RuntimeError naming it, when it
     cannot be sent back); a child that dies (killed, out of memory) makes receive() raise a
     BakerError. The child exits when this process closes the pipe or dies."""
 
-    def __init__(self, fn, threads: int = 1):
+    def __init__(self, fn, share: int = 2):
         ctx = multiprocessing.get_context("fork")
         self._conn, child = ctx.Pipe()
         with warnings.catch_warnings():     # Python 3.12+: fork with the ray caster's threads
             warnings.filterwarnings("ignore", r".*fork\(\) may lead to deadlocks",
                                     DeprecationWarning)
-            self._proc = ctx.Process(target=_peer_serve, args=(child, fn, threads, self._conn),
+            self._proc = ctx.Process(target=_peer_serve, args=(child, fn, share, self._conn),
                                      daemon=True, name="baker-peer")
             self._proc.start()
         child.close()
@@ -215,12 +220,12 @@ def _spin(poller) -> None:
             return
 
 
-def _peer_serve(conn, fn, threads: int, parent_end) -> None:
+def _peer_serve(conn, fn, share: int, parent_end) -> None:
     """A Peer's child: answer requests until None or the pipe closes; after an error, stop.
     It closes its copy of the parent's end first, so that the pipe closes when the parent
     dies (killed, it cannot say so)."""
     parent_end.close()
-    _child_start(threads)
+    _child_start(share)
     poller = _poller(conn)
     while True:
         try:

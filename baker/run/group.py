@@ -24,8 +24,8 @@ import numpy as np
 from baker.parallel import Peer, available_cpus, can_fork
 from baker.run.follow import Follower, measure_levers
 
-#: the peer's share of the followers: this process also decides for every brain, finds the
-#: neighbours and steps the prey between the followers' steps
+#: the peer's share of the followers (it waits while this process decides for every brain,
+#: finds the neighbours and steps the prey, so an even split of the followers is the fastest)
 PEER_SHARE = 0.5
 #: crowds smaller than this are stepped in this process (a step's exchange with the peer
 #: costs about what a few followers' steps do)
@@ -123,7 +123,7 @@ class Followers:
             k = np.arange(n)
             far = np.floor((k + 1) * PEER_SHARE) > np.floor(k * PEER_SHARE)
             far_group = Group(follows, np.flatnonzero(far), dt)
-            self.peer = Peer(far_group.step, threads=2)
+            self.peer = Peer(far_group.step, share=2)
         self.far = np.flatnonzero(far)
         self.near = Group(follows, np.flatnonzero(~far), dt)
 
