@@ -44,6 +44,16 @@ def min_spine_gap(trajs) -> float:
                for f in range(F))
 
 
+def assert_same_fields(a, b) -> None:
+    """Two dataclass records field for field, arrays bit for bit."""
+    for f in dataclasses.fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if isinstance(x, np.ndarray):
+            assert x.tobytes() == y.tobytes() and x.shape == y.shape, f.name
+        else:
+            assert x == y, f.name
+
+
 def overlapping(a, b) -> bool:
     return a["start"] < b["end"] and b["start"] < a["end"]
 
@@ -161,12 +171,7 @@ def test_a_crowd_of_one_is_a_lone_creature(plane):
     alone = simulate(cfg, env, nav, Streams(2), Context())
     crowd = simulate_crowd(cfg, env, nav, 2, 1, Context())[0]
     assert (alone.prey_modes == 2).any()           # HELD: the prey is carried at the head
-    for f in dataclasses.fields(alone):
-        a, b = getattr(alone, f.name), getattr(crowd, f.name)
-        if isinstance(a, np.ndarray):
-            assert a.tobytes() == b.tobytes() and a.shape == b.shape, f.name
-        else:
-            assert a == b, f.name
+    assert_same_fields(alone, crowd)
 
 
 def test_a_head_cornered_by_walking_bodies_holds_still_then_turns():
@@ -263,11 +268,6 @@ def test_a_crowd_run_on_two_processes_is_the_same_bits_as_on_one(monkeypatch):
     (a, pa), (b, pb) = one, two
     assert any(e["state"] == "feed" for r in a for e in r.events)
     for ra, rb in zip(a, b):
-        for f in dataclasses.fields(ra):
-            x, y = getattr(ra, f.name), getattr(rb, f.name)
-            if isinstance(x, np.ndarray):
-                assert x.tobytes() == y.tobytes() and x.shape == y.shape, f.name
-            else:
-                assert x == y, f.name
+        assert_same_fields(ra, rb)
     for k in pa:
         assert np.array_equal(pa[k], pb[k]) if isinstance(pa[k], np.ndarray) else pa[k] == pb[k]

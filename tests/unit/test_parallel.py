@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import re
 import signal
 
 import numpy as np
@@ -178,28 +179,14 @@ def test_a_peers_error_is_raised_here_with_its_option():
     def fail(x):
         raise BakerError(f"no room for {x}", where="--max-memory")
 
-    peer = parallel.Peer(fail)
-    try:
-        peer.send(7)
-        with pytest.raises(BakerError) as e:
-            peer.receive()
-    finally:
-        peer.close()
-    assert e.value.where == "--max-memory" and e.value.what == "no room for 7"
-    assert multiprocessing.active_children() == []
+    e = raised_by_peer(fail, BakerError)
+    assert e.where == "--max-memory" and e.what == "no room for 1"
 
 
 @forks
 def test_a_killed_peer_is_one_error_naming_the_option():
-    peer = parallel.Peer(lambda x: os.kill(os.getpid(), signal.SIGKILL))
-    try:
-        peer.send(1)
-        with pytest.raises(BakerError) as e:
-            peer.receive()
-    finally:
-        peer.close()
-    assert e.value.where == "--workers" and "worker process stopped" in str(e.value)
-    assert multiprocessing.active_children() == []
+    e = raised_by_peer(lambda x: os.kill(os.getpid(), signal.SIGKILL), BakerError)
+    assert e.where == "--workers" and "worker process stopped" in str(e)
 
 
 @forks
@@ -211,14 +198,8 @@ def test_a_peers_error_that_does_not_pickle_is_named():
     def fail(x):
         raise Odd("a local exception class")
 
-    peer = parallel.Peer(fail)
-    try:
-        peer.send(1)
-        with pytest.raises(RuntimeError, match="in a worker process: .*Odd: a local exception"):
-            peer.receive()
-    finally:
-        peer.close()
-    assert multiprocessing.active_children() == []
+    e = raised_by_peer(fail, RuntimeError)
+    assert re.search("in a worker process: .*Odd: a local exception", str(e))
 
 
 @forks
@@ -262,3 +243,17 @@ def running(pid: int) -> bool:
             return f.read().rsplit(")", 1)[1].split()[0] != "Z"
     except (FileNotFoundError, ProcessLookupError):
         return False
+
+
+def raised_by_peer(fn, kind):
+    """The exception of type `kind` a Peer running fn raises here at its answer to 1; the peer
+    is gone after it."""
+    peer = parallel.Peer(fn)
+    try:
+        peer.send(1)
+        with pytest.raises(kind) as e:
+            peer.receive()
+    finally:
+        peer.close()
+    assert multiprocessing.active_children() == []
+    return e.value
