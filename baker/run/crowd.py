@@ -22,9 +22,9 @@ step reads, and the answers are the same bits as its own.
 
 Each step the brains decide first, one after another (they share the claims), from every
 follower's state after the last step (run.group.States); then the followers walk their
-intents. With two or more workers (and a crowd of at least run.group.PEER_FROM), half of the
-followers are stepped on a forked peer process while this one steps the other half
-(run.group.Followers): the same bits as one process.
+intents. With two or more workers (one per CPU, at least run.group.PER_PROCESS followers
+each), the followers are dealt out among this process and forked peer processes, which step
+their shares at once (run.group.Followers): the same bits as one process.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""A crowd's followers stepped in two groups at once: one in this process, one on a forked
-peer process (baker.parallel.Peer), so that a crowd's run uses two cores.
+"""A crowd's followers stepped in groups at once: one in this process, the others on forked
+peer processes (baker.parallel.Peer), so that a crowd's run uses the cores (--workers).
 
 Within a step of the crowd's run (run.crowd.run_crowd), the brains decide one after another
 (they share the claims on shade spots and prey), and then each follower walks its creature's
@@ -24,12 +24,9 @@ import numpy as np
 from baker.parallel import Peer, available_cpus, can_fork
 from baker.run.follow import Follower, measure_levers
 
-#: the peer's share of the followers (it waits while this process decides for every brain,
-#: finds the neighbours and steps the prey, so an even split of the followers is the fastest)
-PEER_SHARE = 0.5
-#: crowds smaller than this are stepped in this process (a step's exchange with the peer
-#: costs about what a few followers' steps do)
-PEER_FROM = 8
+#: the fewest followers a process steps: smaller crowds are stepped in this process (a step's
+#: exchange with a peer costs about what a few followers' steps do)
+PER_PROCESS = 4
 #: the columns of a follower's state row
 _COLUMNS = 10
 
@@ -106,36 +103,39 @@ class Group:
 
 
 class Followers:
-    """All of a crowd's followers, in one group here and, with two or more workers, one on a
-    peer process. `step(intents, others)` steps every one; `states` then holds their rows."""
+    """All of a crowd's followers, in one group here and, with two or more workers, one more
+    on each of up to workers - 1 peer processes (one per CPU, at least PER_PROCESS followers
+    each; the creatures dealt out in turn). `step(intents, others)` steps every one; `states`
+    then holds their rows."""
 
     def __init__(self, follows: list[Follower], dt: float, workers: int = 1, lazy: bool = False):
         n = len(follows)
         self.states = States(n)
         self.states.rows[:] = state_rows(follows)
         self._sent = [None] * n
-        self.peer = None
-        far = np.zeros(n, dtype=bool)
-        if (workers >= 2 and n >= PEER_FROM and not lazy and can_fork()
-                and available_cpus() >= 2):
-            # every creature whose index times the share passes a whole number goes to the
-            # peer: the crowd's creatures spread evenly between the two
-            k = np.arange(n)
-            far = np.floor((k + 1) * PEER_SHARE) > np.floor(k * PEER_SHARE)
-            far_group = Group(follows, np.flatnonzero(far), dt)
-            self.peer = Peer(far_group.step, share=2)
-        self.far = np.flatnonzero(far)
-        self.near = Group(follows, np.flatnonzero(~far), dt)
+        groups = 1
+        if not lazy and can_fork():
+            groups = max(1, min(int(workers), available_cpus(), n // PER_PROCESS))
+        which = np.arange(n) % groups          # each process waits for the slowest: an even deal
+        self.near = Group(follows, np.flatnonzero(which == 0), dt)
+        self.far = [np.flatnonzero(which == g) for g in range(1, groups)]
+        self.peers = []
+        try:
+            for rows in self.far:
+                self.peers.append(Peer(Group(follows, rows, dt).step, share=groups))
+        except BaseException:
+            self.close()
+            raise
 
     def step(self, intents: list, others: list | None) -> None:
         """Step every follower by its creature's intent; `others`: None, or every creature's
         (points, moving) (Group.step)."""
-        if self.peer is not None:
-            self.peer.send(self._request(self.far, intents, others))
+        for peer, rows in zip(self.peers, self.far):
+            peer.send(self._request(rows, intents, others))
         near = self.near.step(self._request(self.near.rows, intents, others))
         self.states.rows[self.near.rows] = near
-        if self.peer is not None:
-            self.states.rows[self.far] = self.peer.receive()
+        for peer, rows in zip(self.peers, self.far):
+            self.states.rows[rows] = peer.receive()
 
     def _request(self, rows: np.ndarray, intents: list, others: list | None) -> tuple:
         new = {}
@@ -145,6 +145,6 @@ class Followers:
         return new, None if others is None else [others[i] for i in rows.tolist()]
 
     def close(self) -> None:
-        if self.peer is not None:
-            self.peer.close()
-            self.peer = None
+        for peer in self.peers:
+            peer.close()
+        self.peers = []

@@ -243,12 +243,13 @@ def test_the_levers_measured_for_the_whole_crowd_are_each_creatures_own():
 
 
 @pytest.mark.skipif(not parallel.can_fork(), reason="a peer process forks on Linux only")
-def test_a_crowd_run_on_two_processes_is_the_same_bits_as_on_one(monkeypatch):
-    """With two workers a crowd's followers are stepped in two groups, one on a forked peer
-    (run.group): the records are the same bits as one process's, hunts, a feed and the
-    neighbours' points handed over included."""
-    monkeypatch.setattr(parallel, "available_cpus", lambda: 2)
-    monkeypatch.setattr(group, "PEER_FROM", 2)
+@pytest.mark.parametrize("workers", [2, 3])
+def test_a_crowd_run_on_several_processes_is_the_same_bits_as_on_one(monkeypatch, workers):
+    """With two or more workers a crowd's followers are stepped in groups, all but one on
+    forked peers (run.group): the records are the same bits as one process's, hunts, a feed
+    and the neighbours' points handed over included."""
+    monkeypatch.setattr(group, "available_cpus", lambda: workers)
+    monkeypatch.setattr(group, "PER_PROCESS", 2)
     env = env_of(floor(-0.7, 0.7, -0.7, 0.7))
     nav = nav_of(env)
     cfg = BakeConfig(seconds=6.0, rig=RIG, behaviour="hunt",
@@ -263,8 +264,8 @@ def test_a_crowd_run_on_two_processes_is_the_same_bits_as_on_one(monkeypatch):
     monkeypatch.setattr(group, "Peer", counted)
     one = run_crowd(cfg, env, nav, 6, 6, Context(), workers=1)
     assert not peers
-    two = run_crowd(cfg, env, nav, 6, 6, Context(), workers=2)
-    assert len(peers) == 1
+    two = run_crowd(cfg, env, nav, 6, 6, Context(), workers=workers)
+    assert len(peers) == workers - 1
     (a, pa), (b, pb) = one, two
     assert any(e["state"] == "feed" for r in a for e in r.events)
     for ra, rb in zip(a, b):
