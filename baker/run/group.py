@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from baker.errors import BakerError
 from baker.parallel import Peer, available_cpus, can_fork
 from baker.run.follow import Follower, measure_levers
 
@@ -123,6 +124,10 @@ class Followers:
         try:
             for rows in self.far:
                 self.peers.append(Peer(Group(follows, rows, dt).step, share=groups))
+        except OSError as e:                # no more processes, or no memory for one
+            self.close()
+            raise BakerError(f"cannot start a worker process: {e.strerror or e}; try "
+                             "--workers 1", where="--workers") from None
         except BaseException:
             self.close()
             raise

@@ -272,3 +272,21 @@ def test_a_crowd_run_on_several_processes_is_the_same_bits_as_on_one(monkeypatch
         assert_same_fields(ra, rb)
     for k in pa:
         assert np.array_equal(pa[k], pb[k]) if isinstance(pa[k], np.ndarray) else pa[k] == pb[k]
+
+
+@pytest.mark.skipif(not parallel.can_fork(), reason="a peer process forks on Linux only")
+def test_a_peer_that_cannot_start_is_one_error_naming_the_option(monkeypatch, plane):
+    from baker.errors import BakerError
+
+    env, nav = plane
+    monkeypatch.setattr(group, "available_cpus", lambda: 2)
+    monkeypatch.setattr(group, "PER_PROCESS", 1)
+
+    def no_fork(*a, **kw):
+        raise BlockingIOError(11, "Resource temporarily unavailable")
+
+    monkeypatch.setattr(group, "Peer", no_fork)
+    cfg = BakeConfig(seconds=1.0, prey=0, rig=RIG, behaviour="wander")
+    with pytest.raises(BakerError) as e:
+        run_crowd(cfg, env, nav, 1, 2, Context(), workers=2)
+    assert e.value.where == "--workers" and "cannot start a worker process" in e.value.what
