@@ -28,6 +28,9 @@ from baker.run.follow import Follower, measure_levers
 #: the fewest followers a process steps: smaller crowds are stepped in this process (a step's
 #: exchange with a peer costs about what a few followers' steps do)
 PER_PROCESS = 4
+#: the most processes a run uses: the brains, the neighbours and the prey are this process's
+#: alone, a quarter or more of a step, so more would mostly wait (and poll)
+MAX_PROCESSES = 8
 #: the columns of a follower's state row
 _COLUMNS = 10
 
@@ -106,8 +109,8 @@ class Group:
 class Followers:
     """All of a crowd's followers, in one group here and, with two or more workers, one more
     on each of up to workers - 1 peer processes (one per CPU, at least PER_PROCESS followers
-    each; the creatures dealt out in turn). `step(intents, others)` steps every one; `states`
-    then holds their rows."""
+    each, at most MAX_PROCESSES processes; the creatures dealt out in turn).
+    `step(intents, others)` steps every one; `states` then holds their rows."""
 
     def __init__(self, follows: list[Follower], dt: float, workers: int = 1, lazy: bool = False):
         n = len(follows)
@@ -116,7 +119,8 @@ class Followers:
         self._sent = [None] * n
         groups = 1
         if not lazy and can_fork():
-            groups = max(1, min(int(workers), available_cpus(), n // PER_PROCESS))
+            groups = max(1, min(int(workers), available_cpus(), n // PER_PROCESS,
+                                MAX_PROCESSES))
         which = np.arange(n) % groups          # each process waits for the slowest: an even deal
         self.near = Group(follows, np.flatnonzero(which == 0), dt)
         self.far = [np.flatnonzero(which == g) for g in range(1, groups)]
