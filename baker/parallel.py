@@ -13,8 +13,8 @@ interpreters, which would have to load the level again), and inside a daemonic p
 `baker batch` worker, which may not have children: the batch already keeps the cores busy).
 
 Peer(fn) is one forked child that answers requests in turn (send, then receive fn(request)),
-keeping its own state between them: a crowd's run steps half of its followers on one while
-this process steps the other half (run.group).
+keeping its own state between them: a crowd's run steps some of its followers on each of a
+few while this process steps the rest (run.group).
 
 thread_map(fn, items) is the same map on threads of this process, for calls that spend their
 time in numpy or Embree with the GIL released.
