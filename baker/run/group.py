@@ -21,9 +21,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from baker.errors import BakerError
+import logging
+
 from baker.parallel import Peer, available_cpus, can_fork
 from baker.run.follow import Follower, measure_levers
+
+log = logging.getLogger(__name__)
 
 #: the fewest followers a process steps: smaller crowds are stepped in this process (a step's
 #: exchange with a peer costs about what a few followers' steps do)
@@ -122,19 +125,22 @@ class Followers:
             groups = max(1, min(int(workers), available_cpus(), n // PER_PROCESS,
                                 MAX_PROCESSES))
         which = np.arange(n) % groups          # each process waits for the slowest: an even deal
-        self.near = Group(follows, np.flatnonzero(which == 0), dt)
-        self.far = [np.flatnonzero(which == g) for g in range(1, groups)]
-        self.peers = []
+        here = np.flatnonzero(which == 0)
+        self.far, self.peers = [], []
         try:
-            for rows in self.far:
-                self.peers.append(Peer(Group(follows, rows, dt).step, share=groups))
-        except OSError as e:                # no more processes, or no memory for one
-            self.close()
-            raise BakerError(f"cannot start a worker process: {e.strerror or e}; try "
-                             "--workers 1", where="--workers") from None
+            for g in range(1, groups):
+                rows = np.flatnonzero(which == g)
+                try:
+                    self.peers.append(Peer(Group(follows, rows, dt).step, share=groups))
+                    self.far.append(rows)
+                except OSError as e:        # no more processes, or no memory for one
+                    log.warning("a worker process could not start (%s): its %d creatures "
+                                "step in this one", e.strerror or e, len(rows))
+                    here = np.union1d(here, rows)
         except BaseException:
             self.close()
             raise
+        self.near = Group(follows, here, dt)
 
     def step(self, intents: list, others: list | None) -> None:
         """Step every follower by its creature's intent; `others`: None, or every creature's
