@@ -111,16 +111,15 @@ class Follower:
         self._lever_rays = _lever_rays(*self._hip[:3])
         # (key, lever) measured ahead of the step for a crowd (measure_levers)
         self._lever_ready: tuple | None = None
-        # (walked, x, z, the legs' lever there) under the body: the straight start line behind
-        # the head first, so a turn back at the start is a bend under the body like any other
+        # rows _trail[_lo:_hi] of one buffer, (walked, x, z, the legs' lever there), under the
+        # body: the straight start line behind the head first, so a turn back at the start is
+        # a bend under the body like any other
         step = BEND_SAMPLE * body.spacing
         behind = step * np.arange(math.ceil((body.length + body.spacing) / step), -1, -1)
-        self._trail = [(-d, float(start[0] - d * heading[0]), float(start[2] - d * heading[2]),
-                        math.inf) for d in behind]
-        # the trail's (x, z) as rows _xz[_lo:_hi] of one buffer (bend_radius reads them as an
-        # array every time the trail changes: a list of tuples would be converted each time)
-        self._xz = np.array([t[1:3] for t in self._trail] * 2)
-        self._lo, self._hi = 0, len(self._trail)
+        rows = [(-d, float(start[0] - d * heading[0]), float(start[2] - d * heading[2]),
+                 math.inf) for d in behind]
+        self._trail = np.array(rows * 2)
+        self._lo, self._hi = 0, len(rows)
         self._walked = 0.0          # horizontal metres the head has walked
         self._riser_at = -np.inf    # ... when it last went up or down a riser
         self._steps = 0
@@ -247,34 +246,32 @@ class Follower:
         wall beside it folds the legs so that a planted foot would turn faster than
         stance_speed."""
         p = self.head.position
-        if self._walked - self._trail[-1][0] >= BEND_SAMPLE * self.spacing:
+        if self._walked - self._trail[self._hi - 1, 0] >= BEND_SAMPLE * self.spacing:
             lever = (self._leg_lever(*self._lever_point())
                      if math.isfinite(self.stance_speed) else math.inf)
-            self._trail.append((self._walked, float(p[0]), float(p[2]), lever))
-            self._push(float(p[0]), float(p[2]))
-            while self._walked - self._trail[0][0] > self.body_length + self.spacing:
-                self._trail.pop(0)
+            self._push(self._walked, float(p[0]), float(p[2]), lever)
+            while self._walked - self._trail[self._lo, 0] > self.body_length + self.spacing:
                 self._lo += 1
         elif self._measured:
             return            # the trail is as it was: so are its bend and lever
         self._measured = True
-        radius = bend_radius(self._xz[self._lo:self._hi], int(round(0.5 / BEND_SAMPLE)))
-        lever = min(t[3] for t in self._trail)
+        radius = bend_radius(self._trail[self._lo:self._hi, 1:3], int(round(0.5 / BEND_SAMPLE)))
+        lever = float(self._trail[self._lo:self._hi, 3].min())
         if radius != self.bend or lever != self.lever:
             self.bend, self.lever = radius, lever
             self._apply_speed()
 
-    def _push(self, x: float, z: float) -> None:
-        """Append (x, z) to the trail's rows, moving them to the buffer's start (or into one
-        twice the size) when it is full."""
-        if self._hi == len(self._xz):
-            rows = self._xz[self._lo:self._hi]
-            if 2 * len(rows) > len(self._xz):
-                self._xz = np.concatenate([rows, np.empty_like(rows)])
+    def _push(self, *row: float) -> None:
+        """Append a row (walked, x, z, lever) to the trail, moving its rows to the buffer's
+        start (or into one twice the size) when it is full."""
+        if self._hi == len(self._trail):
+            rows = self._trail[self._lo:self._hi]
+            if 2 * len(rows) > len(self._trail):
+                self._trail = np.concatenate([rows, np.empty_like(rows)])
             else:
-                self._xz[:len(rows)] = rows.copy()
+                self._trail[:len(rows)] = rows.copy()
             self._lo, self._hi = 0, len(rows)
-        self._xz[self._hi] = x, z
+        self._trail[self._hi] = row
         self._hi += 1
 
     def _leg_lever(self, p: np.ndarray, dx: float, dz: float) -> float:
@@ -299,7 +296,7 @@ class Follower:
         last step left them), or None when it will not."""
         if (self._steps + 1) % AIM_EVERY or not math.isfinite(self.stance_speed):
             return None
-        if self._walked - self._trail[-1][0] < BEND_SAMPLE * self.spacing:
+        if self._walked - self._trail[self._hi - 1, 0] < BEND_SAMPLE * self.spacing:
             return None
         return self._lever_point()
 
@@ -307,7 +304,7 @@ class Follower:
         """(p, dx, dz): the head's point and the trail's heading there (from the trail point
         a spacing back), where _bends measures the legs' lever."""
         p = self.head.position
-        back = self._trail[-int(round(1.0 / BEND_SAMPLE))]
+        back = self._trail[self._hi - int(round(1.0 / BEND_SAMPLE))]
         return p, p[0] - back[1], p[2] - back[2]
 
     def _lever_key(self, p: np.ndarray, dx: float, dz: float) -> tuple:

@@ -99,9 +99,7 @@ class Group:
             self.intents[k] = intent
         if others is not None:
             for f, (pts, moving) in zip(self.follows, others):
-                f.others = pts
-                if pts is not None:
-                    f.others_move = moving
+                f.others, f.others_move = pts, moving
         measure_levers(self.follows)      # the legs' levers these steps measure, in one batch
         for f, intent in zip(self.follows, self.intents):
             f.apply(intent)
