@@ -24,6 +24,8 @@ Steps (all vectorized over columns / samples; rays are cast in batched chunks):
 
 from __future__ import annotations
 
+import contextlib
+import importlib
 import logging
 import math
 import time
@@ -344,6 +346,40 @@ def build_data(env, agent, *, bounds=None, coarse_factor: int = 4,
                       default max(64 cells, (4 radius)^2)
     Raises NavError when nothing is walkable.
     """
+    with _small_pages():   # numpy's new arrays on ordinary pages
+        return _build_data(env, agent, bounds, coarse_factor, min_island_area)
+
+
+@contextlib.contextmanager
+def _small_pages():
+    """numpy's new arrays on ordinary 4 kB pages while the build runs: no MADV_HUGEPAGE, which
+    numpy asks of arrays of 4 MB and more where transparent huge pages are on `madvise` (most
+    Linux distributions). The build fills hundreds of fresh arrays of tens of MB, and there
+    the kernel's work to find and clear huge pages cost more than it saved: the 1M-triangle
+    build of benchmarks/bench_nav_recast.py took about 1 s (15 %) longer with them. The same
+    values either way. The setting is numpy's own (NUMPY_MADVISE_HUGEPAGE at import), put back
+    afterwards; where numpy has no such switch, nothing changes."""
+    toggle = None
+    for name in ("numpy._core.multiarray", "numpy.core.multiarray"):
+        try:
+            toggle = getattr(importlib.import_module(name), "_set_madvise_hugepage", None)
+        except ImportError:  # pragma: no cover - the other numpy's module name
+            continue
+        if toggle is not None:
+            break
+    if toggle is None:  # pragma: no cover - a numpy without the switch
+        yield
+        return
+    before = toggle(False)
+    try:
+        yield
+    finally:
+        toggle(before)
+
+
+def _build_data(env, agent, bounds, coarse_factor: int,
+                min_island_area: float | None) -> NavData:
+    """build_data's steps."""
     timings = {}
     t0 = time.perf_counter()
     cell = float(agent.cell_size)
@@ -385,7 +421,9 @@ def build_data(env, agent, *, bounds=None, coarse_factor: int = 4,
     t = time.perf_counter()
     if min_island_area is None:
         min_island_area = max(64 * cell * cell, (4 * radius) ** 2)
-    sel, links, comp, comp_area = _islands(links, dist >= radius - 1e-9, cell, min_island_area,
+    keep = dist >= radius - 1e-9
+    groups = _groups(links, keep, s.ix, s.iz, coarse_factor, nz)
+    sel, links, comp, comp_area = _islands(links, keep, groups, cell, min_island_area,
                                            env.source)
     scol = s.col[sel]
     counts = np.bincount(scol, minlength=ncols)
@@ -395,14 +433,14 @@ def build_data(env, agent, *, bounds=None, coarse_factor: int = 4,
     cells = np.stack([s.ix[sel], s.iz[sel]], axis=1)
     normals = s.normals[sel]
     clearance = dist[sel].astype(np.float32)
+    group_of = groups.label[sel]
     n_hits = s.n_hits
     del s, dist, sel, scol   # the per-sample build arrays (peak memory of the coarse graph)
     timings["components"] = time.perf_counter() - t
 
     # 6. coarse graph ---------------------------------------------------------------------
     t = time.perf_counter()
-    coarse_of, coarse_rep, cindptr, cindices = _coarse(positions, cells, links, coarse_factor,
-                                                       nz)
+    coarse_of, coarse_rep, cindptr, cindices = _coarse(cells, group_of, groups, coarse_factor)
     timings["coarse"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
     log.info("navmesh: %d x %d columns, %d hits, %d walkable samples, %d components, "
@@ -701,13 +739,78 @@ def _beside_posts(grid: _Grid, s: _Samples, posts, h_off: float, height: float):
     return smp, np.hypot(dx, dz)
 
 
-def _islands(links, keep, cell, min_island_area, where):
+@dataclass(frozen=True)
+class _Groups:
+    """The kept samples' links split by the coarse blocks (k x k columns): the nodes of the
+    coarse graph, found before the islands (whose components they make cheap to find).
+
+    label : (n,) the connected group of each sample within its block (a sample not kept is a
+            group of its own); groups are numbered in the order of their first sample
+    count : the number of groups
+    keys  : (K,) int64 g * count + h, sorted and unique: group g reaches group h over a +X or
+            +Z link across a block border (the links are symmetric: so does h reach g)
+    """
+
+    label: np.ndarray
+    count: int
+    keys: np.ndarray
+
+
+def _groups(links, keep, ix, iz, k, nz) -> _Groups:
+    """The coarse graph's nodes and edges among the kept samples (keep (n,) bool; ix, iz (n,)
+    their grid cells) in blocks of k x k columns."""
+    k = max(1, int(k))
+    n = len(links)
+    block = (ix // k).astype(np.int64) * ((nz + k - 1) // k) + iz // k
+    ax = links[:, :4]
+    has = (ax >= 0) & keep[:, None] & keep[ax]        # (-1, no link, reads the last: masked)
+    same = np.empty_like(has)
+    for r0 in range(0, n, TILE_SAMPLES):   # bounded temporaries
+        r = slice(r0, r0 + TILE_SAMPLES)
+        same[r] = has[r] & (block[r, None] == block[np.maximum(ax[r], 0)])
+    count, label = connected_components(_csr(ax, same), directed=True, connection="strong")
+    keys = []
+    for d in (0, 1):  # +X, +Z; symmetrized where they are read
+        src = np.nonzero(has[:, d] & ~same[:, d])[0]
+        key = label[src].astype(np.int64) * count + label[ax[src, d]]
+        if len(key) > 1:  # neighbours along a block border mostly repeat the same pair
+            key = key[np.concatenate([[True], key[1:] != key[:-1]])]
+        keys.append(key)
+    return _Groups(label, count, unique(np.concatenate(keys)))
+
+
+def _group_graph(keys: np.ndarray, count: int, on: np.ndarray | None = None):
+    """(indptr, indices int32) of the symmetric graph of groups joined by `keys` (_Groups);
+    with `on` (count,) bool, among those groups only, renumbered in order. Each row lists the
+    groups its keys reach, then those reaching it (both ascending)."""
+    cs, cd = np.divmod(keys, count)
+    if on is not None:
+        ok = on[cs] & on[cd]
+        new = np.cumsum(on) - 1
+        cs, cd, count = new[cs[ok]], new[cd[ok]], int(on.sum())
+    cs, cd = np.concatenate([cs, cd]), np.concatenate([cd, cs])
+    o = np.argsort(cs, kind="stable")
+    cs, cd = cs[o], cd[o]
+    indptr = np.zeros(count + 1, dtype=np.int64)
+    np.cumsum(np.bincount(cs, minlength=count), out=indptr[1:])
+    return indptr, cd.astype(np.int32)
+
+
+def _islands(links, keep, groups: _Groups, cell, min_island_area, where):
     """5. the kept samples' connected components, dropping those under `min_island_area`.
     Returns (sel: kept sample indices, links renumbered to them, component of each (largest
-    first), component areas)."""
-    ax = links[:, :4]
-    axm = (ax >= 0) & keep[:, None] & keep[ax]        # (-1, no link, reads the last: masked)
-    ncomp, comp = connected_components(_csr(ax, axm), directed=True, connection="strong")
+    first), component areas).
+
+    The components are those of the graph of the coarse groups (connected groups of samples
+    inside one block, joined where a link crosses a block border): a graph of about a
+    sixteenth of the samples. Its components come numbered as the samples' own would (in the
+    order of their first sample: groups are numbered so), so the ties in size keep their
+    order."""
+    indptr, indices = _group_graph(groups.keys, groups.count)
+    graph = csr_matrix((np.ones(len(indices)), indices, indptr),
+                       shape=(groups.count, groups.count))
+    ncomp, of_group = connected_components(graph, directed=True, connection="strong")
+    comp = of_group[groups.label]
     size = np.bincount(comp[keep], minlength=ncomp)
     big = size * cell * cell >= min_island_area
     keep2 = keep & big[comp]
@@ -778,38 +881,21 @@ def _csr(links: np.ndarray, mask: np.ndarray) -> csr_matrix:
                        indptr), shape=(n, n))
 
 
-def _coarse(positions, cells, links, k, nz):
-    """Coarse nodes = connected groups of samples inside k x k column blocks."""
-    n = len(positions)
+def _coarse(cells, group_of, groups: _Groups, k):
+    """6. the coarse graph of the kept samples (cells (n, 2) theirs, group_of (n,) their
+    groups): its nodes are those groups (_Groups), renumbered in order. Returns (node of each
+    sample, representative sample of each node, indptr, indices)."""
+    n = len(group_of)
     k = max(1, int(k))
-    bz = (nz + k - 1) // k
-    block = (cells[:, 0] // k).astype(np.int64) * bz + cells[:, 1] // k
-    ax = links[:, :4]
-    has = ax >= 0
-    same = np.empty_like(has)
-    for r0 in range(0, n, TILE_SAMPLES):   # bounded temporaries
-        r = slice(r0, r0 + TILE_SAMPLES)
-        same[r] = has[r] & (block[r, None] == block[np.maximum(ax[r], 0)])
-    nc, lab = connected_components(_csr(ax, same), directed=True, connection="strong")
+    on = np.zeros(groups.count, dtype=bool)
+    on[group_of] = True
+    lab = (np.cumsum(on) - 1)[group_of]
+    nc = int(on.sum())
     # representative: the sample nearest its block's centre (ties: lowest index)
     c = (k - 1) * 0.5
     pri = np.abs(cells[:, 0] % k - c) + np.abs(cells[:, 1] % k - c)
     key = np.rint(pri * 2).astype(np.int64) * n + np.arange(n)
     best = _segment_min(lab, key, nc, np.iinfo(np.int64).max)
     rep = (best % n).astype(np.int32)
-    # coarse edges from 4-links that cross block borders
-    keys = []
-    for d in (0, 1):  # +X, +Z; symmetrized below
-        src = np.nonzero(has[:, d] & ~same[:, d])[0]
-        key = lab[src].astype(np.int64) * nc + lab[ax[src, d]]
-        if len(key) > 1:  # neighbours along a block border mostly repeat the same pair
-            key = key[np.concatenate([[True], key[1:] != key[:-1]])]
-        keys.append(key)
-    key = unique(np.concatenate(keys))
-    cs, cd = key // nc, key % nc
-    cs, cd = np.concatenate([cs, cd]), np.concatenate([cd, cs])
-    o = np.argsort(cs, kind="stable")
-    cs, cd = cs[o], cd[o]
-    indptr = np.zeros(nc + 1, dtype=np.int64)
-    np.cumsum(np.bincount(cs, minlength=nc), out=indptr[1:])
-    return lab.astype(np.int32), rep, indptr, cd.astype(np.int32)
+    indptr, indices = _group_graph(groups.keys, groups.count, on)
+    return lab.astype(np.int32), rep, indptr, indices
