@@ -29,12 +29,17 @@ import multiprocessing
 import os
 import signal
 import sys
+import threading
 import warnings
 
 #: the function the forked children call (set just before the pool forks them)
 _TASK = None
 #: in a fork_map child: the processes of its pool (they share this machine's CPUs)
 _SHARE = 1
+#: `on` on a thread_map's threads: maps nested in its calls run on the calling thread (two
+#: bands of columns on two CPUs, each casting its rays on two threads, made four threads
+#: that slowed the navigation build)
+_MAPPED = threading.local()
 
 
 def available_cpus() -> int:
@@ -47,9 +52,10 @@ def available_cpus() -> int:
 
 def thread_count() -> int:
     """Threads for GIL-free work (thread_map): the CPUs this process may use, or 1 inside a
-    daemonic process (a `baker batch` worker: the batch already keeps the cores busy); in a
-    fork_map child, its share of them (one each for two workers on two CPUs)."""
-    if multiprocessing.current_process().daemon:
+    daemonic process (a `baker batch` worker: the batch already keeps the cores busy) and on a
+    thread_map's thread (the map already keeps them busy); in a fork_map child, its share of
+    them (one each for two workers on two CPUs)."""
+    if multiprocessing.current_process().daemon or getattr(_MAPPED, "on", False):
         return 1
     return max(1, available_cpus() // _SHARE)
 
@@ -295,8 +301,12 @@ def thread_map(fn, items, threads: int | None = None) -> list:
 
     one_malloc_arena()
 
+    def mapped(x):
+        _MAPPED.on = True      # a map on this thread runs on it alone (thread_count)
+        return fn(x)
+
     with ThreadPoolExecutor(threads) as pool:
-        return list(pool.map(fn, items))
+        return list(pool.map(mapped, items))
 
 
 def in_background(fn, *args):
@@ -310,8 +320,6 @@ def in_background(fn, *args):
     never told to stop, and the interpreter waited for it at exit for ever.)"""
     if thread_count() <= 1:
         return functools.cache(lambda: fn(*args))
-    import threading
-
     one_malloc_arena()
     box: dict = {}
 

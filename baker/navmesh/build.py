@@ -423,42 +423,25 @@ def _build_data(env, agent, bounds, coarse_factor: int,
         min_island_area = max(64 * cell * cell, (4 * radius) ** 2)
     keep = dist >= radius - 1e-9
     groups = _groups(links, keep, s.ix, s.iz, coarse_factor, nz)
-    sel, links, comp, comp_area = _islands(links, keep, groups, cell, min_island_area,
-                                           env.source)
-    scol = s.col[sel]
-    counts = np.bincount(scol, minlength=ncols)
-    col_start = np.zeros(ncols + 1, dtype=np.int64)
-    np.cumsum(counts, out=col_start[1:])
-    positions = np.stack([s.px[sel], s.y[sel], s.pz[sel]], axis=1)
-    cells = np.stack([s.ix[sel], s.iz[sel]], axis=1)
-    normals = s.normals[sel]
-    clearance = dist[sel].astype(np.float32)
-    group_of = groups.label[sel]
+    sel, kept, comp, comp_area = _islands(links, keep, groups, cell, min_island_area,
+                                          env.source)
     n_hits = s.n_hits
-    del s, dist, sel, scol   # the per-sample build arrays (peak memory of the coarse graph)
+    # the kept samples' links renumbered on one thread while their other arrays and the coarse
+    # graph (6.) are gathered on the other
+    links, fields = thread_map(lambda task: task(), [
+        lambda: _renumbered(links, kept),
+        lambda: _kept_fields(s, dist, sel, groups, coarse_factor, ncols)])
+    del s, dist, sel, kept   # the per-sample build arrays
     timings["components"] = time.perf_counter() - t
-
-    # 6. coarse graph ---------------------------------------------------------------------
-    t = time.perf_counter()
-    coarse_of, coarse_rep, cindptr, cindices = _coarse(cells, group_of, groups, coarse_factor)
-    timings["coarse"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
     log.info("navmesh: %d x %d columns, %d hits, %d walkable samples, %d components, "
-             "%.3f m^2; %s", nx, nz, n_hits, len(positions), len(comp_area), comp_area.sum(),
+             "%.3f m^2; %s", nx, nz, n_hits, len(comp), len(comp_area), comp_area.sum(),
              ", ".join(f"{k} {v:.3f}s" for k, v in timings.items()))
     return NavData(
-        positions=positions,
-        normals=normals,
-        cells=cells,
-        col_start=col_start,
-        links=links.astype(np.int32, copy=False),
+        **fields,
+        links=links,
         component=comp,
-        clearance=clearance,
         component_area=comp_area,
-        coarse_of=coarse_of,
-        coarse_rep=coarse_rep,
-        coarse_indptr=cindptr,
-        coarse_indices=cindices,
         origin=(x0, z0),
         shape=(nx, nz),
         cell_size=cell,
@@ -818,16 +801,35 @@ def _islands(links, keep, groups: _Groups, cell, min_island_area, where):
         raise NavError("environment has no walkable surface (every walkable area is narrower "
                        f"than the agent or smaller than {min_island_area:g} m^2)",
                        where=where)
-    remap = np.full(len(keep2) + 1, -1, dtype=np.int32)
-    remap[:-1][keep2] = np.arange(int(keep2.sum()), dtype=np.int32)
-    links = remap[links[keep2]]
     sel = np.nonzero(keep2)[0]
     order = np.argsort(-size[big], kind="stable")
     relabel = np.full(ncomp, -1, dtype=np.int64)
     relabel[np.nonzero(big)[0][order]] = np.arange(int(big.sum()))
     comp = relabel[comp[sel]].astype(np.int32)
     comp_area = np.sort(size[big])[::-1] * cell * cell
-    return sel, links, comp, comp_area
+    return sel, keep2, comp, comp_area
+
+
+def _renumbered(links, kept) -> np.ndarray:
+    """(m, 8) int32 the links of the kept samples (kept (n,) bool, m of them), renumbered to
+    them (-1: none, or to a sample not kept)."""
+    remap = np.full(len(kept) + 1, -1, dtype=np.int32)
+    remap[:-1][kept] = np.arange(int(kept.sum()), dtype=np.int32)
+    return remap[links[kept]]
+
+
+def _kept_fields(s: _Samples, dist, sel, groups: _Groups, k: int, ncols: int) -> dict:
+    """The NavData fields of the kept samples sel other than their links and components:
+    positions, normals, cells, columns, clearance and the coarse graph (6.)."""
+    counts = np.bincount(s.col[sel], minlength=ncols)
+    col_start = np.zeros(ncols + 1, dtype=np.int64)
+    np.cumsum(counts, out=col_start[1:])
+    cells = np.stack([s.ix[sel], s.iz[sel]], axis=1)
+    coarse_of, coarse_rep, indptr, indices = _coarse(cells, groups.label[sel], groups, k)
+    return dict(positions=np.stack([s.px[sel], s.y[sel], s.pz[sel]], axis=1),
+                normals=s.normals[sel], cells=cells, col_start=col_start,
+                clearance=dist[sel].astype(np.float32), coarse_of=coarse_of,
+                coarse_rep=coarse_rep, coarse_indptr=indptr, coarse_indices=indices)
 
 
 def _blocker_columns(caster: _Caster, x0, z0, nx, nz, cell, angle) -> np.ndarray:

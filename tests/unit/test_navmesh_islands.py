@@ -85,7 +85,8 @@ def test_islands_through_groups_match_the_sample_graph(seed, nx, nz, layers, k, 
     if not len(sel0):
         return                          # nothing kept: the build raises NavError (below)
     groups = B._groups(links, keep, ix, iz, k, nz)
-    sel, new_links, comp, _ = B._islands(links, keep, groups, cell, min_area, None)
+    sel, kept, comp, _ = B._islands(links, keep, groups, cell, min_area, None)
+    new_links = B._renumbered(links, kept)
     np.testing.assert_array_equal(sel, sel0)
     np.testing.assert_array_equal(comp, comp0)          # the same numbers, ties in order
     remap = np.full(len(links) + 1, -1)

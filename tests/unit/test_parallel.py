@@ -87,6 +87,23 @@ def test_thread_map_keeps_the_order_and_a_daemonic_process_keeps_one_thread(monk
                                               range(5))} == {here}
 
 
+def test_a_map_nested_in_a_thread_maps_call_runs_on_its_thread(monkeypatch):
+    import threading
+
+    monkeypatch.setattr(parallel, "available_cpus", lambda: 2)
+
+    def outer(i):
+        me = threading.get_ident()
+        inner = parallel.thread_map(lambda j: (i, j, threading.get_ident()), range(4))
+        return parallel.thread_count(), me, inner
+
+    out = parallel.thread_map(outer, range(4), threads=2)
+    for i, (count, me, inner) in enumerate(out):
+        assert count == 1
+        assert inner == [(i, j, me) for j in range(4)]
+    assert parallel.thread_count() == 2      # the calling thread keeps its CPUs
+
+
 def test_an_exception_on_a_thread_is_raised_in_the_caller():
     def fail(i):
         if i == 3:
