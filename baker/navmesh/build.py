@@ -814,8 +814,13 @@ def _renumbered(links, kept) -> np.ndarray:
     """(m, 8) int32 the links of the kept samples (kept (n,) bool, m of them), renumbered to
     them (-1: none, or to a sample not kept)."""
     remap = np.full(len(kept) + 1, -1, dtype=np.int32)
-    remap[:-1][kept] = np.arange(int(kept.sum()), dtype=np.int32)
-    return remap[links[kept]]
+    rows = np.flatnonzero(kept)
+    remap[rows] = np.arange(len(rows), dtype=np.int32)
+    out = np.empty((len(rows), links.shape[1]), dtype=np.int32)
+    for r0 in range(0, len(rows), TILE_SAMPLES):   # bounded temporaries (peak memory)
+        r = slice(r0, r0 + TILE_SAMPLES)
+        remap.take(links[rows[r]], out=out[r])
+    return out
 
 
 def _kept_fields(s: _Samples, dist, sel, groups: _Groups, k: int, ncols: int) -> dict:
