@@ -403,19 +403,23 @@ def _build_data(env, agent, bounds, coarse_factor: int,
                        "(baker bake --nav-build lazy builds only where the creature goes)",
                        where=env.source)
     caster = _Caster(env)
-    # the closed solids are found while the first columns are cast (they are read after it)
+    h_off = max(min(step, 0.5 * height), 1e-4)
+    # while the columns are cast: the closed solids (read after the first columns), the
+    # columns a steep face can block a link in (read by the links) and the thin upright parts
+    # (read by the erosion)
     solids = in_background(_solid_components, mesh)
+    blockers = in_background(_blocker_columns, caster, x0, z0, nx, nz, cell,
+                             min(slope, math.atan2(h_off, cell)))
+    posts = in_background(_thin_parts, caster, cell, slope)
     timings["setup"] = time.perf_counter() - t0
 
     grid = _Grid(x0, z0, nx, nz, cell)
     s = _samples(caster, grid, ytop, solids, slope, height, timings, env.source)
     t = time.perf_counter()
-    h_off = max(min(step, 0.5 * height), 1e-4)
-    links = _links(caster, grid, s, step, height, slope, h_off)
+    links = _links(caster, grid, s, step, height, blockers(), h_off)
     timings["links"] = time.perf_counter() - t
     t = time.perf_counter()
-    posts = _thin_parts(caster, cell, slope)
-    dist = _clearance(caster, grid, s, links, radius, h_off, posts, height)
+    dist = _clearance(caster, grid, s, links, radius, h_off, posts(), height)
     s = s.slim()   # peak memory of the components and the coarse graph
     timings["erode"] = time.perf_counter() - t
     t = time.perf_counter()
@@ -534,10 +538,12 @@ def _samples(caster: _Caster, grid: _Grid, ytop, solids, slope, height, timings,
     return _Samples(scol, six, siz, px, pz, sy, sceil, snrm, col_start, counts, nh)
 
 
-def _links(caster: _Caster, grid: _Grid, s: _Samples, step, height, slope, h_off) -> np.ndarray:
+def _links(caster: _Caster, grid: _Grid, s: _Samples, step, height, blockers,
+           h_off) -> np.ndarray:
     """3. (n, 8) int32 neighbour links of every sample (-1: none): a riser up to `step`, room
-    for `height` above both, and no steep face between them. Tested in tiles of TILE_SAMPLES
-    samples, so that the temporaries stay small (fresh large arrays cost page faults)."""
+    for `height` above both, and no steep face between them (blockers: _blocker_columns).
+    Tested in tiles of TILE_SAMPLES samples, so that the temporaries stay small (fresh large
+    arrays cost page faults)."""
     nx, nz, cell = grid.nx, grid.nz, grid.cell
     scol, sy, sceil, counts = s.col, s.y, s.ceil, s.counts
     n = len(sy)
@@ -546,8 +552,6 @@ def _links(caster: _Caster, grid: _Grid, s: _Samples, step, height, slope, h_off
     gx = -cell * s.normals[:, 0] / s.normals[:, 1]
     gz = -cell * s.normals[:, 2] / s.normals[:, 1]
     grad = {0: gx, 1: gz}
-    blockers = _blocker_columns(caster, grid.x0, grid.z0, nx, nz, cell,
-                                min(slope, math.atan2(h_off, cell)))
 
     def tile(d_r0):
         d, r0 = d_r0
