@@ -175,6 +175,9 @@ def _read_toml(path: Path) -> dict:
                           where=str(path)) from None
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"jobs file is not valid TOML: {e}", where=str(path)) from None
+    except RecursionError:      # tomllib parses nested arrays and tables recursively
+        raise ConfigError("jobs file is not valid TOML: its arrays or tables nest too deeply",
+                          where=str(path)) from None
 
 
 def _did_you_mean(key: str, choices) -> str:

@@ -330,6 +330,9 @@ def read_rig_table(path: Path | str) -> dict:
         raise ConfigError(f"rig file is not UTF-8 text (byte {e.start})", where=str(path)) from None
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"rig file is not valid TOML: {e}", where=str(path)) from None
+    except RecursionError:      # tomllib parses nested arrays and tables recursively
+        raise ConfigError("rig file is not valid TOML: its arrays or tables nest too deeply",
+                          where=str(path)) from None
 
 
 def load_rig_config(path: Path | str) -> RigConfig:

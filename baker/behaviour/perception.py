@@ -47,7 +47,9 @@ def on_another_floor(nav, head: np.ndarray, target: np.ndarray, rise: float) -> 
     if abs(float(target[1] - head[1])) < rise:
         return False
     path = nav.find_path(head, target).points
-    pts = nav.resample_path(path, 0.5 * rise)
+    # every half rise, but no finer than the surface's cells (a rig's tiny rise would otherwise
+    # ask for millions of points along the path)
+    pts = nav.resample_path(path, max(0.5 * rise, nav.cell_size))
     deep = pts.copy()
     deep[:, 1] -= FAR_BELOW
     lowest = nav.surface_height(deep)        # the lowest walkable layer in each column

@@ -497,6 +497,22 @@ def write_usd(path: Path, env: Environment, rig: Rig, clip: Clip, *, fps: int, e
 def save_stage(stage, tmp: Path, path: Path) -> None:
     """Export `stage` into the (temporary) file `tmp`, in the format `path`'s suffix asks for:
     `.usda` text, `.usd`/`.usdc` crate. ExportError when USD fails."""
+    from pxr import Tf
+
     args = {"format": "usdc"} if Path(path).suffix == ".usd" else {}
-    if not stage.GetRootLayer().Export(str(tmp), args=args):
+    try:
+        ok = stage.GetRootLayer().Export(str(tmp), args=args)
+    except Tf.ErrorException as e:      # a failed write (a full disk): USD's first reason
+        raise ExportError(f"cannot write {path}: {usd_error_reason(e)}") from None
+    if not ok:
         raise ExportError(f"cannot write {path}: USD export failed")
+
+
+def usd_error_reason(error: Exception) -> str:
+    """The first reason in a pxr Tf.ErrorException (its text lists every error USD posted,
+    each as "Error in '<function>' at line <n> in file <file> : '<reason>'")."""
+    for line in str(error).splitlines():
+        reason = line.partition(" : ")[2].strip().strip("'")
+        if reason:
+            return reason
+    return "USD export failed"

@@ -10,6 +10,8 @@ import os
 import re
 import shutil
 import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -149,3 +151,31 @@ def test_concurrent_bakes_into_one_out_leave_files_of_one_run(out_dir, nav_cache
     seeds = seeds_of(out_dir / "centipede")
     assert len(set(seeds.values())) == 1 and seeds["json"] in (11, 12), seeds
     assert sorted(p.name for p in out_dir.iterdir()) == FILES
+
+
+@pytest.mark.skipif(not hasattr(os, "fork") or sys.platform == "darwin",
+                    reason="RLIMIT_FSIZE on Linux")
+@pytest.mark.parametrize("fmt", ["usd", "both"])
+def test_a_full_disk_is_one_line_and_keeps_the_previous_files(out_dir, nav_cache_dir, fmt):
+    """An output's write fails part way (the file-size limit stands in for a full disk: Python
+    ignores SIGXFSZ, so the write gets EFBIG; USD raised its own multi-line error): one line
+    naming the file and the reason, exit 2, no temporary, and the previous files
+    byte-identical."""
+    import resource
+
+    before = snapshot(out_dir)
+    limit = len(before["centipede.usd"]) // 2
+
+    def small_files():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    done = subprocess.run(
+        [sys.executable, "-m", "baker", *bake_args(f"{out_dir}{os.sep}", nav_cache_dir, 2,
+                                                   "--format", fmt)],
+        capture_output=True, text=True, preexec_fn=small_files)
+    lines = [ln for ln in done.stderr.splitlines() if ln.strip()]
+    assert done.returncode == 2 and len(lines) == 1, done.stderr[-3000:]
+    assert "Traceback" not in done.stderr
+    named = ["centipede.usd"] if fmt == "usd" else ["centipede.usd", "centipede.glb"]
+    assert "File too large" in lines[0] and any(n in lines[0] for n in named), lines[0]
+    assert snapshot(out_dir) == before

@@ -674,6 +674,7 @@ def _structural_rig_cases():
         "name_number": lambda: "name = 5\n" + base.split("\n", 2)[2],
         "huge_file": lambda: base + "# " + "x" * (2 << 20) + "\n",
         "array_of_tables": lambda: base + "\n[[legs2]]\na = 1\n",
+        "nested_deep": lambda: "[body]\nlength = 0.25\nx = " + "[" * 5000 + "]" * 5000 + "\n",
     }
     return [_rig_case(k, v) for k, v in c.items()]
 

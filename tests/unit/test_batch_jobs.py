@@ -120,6 +120,7 @@ name = "d"
 
 @pytest.mark.parametrize("text,words", [
     ("[[job]]\nseed = ", "not valid TOML"),
+    ("[[job]]\nseed = " + "[" * 5000 + "]" * 5000 + "\n", "nest too deeply"),
     ("[defaults]\nseed = 1\n", "no [[job]] entries"),
     ("[job]\nseed = 1\n", "write [[job]], not [job]"),
     ("[[jobs]]\nseed = 1\n", "unknown table 'jobs'; did you mean 'job'?"),

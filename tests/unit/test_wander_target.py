@@ -122,6 +122,23 @@ def test_on_another_floor_tells_stacked_floors_from_a_hillside(storeys, head, ta
     assert perception.on_another_floor(nav, head, target, 0.45) is False   # rise above 0.4 m
 
 
+def test_a_tiny_journey_rise_samples_the_path_no_finer_than_the_cells(storeys, monkeypatch):
+    """A rig may set journey_rise as small as it likes: the path is sampled every cell at the
+    finest (every 1e-9 m, a few metres of path were 3 GB of points)."""
+    _, nav = storeys
+    asked = []
+    real = type(nav).resample_path
+
+    def spy(self, points, spacing=None):
+        asked.append(spacing)
+        return real(self, points, spacing)
+
+    monkeypatch.setattr(type(nav), "resample_path", spy)
+    assert perception.on_another_floor(nav, UNDER_DECK, ON_DECK, 1e-9) is True
+    assert perception.on_another_floor(nav, OPEN_GROUND, UNDER_DECK, 1e-9) is False
+    assert asked == [nav.cell_size]          # (the second: the same height, no path asked)
+
+
 class Draws:
     """The scene's walkable surface, whose wander draws are the given points in turn."""
 
