@@ -785,8 +785,8 @@ def _group_graph(keys: np.ndarray, count: int, on: np.ndarray | None = None):
 
 def _islands(links, keep, groups: _Groups, cell, min_island_area, where):
     """5. the kept samples' connected components, dropping those under `min_island_area`.
-    Returns (sel: kept sample indices, links renumbered to them, component of each (largest
-    first), component areas).
+    Returns (sel: the indices of the samples kept, the same as an (n,) mask (_renumbered),
+    component of each (largest first), component areas).
 
     The components are those of the graph of the coarse groups (connected groups of samples
     inside one block, joined where a link crosses a block border): a graph of about a
