@@ -1312,9 +1312,28 @@ def _touches(changed: np.ndarray, segments, level: np.ndarray) -> np.ndarray:
 
 def _blame(x: _Target, chains: np.ndarray, p: _Player):
     """Which channels to key where (see the module docstring). Returns (candidates, scores) for
-    the translation channels and for the rotation channels, each (J, F); scores in metres."""
+    the translation channels and for the rotation channels, each (J, F); scores in metres.
+    The offending pairs are blamed in blocks of about BLAME_PAIRS (pair, ancestor) entries
+    (a long skeleton's chains times a clip's worth of pairs were gigabytes at once); each
+    block adds its candidates and raises the scores (a maximum), so blocks change nothing."""
     j_count, f_count = p.viol.shape
     ki, fi = np.nonzero(p.viol)
+    out = [np.zeros((j_count, f_count), dtype=bool), np.zeros((j_count, f_count)),
+           np.zeros((j_count, f_count), dtype=bool), np.zeros((j_count, f_count))]
+    step = max(1, BLAME_PAIRS // chains.shape[1])
+    for v0 in range(0, len(ki), step):
+        _blame_block(x, chains, p, ki[v0:v0 + step], fi[v0:v0 + step], out)
+    return out
+
+
+#: (offending pair, ancestor) entries blamed at once (_blame)
+BLAME_PAIRS = 1 << 20
+
+
+def _blame_block(x: _Target, chains: np.ndarray, p: _Player, ki, fi, out: list) -> None:
+    """_blame for the offending pairs (ki, fi): into out = [translation candidates, scores,
+    rotation candidates, scores] (in place)."""
+    f_count = p.viol.shape[1]
     e = np.ascontiguousarray(_gather(_cols(p.diff), ki * f_count + fi).T)
     e = e / np.maximum(_norm(e), 1e-300)[:, None]
     chain = chains[ki]                                                     # (V, D)
@@ -1329,15 +1348,10 @@ def _blame(x: _Target, chains: np.ndarray, p: _Player):
     strict = (chain >= 0) & (np.arange(chain.shape[1]) > 0)[None, :]       # ancestors of k
     cr = np.where(strict, np.einsum("vdk,vdk->vd", omega, arm), -np.inf)
     top = np.maximum(ct.max(axis=1), cr.max(axis=1))[:, None]
-    out = []
-    for c in (ct, cr):
+    for c, cand, score in ((ct, out[0], out[1]), (cr, out[2], out[3])):
         v, d = np.nonzero((c > 0) & (c >= BLAME_SHARE * top))
-        cand = np.zeros((j_count, f_count), dtype=bool)
-        score = np.zeros((j_count, f_count))
         cand[a[v, d], fi[v]] = True
         np.maximum.at(score, (a[v, d], fi[v]), c[v, d])
-        out += [cand, score]
-    return out
 
 
 def _channel_moves(x: _Target, p: _Player, a: np.ndarray, ft: np.ndarray):

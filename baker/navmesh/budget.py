@@ -47,11 +47,44 @@ def estimate(columns: int, triangles: int) -> Estimate:
 
 
 def default_limit() -> float:
-    """[bytes] half of the machine's physical RAM (4 GB when it cannot be read)."""
+    """[bytes] half of the memory this process may use: the machine's physical RAM, or less
+    where the process's address space is limited (`ulimit -v`, RLIMIT_AS) or its control group
+    has a memory limit (cgroup v2 memory.max, v1 memory.limit_in_bytes); 4 GB when none can be
+    read. (A build refused at once names a cell size that fits; one that runs out of memory
+    half way is only an error line.)"""
+    sizes = []
     try:
-        return 0.5 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+        sizes.append(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
     except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
-        return 4e9
+        pass
+    try:
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if soft != resource.RLIM_INFINITY and soft > 0:
+            sizes.append(soft)
+    except (ImportError, ValueError, OSError):  # pragma: no cover - not Unix
+        pass
+    sizes += _cgroup_limits()
+    return 0.5 * min(sizes) if sizes else 4e9
+
+
+#: the files holding this process's control-group memory limit (v2, then v1)
+CGROUP_FILES = ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory/memory.limit_in_bytes")
+
+
+def _cgroup_limits() -> list[float]:
+    """The control-group memory limits in force ([bytes]; none when unlimited or unreadable)."""
+    out = []
+    for name in CGROUP_FILES:
+        try:
+            with open(name) as fh:
+                text = fh.read().strip()
+        except OSError:
+            continue
+        if text.isdigit() and 0 < int(text) < 1 << 60:   # v1 writes "unlimited" as ~2^63
+            out.append(float(text))
+    return out
 
 
 def limit() -> float:

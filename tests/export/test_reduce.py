@@ -212,6 +212,18 @@ def test_incremental_playback_is_a_fresh_playback(clip, rig):
         assert np.array_equal(getattr(player, name), getattr(fresh, name)), name
 
 
+def test_blame_in_small_blocks_is_the_same(clip, rig, monkeypatch):
+    """The refinement blames the offending pairs in blocks (a long skeleton's chains times a
+    clip's pairs were gigabytes at once): blocks of a few pairs give the same keys, bit for
+    bit."""
+    whole = red.reduce_clip(clip, rig.skeleton.parents, TOL, short_rotations=True)
+    monkeypatch.setattr(red, "BLAME_PAIRS", 50)         # a few pairs a block
+    blocks = red.reduce_clip(clip, rig.skeleton.parents, TOL, short_rotations=True)
+    for part in ("translations", "rotations", "scales"):
+        a, b = getattr(whole.keys, part), getattr(blocks.keys, part)
+        assert np.array_equal(a.keep, b.keep) and np.array_equal(a.values, b.values), part
+
+
 def test_local_pass_keeps_dense_channels_whole(clip, rig):
     """A channel whose frames mostly miss even between their neighbours is keyed at every
     frame; the others keep what top-down splitting keeps (each segment within tolerance)."""

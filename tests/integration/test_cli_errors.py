@@ -93,6 +93,21 @@ def test_unwritable_output_folder(tmp_path, capsys):
     assert_user_error(code, err, "output")
 
 
+def test_running_out_of_memory_is_one_line(tmp_path, capsys, monkeypatch, nav_cache_dir):
+    """An allocation that fails part way (a rig or level asking for more than the process may
+    use) is one line naming memory and what to change, exit 2, and no output."""
+    import baker.pipeline
+
+    def too_big(*args, **kw):
+        raise MemoryError("Unable to allocate 1.78 GiB for an array with shape (309031, 258, 3)")
+
+    monkeypatch.setattr(baker.pipeline, "simulate_creatures", too_big)
+    code, err = run_cli(["--out", tmp_path / "c", "--seconds", 1, "--cache-dir",
+                         nav_cache_dir], capsys)
+    assert_user_error(code, err, "out of memory", "1.78 GiB", "--cell-size", "(memory)")
+    assert listing(tmp_path) == []
+
+
 @pytest.mark.slow
 def test_failed_bake_keeps_previous_output(tmp_path, capsys, nav_cache_dir):
     out = tmp_path / "c"

@@ -26,10 +26,13 @@ def test_suggested_cell_size_fits(limit_mb, side_m, cell):
         assert est.bytes <= limit_mb * 1e6
 
 
-def test_default_limit_is_half_the_ram():
+def test_default_limit_is_half_the_ram(monkeypatch):
     import os
+    import resource
 
     ram = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    monkeypatch.setattr(budget, "CGROUP_FILES", ())
+    monkeypatch.setattr(resource, "getrlimit", lambda r: (resource.RLIM_INFINITY,) * 2)
     assert budget.limit() == pytest.approx(ram / 2)
     with budget.memory_limit(100):
         assert budget.limit() == 100e6
@@ -61,3 +64,22 @@ def test_estimate_covers_a_real_build(cell):
                          text=True, check=True)
     r = json.loads(out.stdout.strip().splitlines()[-1])
     assert r["peak_mb"] <= r["est_mb"] <= 1.5 * r["peak_mb"] + 150, r
+
+
+def test_default_limit_is_half_of_a_smaller_address_space_or_cgroup_limit(monkeypatch, tmp_path):
+    """Under `ulimit -v` (or a container's memory limit) a build the RAM would allow ran out of
+    memory half way; it is now refused at once, with a cell size that fits."""
+    import resource
+
+    monkeypatch.setattr(budget, "CGROUP_FILES", ())
+    monkeypatch.setattr(resource, "getrlimit", lambda r: (6e9, 6e9))
+    assert budget.default_limit() == pytest.approx(3e9)
+    with pytest.raises(BudgetError, match="--cell-size"):
+        budget.check(8000, 8000, 0.005, 55_000)
+    v2, v1 = tmp_path / "memory.max", tmp_path / "limit_in_bytes"
+    v2.write_text("max\n")
+    v1.write_text("2000000000\n")
+    monkeypatch.setattr(budget, "CGROUP_FILES", (str(v2), str(v1)))
+    assert budget.default_limit() == pytest.approx(1e9)
+    v1.write_text(str(2**63 - 4096))                   # cgroup v1's "unlimited"
+    assert budget.default_limit() == pytest.approx(3e9)
