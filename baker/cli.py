@@ -45,7 +45,8 @@ def max_memory_option(f):
     return click.option(
         "--max-memory", type=float, default=None, metavar="MB",
         help="Refuse a navigation build estimated to need more memory than this, in MB "
-             "[default: half of the machine's RAM].")(f)
+             "[default: half of the memory this process may use: the RAM, or less under "
+             "ulimit -v or a container's limit].")(f)
 
 
 def rig_options(f):

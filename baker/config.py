@@ -222,7 +222,7 @@ class BakeConfig:
     nav_build: str = "auto"      # auto | full | lazy: the whole level at once, or windows
                                  # around where the creatures go (auto: lazy on big levels)
     max_memory_mb: float | None = None  # [>0] [MB] largest navigation build allowed;
-                                 # None: half of the machine's RAM (navmesh.budget)
+                                 # None: half of the memory the process may use (navmesh.budget)
     tolerance: float = 0.001     # [0..0.1] [BL] keyframe reduction: largest world-space
                                  # position error of any joint at any frame, in body lengths
                                  # (0.001 = 0.1% BL); 0 keeps every frame as a key
