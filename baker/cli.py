@@ -474,9 +474,9 @@ def run_command(argv=None) -> int:
                 error = format_error(e)
             except MemoryError as e:    # the input asks for more than the machine gives
                 error = format_error(ConfigError(
-                    f"out of memory ({e or 'an allocation failed'}): this level, rig and options "
-                    "need more memory than this process may use; use a larger --cell-size, a "
-                    "rig with fewer segments, fewer creatures or a shorter bake",
+                    f"out of memory ({str(e) or 'an allocation failed'}): this level, rig and "
+                    "options need more memory than this process may use; use a larger "
+                    "--cell-size, a rig with fewer segments, fewer creatures or a shorter bake",
                     where="memory"))
     except BaseException:       # a signal (entry.py prints its one line): nothing held is shown
         error = ""

@@ -107,6 +107,14 @@ def test_running_out_of_memory_is_one_line(tmp_path, capsys, monkeypatch, nav_ca
     assert_user_error(code, err, "out of memory", "1.78 GiB", "--cell-size", "(memory)")
     assert listing(tmp_path) == []
 
+    def bare(*args, **kw):
+        raise MemoryError()
+
+    monkeypatch.setattr(baker.pipeline, "simulate_creatures", bare)
+    code, err = run_cli(["--out", tmp_path / "c", "--seconds", 1, "--cache-dir",
+                         nav_cache_dir], capsys)
+    assert_user_error(code, err, "out of memory (an allocation failed)")
+
 
 @pytest.mark.slow
 def test_failed_bake_keeps_previous_output(tmp_path, capsys, nav_cache_dir):
