@@ -216,3 +216,15 @@ def test_readme_tables_match_the_schema():
     for name, body in readme_tables.tables().items():
         assert readme_tables.section(text, name) == body.strip(), (
             f"README '{name}' table is stale: run python tests/tools/readme_tables.py")
+
+
+def test_a_tiny_prey_capsule_keeps_its_faces():
+    """trimesh drops every face of a capsule thinner than about 1e-5 m as degenerate; a rig
+    may ask for one (prey radius down to any positive BL): it is made at unit size and
+    scaled, a closed capsule of the asked size."""
+    from baker.rig.props import capsule_mesh
+
+    for radius in (0.01, 1e-6, 1e-9):
+        v, f = capsule_mesh(4.0 * radius, radius)
+        assert len(f) >= 448 and f.max() < len(v)
+        assert np.allclose(np.abs(v).max(axis=0), [radius, radius, 2.0 * radius], rtol=2e-2)
