@@ -25,7 +25,6 @@ Steps (all vectorized over columns / samples; rays are cast in batched chunks):
 from __future__ import annotations
 
 import contextlib
-import importlib
 import logging
 import math
 import time
@@ -359,15 +358,9 @@ def _small_pages():
     build of benchmarks/bench_nav_recast.py took about 1 s (15 %) longer with them. The same
     values either way. The setting is numpy's own (NUMPY_MADVISE_HUGEPAGE at import), put back
     afterwards; where numpy has no such switch, nothing changes."""
-    toggle = None
-    for name in ("numpy._core.multiarray", "numpy.core.multiarray"):
-        try:
-            toggle = getattr(importlib.import_module(name), "_set_madvise_hugepage", None)
-        except ImportError:  # pragma: no cover - the other numpy's module name
-            continue
-        if toggle is not None:
-            break
-    if toggle is None:  # pragma: no cover - a numpy without the switch
+    try:    # numpy 2, and numpy 1.26's forward-compatible alias of numpy.core
+        from numpy._core.multiarray import _set_madvise_hugepage as toggle
+    except ImportError:  # pragma: no cover - a numpy without the switch
         yield
         return
     before = toggle(False)
