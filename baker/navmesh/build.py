@@ -126,8 +126,8 @@ def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     # connected_components would make of it), float64 (its own type: no converted copy)
     indptr = np.zeros(nv + 1, dtype=np.int64)
     np.cumsum(np.bincount(uk // nv, minlength=nv), out=indptr[1:])
-    g = csr_matrix((np.ones(len(uk)), uk % nv, indptr), shape=(nv, nv))
-    ncomp, vcomp = connected_components(g, directed=True, connection="weak")
+    ncomp, vcomp = connected_components(_graph(uk % nv, indptr), directed=True,
+                                        connection="weak")
     closed = np.ones(ncomp, dtype=bool)
     closed[vcomp[(uk[cnt != 2] // nv)]] = False
     # consistently wound: each edge is used once in each direction. Only closed components
@@ -138,12 +138,20 @@ def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     two = first[cnt == 2]
     uniq_d[vcomp[uk[cnt == 2][fwd[two] == fwd[two + 1]] // nv]] = False
     fc = vcomp[f0]
-    c = v - (lo + 0.5 * (hi - lo))
-    vol = np.einsum("ij,ij->i", c[f[:, 0]], np.cross(c[f[:, 1]], c[f[:, 2]]))
-    vol = np.bincount(fc, vol, minlength=ncomp)
+    vol = np.bincount(fc, _signed_volumes(v - (lo + 0.5 * (hi - lo)), f), minlength=ncomp)
     closed &= np.abs(vol) > 1e-15 * ext ** 3  # a flat closed sheet (a two-sided triangle)
     wind = np.where(closed & uniq_d, np.sign(vol), 0).astype(np.int8)
     return fc, closed, wind
+
+
+def _signed_volumes(c: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """(F,) six times the signed volume of each face's tetrahedron with the origin,
+    c[f0] . (c[f1] x c[f2]), on coordinate arrays (several times faster than np.cross and
+    einsum on (F, 3) rows)."""
+    p = [np.ascontiguousarray(c[:, j]) for j in range(3)]
+    a, b, d = ([q[f[:, k]] for q in p] for k in range(3))
+    return (a[0] * (b[1] * d[2] - b[2] * d[1]) + a[1] * (b[2] * d[0] - b[0] * d[2])
+            + a[2] * (b[0] * d[1] - b[1] * d[0]))
 
 
 # --------------------------------------------------------------------------- build steps
@@ -504,29 +512,33 @@ def _samples(caster: _Caster, grid: _Grid, ytop, solids, slope, height, timings,
     cos_slope = math.cos(slope) - 1e-9
     # the bands are independent, each on a thread (numpy and Embree release the GIL)
     band = _tile(TILE_COLUMNS)
-    parts = thread_map(lambda c0: _walkable_hits(
-        caster, x0, z0, nx, nz, cell, ytop, c0, min(ncols, c0 + band), solids, cos_slope,
-        height, timings), range(0, ncols, band))
-    nh = sum(p[4] for p in parts)
+
+    def one(c0):
+        col, y, ceil, prim, nh = _walkable_hits(caster, x0, z0, nx, nz, cell, ytop, c0,
+                                                min(ncols, c0 + band), solids, cos_slope,
+                                                height, timings)
+        t = time.perf_counter()
+        nrm = caster.face_normals[prim]
+        nrm *= np.where(nrm[:, 1] < 0, -1.0, 1.0)[:, None]
+        ix, iz = col // nz, col % nz
+        px, pz = x0 + (ix + 0.5) * cell, z0 + (iz + 0.5) * cell
+        timings["samples"] = timings.get("samples", 0.0) + time.perf_counter() - t
+        return (col, ix, iz, px, pz, y, ceil, nrm), nh
+
+    parts = thread_map(one, range(0, ncols, band))
+    nh = sum(p[1] for p in parts)
     t = time.perf_counter()
-    scol = np.concatenate([p[0] for p in parts])
-    sy = np.concatenate([p[1] for p in parts])
-    sceil = np.concatenate([p[2] for p in parts])
-    sprim = np.concatenate([p[3] for p in parts])
+    fields = [[p[0][k] for p in parts] for k in range(8)]
     del parts
+    scol, six, siz, px, pz, sy, sceil, snrm = thread_map(np.concatenate, fields)
+    del fields
     if len(scol) == 0:
         raise NavError("environment has no walkable surface (no upward-facing surface within "
                        f"{math.degrees(slope):.1f} deg with {height:g} m of clearance)",
                        where=where)
-    snrm = caster.face_normals[sprim]
-    snrm *= np.where(snrm[:, 1] < 0, -1.0, 1.0)[:, None]
-    del sprim
-    six, siz = scol // nz, scol % nz
     counts = np.bincount(scol, minlength=ncols)
     col_start = np.zeros(ncols + 1, dtype=np.int64)
     np.cumsum(counts, out=col_start[1:])
-    px = x0 + (six + 0.5) * cell
-    pz = z0 + (siz + 0.5) * cell
     timings["samples"] += time.perf_counter() - t
     return _Samples(scol, six, siz, px, pz, sy, sceil, snrm, col_start, counts, nh)
 
@@ -625,7 +637,7 @@ def _clearance(caster: _Caster, grid: _Grid, s: _Samples, links, radius, h_off,
     cell = grid.cell
     sy = s.y
     missing = links[:, :4] < 0
-    border = np.nonzero(missing.any(axis=1))[0]
+    border = np.nonzero(_row_counts(missing))[0]
     d0 = np.full(len(border), np.inf)
     bs, bd = np.nonzero(missing[border])
     if len(bs):  # exact distance to walls beside boundary samples
@@ -682,9 +694,7 @@ def _thin_parts(caster: _Caster, cell: float, slope: float):
     (lo (K, 3), hi (K, 3)) bounding boxes. Link rays along the grid lines can pass on either
     side of such a triangle, and of a thin part made of them (a stem, a post); a wider one
     always crosses a grid line."""
-    steep = np.abs(caster.face_normals[:, 1]) < math.cos(slope) + 1e-9
-    tri = caster.vertices[caster.faces[steep]]
-    lo, hi = tri.min(axis=1), tri.max(axis=1)
+    lo, hi = _steep_boxes(caster, slope)
     ext = hi - lo
     thin = (ext[:, 0] < THIN_POST * cell) & (ext[:, 2] < THIN_POST * cell)
     return lo[thin], hi[thin]
@@ -738,25 +748,57 @@ class _Groups:
 
 def _groups(links, keep, ix, iz, k, nz) -> _Groups:
     """The coarse graph's nodes and edges among the kept samples (keep (n,) bool; ix, iz (n,)
-    their grid cells) in blocks of k x k columns."""
+    their grid cells) in blocks of k x k columns. The links within blocks are gathered in
+    tiles on threads."""
     k = max(1, int(k))
     n = len(links)
     block = (ix // k).astype(np.int64) * ((nz + k - 1) // k) + iz // k
     ax = links[:, :4]
-    has = (ax >= 0) & keep[:, None] & keep[ax]        # (-1, no link, reads the last: masked)
-    same = np.empty_like(has)
-    for r0 in range(0, n, TILE_SAMPLES):   # bounded temporaries
-        r = slice(r0, r0 + TILE_SAMPLES)
-        same[r] = has[r] & (block[r, None] == block[np.maximum(ax[r], 0)])
-    count, label = connected_components(_csr(ax, same), directed=True, connection="strong")
+    size = _tile(TILE_SAMPLES)
+
+    def tile(r0):
+        r = slice(r0, min(n, r0 + size))
+        a = ax[r]
+        has = (a >= 0) & keep[r, None] & keep[a]     # (-1, no link, reads the last: masked)
+        same = has & (block[r, None] == block[np.maximum(a, 0)])
+        # (samples within the block each links to, those links, the +X / +Z links leaving it)
+        return _row_counts(same), a[same], has[:, :2] & ~same[:, :2]
+
+    parts = thread_map(tile, range(0, n, size))
+    indptr = np.zeros(n + 1, dtype=np.int32 if 4 * n < 2**31 else np.int64)
+    np.cumsum(np.concatenate([p[0] for p in parts]), out=indptr[1:])
+    inside = np.concatenate([p[1] for p in parts]).astype(np.int32, copy=False)
+    leave = np.concatenate([p[2] for p in parts])
+    del parts
+    count, label = connected_components(_graph(inside, indptr), directed=True,
+                                        connection="strong")
     keys = []
     for d in (0, 1):  # +X, +Z; symmetrized where they are read
-        src = np.nonzero(has[:, d] & ~same[:, d])[0]
+        src = np.nonzero(leave[:, d])[0]
         key = label[src].astype(np.int64) * count + label[ax[src, d]]
         if len(key) > 1:  # neighbours along a block border mostly repeat the same pair
             key = key[np.concatenate([[True], key[1:] != key[:-1]])]
         keys.append(key)
     return _Groups(label, count, unique(np.concatenate(keys)))
+
+
+def _graph(indices: np.ndarray, indptr: np.ndarray) -> csr_matrix:
+    """The square graph with these rows (CSR structure) and unit weights, for
+    connected_components: the weights are one float64 repeated (a zero-stride view: the
+    search reads only the structure, and a fresh array of ones as long as the links costs
+    their page faults); float64 is its own type, so it makes no converted copy."""
+    n = len(indptr) - 1
+    return csr_matrix((np.broadcast_to(np.float64(1.0), indices.shape), indices, indptr),
+                      shape=(n, n))
+
+
+def _row_counts(mask: np.ndarray) -> np.ndarray:
+    """(n,) int32 the True entries of each row of mask (n, k) (column sums: several times
+    faster than summing along the short rows)."""
+    out = np.zeros(len(mask), dtype=np.int32)
+    for j in range(mask.shape[1]):
+        np.add(out, mask[:, j], out=out)
+    return out
 
 
 def _group_graph(keys: np.ndarray, count: int, on: np.ndarray | None = None):
@@ -787,8 +829,7 @@ def _islands(links, keep, groups: _Groups, cell, min_island_area, where):
     order of their first sample: groups are numbered so), so the ties in size keep their
     order."""
     indptr, indices = _group_graph(groups.keys, groups.count)
-    graph = csr_matrix((np.ones(len(indices)), indices, indptr),
-                       shape=(groups.count, groups.count))
+    graph = _graph(indices, indptr)
     ncomp, of_group = connected_components(graph, directed=True, connection="strong")
     comp = of_group[groups.label]
     size = np.bincount(comp[keep], minlength=ncomp)
@@ -837,14 +878,9 @@ def _kept_fields(s: _Samples, dist, sel, groups: _Groups, k: int, ncols: int) ->
 def _blocker_columns(caster: _Caster, x0, z0, nx, nz, cell, angle) -> np.ndarray:
     """(nx * nz,) bool: columns within one cell of the XZ bounding box of a triangle steeper
     than `angle` (only those can block a horizontal link ray)."""
-    v = caster.vertices
-    f = caster.faces
-    steep = np.abs(caster.face_normals[:, 1]) < math.cos(angle) + 1e-9
-    tri = v[f[steep]]
-    if len(tri) == 0:
+    lo, hi = _steep_boxes(caster, angle)
+    if len(lo) == 0:
         return np.zeros(nx * nz, dtype=bool)
-    lo = tri.min(axis=1)
-    hi = tri.max(axis=1)
     i0 = np.clip(np.floor((lo[:, 0] - x0) / cell).astype(np.int64) - 1, 0, nx)
     i1 = np.clip(np.floor((hi[:, 0] - x0) / cell).astype(np.int64) + 2, 0, nx)
     j0 = np.clip(np.floor((lo[:, 2] - z0) / cell).astype(np.int64) - 1, 0, nz)
@@ -860,6 +896,14 @@ def _blocker_columns(caster: _Caster, x0, z0, nx, nz, cell, angle) -> np.ndarray
     return (diff[:nx, :nz] > 0).reshape(-1)
 
 
+def _steep_boxes(caster: _Caster, angle: float) -> tuple[np.ndarray, np.ndarray]:
+    """(lo (K, 3), hi (K, 3)) the bounding boxes of the triangles steeper than `angle`."""
+    steep = np.nonzero(np.abs(caster.face_normals[:, 1]) < math.cos(angle) + 1e-9)[0]
+    f = caster.faces[steep]
+    a, b, c = (caster.vertices[f[:, k]] for k in range(3))
+    return np.minimum(np.minimum(a, b), c), np.maximum(np.maximum(a, b), c)
+
+
 def _segment_min(group: np.ndarray, values: np.ndarray, n: int, empty) -> np.ndarray:
     """(n,) the smallest of `values` in each group 0..n-1 (`empty` where a group has none):
     np.minimum.at's result, by a stable sort and reduceat (several times faster)."""
@@ -871,18 +915,6 @@ def _segment_min(group: np.ndarray, values: np.ndarray, n: int, empty) -> np.nda
         head[1:] = g[1:] != g[:-1]
         out[g[head]] = np.minimum.reduceat(values[o], np.nonzero(head)[0])
     return out
-
-
-def _csr(links: np.ndarray, mask: np.ndarray) -> csr_matrix:
-    """The graph of the links (n, k) where mask (n, k): float64 weights and int32 indices, the
-    types connected_components works in (other types cost it a converted copy, and with its
-    rows' indices unsorted a sort as well)."""
-    n = len(links)
-    counts = mask.view(np.int8).sum(axis=1, dtype=np.int32)
-    indptr = np.zeros(n + 1, dtype=np.int32 if n * links.shape[1] < 2**31 else np.int64)
-    np.cumsum(counts, out=indptr[1:])
-    return csr_matrix((np.ones(int(indptr[-1])), links[mask].astype(np.int32, copy=False),
-                       indptr), shape=(n, n))
 
 
 def _coarse(cells, group_of, groups: _Groups, k):
