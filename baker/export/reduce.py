@@ -22,7 +22,8 @@ joint below it, and the errors of the 20 spine joints add up at the tail and the
   node's TRS (or a 1-key channel). The rest get keys at the worst frame of every segment until
   each is within its local tolerance: `LOCAL_SHARE * tol` metres for a translation,
   `LOCAL_SHARE * tol / lever` radians for a rotation (lever: the farthest a joint below it gets
-  from it, at least its own bone).
+  from it, at least its own bone); a joint with more than `DEPTH_SHARED` ancestors (a very long
+  body) shares that among them: times `DEPTH_SHARED / depth`.
 - **World refinement.** The reduced clip is played as three players would: three.js and UsdSkel
   (float32 key values and times; three.js's slerp, which normalizes only between nearly equal
   keys; matrices built from the stored quaternion without normalizing it), a player that
@@ -95,6 +96,9 @@ from baker.rig.skeleton import forward_kinematics
 
 #: local pass: the share of the tolerance each channel gets on its own
 LOCAL_SHARE = 0.5
+#: local pass: joints with more ancestors than this (a long body's tail and feet, whose
+#: ancestors' errors between keys add up) get LOCAL_SHARE times DEPTH_SHARED / their depth
+DEPTH_SHARED = 32
 #: world refinement: channels contributing at least this share of the largest contribution to
 #: an offending joint's error get a key
 BLAME_SHARE = 0.8
@@ -1478,10 +1482,10 @@ def reduce_clip(clip: Clip, parents, tolerance_m: float, *, contacts=None,
         x = dataclasses.replace(x, short=False)
     lever = np.maximum(levers(parents, np.swapaxes(x.pos0, 0, 1), clip.translations), 1e-9)
     r_t, r_q = (None, None) if rest is None else rest
-    share = LOCAL_SHARE * tol
+    share = _local_share(parents, tol)
     rot_bytes = VALUE_BYTES["rotation_short" if x.short else "rotation"]
     keep_t, static_t = _local_keys(clip.translations, clip.translations, clip.times, False,
-                                   np.full(j_count, share), r_t, VALUE_BYTES["translation"])
+                                   share, r_t, VALUE_BYTES["translation"])
     keep_r, static_r = _local_keys(clip.rotations, clip.rotations, clip.times, True,
                                    share / lever, r_q, rot_bytes)
     keep_s, static_s = _local_keys(clip.scales, clip.scales, clip.times, False, tol / lever,
@@ -1504,6 +1508,15 @@ def reduce_clip(clip: Clip, parents, tolerance_m: float, *, contacts=None,
         max_error_m=float(p.err.max(initial=0.0)), max_slide_m=float(p.slide.max(initial=0.0)),
         short_rotations=x.short, max_spread_m=float(p.spread.max(initial=0.0)))
     return dataclasses.replace(clip, keys=keys)
+
+
+def _local_share(parents: np.ndarray, tol: float) -> np.ndarray:
+    """(J,) [m] each joint's local-pass tolerance: LOCAL_SHARE * tol, divided by depth /
+    DEPTH_SHARED for a joint deeper than DEPTH_SHARED. Between keys the errors of all its
+    ancestors add up at a joint; on a 255-segment body the world refinement otherwise found
+    about half of all (joint, frame) pairs off and blamed each over its 258 ancestors."""
+    depth = (ancestors(parents) >= 0).sum(axis=1)
+    return LOCAL_SHARE * tol / np.maximum(1.0, depth / DEPTH_SHARED)
 
 
 def _frames_first(a: np.ndarray) -> np.ndarray:

@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation, Slerp
 from validator import gltf_validate, issues_summary, usd_validate
 
 from baker.atomic import atomic_write_bytes
-from baker.clip import NodeTrack
+from baker.clip import Clip, NodeTrack
 from baker.errors import ExportError
 from baker.export import reduce as red
 from baker.export.gltf import build_glb
@@ -508,3 +508,52 @@ def test_tight_frames_hold_their_joints_closer(clip, rig, reduced):
     assert err.max() <= TOL + SLACK
     with pytest.raises(ExportError):
         _reduce(clip, rig, tight=tight[:-1])
+
+
+def _long_chain_clip(j_count: int, f_count: int = 90) -> tuple:
+    """A single chain of j_count joints 4 mm apart, each bending a little on a wave of its own:
+    (clip, parents)."""
+    rng = np.random.default_rng(3)
+    t = np.arange(f_count, dtype=np.float32) / np.float32(30)
+    phase = rng.uniform(0, 2 * np.pi, (j_count, 2))
+    angle = 0.02 * np.sin(2.0 * t[:, None, None] + phase[None])            # (F, J, 2)
+    rot = Rotation.from_euler("yz", angle.reshape(-1, 2)).as_quat().astype(np.float32)
+    trans = np.zeros((f_count, j_count, 3), np.float32)
+    trans[:, 1:, 0] = 0.004
+    clip = Clip("chain", t, trans, rot.reshape(f_count, j_count, 4),
+                np.ones((f_count, j_count, 3), np.float32))
+    return clip, np.arange(j_count) - 1
+
+
+def _first_round_offenders(clip, parents, monkeypatch) -> tuple[int, float]:
+    """(offending (joint, frame) pairs when the world refinement starts, the final error)."""
+    seen = []
+    blame = red._blame
+
+    def counted(x, chains, p):
+        seen.append(int(p.viol.sum()))
+        return blame(x, chains, p)
+
+    monkeypatch.setattr(red, "_blame", counted)
+    out = red.reduce_clip(clip, parents, TOL)
+    monkeypatch.setattr(red, "_blame", blame)
+    return (seen[0] if seen else 0), out.keys.max_error_m
+
+
+def test_a_long_body_shares_the_local_tolerance_along_its_chains(clip, rig, monkeypatch):
+    """Between keys the errors of all a joint's ancestors add up at it: a joint deeper than
+    DEPTH_SHARED gets its local tolerance divided by depth / DEPTH_SHARED, so the world
+    refinement of a very long body starts with fewer offending pairs (each blamed over every
+    ancestor), and still ends within the tolerance. The rig's own chains are not that deep:
+    its reduction is unchanged."""
+    parents = rig.skeleton.parents
+    assert np.all(red._local_share(parents, TOL) == red.LOCAL_SHARE * TOL)
+    long_clip, chain = _long_chain_clip(160)
+    share = red._local_share(chain, TOL)
+    assert share[0] == red.LOCAL_SHARE * TOL
+    assert share[-1] == pytest.approx(red.LOCAL_SHARE * TOL * red.DEPTH_SHARED / 160)
+    shared, err = _first_round_offenders(long_clip, chain, monkeypatch)
+    monkeypatch.setattr(red, "DEPTH_SHARED", 10**9)          # one share for every joint
+    alone, err_alone = _first_round_offenders(long_clip, chain, monkeypatch)
+    assert shared < alone
+    assert err <= TOL and err_alone <= TOL
