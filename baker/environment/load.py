@@ -69,6 +69,10 @@ def load_environment(path: str | Path, sun_override=None) -> Environment:
     raises       : EnvironmentLoadError for a missing, unsupported, corrupt or empty file
     """
     path = Path(path)
+    if path.is_dir():   # (an empty argument is the current directory)
+        raise EnvironmentLoadError("the environment path is a directory, not a file (give a "
+                                   ".glb, .gltf, .obj, .ply, .stl or .usd file)",
+                                   where=str(path))
     ext = path.suffix.lower()
     if ext not in SUPPORTED_EXTS:
         raise EnvironmentLoadError(

@@ -54,6 +54,10 @@ CASES = {
     "corrupt_obj": (lambda d: put(d / "bad.obj", b"\x00\xff\xfe v 1 2\nf 9 9 9\n\x00"), ["bad.obj"]),
     "no_faces": (lambda d: put(d / "pts.obj", b"v 0 0 0\nv 1 0 0\nv 0 0 1\n"), ["face"]),
     "no_walkable": (lambda d: steep(d / "steep.stl"), ["walkable"]),
+    # a directory (an empty argument is the current one) is named as one, whatever its name
+    "folder": (lambda d: d, ["directory"]),
+    "folder_named_glb": (lambda d: (d / "level.glb").mkdir() or d / "level.glb", ["directory"]),
+    "empty_argument": (lambda d: "", ["directory", "environment"]),
 }
 
 
