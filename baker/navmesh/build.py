@@ -675,8 +675,9 @@ def _clearance(caster: _Caster, grid: _Grid, s: _Samples, links, radius, h_off,
             src, nb = active[m], nb[m]
             nd = dist[src] + w[d]
             better = nd < dist[nb]
-            if better.any():   # (a sample two links reach: the smaller; ufunc.at's own
-                nb = nb[better]    # loop, several times faster than sorting them)
+            if better.any():
+                # a sample two links reach takes the smaller (numpy's own ufunc.at loop)
+                nb = nb[better]
                 np.minimum.at(dist, nb, nd[better])
                 changed.append(nb)
         active = unique(np.concatenate(changed)) if changed else np.zeros(0, np.int64)
