@@ -55,7 +55,6 @@ import socket
 import sys
 import threading
 import time
-import tomllib
 import traceback
 import uuid
 from collections import deque
@@ -67,7 +66,7 @@ import baker
 from baker import signals
 from baker.atomic import atomic_write_bytes, check_outputs, check_writable
 from baker.config import (DEFAULT_ENVIRONMENT, DEFAULT_RIG, BakeConfig, load_rig_config,
-                          override_rig, validate_bake)
+                          override_rig, read_toml_file, validate_bake)
 from baker.errors import BakerError, ConfigError, JobsFileError, format_error
 
 log = logging.getLogger(__name__)
@@ -160,24 +159,6 @@ class _Problems:
         more = f"; and {n - MAX_ERRORS} more" if n > MAX_ERRORS else ""
         head = "1 error" if n == 1 else f"{n} errors"
         raise JobsFileError(f"jobs file has {head}: " + "; ".join(shown) + more, where=str(path))
-
-
-def _read_toml(path: Path) -> dict:
-    if not path.is_file():
-        raise ConfigError("jobs file not found" if not path.exists() else "jobs file is not a file",
-                          where=str(path))
-    try:
-        return tomllib.loads(path.read_bytes().decode("utf-8"))
-    except OSError as e:
-        raise ConfigError(f"cannot read jobs file: {e.strerror or e}", where=str(path)) from None
-    except UnicodeDecodeError as e:
-        raise ConfigError(f"jobs file is not UTF-8 text (byte {e.start})",
-                          where=str(path)) from None
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"jobs file is not valid TOML: {e}", where=str(path)) from None
-    except RecursionError:      # tomllib parses nested arrays and tables recursively
-        raise ConfigError("jobs file is not valid TOML: its arrays or tables nest too deeply",
-                          where=str(path)) from None
 
 
 def _did_you_mean(key: str, choices) -> str:
@@ -441,7 +422,7 @@ def load_plan(jobs_file, out, cache=None) -> Plan:
     cache     : the navigation cache (a NavCache, a folder or None)
     """
     path = Path(jobs_file)
-    doc = _read_toml(path)
+    doc = read_toml_file(path, "jobs")
     base = path.resolve().parent
     out = Path(out).resolve()
     problems = _Problems()

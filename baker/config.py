@@ -313,26 +313,35 @@ _RENAMED = {"navigation": {"agent_radius": "radius", "agent_height": "height"}}
 
 def read_rig_table(path: Path | str) -> dict:
     """The parsed TOML document of a rig file, or ConfigError (missing, unreadable, not TOML)."""
+    return read_toml_file(path, "rig", max_bytes=1 << 20)
+
+
+def read_toml_file(path: Path | str, what: str, max_bytes: int | None = None) -> dict:
+    """The parsed TOML document of a `what` file ("rig", "jobs"), or ConfigError: missing, not
+    a file, unreadable, over max_bytes, not UTF-8, not TOML, or nested deeper than tomllib
+    recurses."""
     path = Path(path)
     if not path.exists():
-        raise ConfigError("rig file not found", where=str(path))
+        raise ConfigError(f"{what} file not found", where=str(path))
     if not path.is_file():
-        raise ConfigError("rig path is not a file", where=str(path))
+        raise ConfigError(f"{what} path is not a file", where=str(path))
     try:
         raw = path.read_bytes()
     except OSError as e:
-        raise ConfigError(f"cannot read rig file: {e.strerror or e}", where=str(path)) from None
-    if len(raw) > 1 << 20:
-        raise ConfigError(f"rig file is {len(raw)} bytes; expected at most 1 MB", where=str(path))
+        raise ConfigError(f"cannot read {what} file: {e.strerror or e}", where=str(path)) from None
+    if max_bytes is not None and len(raw) > max_bytes:
+        raise ConfigError(f"{what} file is {len(raw)} bytes; expected at most "
+                          f"{max_bytes / (1 << 20):g} MB", where=str(path))
     try:
         return tomllib.loads(raw.decode("utf-8"))
     except UnicodeDecodeError as e:
-        raise ConfigError(f"rig file is not UTF-8 text (byte {e.start})", where=str(path)) from None
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"rig file is not valid TOML: {e}", where=str(path)) from None
-    except RecursionError:      # tomllib parses nested arrays and tables recursively
-        raise ConfigError("rig file is not valid TOML: its arrays or tables nest too deeply",
+        raise ConfigError(f"{what} file is not UTF-8 text (byte {e.start})",
                           where=str(path)) from None
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{what} file is not valid TOML: {e}", where=str(path)) from None
+    except RecursionError:      # tomllib parses nested arrays and tables recursively
+        raise ConfigError(f"{what} file is not valid TOML: its arrays or tables nest too "
+                          "deeply", where=str(path)) from None
 
 
 def load_rig_config(path: Path | str) -> RigConfig:
