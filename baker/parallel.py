@@ -320,6 +320,23 @@ def in_background(fn, *args):
     never told to stop, and the interpreter waited for it at exit for ever.)"""
     if thread_count() <= 1:
         return functools.cache(lambda: fn(*args))
+    return _on_thread(fn, args)
+
+
+def off_main_thread(fn, *args):
+    """fn(*args), run on a thread other than the main one (on this one when it is not the
+    main one), the main thread waiting for it. For compiled code (numba) whose results are
+    boxed in C: Python runs signal handlers in the main thread only, and a handler that raised
+    there (baker.signals stops a bake so) while numba boxed a result left its dispatcher
+    returning with an exception set, and the process crashed. Waiting in join, the main
+    thread raises cleanly; the thread is a daemon and is not waited for at exit."""
+    if threading.current_thread() is not threading.main_thread():
+        return fn(*args)
+    return _on_thread(fn, args)()
+
+
+def _on_thread(fn, args):
+    """Start fn(*args) on a daemon thread; returns the callable that waits for its result."""
     one_malloc_arena()
     box: dict = {}
 

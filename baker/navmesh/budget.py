@@ -17,11 +17,13 @@ from dataclasses import dataclass
 
 from baker.errors import BudgetError
 
-#: [bytes] process baseline (Python, numpy, trimesh, embree, the loaded level) before a build
-BASE_BYTES = 200e6
+#: [bytes] process baseline (Python, numpy, trimesh, embree, the loaded level) before a build,
+#: and numba's compiled rasterizer (about 125 MB: the import and LLVM, once loaded)
+BASE_BYTES = 300e6
 #: [bytes] peak memory per grid column (ray hits, samples, links, components); measured about
-#: 205 on the default scene at cells 0.03-0.0075 m (peak 269, 597, 1177, 1957 MB for 0.56,
-#: 2.25, 5.06, 9 M columns) since the build keeps its temporaries in tiles and slims its samples (issue 15)
+#: 230 on the default scene at cells 0.03-0.0075 m above the baseline (peak 415, 779, 1376,
+#: 2441 MB for 0.56, 2.25, 5.06, 9 M columns; benchmarks/bench_nav_budget.py) since the build
+#: keeps its temporaries in tiles and slims its samples (issue 15)
 BYTES_PER_COLUMN = 250.0
 #: [bytes] per level triangle (embree scene, solid labels)
 BYTES_PER_TRIANGLE = 200.0

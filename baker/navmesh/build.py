@@ -36,7 +36,7 @@ from scipy.sparse.csgraph import connected_components
 
 from baker.errors import NavError
 from baker.geometry.arrays import unique
-from baker.navmesh import budget
+from baker.navmesh import budget, raster
 from baker.navmesh.query import NavSurface
 from baker.navmesh.surface import DIRS, OPPOSITE, NavData
 from baker.parallel import in_background, thread_count, thread_map
@@ -166,57 +166,43 @@ def _grid(env, bounds, cell: float):
     return x0, z0, nx, nz, float(eb[1, 1]) + 1.0
 
 
-def _cast_layers(caster: _Caster, x0, z0, nx, nz, cell, ytop, col0=0, col1=None):
-    """All hits of columns col0..col1-1: (col (H,) int64, y (H,) float64, prim (H,) int32),
-    sorted by column then top to bottom."""
-    col = np.arange(col0, nx * nz if col1 is None else col1, dtype=np.int64)
-    oy = np.full(len(col), ytop)
-    # the re-cast offset must exceed float32 rounding of the (re-centred) coordinates
+def _layer_eps(caster: _Caster, x0, z0, nx, nz, cell, ytop) -> float:
+    """How far below a surface the next layer of a column starts (closer hits are the same
+    layer): as for float32 rays through the (re-centred) coordinates."""
     span = np.abs(np.array([x0, ytop, z0, x0 + nx * cell, z0 + nz * cell]) - np.r_[
         caster.shift[[0, 1, 2, 0, 2]]]).max()
-    eps = max(LAYER_EPS, 16.0 * float(np.finfo(np.float32).eps) * span)
-    cols, ys, prims = [], [], []
-    last = np.full(len(col), -1, dtype=np.int32)
-    for _ in range(MAX_PASSES):
-        if len(col) == 0:
-            break
-        t, prim = caster.cast_down(col, oy, x0, z0, nz, cell)
-        h = (prim >= 0) & (prim != last)  # the same triangle again: rounding, stop there
-        col, prim = col[h], prim[h]
-        y = oy[h] - t[h]
-        cols.append(col)
-        ys.append(y)
-        prims.append(prim)
-        oy = y - eps
-        last = prim
-    col = np.concatenate(cols) if cols else np.zeros(0, np.int64)
-    y = np.concatenate(ys) if ys else np.zeros(0)
-    prim = np.concatenate(prims) if prims else np.zeros(0, np.int32)
-    order = np.argsort(col, kind="stable")  # passes are in top-to-bottom order already
-    return col[order], y[order], prim[order]
+    return max(LAYER_EPS, 16.0 * float(np.finfo(np.float32).eps) * span)
 
 
-def _walkable_hits(caster, x0, z0, nx, nz, cell, ytop, c0, c1, solids, cos_slope, height,
+def _walkable_hits(caster, tri, x0, z0, nx, nz, cell, ytop, c0, c1, solids, cos_slope, height,
                    timings):
-    """Heightfield of columns c0..c1-1 reduced to its walkable hits:
-    (col, y, ceiling y, triangle, number of hits). solids() gives _solid_components of the
-    mesh."""
+    """Heightfield of columns c0..c1-1 reduced to its walkable layers:
+    (col, y, ceiling y, triangle, number of layers). tri: raster.Triangles of the grid;
+    solids() gives _solid_components of the mesh."""
     t = time.perf_counter()
-    hcol, hy, hprim = _cast_layers(caster, x0, z0, nx, nz, cell, ytop, c0, c1)
+    hcol, hy, hprim = tri.layers(c0, c1)
     timings["layers"] = timings.get("layers", 0.0) + time.perf_counter() - t
     face_comp, comp_closed, comp_wind = solids()
     t = time.perf_counter()
+    face_ny = caster.face_normals[:, 1]
+    hcol, hy, hprim, head = raster.coincident(
+        hcol, hy, hprim, face_comp, face_ny, comp_wind[face_comp] != 0,
+        _layer_eps(caster, x0, z0, nx, nz, cell, ytop), MAX_PASSES)
+    first = np.ones(len(hcol), dtype=bool)
+    first[1:] = hcol[1:] != hcol[:-1]
+    # inside-solid test: a layer is not a floor when the space just above it lies inside a
+    # closed component (its own exit, or a surface buried in / coincident with a solid),
+    # judged on every crossing of the column, coincident ones included
+    inside = _inside_solid(hcol, hprim, first, face_comp, comp_closed, comp_wind,
+                           face_ny)[head]
+    hcol, hy, hprim = hcol[head], hy[head], hprim[head]
     nh = len(hcol)
     first = np.ones(nh, dtype=bool)
     first[1:] = hcol[1:] != hcol[:-1]
     hceil = np.empty(nh)
     hceil[first] = np.inf
     hceil[~first] = hy[:-1][~first[1:]]
-    hny = np.abs(caster.face_normals[hprim, 1])  # two-sided: every hit is seen from above
-    # inside-solid test: a hit is not a floor when the space just above it lies inside a
-    # closed component (its own exit, or a surface buried in / coincident with a solid)
-    inside = _inside_solid(hcol, hprim, first, face_comp, comp_closed, comp_wind,
-                           caster.face_normals[:, 1])
+    hny = np.abs(face_ny[hprim])  # two-sided: every hit is seen from above
     walk = (hny >= cos_slope) & (hceil - hy >= height) & ~inside
     out = (hcol[walk], hy[walk], hceil[walk], hprim[walk], nh)
     timings["samples"] = timings.get("samples", 0.0) + time.perf_counter() - t
@@ -512,9 +498,12 @@ def _samples(caster: _Caster, grid: _Grid, ytop, solids, slope, height, timings,
     cos_slope = math.cos(slope) - 1e-9
     # the bands are independent, each on a thread (numpy and Embree release the GIL)
     band = _tile(TILE_COLUMNS)
+    t = time.perf_counter()
+    tri = raster.Triangles(caster.vertices, caster.faces, x0, z0, cell, nx, nz)
+    timings["layers"] = time.perf_counter() - t
 
     def one(c0):
-        col, y, ceil, prim, nh = _walkable_hits(caster, x0, z0, nx, nz, cell, ytop, c0,
+        col, y, ceil, prim, nh = _walkable_hits(caster, tri, x0, z0, nx, nz, cell, ytop, c0,
                                                 min(ncols, c0 + band), solids, cos_slope,
                                                 height, timings)
         t = time.perf_counter()
