@@ -110,25 +110,11 @@ def _row_span(u, w, a, b, c, pu, klo, khi):
 
 
 @njit(cache=True, nogil=True)
-def _layers(u, w, y, f, ilo, ihi, klo, khi, sel, nz, c0, c1):
-    ncol = c1 - c0
+def _scan(u, w, y, f, ilo, ihi, klo, khi, sel, nz, c0, c1, fill, hy, hp, store):
+    """Every hit of a triangle of `sel` in columns c0..c1-1: counted in fill[col - c0], or
+    (store) written at hy, hp[fill[col - c0]], which then moves on by one."""
     i0, i1 = c0 // nz, (c1 - 1) // nz
-    counts = np.zeros(ncol + 1, np.int64)
-    for t in sel:                                   # 1. how many hits each column has
-        a, b, c = f[t, 0], f[t, 1], f[t, 2]
-        for i in range(max(ilo[t], i0), min(ihi[t], i1) + 1):
-            k0, k1 = _row_span(u, w, a, b, c, float(i), klo[t], khi[t])
-            for k in range(k0, k1 + 1):
-                col = i * nz + k
-                if col < c0 or col >= c1:
-                    continue
-                if not np.isnan(_hit(u, w, y, a, b, c, float(i), float(k))):
-                    counts[col - c0 + 1] += 1
-    start = np.cumsum(counts)
-    hy = np.empty(start[-1], np.float64)
-    hp = np.empty(start[-1], np.int32)
-    fill = start[:-1].copy()
-    for t in sel:                                   # 2. the hits, column by column
+    for t in sel:
         a, b, c = f[t, 0], f[t, 1], f[t, 2]
         for i in range(max(ilo[t], i0), min(ihi[t], i1) + 1):
             k0, k1 = _row_span(u, w, a, b, c, float(i), klo[t], khi[t])
@@ -139,9 +125,22 @@ def _layers(u, w, y, f, ilo, ihi, klo, khi, sel, nz, c0, c1):
                 h = _hit(u, w, y, a, b, c, float(i), float(k))
                 if not np.isnan(h):
                     j = fill[col - c0]
-                    hy[j] = h
-                    hp[j] = t
+                    if store:
+                        hy[j] = h
+                        hp[j] = t
                     fill[col - c0] = j + 1
+
+
+@njit(cache=True, nogil=True)
+def _layers(u, w, y, f, ilo, ihi, klo, khi, sel, nz, c0, c1):
+    ncol = c1 - c0
+    counts = np.zeros(ncol + 1, np.int64)           # 1. how many hits each column has
+    _scan(u, w, y, f, ilo, ihi, klo, khi, sel, nz, c0, c1, counts[1:], np.empty(0),
+          np.empty(0, np.int32), False)
+    start = np.cumsum(counts)
+    hy = np.empty(start[-1], np.float64)            # 2. the hits, column by column
+    hp = np.empty(start[-1], np.int32)
+    _scan(u, w, y, f, ilo, ihi, klo, khi, sel, nz, c0, c1, start[:-1].copy(), hy, hp, True)
     out_c = np.empty(start[-1], np.int64)
     for q in range(ncol):                           # 3. each column top to bottom
         s, e = start[q], start[q + 1]
