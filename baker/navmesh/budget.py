@@ -18,8 +18,9 @@ from dataclasses import dataclass
 from baker.errors import BudgetError
 
 #: [bytes] process baseline (Python, numpy, trimesh, embree, the loaded level) before a build,
-#: and numba's compiled rasterizer (about 125 MB: the import and LLVM, once loaded)
-BASE_BYTES = 300e6
+#: and numba's compiled rasterizer (about 125 MB: the import and LLVM, once loaded; about 50 MB
+#: more on a machine's first build, which compiles it)
+BASE_BYTES = 350e6
 #: [bytes] peak memory per grid column (ray hits, samples, links, components); measured about
 #: 230 on the default scene at cells 0.03-0.0075 m above the baseline (peak 415, 779, 1376,
 #: 2441 MB for 0.56, 2.25, 5.06, 9 M columns; benchmarks/bench_nav_budget.py) since the build
