@@ -191,8 +191,9 @@ class RayCaster:
                      ) -> tuple[np.ndarray, np.ndarray]:
         """cast() of unbounded rays straight down from (x, y, z) (each (n,) float64), the same
         bits, without the (n, 3) origin and direction arrays: the origins are shifted and
-        rounded to float32 coordinate by coordinate, and every ray shares one direction (the
-        navigation build's columns, millions of rays a pass)."""
+        rounded to float32 coordinate by coordinate, and every ray shares one direction (millions
+        of rays over a grid's columns: the reference the navigation build's rasterized columns
+        are tested against)."""
         n = len(x)
         if self._scene is None or n <= SMALL_RAYS:
             o = np.stack([x, y, z], axis=1)

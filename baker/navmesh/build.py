@@ -83,11 +83,6 @@ class _Caster:
         """(t (n,) float64, inf on a miss; prim (n,) int32, -1 on a miss)."""
         return self.rays.cast(origins, directions, max_distance)
 
-    def cast_down(self, col: np.ndarray, oy: np.ndarray, x0, z0, nz, cell):
-        """Downward rays from height oy (n,) through the centres of columns col (n,)."""
-        ix, iz = np.divmod(col, nz)
-        return self.rays.cast_columns(x0 + (ix + 0.5) * cell, oy, z0 + (iz + 0.5) * cell)
-
 
 def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Closed mesh components and how they are wound.
@@ -174,11 +169,10 @@ def _layer_eps(caster: _Caster, x0, z0, nx, nz, cell, ytop) -> float:
     return max(LAYER_EPS, 16.0 * float(np.finfo(np.float32).eps) * span)
 
 
-def _walkable_hits(caster, tri, x0, z0, nx, nz, cell, ytop, c0, c1, solids, cos_slope, height,
-                   timings):
+def _walkable_hits(caster, tri, eps, c0, c1, solids, cos_slope, height, timings):
     """Heightfield of columns c0..c1-1 reduced to its walkable layers:
-    (col, y, ceiling y, triangle, number of layers). tri: raster.Triangles of the grid;
-    solids() gives _solid_components of the mesh."""
+    (col, y, ceiling y, triangle, number of layers). tri: raster.Triangles of the grid; eps:
+    _layer_eps of the grid; solids() gives _solid_components of the mesh."""
     t = time.perf_counter()
     hcol, hy, hprim = tri.layers(c0, c1)
     timings["layers"] = timings.get("layers", 0.0) + time.perf_counter() - t
@@ -186,8 +180,7 @@ def _walkable_hits(caster, tri, x0, z0, nx, nz, cell, ytop, c0, c1, solids, cos_
     t = time.perf_counter()
     face_ny = caster.face_normals[:, 1]
     hcol, hy, hprim, head = raster.coincident(
-        hcol, hy, hprim, face_comp, face_ny, comp_wind[face_comp] != 0,
-        _layer_eps(caster, x0, z0, nx, nz, cell, ytop), MAX_PASSES)
+        hcol, hy, hprim, face_comp, face_ny, comp_wind[face_comp] != 0, eps, MAX_PASSES)
     first = np.ones(len(hcol), dtype=bool)
     first[1:] = hcol[1:] != hcol[:-1]
     # inside-solid test: a layer is not a floor when the space just above it lies inside a
@@ -500,12 +493,12 @@ def _samples(caster: _Caster, grid: _Grid, ytop, solids, slope, height, timings,
     band = _tile(TILE_COLUMNS)
     t = time.perf_counter()
     tri = raster.Triangles(caster.vertices, caster.faces, x0, z0, cell, nx, nz)
+    eps = _layer_eps(caster, x0, z0, nx, nz, cell, ytop)
     timings["layers"] = time.perf_counter() - t
 
     def one(c0):
-        col, y, ceil, prim, nh = _walkable_hits(caster, tri, x0, z0, nx, nz, cell, ytop, c0,
-                                                min(ncols, c0 + band), solids, cos_slope,
-                                                height, timings)
+        col, y, ceil, prim, nh = _walkable_hits(caster, tri, eps, c0, min(ncols, c0 + band),
+                                                solids, cos_slope, height, timings)
         t = time.perf_counter()
         nrm = caster.face_normals[prim]
         nrm *= np.where(nrm[:, 1] < 0, -1.0, 1.0)[:, None]
