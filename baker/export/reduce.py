@@ -91,6 +91,7 @@ import numpy as np
 
 from baker.clip import Clip
 from baker.errors import ExportError
+from baker.export import keyfit, replay
 from baker.geometry.transforms import quat_conj
 from baker.rig.skeleton import forward_kinematics
 
@@ -617,12 +618,11 @@ def _local_keys(values: np.ndarray, stored: np.ndarray, times: np.ndarray, rotat
     holds). A channel within tol of one value is static: `preferred` (C, W) (the rest pose) when
     that is close enough, else its frame-0 value. Returns (keep (C, F), static (C, W)).
 
-    Each round evaluates only the frames of the segments the previous round split (a segment
-    within tolerance stays so), as (channel, frame) pairs. A channel that ends with more keys
-    than `_promote(keep, value_bytes)` keeps as they are is keyed at every frame: at once when
-    more frames than that are off even between their two neighbours (`_tight_misses`, a
-    channel that cannot do without most of its frames), else as soon as its keys pass the
-    bound (keys only grow)."""
+    The splitting is compiled (baker.export.keyfit), channel by channel. A channel that ends
+    with more keys than `_promote(keep, value_bytes)` keeps as they are is keyed at every
+    frame: at once when more frames than that are off even between their two neighbours
+    (`_tight_misses`, a channel that cannot do without most of its frames), else as soon as its
+    keys pass the bound (keys only grow)."""
     f_count, c_count, _ = values.shape
     first = np.asarray(values[0], dtype=np.float32)
     static = first.copy()
@@ -637,83 +637,14 @@ def _local_keys(values: np.ndarray, stored: np.ndarray, times: np.ndarray, rotat
         static[ok] = value[ok]
         is_static[ok] = True
     keep = np.zeros((c_count, f_count), dtype=bool)
-    keep[~is_static, 0] = True
-    keep[~is_static, -1] = True
-    vals = np.ascontiguousarray(np.swapaxes(values, 0, 1))                   # (C, F, W)
-    kept = np.ascontiguousarray(np.swapaxes(stored, 0, 1))
-    flat_vals, flat_kept = _flat(vals), _flat(kept)
+    vals = np.swapaxes(values, 0, 1)                                       # (C, F, W)
+    kept = np.swapaxes(stored, 0, 1)
     bound = value_bytes * f_count / (value_bytes + TIME_BYTES)      # _promote's key count
     active = np.flatnonzero(~is_static)
-    dense = active[_tight_misses(vals[active], kept[active], times, rotation,
-                                 tol[active]) > bound]
-    keep[dense] = True
-    pending = np.zeros((c_count, f_count), dtype=bool)
-    pending[~is_static] = True
-    pending[dense] = False
-    flat_keep, flat_tol = keep.reshape(-1), np.repeat(tol, f_count)
-    pending = np.flatnonzero(pending)          # flat pairs c * F + f, ascending
-    if len(pending):
-        columns = _value_columns(flat_vals, rotation)
-        kept_cols = columns[0] if stored is values else _value_columns(flat_kept, False)[0]
-    while len(pending):
-        # the keys around each pending pair: every channel with one keys its first and last
-        # frame, so the last key at or before a pair is on its own channel, and so is the
-        # first key after it unless the pair is its channel's last frame (then none: F)
-        keys = np.flatnonzero(flat_keep)
-        at = np.searchsorted(keys, pending, side="right")
-        prev = np.take(keys, at - 1)
-        c, f = np.divmod(pending, f_count)
-        nxt = np.take(keys, np.minimum(at, len(keys) - 1)) - c * f_count
-        nxt[(at == len(keys)) | (nxt >= f_count)] = f_count
-        err = _local_errors(columns, kept_cols, static, times, rotation, c, f,
-                            prev - c * f_count, nxt)
-        bad = np.flatnonzero((err > np.take(flat_tol, pending)) & ~np.take(flat_keep, pending))
-        _key_worst(keep, c[bad], f[bad], prev[bad], err[bad])      # group: the segment's key
-        split = np.zeros(c_count * f_count, dtype=bool)
-        split[prev[bad]] = True
-        pending = pending[np.take(split, prev)]
-        rows = c[np.r_[True, c[1:] != c[:-1]]]                     # the channels evaluated
-        full = keep[rows].sum(axis=1) > bound
-        if full.any():                  # promoted in the end anyway (keys only grow)
-            keep[rows[full]] = True
-            open_ = np.ones(c_count, dtype=bool)
-            open_[rows[full]] = False
-            pending = pending[np.take(open_, pending // f_count)]
+    dense = _tight_misses(vals[active], kept[active], times, rotation, tol[active]) > bound
+    keep[active[dense]] = True
+    keyfit.fit_channels(vals, kept, times, rotation, tol, active[~dense], bound, keep)
     return keep, static
-
-
-def _local_errors(vals: tuple, kept: np.ndarray, static: np.ndarray, times: np.ndarray,
-                  rotation: bool, c: np.ndarray, f: np.ndarray, prev: np.ndarray,
-                  nxt: np.ndarray) -> np.ndarray:
-    """(N,) the local pass's errors at the pairs (channel c, frame f), played from `kept`
-    between the key frames prev and nxt (`_segments` read there), against vals = (the values,
-    their lengths) (`_value_columns`), in blocks of _PAIRS. kept and the values: (W, C * F)
-    float64, component-first."""
-    values, lengths = vals
-    f_count = values.shape[1] // len(static)
-    err = np.empty(len(c))
-    for k in range(0, len(c), _PAIRS):
-        cb, fb = c[k:k + _PAIRS], f[k:k + _PAIRS]
-        span = _spans_at(prev[k:k + _PAIRS], nxt[k:k + _PAIRS], cb, fb, times, f_count)
-        est = _interp_keys(kept.take(span[0], axis=1), kept.take(span[1], axis=1), static, cb,
-                           span, rotation)                                        # (W, n)
-        i = cb * f_count + fb
-        v = values.take(i, axis=1)
-        if rotation:                    # _angle(v, est), with v's lengths computed once
-            d = np.abs(_inner(v, est))
-            d /= lengths.take(i) * np.sqrt(_inner(est, est))
-            err[k:k + _PAIRS] = 2.0 * np.arccos(np.clip(d, 0.0, 1.0, out=d))
-        else:
-            est -= v
-            err[k:k + _PAIRS] = np.sqrt(_inner(est, est))
-    return err
-
-
-def _value_columns(flat: np.ndarray, rotation: bool) -> tuple:
-    """(values (W, C * F) float64 component-first, their lengths (C * F,) or None) of
-    (C * F, W) values: what `_local_errors` reads every round, computed once."""
-    values = np.ascontiguousarray(flat.T, dtype=np.float64)
-    return values, np.sqrt(_inner(values, values)) if rotation else None
 
 
 def _tight_misses(vals: np.ndarray, kept: np.ndarray, times: np.ndarray, rotation: bool,
@@ -724,15 +655,7 @@ def _tight_misses(vals: np.ndarray, kept: np.ndarray, times: np.ndarray, rotatio
     c_count, f_count, _ = vals.shape
     if f_count < 3 or not c_count:
         return np.zeros(c_count, dtype=np.int64)
-    t = np.asarray(times, dtype=np.float32).astype(np.float64)
-    a = (t[1:-1] - t[:-2]) / (t[2:] - t[:-2])
-    v0, v1 = kept[:, :-2].astype(np.float64), kept[:, 2:].astype(np.float64)
-    if rotation:
-        est = slerp(v0, v1, np.broadcast_to(a, v0.shape[:2]))
-        err = _rotation_error(vals[:, 1:-1].astype(np.float64), est)
-    else:
-        err = np.linalg.norm(v0 + a[:, None] * (v1 - v0) - vals[:, 1:-1], axis=-1)
-    return (err > tol[:, None]).sum(axis=1)
+    return keyfit.tight_misses(vals, kept, times, rotation, tol)
 
 
 # ------------------------------------------------------------------------------- hierarchy
@@ -1105,65 +1028,18 @@ class _Player:
     def _sample(self, level, st, sr, seg_t, seg_r) -> None:
         """Played local values of the joints `level` at the frames st (translations) and sr
         (rotations) (L, F) bool; and Blender's nlerp of the rotations."""
-        x, parents = self.x, self.x.parents
-        for b in _level_blocks(st, level, parents):
-            played = _interp(_flat(self.vt), self.static_t, b.j, _spans(seg_t, b.j, b.f, x.times),
-                             False)
-            b.put(self.tr, played.astype(np.float32))
-        for b in _level_blocks(sr, level, parents):
-            slerped, lerped = _interp(_flat(self.vq), self.static_r, b.j,
-                                      _spans(seg_r, b.j, b.f, x.times), True, both=True)
-            b.put(self.rr, slerped.astype(np.float32))
-            lerped /= np.sqrt(_inner(lerped, lerped))                  # _unit
-            b.put(self.nlerp, lerped)
+        replay.sample_level(level, st, sr, seg_t, seg_r, self.x.times, self.vt, self.vq,
+                            self.static_t, self.static_r, self.tr, self.rr, self.nlerp)
 
     def _pose(self, level: np.ndarray, turned: np.ndarray, moved: np.ndarray,
               root: bool) -> None:
         """World poses of the joints `level`, as the three players pose them: rotations at the
-        frames `turned`, positions at the frames `moved` (L, F) bool."""
-        parents = self.x.parents
-        memo = {}                       # whole-level blocks: the parents' rows, gathered once
-        for b in _level_blocks(turned, level, parents, memo):
-            rr = b.own(self.rr)                                         # (4, ...)
-            if root:
-                b.set(self.mat, _raw_matrix(rr))
-                b.set(self.wq, _unit_cf(rr))
-                b.set(self.wn, b.own(self.nlerp))
-            else:
-                b.set(self.mat, _mat_mat(b.parent(self.mat), _raw_matrix(rr)))
-                b.set(self.wq, _qmul(b.parent(self.wq), _unit_cf(rr)))
-                b.set(self.wn, _qmul(b.parent(self.wn), b.own(self.nlerp)))
-        worlds = (self.pos, self.unit, self.blender)
-        for b in _level_blocks(moved, level, parents, memo):
-            tr = b.own(self.tr)                                         # (3, ...)
-            if root:
-                poses = (tr, tr, tr)
-            else:
-                poses = (_mat_vec(b.parent(self.mat), tr), _qrot(b.parent(self.wq), tr),
-                         _qrot(b.parent(self.wn), tr))
-                for a, w in zip(worlds, poses):
-                    w += b.parent(a)                         # the parent's position + ...
-            for a, w in zip(worlds, poses):
-                b.set(a, w)
-            self._errors(b, *poses)
-
-    def _errors(self, b, pos: np.ndarray, unit: np.ndarray, blender: np.ndarray) -> None:
-        """Errors of the pairs of the block b (`_level_blocks`) from their world positions (3,
-        ...) as each player poses them, the worst of three: pos, as three.js and UsdSkel play
-        the keys; unit, a player that normalizes the slerped quaternions; and Blender's
-        (blender), which interpolates the stored quaternions component by component and
-        normalizes (nlerp); and the spread of the other two around the first."""
-        b.set(self.spread, np.maximum(_length(unit - pos), _length(blender - pos)))
-        pos0 = b.own(self.pos0)
-        diff = pos - pos0
-        err = _length(diff)
-        for world in (unit, blender):
-            d = world - pos0
-            e = _length(d)
-            diff = np.where(e > err, d, diff)
-            np.maximum(err, e, out=err)
-        b.set(self.diff, diff)
-        b.set(self.err, err)
+        frames `turned`, positions at the frames `moved` (L, F) bool; and their errors: pos, as
+        three.js and UsdSkel play the keys; unit, a player that normalizes the slerped
+        quaternions; and Blender's (blender), which interpolates the stored quaternions
+        component by component and normalizes (nlerp); err the worst of the three, spread how
+        far the other two are from the first."""
+        replay.pose_level(level, self.x.parents, turned, moved, root, self)
 
     def _slide_at(self, moved: np.ndarray) -> None:
         """slide at the planted frame pairs (f, f + 1) with a moved frame."""

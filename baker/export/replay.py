@@ -1,0 +1,233 @@
+"""The reduction player's per-pair arithmetic, compiled with numba (baker.export.reduce._Player).
+
+One level of the skeleton at a time, over the (joint, frame) pairs a mask selects:
+
+- `sample_level`: the local values the players play between the stored keys: the lerped
+  translation and the slerped rotation (three.js's slerp, rounded to float32 as the files hold
+  them), and Blender's nlerp of the rotation (component-wise lerp, normalized);
+- `pose_level`: the world poses as the three players pose them (raw matrices of the stored
+  quaternions; a renormalized slerp; Blender's nlerp) from the parents' poses, and the errors
+  against the unreduced world positions.
+
+Each pair is computed on its own with the arithmetic of the numpy kernels it replaces
+(baker.export.reduce: `_raw_matrix`, `_mat_mat`, `_qmul`, `_qrot`, `_slerp`, sums left to right),
+so a replay of some pairs gives what a fresh playback of all of them gives. The arrays are the
+player's, component first ((W, J, F)); the functions run off the main thread
+(parallel.off_main_thread), as the rasterizer's do.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from baker.parallel import off_main_thread
+
+#: a rotation segment whose keys' |dot| reaches this is lerped and normalized (three.js)
+NEAR_DOT = 0.9995
+
+
+def sample_level(level, st, sr, seg_t, seg_r, times, vt, vq, static_t, static_r, tr, rr,
+                 nlerp) -> None:
+    """Played local values of the joints `level` at the frames st (translations) and sr
+    (rotations) (L, F) bool, into tr, rr and nlerp; seg_t, seg_r the (prev, nxt) key frames of
+    each frame (reduce._segments), vt, vq (J, F, W) float32 the stored key values, static_t,
+    static_r (J, W) the values of channels with no key."""
+    t = np.asarray(times, dtype=np.float32).astype(np.float64)
+    off_main_thread(_sample, level, st, sr, seg_t[0], seg_t[1], seg_r[0], seg_r[1], t, vt, vq,
+                    np.asarray(static_t, np.float64), np.asarray(static_r, np.float64),
+                    tr, rr, nlerp)
+
+
+def pose_level(level, parents, turned, moved, root: bool, p) -> None:
+    """World poses of the joints `level` as the three players pose them: rotations at the
+    frames `turned`, positions (and errors) at the frames `moved` (L, F) bool, into the arrays
+    of the player p."""
+    off_main_thread(_pose, level, parents, turned, moved, bool(root), p.rr, p.nlerp, p.tr,
+                    p.mat, p.wq, p.wn, p.pos, p.unit, p.blender, p.pos0, p.spread, p.diff,
+                    p.err)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _span(prev, nxt, j, f, t, f_count):
+    """(p, n, alpha, fixed, last) of the pair (j, f) (reduce._around)."""
+    p, n = prev[j, f], nxt[j, f]
+    fixed, last = p < 0, n >= f_count
+    p = min(max(p, 0), f_count - 1)
+    if last:
+        n = p
+    span = t[n] - t[p]
+    a = (t[f] - t[p]) / span if span > 0.0 else 0.0
+    return p, n, a, fixed, last
+
+
+@njit(cache=True, nogil=True)
+def _sample(level, st, sr, prev_t, nxt_t, prev_r, nxt_r, t, vt, vq, static_t, static_r, tr, rr,
+            nlerp):
+    f_count = st.shape[1]
+    for r in range(len(level)):
+        j = level[r]
+        for f in range(f_count):
+            if st[r, f]:
+                p, n, a, fixed, last = _span(prev_t, nxt_t, j, f, t, f_count)
+                for k in range(3):
+                    if fixed:
+                        v = static_t[j, k]
+                    elif last:
+                        v = np.float64(vt[j, p, k])
+                    else:
+                        v0, v1 = np.float64(vt[j, p, k]), np.float64(vt[j, n, k])
+                        v = (v1 - v0) * a + v0
+                    tr[k, j, f] = np.float64(np.float32(v))
+            if sr[r, f]:
+                p, n, a, fixed, last = _span(prev_r, nxt_r, j, f, t, f_count)
+                _rotation(vq, static_r, j, f, p, n, a, fixed, last, rr, nlerp)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _rotation(vq, static_r, j, f, p, n, a, fixed, last, rr, nlerp):
+    """rr, nlerp at (j, f): the slerp (as float32) and the normalized lerp of the stored keys
+    p, n at alpha a (reduce._interp_keys with both)."""
+    x0, y0, z0, w0 = (np.float64(vq[j, p, 0]), np.float64(vq[j, p, 1]),
+                      np.float64(vq[j, p, 2]), np.float64(vq[j, p, 3]))
+    if fixed:
+        s0, s1, s2, s3 = static_r[j, 0], static_r[j, 1], static_r[j, 2], static_r[j, 3]
+        l0, l1, l2, l3 = s0, s1, s2, s3
+    elif last:
+        s0, s1, s2, s3 = x0, y0, z0, w0
+        l0, l1, l2, l3 = x0, y0, z0, w0
+    else:
+        x1, y1, z1, w1 = (np.float64(vq[j, n, 0]), np.float64(vq[j, n, 1]),
+                          np.float64(vq[j, n, 2]), np.float64(vq[j, n, 3]))
+        l0, l1 = (x1 - x0) * a + x0, (y1 - y0) * a + y0
+        l2, l3 = (z1 - z0) * a + z0, (w1 - w0) * a + w0
+        s0, s1, s2, s3 = _slerp(x0, y0, z0, w0, x1, y1, z1, w1, a)
+    rr[0, j, f], rr[1, j, f] = np.float64(np.float32(s0)), np.float64(np.float32(s1))
+    rr[2, j, f], rr[3, j, f] = np.float64(np.float32(s2)), np.float64(np.float32(s3))
+    m = np.sqrt(l0 * l0 + l1 * l1 + l2 * l2 + l3 * l3)
+    nlerp[0, j, f], nlerp[1, j, f], nlerp[2, j, f], nlerp[3, j, f] = l0 / m, l1 / m, l2 / m, \
+        l3 / m
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _slerp(x0, y0, z0, w0, x1, y1, z1, w1, t):
+    """reduce._slerp of one pair."""
+    d = x0 * x1 + y0 * y1 + z0 * z1 + w0 * w1
+    if d < 0.0:
+        x1, y1, z1, w1, d = -x1, -y1, -z1, -w1, -d
+    if x0 == x1 and y0 == y1 and z0 == z1 and w0 == w1:
+        return x0, y0, z0, w0
+    near = d >= NEAR_DOT
+    if near:
+        wa, wb = 1.0 - t, t
+    else:
+        theta = np.arccos(min(d, 1.0))
+        s = np.sin(theta)
+        wa, wb = np.sin((1.0 - t) * theta) / s, np.sin(t * theta) / s
+    ox, oy, oz, ow = x0 * wa + x1 * wb, y0 * wa + y1 * wb, z0 * wa + z1 * wb, w0 * wa + w1 * wb
+    if near:
+        m = np.sqrt(ox * ox + oy * oy + oz * oz + ow * ow)
+        ox, oy, oz, ow = ox / m, oy / m, oz / m, ow / m
+    return ox, oy, oz, ow
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _qmul(a, b, ja, jb, fa, out, jo):
+    """out[:, jo, fa] = a[:, ja, fa] b[:, jb, fa] (reduce._qmul's terms, left to right)."""
+    a0, a1, a2, a3 = a[0, ja, fa], a[1, ja, fa], a[2, ja, fa], a[3, ja, fa]
+    b0, b1, b2, b3 = b[0, jb, fa], b[1, jb, fa], b[2, jb, fa], b[3, jb, fa]
+    out[0, jo, fa] = a3 * b0 + a0 * b3 + a1 * b2 - a2 * b1
+    out[1, jo, fa] = a3 * b1 - a0 * b2 + a1 * b3 + a2 * b0
+    out[2, jo, fa] = a3 * b2 + a0 * b1 - a1 * b0 + a2 * b3
+    out[3, jo, fa] = a3 * b3 - a0 * b0 - a1 * b1 - a2 * b2
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _qrot(q, jq, f, v0, v1, v2):
+    """q[:, jq, f] rotating (v0, v1, v2) (reduce._qrot: v + w t + qv x t, t = 2 qv x v)."""
+    x, y, z, w = q[0, jq, f], q[1, jq, f], q[2, jq, f], q[3, jq, f]
+    t0, t1, t2 = (y * v2 - z * v1) * 2.0, (z * v0 - x * v2) * 2.0, (x * v1 - y * v0) * 2.0
+    return (t0 * w + v0 + (y * t2 - z * t1), t1 * w + v1 + (z * t0 - x * t2),
+            t2 * w + v2 + (x * t1 - y * t0))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _raw(x, y, z, w, m):
+    """m (3, 3) = reduce._raw_matrix of the stored quaternion (x, y, z, w)."""
+    xx, yy, zz = x * x, y * y, z * z
+    m[0, 0], m[1, 1], m[2, 2] = 1 - (yy + zz) * 2, 1 - (xx + zz) * 2, 1 - (xx + yy) * 2
+    m[0, 1], m[1, 0] = (x * y - z * w) * 2, (x * y + z * w) * 2
+    m[0, 2], m[2, 0] = (x * z + y * w) * 2, (x * z - y * w) * 2
+    m[1, 2], m[2, 1] = (y * z - x * w) * 2, (y * z + x * w) * 2
+
+
+@njit(cache=True, nogil=True)
+def _pose(level, parents, turned, moved, root, rr, nlerp, tr, mat, wq, wn, pos, unit, blender,
+          pos0, spread, diff, err):
+    f_count = turned.shape[1]
+    m = np.empty((3, 3))
+    for r in range(len(level)):
+        j = level[r]
+        pj = parents[j]
+        for f in range(f_count):
+            if turned[r, f]:
+                x, y, z, w = rr[0, j, f], rr[1, j, f], rr[2, j, f], rr[3, j, f]
+                _raw(x, y, z, w, m)
+                n = np.sqrt(x * x + y * y + z * z + w * w)
+                if root:
+                    for a in range(3):
+                        for b in range(3):
+                            mat[a, b, j, f] = m[a, b]
+                    for k in range(4):
+                        wq[k, j, f] = rr[k, j, f] / n
+                        wn[k, j, f] = nlerp[k, j, f]
+                else:
+                    for a in range(3):
+                        for b in range(3):
+                            mat[a, b, j, f] = (mat[a, 0, pj, f] * m[0, b]
+                                               + mat[a, 1, pj, f] * m[1, b]
+                                               + mat[a, 2, pj, f] * m[2, b])
+                    for k in range(4):              # the unit rotation, then the product
+                        wq[k, j, f] = rr[k, j, f] / n
+                    _qmul(wq, wq, pj, j, f, wq, j)
+                    _qmul(wn, nlerp, pj, j, f, wn, j)
+            if moved[r, f]:
+                _place(j, pj, f, root, tr, mat, wq, wn, pos, unit, blender, pos0, spread, diff,
+                       err)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _place(j, pj, f, root, tr, mat, wq, wn, pos, unit, blender, pos0, spread, diff, err):
+    """Positions and errors of the pair (j, f) (reduce._Player._pose's second half, _errors)."""
+    v0, v1, v2 = tr[0, j, f], tr[1, j, f], tr[2, j, f]
+    if root:
+        p0, p1, p2 = v0, v1, v2
+        u0, u1, u2 = v0, v1, v2
+        b0, b1, b2 = v0, v1, v2
+    else:
+        p0 = mat[0, 0, pj, f] * v0 + mat[0, 1, pj, f] * v1 + mat[0, 2, pj, f] * v2 + pos[0, pj, f]
+        p1 = mat[1, 0, pj, f] * v0 + mat[1, 1, pj, f] * v1 + mat[1, 2, pj, f] * v2 + pos[1, pj, f]
+        p2 = mat[2, 0, pj, f] * v0 + mat[2, 1, pj, f] * v1 + mat[2, 2, pj, f] * v2 + pos[2, pj, f]
+        u0, u1, u2 = _qrot(wq, pj, f, v0, v1, v2)
+        u0, u1, u2 = u0 + unit[0, pj, f], u1 + unit[1, pj, f], u2 + unit[2, pj, f]
+        b0, b1, b2 = _qrot(wn, pj, f, v0, v1, v2)
+        b0, b1, b2 = b0 + blender[0, pj, f], b1 + blender[1, pj, f], b2 + blender[2, pj, f]
+    pos[0, j, f], pos[1, j, f], pos[2, j, f] = p0, p1, p2
+    unit[0, j, f], unit[1, j, f], unit[2, j, f] = u0, u1, u2
+    blender[0, j, f], blender[1, j, f], blender[2, j, f] = b0, b1, b2
+    spread[j, f] = max(_len(u0 - p0, u1 - p1, u2 - p2), _len(b0 - p0, b1 - p1, b2 - p2))
+    q0, q1, q2 = pos0[0, j, f], pos0[1, j, f], pos0[2, j, f]
+    d0, d1, d2 = p0 - q0, p1 - q1, p2 - q2
+    e = _len(d0, d1, d2)
+    for w0, w1, w2 in ((u0, u1, u2), (b0, b1, b2)):
+        c0, c1, c2 = w0 - q0, w1 - q1, w2 - q2
+        ec = _len(c0, c1, c2)
+        if ec > e:
+            d0, d1, d2, e = c0, c1, c2, ec
+    diff[0, j, f], diff[1, j, f], diff[2, j, f] = d0, d1, d2
+    err[j, f] = e
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _len(a, b, c):
+    return np.sqrt(a * a + b * b + c * c)
