@@ -430,54 +430,6 @@ def _norm(a: np.ndarray) -> np.ndarray:
     return np.sqrt(_dot(a, a))
 
 
-def _spans(segments, rows: np.ndarray, frames: np.ndarray, times: np.ndarray) -> tuple:
-    """Where the pairs (rows[i], frames[i]) are played from: (i0, i1) the flat indices (row
-    * F + key frame) of the keys around them, alpha, and whether each is past the last key
-    (`last`) or on a channel with no key (`fixed`). segments: `_segments` of the keys."""
-    prev, nxt = segments
-    f_count = prev.shape[1]
-    at = rows * f_count + frames
-    return _spans_at(prev.take(at), nxt.take(at), rows, frames, times, f_count)
-
-
-def _spans_at(prev: np.ndarray, nxt: np.ndarray, rows: np.ndarray, frames: np.ndarray,
-              times: np.ndarray, f_count: int) -> tuple:
-    """`_spans` given the pairs' segment key frames prev, nxt (`_segments` read there)."""
-    prev, nxt, a, fixed, last = _around(prev, nxt, frames, times, f_count)
-    base = rows * f_count
-    return base + prev, base + nxt, a, fixed, last
-
-
-def _interp(flat_values: np.ndarray, static: np.ndarray, rows: np.ndarray, span: tuple,
-            rotation: bool, both: bool = False):
-    """(W, N) float64, component-first: the values (C * F, W) played at the pairs of `span`
-    (`_spans`), slerped or lerped; element for element what `_sample_cf` gives there. static
-    (C, W). With `both`, (slerped, lerped)."""
-    v0 = _take(flat_values, span[0]).T.astype(np.float64, order="C")          # (W, N)
-    v1 = _take(flat_values, span[1]).T.astype(np.float64, order="C")
-    return _interp_keys(v0, v1, static, rows, span, rotation, both)
-
-
-def _interp_keys(v0: np.ndarray, v1: np.ndarray, static: np.ndarray, rows: np.ndarray,
-                 span: tuple, rotation: bool, both: bool = False):
-    """`_interp` given the key values v0, v1 (W, N) float64 around the pairs of `span`."""
-    _, _, a, fixed, last = span
-    held = np.asarray(static, np.float64)[rows[fixed]].T if fixed.any() else None
-    outs = []
-    for slerped in ((True, False) if both else (rotation,)):
-        if slerped:
-            out = _slerp(v0, v1, a)
-        else:                                   # v0 + a (v1 - v0)
-            out = np.subtract(v1, v0)
-            out *= a
-            out += v0
-        np.copyto(out, v0, where=last)
-        if held is not None:
-            out[:, fixed] = held
-        outs.append(out)
-    return tuple(outs) if both else outs[0]
-
-
 def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Quaternion slerp as three.js plays glTF (Quaternion.slerpFlat): the short way round,
     weights from the stored keys as they are (not renormalized), the result not normalized;
@@ -822,31 +774,8 @@ def _solve3(m: np.ndarray, v: np.ndarray) -> np.ndarray:
     return out
 
 
-def _mat_vec(m: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """(3, N) m v for (3, 3, N) m and (3, N) v, element by element (each row's products summed
-    left to right)."""
-    out = m[:, 0] * v[0]
-    out += m[:, 1] * v[1]
-    out += m[:, 2] * v[2]
-    return out
-
-
-def _mat_mat(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(3, 3, N) a b of (3, 3, N) matrices, element by element (products summed left to
-    right)."""
-    out = a[:, 0, None] * b[0]
-    out += a[:, 1, None] * b[1]
-    out += a[:, 2, None] * b[2]
-    return out
-
-
 def _unit(q: np.ndarray) -> np.ndarray:
     return q / _norm(q)[..., None]
-
-
-def _unit_cf(q: np.ndarray) -> np.ndarray:
-    """_unit of component-first quaternions q (4, ...): the same arithmetic."""
-    return q / np.sqrt(_inner(q, q))
 
 
 class _Player:
@@ -964,36 +893,10 @@ class _Player:
                  root: bool) -> tuple[np.ndarray, np.ndarray]:
         """The key values of the joints `level`: translations at the frames target_t, rotations
         at the frames target_r (L, F) bool (new keys, and keys where the parent's pose, or only
-        its rotation, moved). Returns ((L, F), (L, F)) bool: the frames whose stored value vt,
-        vq changed (bit for bit)."""
-        x, f_count = self.x, self.x.t0.shape[1]
-        changed_t = np.zeros(target_t.shape, dtype=bool)
-        changed_r = np.zeros(target_r.shape, dtype=bool)
-        row = self.row              # joint -> its row in `level`
-        for j, f, i in _pair_blocks(target_t, level, f_count):
-            tt = _take(_flat(x.t0), i) if root else self._target_t(i, x.parents[j] * f_count + f)
-            _put(_flat(self.tt), i, tt)
-            vt = tt.astype(np.float32)
-            changed_t[row[j], f] = _bits_differ(_take(_flat(self.vt), i), vt)
-            _put(_flat(self.vt), i, vt)
-        for j, f, i in _pair_blocks(target_r, level, f_count):
-            tq = _take(_flat(x.q0), i) if root else self._target_q(i, x.parents[j] * f_count + f)
-            if x.short:                 # requantize the targets that changed
-                ne = _take(_flat(self.tq), i) != tq
-                changed = ne[:, 0] | ne[:, 1] | ne[:, 2] | ne[:, 3]
-                ic = i[changed]
-                codes = quantize_rotations(tq[changed])
-                _put(_flat(self.codes), ic, codes)
-                vq = dequantize_rotations(codes)
-                changed_r[row[j[changed]], f[changed]] = _bits_differ(_take(_flat(self.vq), ic),
-                                                                      vq)
-                _put(_flat(self.vq), ic, vq)
-            else:
-                vq = _unit_f32(tq)
-                changed_r[row[j], f] = _bits_differ(_take(_flat(self.vq), i), vq)
-                _put(_flat(self.vq), i, vq)
-            _put(_flat(self.tq), i, tq)
-        return changed_t, changed_r
+        its rotation, moved); SHORT codes requantized only where the target changed. Returns
+        ((L, F), (L, F)) bool: the frames whose stored value vt, vq changed (bit for bit)."""
+        return replay.targets_level(level, self.x.parents, target_t, target_r, root,
+                                    self.x.short, self.x, self)
 
     def _target_t(self, i: np.ndarray, ip: np.ndarray) -> np.ndarray:
         """(N, 3) the translation targets of the pairs i (flat) of non-root joints, given their
@@ -1072,84 +975,6 @@ def _pair_blocks(mask: np.ndarray, level: np.ndarray, f_count: int):
     for k in range(0, len(li), _PAIRS):
         j, f = level[li[k:k + _PAIRS]], fi[k:k + _PAIRS]
         yield j, f, j * f_count + f
-
-
-#: `_level_blocks` poses (samples) a whole level when at least this share of its pairs is to be
-_DENSE = 0.5
-
-
-def _level_blocks(mask: np.ndarray, level: np.ndarray, parents: np.ndarray,
-                  memo: dict | None = None):
-    """The blocks (`_Pairs` or `_Rows`) in which `_Player._pose` poses (and `_sample` samples)
-    the True pairs of mask (L, F) of the joints `level` (parents: the skeleton's). When most of
-    the level is to be posed, all of it is, as one `_Rows`: whole rows are copied in and out
-    instead of gathering and scattering pairs, and a pair posed again from unchanged inputs
-    gets the same bits (the player's arrays hold what a fresh playback gives, see
-    `_Player`). memo: a `_Rows` memo of the parents' rows (see there), or None."""
-    n = np.count_nonzero(mask)
-    if n and n >= _DENSE * mask.size:
-        yield _Rows(level, parents[level], mask.shape[1], memo)
-        return
-    for j, f, i in _pair_blocks(mask, level, mask.shape[1]):
-        yield _Pairs(i, parents[j] * mask.shape[1] + f, j, f)
-
-
-class _Pairs:
-    """A block of (joint, frame) pairs j, f: i, their flat indices j * F + f, and ip, their
-    parents'. own(a) and parent(a) gather the pairs' and the parents' pairs' values of a
-    component-first (..., J, F) array as (..., N); set(a, v) and put(a, v) write v (..., N) to
-    the pairs."""
-
-    def __init__(self, i: np.ndarray, ip: np.ndarray, j: np.ndarray, f: np.ndarray):
-        self.i, self.ip, self.j, self.f = i, ip, j, f
-
-    def own(self, a: np.ndarray) -> np.ndarray:
-        return _gather(_cols(a), self.i)
-
-    def parent(self, a: np.ndarray) -> np.ndarray:
-        return _gather(_cols(a), self.ip)
-
-    def set(self, a: np.ndarray, v: np.ndarray) -> None:
-        _scatter(_cols(a), self.i, v)
-
-    put = set
-
-
-class _Rows:
-    """Every frame of the joints `level` (with their `parents`; F frames), as a `_Pairs`
-    block, with (..., L, F) arrays; put(a, v) writes v (..., L * F) (the pairs j, f: row by
-    row). memo (a dict, or None): parent(a) keeps the rows it gathers there, by array, for
-    blocks of the same level that do not change the parents' arrays meanwhile."""
-
-    def __init__(self, level: np.ndarray, parents: np.ndarray, f_count: int,
-                 memo: dict | None = None):
-        self.level, self.parents, self.f_count, self.memo = level, parents, f_count, memo
-        self.rows = list(enumerate(level.tolist()))
-
-    @property
-    def j(self) -> np.ndarray:
-        return np.repeat(self.level, self.f_count)
-
-    @property
-    def f(self) -> np.ndarray:
-        return np.tile(np.arange(self.f_count), len(self.level))
-
-    def put(self, a: np.ndarray, v: np.ndarray) -> None:
-        self.set(a, v.reshape(v.shape[:-1] + (len(self.level), self.f_count)))
-
-    def own(self, a: np.ndarray) -> np.ndarray:
-        return a.take(self.level, axis=-2)
-
-    def parent(self, a: np.ndarray) -> np.ndarray:
-        if self.memo is None:
-            return a.take(self.parents, axis=-2)
-        if id(a) not in self.memo:
-            self.memo[id(a)] = a.take(self.parents, axis=-2)
-        return self.memo[id(a)]
-
-    def set(self, a: np.ndarray, v: np.ndarray) -> None:
-        for k, j in self.rows:          # row by row: several times faster than a[..., level, :]
-            a[..., j, :] = v[..., k, :]
 
 
 def _resegment(segments: tuple, played: np.ndarray, keep: np.ndarray) -> np.ndarray:

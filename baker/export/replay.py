@@ -231,3 +231,140 @@ def _place(j, pj, f, root, tr, mat, wq, wn, pos, unit, blender, pos0, spread, di
 @njit(cache=True, nogil=True, inline="always")
 def _len(a, b, c):
     return np.sqrt(a * a + b * b + c * c)
+
+
+def targets_level(level, parents, target_t, target_r, root: bool, short: bool, x, p):
+    """The key values of the joints `level` (reduce._Player._targets): translations at the
+    frames target_t, rotations at the frames target_r (L, F) bool, into p.tt, p.vt and p.tq,
+    p.vq (and p.codes when `short`: requantized only where tq changed). Returns ((L, F),
+    (L, F)) bool: the frames whose stored value vt, vq changed (bit for bit)."""
+    changed_t = np.zeros(target_t.shape, dtype=bool)
+    changed_r = np.zeros(target_r.shape, dtype=bool)
+    off_main_thread(_targets, level, parents, target_t, target_r, bool(root), bool(short),
+                    x.t0, x.q0, x.wq0, p.pos0, p.pos, p.mat, p.wq, p.tt, p.vt, p.tq, p.vq,
+                    p.codes, changed_t, changed_r)
+    return changed_t, changed_r
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _differ(a, b):
+    """Whether the float32 values a and b differ in any bit (-0.0 from 0.0, too)."""
+    return a != b or np.copysign(1.0, a) != np.copysign(1.0, b)
+
+
+@njit(cache=True, nogil=True)
+def _targets(level, parents, target_t, target_r, root, short, t0, q0, wq0, pos0, pos, mat, wq,
+             tt, vt, tq, vq, codes, changed_t, changed_r):
+    f_count = target_t.shape[1]
+    q, c = np.empty(4), np.empty(4, np.int16)
+    for r in range(len(level)):
+        j = level[r]
+        pj = parents[j]
+        for f in range(f_count):
+            if target_t[r, f]:
+                if root:
+                    x0, x1, x2 = t0[j, f, 0], t0[j, f, 1], t0[j, f, 2]
+                else:
+                    x0, x1, x2 = _solve3(mat, pj, f, pos0[0, j, f] - pos[0, pj, f],
+                                         pos0[1, j, f] - pos[1, pj, f],
+                                         pos0[2, j, f] - pos[2, pj, f])
+                tt[j, f, 0], tt[j, f, 1], tt[j, f, 2] = x0, x1, x2
+                for k, v in enumerate((np.float32(x0), np.float32(x1), np.float32(x2))):
+                    changed_t[r, f] |= _differ(vt[j, f, k], v)
+                    vt[j, f, k] = v
+            if target_r[r, f]:
+                _target_q(root, q0, wq0, wq, j, pj, f, q)
+                same = True
+                for k in range(4):
+                    same &= tq[j, f, k] == q[k]
+                    tq[j, f, k] = q[k]
+                if short and same:
+                    continue                    # the codes of this target are stored
+                if short:
+                    _quantize(q, c)
+                for k in range(4):
+                    if short:
+                        v = np.float32(max(np.float64(c[k]) / SHORT_MAX, -1.0))
+                        codes[j, f, k] = c[k]
+                    else:
+                        v = np.float32(q[k] / np.sqrt(_dot(q, q)))
+                    changed_r[r, f] |= _differ(vq[j, f, k], v)
+                    vq[j, f, k] = v
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _solve3(mat, pj, f, v0, v1, v2):
+    """x with m x = v, m the matrix mat[:, :, pj, f] (reduce._solve3: Cramer's rule)."""
+    m00, m01, m02 = mat[0, 0, pj, f], mat[0, 1, pj, f], mat[0, 2, pj, f]
+    m10, m11, m12 = mat[1, 0, pj, f], mat[1, 1, pj, f], mat[1, 2, pj, f]
+    m20, m21, m22 = mat[2, 0, pj, f], mat[2, 1, pj, f], mat[2, 2, pj, f]
+    # the rows of adj(m): the columns' cross products (reduce._cross's arithmetic)
+    a0, a1, a2 = m11 * m22 - m21 * m12, m21 * m02 - m01 * m22, m01 * m12 - m11 * m02
+    b0, b1, b2 = m12 * m20 - m22 * m10, m22 * m00 - m02 * m20, m02 * m10 - m12 * m00
+    c0, c1, c2 = m10 * m21 - m20 * m11, m20 * m01 - m00 * m21, m00 * m11 - m10 * m01
+    det = a0 * m00 + a1 * m10 + a2 * m20
+    return ((a0 * v0 + a1 * v1 + a2 * v2) / det, (b0 * v0 + b1 * v1 + b2 * v2) / det,
+            (c0 * v0 + c1 * v1 + c2 * v2) / det)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _target_q(root, q0, wq0, wq, j, pj, f, q):
+    """q = the unit local rotation of (j, f) that gives its unreduced world rotation under its
+    parent's played one, on the clip's side (reduce._Player._target_q); q0 at a root."""
+    if root:
+        for k in range(4):
+            q[k] = q0[j, f, k]
+        return
+    a0, a1, a2, a3 = -wq[0, pj, f], -wq[1, pj, f], -wq[2, pj, f], wq[3, pj, f]
+    b0, b1, b2, b3 = wq0[j, f, 0], wq0[j, f, 1], wq0[j, f, 2], wq0[j, f, 3]
+    q[0] = a3 * b0 + a0 * b3 + a1 * b2 - a2 * b1
+    q[1] = a3 * b1 - a0 * b2 + a1 * b3 + a2 * b0
+    q[2] = a3 * b2 + a0 * b1 - a1 * b0 + a2 * b3
+    q[3] = a3 * b3 - a0 * b0 - a1 * b1 - a2 * b2
+    if q[0] * q0[j, f, 0] + q[1] * q0[j, f, 1] + q[2] * q0[j, f, 2] + q[3] * q0[j, f, 3] < 0:
+        for k in range(4):
+            q[k] = -q[k]
+    n = np.sqrt(_dot(q, q))
+    for k in range(4):
+        q[k] /= n
+
+
+#: normalized SHORT's largest code
+SHORT_MAX = 32767
+
+
+@njit(cache=True, nogil=True)
+def _quantize(q, out):
+    """out = reduce.quantize_rotations of the quaternion q (4,): of the 16 codes that round
+    each component down or up, the one of the least cost, in _quantize's arithmetic."""
+    n = np.sqrt(_dot(q, q))
+    s, c = np.empty(4), np.empty(4)
+    for k in range(4):
+        s[k] = q[k] / n * SHORT_MAX
+        c[k] = np.floor(s[k])
+    cc, sc = _dot(c, c), _dot(s, c)
+    u3 = q[3] / n
+    lever = 1.0 - u3 * u3
+    s2 = np.float64(SHORT_MAX) ** 2
+    best, at = np.inf, 0
+    for code in range(16):
+        bc, bs, count = 0.0, 0.0, 0.0
+        for k in range(4):              # the components rounded up, in order (_bit_sums)
+            if code >> k & 1:
+                bc += c[k]
+                bs += s[k]
+                count += 1.0
+        n2 = (bc * 2.0 + cc + count) / s2
+        d = (bs + sc) / s2
+        cost = max(n2 - d * d, 0.0) / n2
+        stretch = abs(n2 - 1.0)
+        cost += stretch * stretch * lever
+        if cost < best:
+            best, at = cost, code
+    for k in range(4):
+        out[k] = np.int16(min(max(c[k] + (at >> k & 1), -SHORT_MAX), SHORT_MAX))
