@@ -39,21 +39,18 @@ joint below it, and the errors of the 20 spine joints add up at the tail and the
   keying every frame (which shares the clip's full time accessor) is keyed at every frame (before
   and after the refinement, which then checks again).
 
-Speed (the same keys as a plain implementation): the local pass evaluates only the segments it
-split in its previous round and keys a channel at every frame at once when more of its frames
-than `_promote`'s bound miss even between their neighbours; the refinement's playback (`_Player`)
-is kept between rounds and replays only the (joint, frame) pairs whose keys, stored key values
-(bit for bit: a recomputed key that quantizes to the same code changes nothing) or parent
-changed, world rotations and positions apart, in blocks of `_PAIRS` pairs, and computes key
-values at key frames only (those of the other frames, which the files store but no player reads,
-once at the end). Both work component-first: each x, y, z (w) is a flat array over the pairs,
-and the sums over 3 or 4 components are written out left to right instead of np.sum /
-np.linalg.norm over a small axis. The player stores its played and world poses that way too
-((W, J, F)), so a block's components are gathered contiguous and written back without transposing
-copies, and a level with most of its pairs to pose (sample) is posed (sampled) whole, row by
-row. That is
-operation for operation the plain arithmetic, so the values are the same bit for bit
-(tests/export/test_reduce.py checks a replay against a fresh playback).
+Speed (the same keys as a plain implementation): the local pass splits each channel's segments
+in compiled code (baker.export.keyfit) and keys a channel at every frame at once when more of its
+frames than `_promote`'s bound miss even between their neighbours; the refinement's playback
+(`_Player`) is kept between rounds and replays only the (joint, frame) pairs whose keys, stored
+key values (bit for bit: a recomputed key that quantizes to the same code changes nothing) or
+parent changed, world rotations and positions apart, and computes key values at key frames only
+(those of the other frames, which the files store but no player reads, once at the end). The
+player's per-pair arithmetic (key values, sampling, posing, errors) is compiled too
+(baker.export.replay), level by level over the pairs a mask selects, each pair computed on its
+own with the arithmetic of the numpy kernels here (sums over 3 or 4 components written out left
+to right), so a replay gives what a fresh playback gives, bit for bit (tests/export/test_reduce.py
+checks it).
 
 Planted feet: with `contacts` (frames where a joint is planted), a foot that does not move in the
 original may not slide in the reduced clip: between two planted frames its error may change by at
