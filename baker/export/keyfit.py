@@ -50,18 +50,18 @@ def tight_misses(vals: np.ndarray, kept: np.ndarray, times: np.ndarray, rotation
                            np.ascontiguousarray(tol, dtype=np.float64))
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _dot4(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _alpha(t, p, n, f):
     span = t[n] - t[p]
     return (t[f] - t[p]) / span if span > 0.0 else 0.0
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _worst(vals, kept, t, c, p, n, rotation, tol, cos_lo, est):
     """(error, frame) of the worst frame strictly between the keys p and n of channel c that
     plays further than tol from its value (the earliest of equal errors), or (-1, -1) when
@@ -115,7 +115,7 @@ def _worst(vals, kept, t, c, p, n, rotation, tol, cos_lo, est):
     return worst, at
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _fit(vals, kept, t, rotation, tol, rows, bound, keep):
     f_count = vals.shape[1]
     est = np.empty(4)
@@ -142,7 +142,7 @@ def _fit(vals, kept, t, rotation, tol, rows, bound, keep):
             keep[c, :] = True
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _tight(vals, kept, t, rotation, tol):
     c_count, f_count = vals.shape[0], vals.shape[1]
     out = np.zeros(c_count, np.int64)

@@ -48,7 +48,7 @@ def pose_level(level, parents, turned, moved, root: bool, p) -> None:
                     p.err)
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _span(prev, nxt, j, f, t, f_count):
     """(p, n, alpha, fixed, last) of the pair (j, f) (reduce._around)."""
     p, n = prev[j, f], nxt[j, f]
@@ -61,7 +61,7 @@ def _span(prev, nxt, j, f, t, f_count):
     return p, n, a, fixed, last
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _sample(level, st, sr, prev_t, nxt_t, prev_r, nxt_r, t, vt, vq, static_t, static_r, tr, rr,
             nlerp):
     f_count = st.shape[1]
@@ -84,7 +84,7 @@ def _sample(level, st, sr, prev_t, nxt_t, prev_r, nxt_r, t, vt, vq, static_t, st
                 _rotation(vq, static_r, j, f, p, n, a, fixed, last, rr, nlerp)
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _rotation(vq, static_r, j, f, p, n, a, fixed, last, rr, nlerp):
     """rr, nlerp at (j, f): the slerp (as float32) and the normalized lerp of the stored keys
     p, n at alpha a (reduce._interp_keys with both)."""
@@ -109,7 +109,7 @@ def _rotation(vq, static_r, j, f, p, n, a, fixed, last, rr, nlerp):
         l3 / m
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _slerp(x0, y0, z0, w0, x1, y1, z1, w1, t):
     """reduce._slerp of one pair."""
     d = x0 * x1 + y0 * y1 + z0 * z1 + w0 * w1
@@ -131,7 +131,7 @@ def _slerp(x0, y0, z0, w0, x1, y1, z1, w1, t):
     return ox, oy, oz, ow
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _qmul(a, b, ja, jb, fa, out, jo):
     """out[:, jo, fa] = a[:, ja, fa] b[:, jb, fa] (reduce._qmul's terms, left to right)."""
     a0, a1, a2, a3 = a[0, ja, fa], a[1, ja, fa], a[2, ja, fa], a[3, ja, fa]
@@ -142,7 +142,7 @@ def _qmul(a, b, ja, jb, fa, out, jo):
     out[3, jo, fa] = a3 * b3 - a0 * b0 - a1 * b1 - a2 * b2
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _qrot(q, jq, f, v0, v1, v2):
     """q[:, jq, f] rotating (v0, v1, v2) (reduce._qrot: v + w t + qv x t, t = 2 qv x v)."""
     x, y, z, w = q[0, jq, f], q[1, jq, f], q[2, jq, f], q[3, jq, f]
@@ -151,7 +151,7 @@ def _qrot(q, jq, f, v0, v1, v2):
             t2 * w + v2 + (x * t1 - y * t0))
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _raw(x, y, z, w, m):
     """m (3, 3) = reduce._raw_matrix of the stored quaternion (x, y, z, w)."""
     xx, yy, zz = x * x, y * y, z * z
@@ -161,7 +161,7 @@ def _raw(x, y, z, w, m):
     m[1, 2], m[2, 1] = (y * z - x * w) * 2, (y * z + x * w) * 2
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _pose(level, parents, turned, moved, root, rr, nlerp, tr, mat, wq, wn, pos, unit, blender,
           pos0, spread, diff, err):
     f_count = turned.shape[1]
@@ -196,7 +196,7 @@ def _pose(level, parents, turned, moved, root, rr, nlerp, tr, mat, wq, wn, pos, 
                        err)
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _place(j, pj, f, root, tr, mat, wq, wn, pos, unit, blender, pos0, spread, diff, err):
     """Positions and errors of the pair (j, f) (reduce._Player._pose's second half, _errors)."""
     v0, v1, v2 = tr[0, j, f], tr[1, j, f], tr[2, j, f]
@@ -228,7 +228,7 @@ def _place(j, pj, f, root, tr, mat, wq, wn, pos, unit, blender, pos0, spread, di
     err[j, f] = e
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _len(a, b, c):
     return np.sqrt(a * a + b * b + c * c)
 
@@ -246,13 +246,13 @@ def targets_level(level, parents, target_t, target_r, root: bool, short: bool, x
     return changed_t, changed_r
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _differ(a, b):
     """Whether the float32 values a and b differ in any bit (-0.0 from 0.0, too)."""
     return a != b or np.copysign(1.0, a) != np.copysign(1.0, b)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _targets(level, parents, target_t, target_r, root, short, t0, q0, wq0, pos0, pos, mat, wq,
              tt, vt, tq, vq, codes, changed_t, changed_r):
     f_count = target_t.shape[1]
@@ -292,12 +292,12 @@ def _targets(level, parents, target_t, target_r, root, short, t0, q0, wq0, pos0,
                     vq[j, f, k] = v
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _solve3(mat, pj, f, v0, v1, v2):
     """x with m x = v, m the matrix mat[:, :, pj, f] (reduce._solve3: Cramer's rule)."""
     m00, m01, m02 = mat[0, 0, pj, f], mat[0, 1, pj, f], mat[0, 2, pj, f]
@@ -312,7 +312,7 @@ def _solve3(mat, pj, f, v0, v1, v2):
             (c0 * v0 + c1 * v1 + c2 * v2) / det)
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _target_q(root, q0, wq0, wq, j, pj, f, q):
     """q = the unit local rotation of (j, f) that gives its unreduced world rotation under its
     parent's played one, on the clip's side (reduce._Player._target_q); q0 at a root."""
@@ -338,7 +338,7 @@ def _target_q(root, q0, wq0, wq, j, pj, f, q):
 SHORT_MAX = 32767
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _quantize(q, out):
     """out = reduce.quantize_rotations of the quaternion q (4,): of the 16 codes that round
     each component down or up, the one of the least cost, in _quantize's arithmetic."""
