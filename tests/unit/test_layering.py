@@ -35,7 +35,8 @@ ALLOWED = {
     "clip": {"rig", "solve"},
     "rootmotion": {"clip", "rig"},
     "export": {"clip", "rig", "solve", "environment", "config", "navmesh", "atomic",
-               "inspect"},                 # export/preview.py draws a bake read back from its GLB
+               "inspect",                  # export/preview.py draws a bake read back from its GLB
+               "parallel"},                # the reduction's compiled kernels off the main thread
     "inspect": {"environment", "metrics"},     # reads a bake's files back to judge them
     "inspect_file": {"inspect"},               # `baker inspect`: a file's summary
 }
