@@ -328,11 +328,61 @@ def off_main_thread(fn, *args):
     main one), the main thread waiting for it. For compiled code (numba) whose results are
     boxed in C: Python runs signal handlers in the main thread only, and a handler that raised
     there (baker.signals stops a bake so) while numba boxed a result left its dispatcher
-    returning with an exception set, and the process crashed. Waiting in join, the main
-    thread raises cleanly; the thread is a daemon and is not waited for at exit."""
+    returning with an exception set, and the process crashed. Waiting for the thread, the main
+    thread raises cleanly. The calls run on one daemon thread kept for them (`_Worker`):
+    the keyframe reduction makes thousands of short calls, and starting a thread for each
+    cost 0.1-0.6 ms."""
     if threading.current_thread() is not threading.main_thread():
         return fn(*args)
-    return _on_thread(fn, args)()
+    global _WORKER
+    if _WORKER is None:
+        _WORKER = _Worker()
+    return _WORKER.call(fn, args)
+
+
+class _Worker:
+    """A daemon thread that runs off_main_thread's calls, one at a time, in the order given.
+    A call interrupted in the main thread (a signal's exception while it waits) still runs to
+    its end there, and the next one after it; the thread is not waited for at exit, and a
+    forked child starts its own (os.register_at_fork below)."""
+
+    def __init__(self):
+        import queue
+
+        one_malloc_arena()
+        self.tasks = queue.SimpleQueue()
+        threading.Thread(target=self._serve, name="baker-compiled", daemon=True).start()
+
+    def _serve(self) -> None:
+        while True:
+            fn, args, box, done = self.tasks.get()
+            try:
+                box["value"] = fn(*args)
+            except BaseException as exc:  # handed to the caller by call()
+                box["error"] = exc
+            done.set()
+
+    def call(self, fn, args):
+        box: dict = {}
+        done = threading.Event()
+        self.tasks.put((fn, args, box, done))
+        done.wait()
+        if "error" in box:
+            raise box["error"]
+        return box["value"]
+
+
+#: off_main_thread's thread, started at its first call (None in a forked child until then)
+_WORKER: _Worker | None = None
+
+
+def _forget_worker() -> None:
+    global _WORKER
+    _WORKER = None
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_worker)
 
 
 def _on_thread(fn, args):

@@ -9,6 +9,7 @@ import multiprocessing
 import os
 import re
 import signal
+import threading
 
 import numpy as np
 import pytest
@@ -274,3 +275,41 @@ def raised_by_peer(fn, kind):
         peer.close()
     assert multiprocessing.active_children() == []
     return e.value
+
+
+def test_off_main_thread_runs_on_one_kept_thread_and_raises_its_errors():
+    """The compiled kernels' calls run on one thread other than the main one, kept between
+    calls; an error there is raised in the caller."""
+    names = {parallel.off_main_thread(lambda: threading.current_thread().name) for _ in range(50)}
+    assert names == {"baker-compiled"}
+    idents = {parallel.off_main_thread(threading.get_ident) for _ in range(5)}
+    assert len(idents) == 1 and threading.get_ident() not in idents
+
+    def fail():
+        raise ValueError("in the kernel")
+
+    with pytest.raises(ValueError, match="in the kernel"):
+        parallel.off_main_thread(fail)
+    assert parallel.off_main_thread(lambda x: x + 1, 41) == 42      # still serving
+
+
+@forks
+def test_off_main_thread_in_a_forked_child_starts_its_own_thread():
+    """A fork_map child does not inherit the parent's thread (threads do not survive fork): its
+    first call starts one of its own instead of waiting for ever (in a subprocess: a child
+    waiting for ever fails the test at the timeout instead of hanging the suite)."""
+    import subprocess
+    import sys
+
+    script = """
+import os
+from baker import parallel
+parallel.off_main_thread(lambda: None)          # the parent's thread started
+out = parallel.fork_map(lambda i: parallel.off_main_thread(lambda: (i, os.getpid())), 4, 2)
+assert [i for i, _ in out] == [0, 1, 2, 3]
+assert os.getpid() not in {pid for _, pid in out}
+print("ok")
+"""
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0 and run.stdout.split() == ["ok"], run.stderr[-2000:]
