@@ -5,11 +5,9 @@ player's replay against a fresh playback, and the bound in the files: test_reduc
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
+from signal_stops import assert_signals_stop_cleanly
 
 from baker.export import reduce as red
 from baker.export import replay
@@ -110,31 +108,14 @@ def test_compiled_quantization_picks_the_codes_of_quantize_rotations():
 def test_signals_during_the_compiled_reduction_stop_cleanly():
     """As for the rasterizer (test_navmesh_raster): 20 SIGTERMs at staggered moments during
     repeated compiled calls, each raising in the main thread, stop them cleanly."""
-    script = r'''
-import os, signal, threading, numpy as np
-from baker.export import keyfit
-rng = np.random.default_rng(0)
-v = np.cumsum(rng.normal(0, 1e-3, (400, 3000, 3)), axis=1)
-t = (np.arange(3000) / 30.0).astype(np.float32)
-tol = np.full(400, 1e-4)
-class Stop(BaseException):
-    pass
-def handler(s, frame):
-    raise Stop()
-signal.signal(signal.SIGTERM, handler)
-stops = 0
-for k in range(20):
-    try:
-        threading.Timer(0.011 * (k % 7), os.kill, (os.getpid(), signal.SIGTERM)).start()
-        while True:
-            keep = np.zeros((400, 3000), dtype=bool)
-            keyfit.fit_channels(v, v, t, False, tol, np.arange(400), 2500.0, keep)
-            keyfit.tight_misses(v, v, t, False, tol)
-    except Stop:
-        stops += 1
-print("stops", stops)
-'''
-    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                         timeout=600)
-    assert out.returncode == 0, out.stderr[-2000:]
-    assert out.stdout.split() == ["stops", "20"]
+    assert_signals_stop_cleanly("""
+        from baker.export import keyfit
+        rng = np.random.default_rng(0)
+        v = np.cumsum(rng.normal(0, 1e-3, (400, 3000, 3)), axis=1)
+        t = (np.arange(3000) / 30.0).astype(np.float32)
+        tol = np.full(400, 1e-4)
+        """, """
+        keep = np.zeros((400, 3000), dtype=bool)
+        keyfit.fit_channels(v, v, t, False, tol, np.arange(400), 2500.0, keep)
+        keyfit.tight_misses(v, v, t, False, tol)
+        """)

@@ -15,6 +15,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from baker.navmesh import raster
+from signal_stops import assert_signals_stop_cleanly
 from test_navmesh_doorways import BASE
 from test_navmesh_scenes import box, env_of, floor, quad
 
@@ -163,35 +164,15 @@ def test_signals_during_the_compiled_layers_stop_cleanly():
     compiled function's result crashed the process (numba's dispatcher returned with the
     exception set): the compiled calls run off the main thread. 20 SIGTERMs at staggered
     moments during repeated calls, each raising in the main thread."""
-    import subprocess
-    import sys
-
-    script = r'''
-import os, signal, threading, numpy as np
-from baker.navmesh import raster
-rng = np.random.default_rng(0)
-c = rng.uniform(0, 100, (100000, 1, 3))
-v = (c + rng.uniform(-0.3, 0.3, (100000, 3, 3))).reshape(-1, 3)
-f = np.arange(len(v)).reshape(-1, 3)
-class Stop(BaseException):
-    pass
-def handler(s, frame):
-    raise Stop()
-signal.signal(signal.SIGTERM, handler)
-tri = raster.Triangles(v, f, 0.0, 0.0, 0.05, 2000, 2000)
-comp, ny, wound = np.zeros(len(f), np.int64), np.ones(len(f)), np.ones(len(f), bool)
-stops = 0
-for k in range(20):
-    try:
-        threading.Timer(0.011 * (k % 7), os.kill, (os.getpid(), signal.SIGTERM)).start()
-        while True:
-            col, y, prim = tri.layers(0, 2000 * 2000)
-            raster.coincident(col, y, prim, comp, ny, wound, 1e-4, 256)
-    except Stop:
-        stops += 1
-print("stops", stops)
-'''
-    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                         timeout=600)
-    assert out.returncode == 0, out.stderr[-2000:]
-    assert out.stdout.split() == ["stops", "20"]
+    assert_signals_stop_cleanly("""
+        from baker.navmesh import raster
+        rng = np.random.default_rng(0)
+        c = rng.uniform(0, 100, (100000, 1, 3))
+        v = (c + rng.uniform(-0.3, 0.3, (100000, 3, 3))).reshape(-1, 3)
+        f = np.arange(len(v)).reshape(-1, 3)
+        tri = raster.Triangles(v, f, 0.0, 0.0, 0.05, 2000, 2000)
+        comp, ny, wound = np.zeros(len(f), np.int64), np.ones(len(f)), np.ones(len(f), bool)
+        """, """
+        col, y, prim = tri.layers(0, 2000 * 2000)
+        raster.coincident(col, y, prim, comp, ny, wound, 1e-4, 256)
+        """)
