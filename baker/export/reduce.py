@@ -285,10 +285,6 @@ def dequantize_rotations(codes: np.ndarray) -> np.ndarray:
     return np.maximum(np.asarray(codes, dtype=np.float64) / SHORT_MAX, -1.0).astype(np.float32)
 
 
-def _unit_f32(q: np.ndarray) -> np.ndarray:
-    return _unit(q).astype(np.float32)
-
-
 def sample(values: np.ndarray, keep: np.ndarray, static: np.ndarray, times: np.ndarray,
            rotation: bool) -> np.ndarray:
     """Reduced curves at every frame, as a player evaluates them.
@@ -961,19 +957,6 @@ class _Player:
         np.put(self.slide, j * (f_count - 1) + f, slide)
 
 
-#: (joint, frame) pairs per block of a playback: the temporaries stay in cache
-_PAIRS = 16384
-
-
-def _pair_blocks(mask: np.ndarray, level: np.ndarray, f_count: int):
-    """(j, f, flat index j * F + f) of the True pairs of mask (L, F) over the joints `level`,
-    in blocks of _PAIRS (every pair is computed on its own: blocks give the same values)."""
-    li, fi = np.nonzero(mask)
-    for k in range(0, len(li), _PAIRS):
-        j, f = level[li[k:k + _PAIRS]], fi[k:k + _PAIRS]
-        yield j, f, j * f_count + f
-
-
 def _resegment(segments: tuple, played: np.ndarray, keep: np.ndarray) -> np.ndarray:
     """Bring `segments` (`_segments` of the keys `played`, (C, F)) and `played` up to `keep`,
     in place, recomputing only the channels whose keys changed. Returns (C, F) bool: the frames
@@ -986,15 +969,6 @@ def _resegment(segments: tuple, played: np.ndarray, keep: np.ndarray) -> np.ndar
         segments[0][rows], segments[1][rows] = prev, nxt
         played[rows] = keep[rows]
     return dirty
-
-
-def _bits_differ(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(N,) bool: rows of a and b (N, W) float32 that differ in any bit (-0.0 from 0.0, too)."""
-    ne = a.view(np.int32) != b.view(np.int32)
-    out = ne[:, 0]
-    for k in range(1, ne.shape[1]):
-        out = out | ne[:, k]
-    return out
 
 
 def _touches(changed: np.ndarray, segments, level: np.ndarray) -> np.ndarray:
