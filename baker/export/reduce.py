@@ -778,12 +778,12 @@ class _Player:
     (so a parent's interpolation error is not passed on at the child's keys); its curves are
     sampled between the keys as players do and posed with the players' matrices (raw_matrix:
     stored quaternions are not renormalized), and as the two other players pose them (see
-    `_errors`).
+    `_pose`).
 
     `play` recomputes only the (joint, frame) pairs whose result can change since the last play:
     frames whose segment (the keys around them) changed, frames whose segment's stored key
-    values changed (bit for bit), and frames whose parent moved. The arrays then hold exactly what a first play of
-    the same keys gives.
+    values changed (bit for bit), and frames whose parent moved. The arrays then hold exactly
+    what a first play of the same keys gives.
 
     Stored key values vt (J, F, 3), vq (J, F, 4) float32 and codes (J, F, 4) int16 (SHORT
     rotations) and their targets tt, tq (float64; codes are requantized only where tq changed),
