@@ -10,7 +10,7 @@ One level of the skeleton at a time, over the (joint, frame) pairs a mask select
   against the unreduced world positions.
 
 Each pair is computed on its own with the arithmetic of the numpy kernels it replaces
-(baker.export.reduce: `_raw_matrix`, `_mat_mat`, `_qmul`, `_qrot`, `_slerp`, sums left to right),
+(baker.export.reduce: `_raw_matrix`, `_qmul`, `_qrot`, `_slerp`, `_solve3`, sums left to right),
 so a replay of some pairs gives what a fresh playback of all of them gives. The arrays are the
 player's, component first ((W, J, F)); the functions run off the main thread
 (parallel.off_main_thread), as the rasterizer's do.
@@ -87,7 +87,7 @@ def _sample(level, st, sr, prev_t, nxt_t, prev_r, nxt_r, t, vt, vq, static_t, st
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _rotation(vq, static_r, j, f, p, n, a, fixed, last, rr, nlerp):
     """rr, nlerp at (j, f): the slerp (as float32) and the normalized lerp of the stored keys
-    p, n at alpha a (reduce._interp_keys with both)."""
+    p, n at alpha a (three.js's slerp and Blender's component-wise lerp)."""
     x0, y0, z0, w0 = (np.float64(vq[j, p, 0]), np.float64(vq[j, p, 1]),
                       np.float64(vq[j, p, 2]), np.float64(vq[j, p, 3]))
     if fixed:
@@ -198,7 +198,8 @@ def _pose(level, parents, turned, moved, root, rr, nlerp, tr, mat, wq, wn, pos, 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _place(j, pj, f, root, tr, mat, wq, wn, pos, unit, blender, pos0, spread, diff, err):
-    """Positions and errors of the pair (j, f) (reduce._Player._pose's second half, _errors)."""
+    """Positions of the pair (j, f) as the three players pose them, their spread and the
+    worst one's error against the unreduced position."""
     v0, v1, v2 = tr[0, j, f], tr[1, j, f], tr[2, j, f]
     if root:
         p0, p1, p2 = v0, v1, v2
