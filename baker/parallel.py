@@ -356,10 +356,7 @@ class _Worker:
     def _serve(self) -> None:
         while True:
             fn, args, box, done = self.tasks.get()
-            try:
-                box["value"] = fn(*args)
-            except BaseException as exc:  # handed to the caller by call()
-                box["error"] = exc
+            _into(box, fn, args)
             done.set()
 
     def call(self, fn, args):
@@ -367,9 +364,7 @@ class _Worker:
         done = threading.Event()
         self.tasks.put((fn, args, box, done))
         done.wait()
-        if "error" in box:
-            raise box["error"]
-        return box["value"]
+        return _out_of(box)
 
 
 #: off_main_thread's thread, started at its first call (None in a forked child until then)
@@ -389,20 +384,28 @@ def _on_thread(fn, args):
     """Start fn(*args) on a daemon thread; returns the callable that waits for its result."""
     one_malloc_arena()
     box: dict = {}
-
-    def run() -> None:
-        try:
-            box["value"] = fn(*args)
-        except BaseException as exc:  # handed to the caller by wait()
-            box["error"] = exc
-
-    thread = threading.Thread(target=run, name="baker-background", daemon=True)
+    thread = threading.Thread(target=_into, args=(box, fn, args), name="baker-background",
+                              daemon=True)
     thread.start()
 
     def wait():
         thread.join()
-        if "error" in box:
-            raise box["error"]
-        return box["value"]
+        return _out_of(box)
 
     return wait
+
+
+def _into(box: dict, fn, args) -> None:
+    """box["value"] = fn(*args), or box["error"] its exception (for _out_of, on the thread
+    that waits for it)."""
+    try:
+        box["value"] = fn(*args)
+    except BaseException as exc:  # handed to the waiting thread by _out_of
+        box["error"] = exc
+
+
+def _out_of(box: dict):
+    """The value _into put in box, or its error raised."""
+    if "error" in box:
+        raise box["error"]
+    return box["value"]

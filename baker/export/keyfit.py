@@ -21,10 +21,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from baker.export.replay import NEAR_DOT, dot4
 from baker.parallel import off_main_thread
-
-#: a rotation segment whose keys' |dot| reaches this is lerped and normalized (three.js)
-NEAR_DOT = 0.9995
 
 
 def fit_channels(vals: np.ndarray, kept: np.ndarray, times: np.ndarray, rotation: bool,
@@ -51,11 +49,6 @@ def tight_misses(vals: np.ndarray, kept: np.ndarray, times: np.ndarray, rotation
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _dot4(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]
-
-
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _alpha(t, p, n, f):
     span = t[n] - t[p]
     return (t[f] - t[p]) / span if span > 0.0 else 0.0
@@ -70,7 +63,7 @@ def _worst(vals, kept, t, c, p, n, rotation, tol, cos_lo, est):
     worst, at = -1.0, -1
     v0, v1 = kept[c, p], kept[c, n]
     if rotation:
-        d = _dot4(v0, v1)
+        d = dot4(v0, v1)
         s = 1.0
         if d < 0.0:
             s, d = -1.0, -d
@@ -103,10 +96,10 @@ def _worst(vals, kept, t, c, p, n, rotation, tol, cos_lo, est):
                 for k in range(4):
                     est[k] = v0[k] * wa + v1[k] * wb
                 if near:
-                    m = np.sqrt(_dot4(est, est))
+                    m = np.sqrt(dot4(est, est))
                     for k in range(4):
                         est[k] /= m
-            cosine = abs(_dot4(v, est)) / (np.sqrt(_dot4(v, v)) * np.sqrt(_dot4(est, est)))
+            cosine = abs(dot4(v, est)) / (np.sqrt(dot4(v, v)) * np.sqrt(dot4(est, est)))
             if cosine > cos_lo:
                 continue
             e = 2.0 * np.arccos(min(max(cosine, 0.0), 1.0))

@@ -356,11 +356,6 @@ def _take(a: np.ndarray, i: np.ndarray) -> np.ndarray:
     return a.take(i, axis=0)
 
 
-def _take_t(a: np.ndarray, i: np.ndarray) -> np.ndarray:
-    """(W, N) the rows i of a (M, W), component-first and contiguous."""
-    return np.ascontiguousarray(a.take(i, axis=0).T)
-
-
 def _put(a: np.ndarray, i: np.ndarray, v: np.ndarray) -> None:
     """a[i] = v for the rows i of a contiguous array a, v cast to a's dtype as assignment casts
     it; each row is copied as one item (np.put on a void view: faster than fancy assignment)."""
@@ -443,7 +438,7 @@ def _slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
         b = np.negative(b, out=b.copy(), where=flip)
     d = np.abs(d, out=d)
     t = np.broadcast_to(np.asarray(t, dtype=np.float64), d.shape)
-    near = d >= 0.9995
+    near = d >= replay.NEAR_DOT
     wa, wb = 1.0 - t, t.copy()          # near: lerp weights (the result is normalized below)
     far = np.flatnonzero(~near)         # the sines only here (a third of the pairs are near)
     if len(far):
@@ -566,7 +561,7 @@ def _local_keys(values: np.ndarray, stored: np.ndarray, times: np.ndarray, rotat
     The splitting is compiled (baker.export.keyfit), channel by channel. A channel that ends
     with more keys than `_promote(keep, value_bytes)` keeps as they are is keyed at every
     frame: at once when more frames than that are off even between their two neighbours
-    (`_tight_misses`, a channel that cannot do without most of its frames), else as soon as its
+    (keyfit.tight_misses, a channel that cannot do without most of its frames), else as soon as its
     keys pass the bound (keys only grow)."""
     f_count, c_count, _ = values.shape
     first = np.asarray(values[0], dtype=np.float32)
@@ -586,21 +581,10 @@ def _local_keys(values: np.ndarray, stored: np.ndarray, times: np.ndarray, rotat
     kept = np.swapaxes(stored, 0, 1)
     bound = value_bytes * f_count / (value_bytes + TIME_BYTES)      # _promote's key count
     active = np.flatnonzero(~is_static)
-    dense = _tight_misses(vals[active], kept[active], times, rotation, tol[active]) > bound
+    dense = keyfit.tight_misses(vals[active], kept[active], times, rotation, tol[active]) > bound
     keep[active[dense]] = True
     keyfit.fit_channels(vals, kept, times, rotation, tol, active[~dense], bound, keep)
     return keep, static
-
-
-def _tight_misses(vals: np.ndarray, kept: np.ndarray, times: np.ndarray, rotation: bool,
-                  tol: np.ndarray) -> np.ndarray:
-    """(C,) how many frames of each channel are off by more than tol (C,) even when played
-    between the stored values of the frames on either side (the tightest segment that skips
-    them): vals, kept (C, F, W) the values and the stored values."""
-    c_count, f_count, _ = vals.shape
-    if f_count < 3 or not c_count:
-        return np.zeros(c_count, dtype=np.int64)
-    return keyfit.tight_misses(vals, kept, times, rotation, tol)
 
 
 # ------------------------------------------------------------------------------- hierarchy
@@ -756,17 +740,6 @@ def _length(d: np.ndarray) -> np.ndarray:
     return np.sqrt(_inner(d, d))
 
 
-def _solve3(m: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """(3, N) x with m x = v, for (3, 3, N) matrices m and (3, N) vectors v, by Cramer's rule
-    (the matrices are near rotations, well conditioned), element by element."""
-    adj = [_cross(m[:, 1], m[:, 2]), _cross(m[:, 2], m[:, 0]), _cross(m[:, 0], m[:, 1])]
-    out = np.empty(v.shape)
-    for k, c in enumerate(adj):                              # rows of adj(m)
-        _inner(c, v, out=out[k])
-    out /= _inner(adj[0], m[:, 0])                            # det
-    return out
-
-
 def _unit(q: np.ndarray) -> np.ndarray:
     return q / _norm(q)[..., None]
 
@@ -891,36 +864,6 @@ class _Player:
         return replay.targets_level(level, self.x.parents, target_t, target_r, root,
                                     self.x.short, self.x, self)
 
-    def _target_t(self, i: np.ndarray, ip: np.ndarray) -> np.ndarray:
-        """(N, 3) the translation targets of the pairs i (flat) of non-root joints, given their
-        parents' current poses at the pairs ip: the local translation that puts the joint on its
-        unreduced world position."""
-        m = _gather(_cols(self.mat), ip)
-        return _solve3(m, _gather(_cols(self.pos0), i) - _gather(_cols(self.pos), ip)).T
-
-    def _target_q(self, i: np.ndarray, ip: np.ndarray) -> np.ndarray:
-        """(N, 4) the rotation targets of the pairs i of non-root joints (parents' pairs ip):
-        the unit local rotation that gives the unreduced world rotation, on the clip's side."""
-        x = self.x
-        conj = _gather(_cols(self.wq), ip)
-        np.negative(conj[:3], out=conj[:3])                    # quat_conj, the parent's inverse
-        q = _qmul(conj, _take_t(_flat(x.wq0), i)).T
-        np.negative(q, out=q, where=(_dot(q, _take(_flat(x.q0), i)) < 0)[:, None])
-        return _unit(q)
-
-    def targets_at(self, i: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """((N, 3), (N, 4)) the translation and rotation targets of any pairs i (flat indices),
-        from the current poses: what `_targets` gives there (the arrays tt, tq hold them at
-        key frames only)."""
-        x, f_count = self.x, self.x.t0.shape[1]
-        j, f = np.divmod(i, f_count)
-        parent = x.parents[j]
-        tt, tq = _take(_flat(x.t0), i), _take(_flat(x.q0), i)              # roots
-        child = np.flatnonzero(parent >= 0)
-        ic, ip = i[child], parent[child] * f_count + f[child]
-        tt[child], tq[child] = self._target_t(ic, ip), self._target_q(ic, ip)
-        return tt, tq
-
     def _sample(self, level, st, sr, seg_t, seg_r) -> None:
         """Played local values of the joints `level` at the frames st (translations) and sr
         (rotations) (L, F) bool; and Blender's nlerp of the rotations."""
@@ -1044,7 +987,7 @@ def _channel_moves(x: _Target, p: _Player, a: np.ndarray, ft: np.ndarray):
     parent = x.parents[j]
     wp = np.where(parent >= 0, _gather(_cols(p.wq), np.maximum(parent, 0) * f_count + f),
                   np.array([0.0, 0.0, 0.0, 1.0])[:, None])
-    tt, tq = p.targets_at(i)
+    tt, tq = replay.targets_at(i, x, p)
     c_t = _qrot(wp, _gather(_cols(p.tr), i) - tt.T).T
     err_q = _qmul(_gather(_cols(p.rr), i), quat_conj(tq).T).T
     omega = _qrot(wp, _rotvec(err_q).T).T

@@ -10,7 +10,7 @@ One level of the skeleton at a time, over the (joint, frame) pairs a mask select
   against the unreduced world positions.
 
 Each pair is computed on its own with the arithmetic of the numpy kernels it replaces
-(baker.export.reduce: `_raw_matrix`, `_qmul`, `_qrot`, `_slerp`, `_solve3`, sums left to right),
+(baker.export.reduce: `_raw_matrix`, `_qmul`, `_qrot`, `_slerp`, sums left to right),
 so a replay of some pairs gives what a fresh playback of all of them gives. The arrays are the
 player's, component first ((W, J, F)); the functions run off the main thread
 (parallel.off_main_thread), as the rasterizer's do.
@@ -263,12 +263,7 @@ def _targets(level, parents, target_t, target_r, root, short, t0, q0, wq0, pos0,
         pj = parents[j]
         for f in range(f_count):
             if target_t[r, f]:
-                if root:
-                    x0, x1, x2 = t0[j, f, 0], t0[j, f, 1], t0[j, f, 2]
-                else:
-                    x0, x1, x2 = _solve3(mat, pj, f, pos0[0, j, f] - pos[0, pj, f],
-                                         pos0[1, j, f] - pos[1, pj, f],
-                                         pos0[2, j, f] - pos[2, pj, f])
+                x0, x1, x2 = _target_t(root, t0, pos0, pos, mat, j, pj, f)
                 tt[j, f, 0], tt[j, f, 1], tt[j, f, 2] = x0, x1, x2
                 for k, v in enumerate((np.float32(x0), np.float32(x1), np.float32(x2))):
                     changed_t[r, f] |= _differ(vt[j, f, k], v)
@@ -288,19 +283,51 @@ def _targets(level, parents, target_t, target_r, root, short, t0, q0, wq0, pos0,
                         v = np.float32(max(np.float64(c[k]) / SHORT_MAX, -1.0))
                         codes[j, f, k] = c[k]
                     else:
-                        v = np.float32(q[k] / np.sqrt(_dot(q, q)))
+                        v = np.float32(q[k] / np.sqrt(dot4(q, q)))
                     changed_r[r, f] |= _differ(vq[j, f, k], v)
                     vq[j, f, k] = v
 
 
+def targets_at(i: np.ndarray, x, p) -> tuple[np.ndarray, np.ndarray]:
+    """((N, 3), (N, 4)) the translation and rotation targets of any pairs i (flat indices
+    j * F + f) from the player p's current poses: what `targets_level` gives there (p.tt, p.tq
+    hold them at key frames only)."""
+    tt, tq = np.empty((len(i), 3)), np.empty((len(i), 4))
+    off_main_thread(_targets_at, np.ascontiguousarray(i, dtype=np.int64), x.parents, x.t0,
+                    x.q0, x.wq0, p.pos0, p.pos, p.mat, p.wq, tt, tq)
+    return tt, tq
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _targets_at(i, parents, t0, q0, wq0, pos0, pos, mat, wq, tt, tq):
+    f_count = t0.shape[1]
+    for n in range(len(i)):
+        j, f = i[n] // f_count, i[n] % f_count
+        pj = parents[j]
+        tt[n, 0], tt[n, 1], tt[n, 2] = _target_t(pj < 0, t0, pos0, pos, mat, j, pj, f)
+        _target_q(pj < 0, q0, wq0, wq, j, pj, f, tq[n])
+
+
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _dot(a, b):
+def _target_t(root, t0, pos0, pos, mat, j, pj, f):
+    """The local translation of (j, f) that puts it on its unreduced world position under its
+    parent's played pose ; t0 at a root."""
+    if root:
+        return t0[j, f, 0], t0[j, f, 1], t0[j, f, 2]
+    return _solve3(mat, pj, f, pos0[0, j, f] - pos[0, pj, f], pos0[1, j, f] - pos[1, pj, f],
+                   pos0[2, j, f] - pos[2, pj, f])
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def dot4(a, b):
+    """a . b of two 4-vectors, summed left to right."""
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _solve3(mat, pj, f, v0, v1, v2):
-    """x with m x = v, m the matrix mat[:, :, pj, f] (reduce._solve3: Cramer's rule)."""
+    """x with m x = v, m the matrix mat[:, :, pj, f], by Cramer's rule (the matrices are near
+    rotations, well conditioned)."""
     m00, m01, m02 = mat[0, 0, pj, f], mat[0, 1, pj, f], mat[0, 2, pj, f]
     m10, m11, m12 = mat[1, 0, pj, f], mat[1, 1, pj, f], mat[1, 2, pj, f]
     m20, m21, m22 = mat[2, 0, pj, f], mat[2, 1, pj, f], mat[2, 2, pj, f]
@@ -316,7 +343,7 @@ def _solve3(mat, pj, f, v0, v1, v2):
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _target_q(root, q0, wq0, wq, j, pj, f, q):
     """q = the unit local rotation of (j, f) that gives its unreduced world rotation under its
-    parent's played one, on the clip's side (reduce._Player._target_q); q0 at a root."""
+    parent's played one, on the clip's side; q0 at a root."""
     if root:
         for k in range(4):
             q[k] = q0[j, f, k]
@@ -330,7 +357,7 @@ def _target_q(root, q0, wq0, wq, j, pj, f, q):
     if q[0] * q0[j, f, 0] + q[1] * q0[j, f, 1] + q[2] * q0[j, f, 2] + q[3] * q0[j, f, 3] < 0:
         for k in range(4):
             q[k] = -q[k]
-    n = np.sqrt(_dot(q, q))
+    n = np.sqrt(dot4(q, q))
     for k in range(4):
         q[k] /= n
 
@@ -343,12 +370,12 @@ SHORT_MAX = 32767
 def _quantize(q, out):
     """out = reduce.quantize_rotations of the quaternion q (4,): of the 16 codes that round
     each component down or up, the one of the least cost, in _quantize's arithmetic."""
-    n = np.sqrt(_dot(q, q))
+    n = np.sqrt(dot4(q, q))
     s, c = np.empty(4), np.empty(4)
     for k in range(4):
         s[k] = q[k] / n * SHORT_MAX
         c[k] = np.floor(s[k])
-    cc, sc = _dot(c, c), _dot(s, c)
+    cc, sc = dot4(c, c), dot4(s, c)
     u3 = q[3] / n
     lever = 1.0 - u3 * u3
     s2 = np.float64(SHORT_MAX) ** 2
