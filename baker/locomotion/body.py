@@ -14,9 +14,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy.ndimage import gaussian_filter1d, label, maximum_filter1d
 
 from baker.environment.rays import RayCaster
+from baker.parallel import off_main_thread
 from baker.geometry import polyline
 from baker.geometry.conventions import UP
 from baker.geometry.transforms import (frames_to_quat, length, limit_rotation, normalize,
@@ -261,6 +263,7 @@ def chain_on(trails: np.ndarray, lift: np.ndarray, spacing: float,
     """Follow-the-leader placement on trails as place_chain does it: the head at each trail's
     last point, every other joint on the trail exactly `spacing` behind the joint ahead (the
     chord, so across a fold of the trail it is not the arc length), each raised by its lift.
+    Compiled (_chain_on), off the main thread (parallel.off_main_thread).
 
     trails : (n, m, 3) float, oldest first, a point every `resolution` (default spacing / 8)
              of horizontal arc length (trail_ends); lift : (n, S) float [m]
@@ -268,53 +271,79 @@ def chain_on(trails: np.ndarray, lift: np.ndarray, spacing: float,
     """
     res = resolution or spacing / 8.0
     n, m, _ = trails.shape
-    S = lift.shape[1]
-    rows = np.arange(n)
-    out = np.empty((n, S, 3))
-    out[:, 0] = trails[:, -1] + lift[:, :1] * UP
+    out = np.empty((n, lift.shape[1], 3))
     # bracket within four spacings back, as place_chain does (the trail can fold back)
-    L = min(int(round(4.0 * spacing / res)) + 1, m)
-    look = np.arange(L)
-    # the trails with their first points repeated L - 1 times before them, one after the
-    # other: a sample before a start is the start, without clamping each joint's indices
-    M = m + L - 1
-    flat = np.concatenate([np.repeat(trails[:, :1], L - 1, axis=1), trails], axis=1).reshape(-1, 3)
-    at = rows * M + (M - 2)              # the first sample behind the joint ahead (in flat)
-    start = rows * M + (L - 1)
-    raise_by = lift[:, :, None, None] * UP                                  # (n, S, 1, 3)
-    # joints no trail raises (every raise +0.0): x + 0.0 taken once for all of them
-    plain = (~((raise_by != 0.0) | np.signbit(raise_by)).any(axis=(0, 2, 3))).tolist()
-    flat0 = flat + 0.0
-    first_of = rows * L
-    far = np.ones((n, L + 1), dtype=bool)    # a True after the candidates: "none far"
-    for i in range(1, S):
-        prev = out[:, i - 1]
-        if plain[i]:
-            cand = np.take(flat0, at[:, None] - look, axis=0)                    # (n, L, 3)
-        else:
-            cand = np.take(flat, at[:, None] - look, axis=0)
-            cand += raise_by[:, i]
-        v = cand - prev[:, None, :]
-        v *= v
-        np.greater(np.sqrt(v[..., 0] + v[..., 1] + v[..., 2]), spacing, out=far[:, :L])
-        first = np.argmax(far, axis=1)             # L: none is a spacing or more away
-        j = np.minimum(first, L - 1)
-        # the joint lies between candidate j (a spacing or more away) and the one before it
-        # (nearer; for j = 0, the joint ahead's own point)
-        k = first_of + j
-        cands = cand.reshape(-1, 3)
-        a = np.take(cands, k, axis=0)
-        b = np.where((j > 0)[:, None], np.take(cands, k - 1, axis=0), prev)
-        d, e = a - b, b - prev
-        qa = np.einsum("ij,ij->i", d, d)
-        qb = 2.0 * np.einsum("ij,ij->i", d, e)
-        qc = np.einsum("ij,ij->i", e, e) - spacing * spacing
-        t = (-qb + np.sqrt(np.maximum(qb * qb - 4.0 * qa * qc, 0.0))) / np.maximum(2.0 * qa, 1e-18)
-        # np.clip(t, 0.0, 1.0)'s bits (a -0.0 and a NaN kept) at a fraction of its cost
-        t = np.where(first < L, np.minimum(np.maximum(0.0, t), 1.0), 1.0)
-        out[:, i] = b + t[:, None] * d
-        at = np.maximum(at - j, start)
+    look = min(int(round(4.0 * spacing / res)) + 1, m)
+    off_main_thread(_chain_on, np.ascontiguousarray(trails, dtype=np.float64),
+                    np.ascontiguousarray(lift, dtype=np.float64), float(spacing), look, out)
     return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _chain_on(trails, lift, spacing, look, out):
+    """chain_on's loops. Each joint, from the joint ahead (prev): the first of the `look`
+    trail samples behind the last one used (a sample before the trail's start is its start)
+    that lies more than `spacing` from prev (the last of them when none does), and the point
+    on the segment from the sample before it (prev itself for the first) at exactly `spacing`
+    from prev (the end of the segment when none is). The samples are raised by the joint's
+    lift (x + lift * UP, component by component). The dot products add x, z and then y, in
+    that order on every CPU (numpy's einsum, which the vectorized placement before this used,
+    adds them so on AVX machines: there the bits are the same as before).
+    """
+    n, m = trails.shape[0], trails.shape[1]
+    S = lift.shape[1]
+    cand = np.empty((look, 3))
+    for r in range(n):
+        up = lift[r, 0]
+        out[r, 0, 0] = trails[r, m - 1, 0] + up * 0.0
+        out[r, 0, 1] = trails[r, m - 1, 1] + up * 1.0
+        out[r, 0, 2] = trails[r, m - 1, 2] + up * 0.0
+        at = m - 2                        # the first sample behind the joint ahead
+        for i in range(1, S):
+            up = lift[r, i]
+            px, py, pz = out[r, i - 1, 0], out[r, i - 1, 1], out[r, i - 1, 2]
+            first = look
+            for c in range(look):
+                k = max(at - c, 0)
+                cand[c, 0] = trails[r, k, 0] + up * 0.0
+                cand[c, 1] = trails[r, k, 1] + up * 1.0
+                cand[c, 2] = trails[r, k, 2] + up * 0.0
+                vx, vy, vz = cand[c, 0] - px, cand[c, 1] - py, cand[c, 2] - pz
+                if np.sqrt(vx * vx + vy * vy + vz * vz) > spacing:
+                    first = c
+                    break
+            j = min(first, look - 1)
+            ax, ay, az = cand[j, 0], cand[j, 1], cand[j, 2]
+            if j > 0:
+                bx, by, bz = cand[j - 1, 0], cand[j - 1, 1], cand[j - 1, 2]
+            else:
+                bx, by, bz = px, py, pz
+            dx, dy, dz = ax - bx, ay - by, az - bz
+            ex, ey, ez = bx - px, by - py, bz - pz
+            qa = (dx * dx + dz * dz) + dy * dy
+            qb = 2.0 * ((dx * ex + dz * ez) + dy * ey)
+            qc = (ex * ex + ez * ez) + ey * ey
+            qc = qc - spacing * spacing
+            disc = qb * qb - 4.0 * qa * qc
+            den = 2.0 * qa
+            t = (-qb + np.sqrt(_np_max(disc, 0.0))) / _np_max(den, 1e-18)
+            t = _np_min(_np_max(0.0, t), 1.0) if first < look else 1.0
+            out[r, i, 0] = bx + t * dx
+            out[r, i, 1] = by + t * dy
+            out[r, i, 2] = bz + t * dz
+            at = max(at - j, 0)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _np_max(a, b):
+    """np.maximum(a, b) of two floats: a NaN wins, and a when the two are equal (signed zeros)."""
+    return a if (a >= b or a != a) else b
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _np_min(a, b):
+    """np.minimum(a, b) of two floats: a NaN wins, and a when the two are equal (signed zeros)."""
+    return a if (a <= b or a != a) else b
 
 
 def _hip_bound(rays, pts: np.ndarray, ground_pts: np.ndarray, probe: float, clearance: float,

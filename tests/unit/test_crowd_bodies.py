@@ -15,6 +15,7 @@ from baker.geometry import polyline
 from baker.locomotion.body import build_trail, chain_on, place_chain, trail_ends
 from baker.locomotion.cobra import lift_profile
 from baker.run.crowd import Bodies
+from signal_stops import assert_signals_stop_cleanly
 from test_navmesh_scenes import env_of, floor
 
 RIG = load_rig_config(DEFAULT_RIG)
@@ -111,3 +112,57 @@ def test_bodies_keep_the_head_last_and_place_only_what_moved():
     np.testing.assert_allclose(pts[:S], model(np.vstack([line, path])), atol=2e-3)
     np.testing.assert_allclose(pts[0], [0.0, 0.2], atol=1e-9)
     assert np.all(np.diff(pts[S + 1:2 * S + 1, 1]) < 0)             # the raised one, behind
+
+
+def plain_chain(trail: np.ndarray, lift: np.ndarray, spacing: float, look: int) -> np.ndarray:
+    """chain_on for one trail (m, 3) written plainly: from each joint, the first of `look`
+    samples back (from the last one used) more than `spacing` away, and the point at exactly
+    `spacing` on the way to it from the sample before it (np.roots of the quadratic)."""
+    pts = trail + lift[:, None, None] * np.array([0.0, 1.0, 0.0])     # (S, m, 3) per joint
+    out = [pts[0, -1]]
+    at = len(trail) - 2
+    for i in range(1, len(lift)):
+        prev = out[-1]
+        cand = [pts[i, max(at - c, 0)] for c in range(look)]
+        far = [c for c in range(look) if np.linalg.norm(cand[c] - prev) > spacing]
+        j = far[0] if far else look - 1
+        b = cand[j - 1] if j > 0 else prev
+        d = cand[j] - b
+        if far:
+            roots = np.roots([d @ d, 2.0 * d @ (b - prev), (b - prev) @ (b - prev) - spacing ** 2])
+            t = float(np.clip(max(r.real for r in roots), 0.0, 1.0))
+        else:
+            t = 1.0
+        out.append(b + t * d)
+        at = max(at - j, 0)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_compiled_placement_is_the_plain_one_on_folded_raised_trails(seed):
+    """chain_on (compiled) against the plain loop, on trails that fold back on themselves,
+    wander up and down, and are shorter than the body, with some joints raised."""
+    rng = np.random.default_rng(seed)
+    n, m = 6, [300, 300, 300, 300, 12, 2][seed % 6]
+    steps = rng.normal(size=(n, m, 3)) * SPACING / 8.0
+    steps[::2, m // 2:] *= -1.0                                       # folds
+    trails = np.cumsum(steps, axis=1)
+    lift = np.where(rng.random((n, S)) < 0.4, rng.uniform(0.0, 0.02, (n, S)), 0.0)
+    got = chain_on(trails, lift, SPACING)
+    look = min(33, m)
+    for r in range(n):
+        np.testing.assert_allclose(got[r], plain_chain(trails[r], lift[r], SPACING, look),
+                                   rtol=0, atol=1e-12)
+
+
+def test_signals_during_the_compiled_placement_stop_cleanly():
+    """As for the keyframe reduction (test_reduce_kernels): 20 SIGTERMs at staggered moments
+    during repeated compiled placements stop them cleanly."""
+    assert_signals_stop_cleanly("""
+        from baker.locomotion.body import chain_on
+        rng = np.random.default_rng(0)
+        trails = np.cumsum(rng.normal(0, 1e-3, (400, 600, 3)), axis=1)
+        lift = np.zeros((400, 26))
+        """, """
+        chain_on(trails, lift, 0.0125)
+        """)

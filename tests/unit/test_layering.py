@@ -24,7 +24,7 @@ ALLOWED = {
     "context": {"signals"},
     "environment": {"parallel"},        # large ray batches cast on every CPU
     "navmesh": {"environment", "config", "atomic", "parallel"},   # the build's tiles on threads
-    "locomotion": {"environment", "config", "rig"},
+    "locomotion": {"environment", "config", "rig", "parallel"},   # the crowd's compiled chain
     "behaviour": {"environment", "navmesh", "locomotion", "config"},
     "rig": {"config"},
     "run": {"environment", "navmesh", "behaviour", "locomotion", "config", "context", "streams",
