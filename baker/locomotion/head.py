@@ -176,8 +176,7 @@ class HeadSteer:
         if self._u_side == 0.0:
             side = 1.0 if ang >= 0.0 else -1.0
             if allowed is not None:
-                room = [self._circle_room(sd, allowed) for sd in (side, -side)]
-                side = side if room[0] >= room[1] else -side
+                side = -side if self._more_room(side, -side, allowed) else side
             self._u_side = side
         if ang * self._u_side < 0.0:
             ang += self._u_side * 2.0 * math.pi
@@ -187,7 +186,15 @@ class HeadSteer:
         """The agent has a new path: a U-turn in progress chooses its side afresh."""
         self._u_side = 0.0
 
-    def _circle_room(self, side: float, allowed, radius: float | None = None) -> int:
+    def _more_room(self, first: float, second: float, allowed,
+                   radius: float | None = None) -> bool:
+        """True when the head reaches more points round its circle on side `second` than on
+        side `first` (_circle_room); the second circle is walked only until that is known."""
+        room = self._circle_room(first, allowed, radius)
+        return self._circle_room(second, allowed, radius, beat=room) > room
+
+    def _circle_room(self, side: float, allowed, radius: float | None = None,
+                     beat: int | None = None) -> int:
         """How many of _ARC_STEPS points round the first half of the turning circle on `side`
         (of `radius`, else turn_radius)
         the head reaches walking the circle from its base: from the last point reached, the
@@ -195,7 +202,9 @@ class HeadSteer:
         step), so where the circle only grazes an edge the head cuts inside it, but ground
         beyond a gap in the surface is never reached. Points tested on their own would see
         through a zero-thickness wall that has walkable ground on both sides; walked, the arc
-        meets the gap the agent radius leaves round the wall."""
+        meets the gap the agent radius leaves round the wall. With `beat`, the walk stops once
+        the count is above it or can no longer get above it (a count on the same side of
+        `beat` as the whole walk's)."""
         hx, _, hz = self.heading.tolist()      # Python floats: the same bits, sooner
         lx, lz = side * hz, -side * hx
         r = self.turn_radius if radius is None else radius
@@ -203,7 +212,9 @@ class HeadSteer:
         cx, cz = px + r * lx, pz + r * lz
         d = math.pi * r / _ARC_STEPS
         n = 0
-        for c, s in zip(_ARC_COS[1:], _ARC_SIN[1:]):
+        for j, (c, s) in enumerate(zip(_ARC_COS[1:], _ARC_SIN[1:])):
+            if beat is not None and (n > beat or n + _ARC_STEPS - j <= beat):
+                break
             qx, qz = cx + r * (-lx * c + hx * s), cz + r * (-lz * c + hz * s)
             m = max(1, math.ceil(math.hypot(qx - px, qz - pz) / d - 1e-9))
             for i in range(1, m + 1):
@@ -261,8 +272,7 @@ class HeadSteer:
         sides = (side, -side)
         clear = [free(sd * tight, slow, slow) for sd in sides]
         if clear[0] or clear[1]:
-            room = [self._circle_room(sd, allowed, self.min_radius) for sd in sides]
-            k = int(room[1] > room[0])
+            k = int(self._more_room(sides[0], sides[1], allowed, self.min_radius))
             if clear[k]:
                 if self._u_side != 0.0:
                     self._u_side = sides[k]

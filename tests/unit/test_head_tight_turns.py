@@ -156,3 +156,28 @@ def test_way_points_fall_in_every_column_the_way_crosses():
     assert pts[-1] == 0.03 and all(0.001 < r <= 0.03 for r in pts)
     # without a grid: LOOK_SAMPLES even steps
     assert way_points(x0, z0, d[0], d[1], 0.001, 0.03, None)[0] == pytest.approx(0.001 + 0.029 / 8)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_room_comparison_stops_early_with_the_whole_walks_answer(seed):
+    """_more_room walks the second circle only until the comparison is known: on random
+    patchy ground, random bases and headings, its answer is that of the two whole walks."""
+    rng = np.random.default_rng(seed)
+    blocked = rng.random((40, 40)) < 0.15
+
+    def patchy(x: float, z: float) -> bool:
+        i, j = math.floor(x / 0.005) + 20, math.floor(z / 0.005) + 20
+        return 0 <= i < 40 and 0 <= j < 40 and not blocked[i, j]
+
+    decided = set()
+    for _ in range(300):
+        heading = rng.normal(size=3) * [1.0, 0.0, 1.0]
+        head = HeadSteer(np.r_[rng.uniform(-0.05, 0.05), 0.0, rng.uniform(-0.05, 0.05)],
+                         heading / np.linalg.norm(heading), max_speed=0.2,
+                         turn_radius=TURN_RADIUS, lead=TURN_RADIUS, turn_rate=4.0,
+                         amplitude=math.radians(25.0), max_offset=0.008, min_radius=MIN_RADIUS)
+        for radius in (None, MIN_RADIUS):
+            whole = [head._circle_room(sd, patchy, radius) for sd in (1.0, -1.0)]
+            assert head._more_room(1.0, -1.0, patchy, radius) == (whole[1] > whole[0])
+            decided.add(whole[1] > whole[0])
+    assert decided == {True, False}
