@@ -250,9 +250,13 @@ class HeadSteer:
             into."""
             c, sn = math.cos(t), math.sin(t)
             dx, dz = c * hx + sn * hz, -sn * hx + c * hz
+            # the look-ahead's end first: where a turn is blocked, it mostly is there
+            way = way_points(bx, bz, dx, dz, s, reach, self.grid)
+            if way and not allowed(bx + dx * way[-1], bz + dz * way[-1]):
+                return False
             if not allowed(bx + dx * s, bz + dz * s):
                 return False
-            for r in way_points(bx, bz, dx, dz, s, reach, self.grid):
+            for r in way[:-1]:
                 if not allowed(bx + dx * r, bz + dz * r):
                     return False
             return True
