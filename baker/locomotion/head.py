@@ -251,22 +251,25 @@ class HeadSteer:
             c, sn = math.cos(t), math.sin(t)
             dx, dz = c * hx + sn * hz, -sn * hx + c * hz
             # the look-ahead's end first: where a turn is blocked, it mostly is there
-            way = way_points(bx, bz, dx, dz, s, reach, self.grid)
-            if way and not allowed(bx + dx * way[-1], bz + dz * way[-1]):
+            end = way_end(s, reach, self.grid)
+            if end is not None and not allowed(bx + dx * end, bz + dz * end):
                 return False
             if not allowed(bx + dx * s, bz + dz * s):
                 return False
-            for r in way[:-1]:
-                if not allowed(bx + dx * r, bz + dz * r):
-                    return False
+            if end is not None:
+                for r in way_points(bx, bz, dx, dz, s, reach, self.grid)[:-1]:
+                    if not allowed(bx + dx * r, bz + dz * r):
+                        return False
             return True
 
-        turns = ((a, step), *((max(-tight, min(tight, a + sd * f * tight)), slow)
-                              for f in _TIGHT for sd in (side, -side)))
         # look a quarter turning radius ahead (and far enough to turn away on the tightest
         # circle), so an edge is met with a few small turns rather than one sharp one
         reach = max(0.25 * self.turn_radius, 2.0 * self.min_radius, step)
-        for t, s in turns:
+        if free(a, step, reach):            # the wanted turn, most often clear
+            return a, step
+        turns = ((a, step), *((max(-tight, min(tight, a + sd * f * tight)), slow)
+                              for f in _TIGHT for sd in (side, -side)))
+        for t, s in turns[1:]:
             if free(t, s, reach):
                 return t, s
         # nothing clear that far ahead: the tightest turn to the side with more room round its
@@ -296,6 +299,13 @@ class HeadSteer:
         return max(-turn, min(turn, want)), 0.0
 
 
+def way_end(s: float, reach: float, grid: tuple[float, float, float] | None) -> float | None:
+    """The last of way_points' distances, without the others (None when there are none)."""
+    if reach <= s:
+        return None
+    return reach if grid is not None else s + (reach - s) * LOOK_SAMPLES / LOOK_SAMPLES
+
+
 def way_points(x: float, z: float, dx: float, dz: float, s: float, reach: float,
                grid: tuple[float, float, float] | None) -> list[float]:
     """Distances along the unit direction (dx, dz) from (x, z) at which to test the way from
@@ -305,7 +315,8 @@ def way_points(x: float, z: float, dx: float, dz: float, s: float, reach: float,
     if reach <= s:
         return []
     if grid is None:
-        return [s + (reach - s) * i / LOOK_SAMPLES for i in range(1, LOOK_SAMPLES + 1)]
+        return [s + (reach - s) * i / LOOK_SAMPLES for i in range(1, LOOK_SAMPLES)] + [
+            way_end(s, reach, grid)]
     ts = []
     for o, p, d in ((grid[0], x, dx), (grid[1], z, dz)):
         if d > 1e-12 or d < -1e-12:

@@ -17,7 +17,7 @@ import pytest
 from baker.config import SIM_RATE_HZ
 from baker.geometry import polyline
 from baker.locomotion.body import Trail, place_chain
-from baker.locomotion.head import HeadSteer, way_points
+from baker.locomotion.head import HeadSteer, way_end, way_points
 
 DT = 1.0 / SIM_RATE_HZ
 TURN_RADIUS = 0.0375     # the default rig's: 3 spacings
@@ -181,3 +181,18 @@ def test_the_room_comparison_stops_early_with_the_whole_walks_answer(seed):
             assert head._more_room(1.0, -1.0, patchy, radius) == (whole[1] > whole[0])
             decided.add(whole[1] > whole[0])
     assert decided == {True, False}
+
+
+def test_the_look_aheads_end_is_way_points_last():
+    """free tests a look-ahead's end before the rest (way_end): it must be way_points' last
+    distance, bit for bit, with and without a grid, and None where there are none."""
+    rng = np.random.default_rng(5)
+    for _ in range(2000):
+        x, z, s = rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(0.0, 0.02)
+        reach = s + rng.choice([-0.01, 0.0, rng.uniform(0.0, 0.05)])
+        ang = rng.uniform(0, 2 * math.pi)
+        for grid in (None, (rng.uniform(-1, 0), rng.uniform(-1, 0), rng.choice([CELL, 0.003]))):
+            way = way_points(x, z, math.cos(ang), math.sin(ang), s, reach, grid)
+            end = way_end(s, reach, grid)
+            assert (end is None) == (not way)
+            assert end is None or end == way[-1]
