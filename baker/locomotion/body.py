@@ -18,12 +18,12 @@ from numba import njit
 from scipy.ndimage import gaussian_filter1d, label, maximum_filter1d
 
 from baker.environment.rays import RayCaster
-from baker.parallel import off_main_thread
 from baker.geometry import polyline
 from baker.geometry.conventions import UP
 from baker.geometry.transforms import (frames_to_quat, length, limit_rotation, normalize,
                                        quat_angle)
 from baker.locomotion.cobra import limit_lift
+from baker.parallel import off_main_thread
 
 
 #: the smoothed trail stays at most this many clearances below the surface under it (so a
@@ -322,8 +322,7 @@ def _chain_on(trails, lift, spacing, look, out):
             ex, ey, ez = bx - px, by - py, bz - pz
             qa = (dx * dx + dz * dz) + dy * dy
             qb = 2.0 * ((dx * ex + dz * ez) + dy * ey)
-            qc = (ex * ex + ez * ez) + ey * ey
-            qc = qc - spacing * spacing
+            qc = ((ex * ex + ez * ez) + ey * ey) - spacing * spacing
             disc = qb * qb - 4.0 * qa * qc
             den = 2.0 * qa
             t = (-qb + np.sqrt(_np_max(disc, 0.0))) / _np_max(den, 1e-18)
