@@ -133,6 +133,10 @@ class Follower:
         # a crowd's local avoidance (run.crowd): other creatures' body points near the head,
         # (m, 2) x, z, or None; the head keeps `separation` metres from them
         self.others: np.ndarray | None = None
+        # _avoiding's body points nearest first, for the `others` they were sorted for
+        self._near_of: np.ndarray | None = None
+        self._near: list = []
+        self._near_at = (0.0, 0.0)
         self.separation = 0.0
         self.held_for = 0.0         # [s] the head has held still, cornered by other bodies
         self.others_move = False    # the creatures whose bodies are near all walk
@@ -344,19 +348,24 @@ class Follower:
         is), so other bodies are obstacles the head turns or slides along as it does edges.
 
         A point is measured only against the body points that can come within `separation`
-        of it: those not much farther from the head's base than it is (the points are kept
-        nearest the base first, each with its distance from the base less a margin far above
-        the rounding of these distances)."""
+        of it: those not much farther from a reference point than it is (the base where these
+        `others` were first tested: the points are kept nearest it first, each with its
+        distance from it less a margin far above the rounding of these distances, once per
+        neighbour query). The points skipped cannot be within `separation`, so the answer is
+        that of every point measured."""
         ox, oz = others[:, 0], others[:, 1]
         b = self.head.base
         d2 = (ox - b[0]) ** 2 + (oz - b[2]) ** 2
         need = min(self.separation ** 2, float(d2.min()))
         need -= 1e-12
-        order = np.argsort(d2, kind="stable")
-        near = list(zip((np.sqrt(d2[order]) - 1e-6).tolist(), ox[order].tolist(),
-                        oz[order].tolist()))
+        if others is not self._near_of:
+            order = np.argsort(d2, kind="stable")
+            self._near = list(zip((np.sqrt(d2[order]) - 1e-6).tolist(), ox[order].tolist(),
+                                  oz[order].tolist()))
+            self._near_of, self._near_at = others, (float(b[0]), float(b[2]))
+        near = self._near
         root = math.sqrt(max(need, 0.0))
-        bx, bz = float(b[0]), float(b[2])
+        bx, bz = self._near_at
         layer_height, y, tol = self.nav.layer_height, self.height, self.tol
 
         def allowed(x: float, z: float) -> bool:

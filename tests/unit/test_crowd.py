@@ -295,3 +295,28 @@ def test_creatures_whose_peer_cannot_start_step_here_the_same(monkeypatch, plane
     assert len(calls) == 2 and "could not start" in caplog.text
     for a, b in zip(run_crowd(cfg, env, nav, 1, 3, Context(), workers=1)[0], three):
         assert_same_fields(a, b)
+
+
+def test_the_avoidance_test_is_every_point_measured_while_the_base_moves_on():
+    """Follower._avoiding sorts the other bodies' points once per neighbour query (nearest the
+    base where it first tests them) and skips, point by point, those too far to matter: as the
+    base walks on between queries its answers stay those of measuring every point."""
+    env = env_of(floor(0.0, 1.0, 0.0, 1.0))
+    nav = nav_of(env)
+    f = Follower(nav, env.rays, nav.nearest([0.5, 0.0, 0.5]), np.array([1.0, 0.0, 0.0]), RIG)
+    f.separation = sep = crowd_separation(RIG)
+    rng = np.random.default_rng(3)
+    outcomes = set()
+    for query in range(20):
+        others = 0.5 + rng.uniform(-2.0 * sep, 2.0 * sep, (int(rng.integers(1, 60)), 2))
+        for _ in range(4):                                  # the steps until the next query
+            f.head.base = f.head.base + np.r_[rng.uniform(-0.004, 0.004), 0.0,
+                                              rng.uniform(-0.004, 0.004)]
+            allowed = f._avoiding(others)
+            b = f.head.base
+            need = min(sep ** 2, float(((others - b[[0, 2]]) ** 2).sum(axis=1).min())) - 1e-12
+            for x, z in b[[0, 2]] + rng.uniform(-0.06, 0.06, (200, 2)):
+                every = bool((((others - [x, z]) ** 2).sum(axis=1) >= need).all())
+                assert allowed(x, z) == (every and f._on_layer(x, z))
+                outcomes.add(every)
+    assert outcomes == {True, False}
