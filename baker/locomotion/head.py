@@ -267,9 +267,9 @@ class HeadSteer:
         reach = max(0.25 * self.turn_radius, 2.0 * self.min_radius, step)
         if free(a, step, reach):            # the wanted turn, most often clear
             return a, step
-        turns = ((a, step), *((max(-tight, min(tight, a + sd * f * tight)), slow)
-                              for f in _TIGHT for sd in (side, -side)))
-        for t, s in turns[1:]:
+        tighter = tuple((max(-tight, min(tight, a + sd * f * tight)), slow)
+                        for f in _TIGHT for sd in (side, -side))
+        for t, s in tighter:
             if free(t, s, reach):
                 return t, s
         # nothing clear that far ahead: the tightest turn to the side with more room round its
@@ -284,7 +284,7 @@ class HeadSteer:
                 if self._u_side != 0.0:
                     self._u_side = sides[k]
                 return sides[k] * tight, slow
-        for t, s in turns:
+        for t, s in ((a, step), *tighter):
             if free(t, s, s):
                 return t, s
         # cornered: turn on the spot toward the nearest free direction up to a right angle off

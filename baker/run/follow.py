@@ -133,10 +133,9 @@ class Follower:
         # a crowd's local avoidance (run.crowd): other creatures' body points near the head,
         # (m, 2) x, z, or None; the head keeps `separation` metres from them
         self.others: np.ndarray | None = None
-        # _avoiding's body points nearest first, for the `others` they were sorted for
-        self._near_of: np.ndarray | None = None
-        self._near: list = []
-        self._near_at = (0.0, 0.0)
+        # _avoiding's sort of `others`: (others, (x, z) it was sorted from, [(distance, x, z)]
+        # nearest first), or None
+        self._sorted: tuple | None = None
         self.separation = 0.0
         self.held_for = 0.0         # [s] the head has held still, cornered by other bodies
         self.others_move = False    # the creatures whose bodies are near all walk
@@ -358,14 +357,13 @@ class Follower:
         d2 = (ox - b[0]) ** 2 + (oz - b[2]) ** 2
         need = min(self.separation ** 2, float(d2.min()))
         need -= 1e-12
-        if others is not self._near_of:
+        if self._sorted is None or self._sorted[0] is not others:
             order = np.argsort(d2, kind="stable")
-            self._near = list(zip((np.sqrt(d2[order]) - 1e-6).tolist(), ox[order].tolist(),
-                                  oz[order].tolist()))
-            self._near_of, self._near_at = others, (float(b[0]), float(b[2]))
-        near = self._near
+            self._sorted = (others, (float(b[0]), float(b[2])),
+                            list(zip((np.sqrt(d2[order]) - 1e-6).tolist(), ox[order].tolist(),
+                                     oz[order].tolist())))
+        _, (bx, bz), near = self._sorted
         root = math.sqrt(max(need, 0.0))
-        bx, bz = self._near_at
         layer_height, y, tol = self.nav.layer_height, self.height, self.tol
 
         def allowed(x: float, z: float) -> bool:
