@@ -111,7 +111,11 @@ def fork_map(fn, n: int, workers: int) -> list:
                                     DeprecationWarning)
             pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
                                        initializer=_child_start, initargs=(workers,))
-            out = list(pool.map(_call, range(n)))
+            # waited for one by one, never cancelled: an interrupted pool.map cancels the calls
+            # not started, and Python 3.11's pool, broken by the children's end below, then
+            # fails to mark them ("Exception in thread ... InvalidStateError" on stderr)
+            futures = [pool.submit(_call, i) for i in range(n)]
+            out = [f.result() for f in futures]
         pool.shutdown()
         return out
     except BrokenProcessPool:
@@ -122,7 +126,7 @@ def fork_map(fn, n: int, workers: int) -> list:
         if pool is not None:
             _end(p for p in multiprocessing.active_children() if p.pid not in before)
             # the pool's own thread joins them too: wait for it, so none is left when we return
-            pool.shutdown(wait=True, cancel_futures=True)
+            pool.shutdown(wait=True)
 
 
 def _end(children) -> None:

@@ -58,6 +58,36 @@ def test_a_killed_child_is_one_error_naming_the_option():
     assert multiprocessing.active_children() == []
 
 
+@forks
+def test_a_signal_during_a_map_stops_it_with_nothing_on_stderr():
+    """A signal's exception in the parent while calls wait for a worker ends the map with that
+    exception alone: the calls not started are not cancelled, or Python 3.11's pool, broken by
+    the children's end, printed an InvalidStateError traceback from its thread (seen on stderr
+    when `baker bake --creatures 8` was stopped during its solve)."""
+    import subprocess
+    import sys
+
+    script = """
+import os, signal, threading, time
+from baker import parallel
+class Stop(BaseException):
+    pass
+def handler(s, f):
+    raise Stop()
+signal.signal(signal.SIGTERM, handler)
+threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGTERM)).start()
+try:
+    parallel.fork_map(lambda i: time.sleep(0.2) or i, 60, 2)
+except Stop:
+    print("stopped", len(__import__("multiprocessing").active_children()))
+time.sleep(0.5)
+"""
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0 and out.stdout.split() == ["stopped", "0"], out.stderr
+    assert out.stderr == ""
+
+
 def test_one_call_or_one_worker_runs_here():
     pid = os.getpid()
     assert fork_map(lambda i: os.getpid(), 1, 4) == [pid]
