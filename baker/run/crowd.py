@@ -79,6 +79,7 @@ def crowd_starts(nav, env, rig, streams: list[Streams], separation: float, at=No
     taken = np.zeros((0, 2))
     out = []
     anchor = middle_anchor(nav, env)
+    close = []                      # (creature, gap) of the starts nearer than `separation`
     for st in streams:
         rng = st.get("start")
         tree = cKDTree(taken) if len(taken) else None
@@ -97,10 +98,13 @@ def crowd_starts(nav, env, rig, streams: list[Streams], separation: float, at=No
             if gap >= separation:
                 break
         if best_gap < separation:
-            log.warning("creature %d starts %.3f m from another (wanted %.3f m)", len(out),
-                        best_gap, separation)
+            close.append((len(out), best_gap))
         out.append(best[:2])
         taken = np.vstack([taken, best[2]])
+    if close:                       # one line, however many (a big crowd on a small level)
+        log.warning("%d of %d creatures start nearer another than %.3f m (creature %d first; "
+                    "the nearest %.3f m): the level has little room for them", len(close),
+                    len(out), separation, close[0][0], min(g for _, g in close))
     return out
 
 

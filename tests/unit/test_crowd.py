@@ -102,6 +102,17 @@ def test_starts_keep_the_straight_start_lines_apart(plane):
             assert cdist(lines[i], lines[j]).min() >= sep
 
 
+def test_a_crowd_too_big_for_its_level_is_one_warning(caplog):
+    """Starts that cannot keep apart (40 creatures on a 0.6 m square) are taken anyway, the
+    nearest the draws found, and said once, not once a creature."""
+    env = env_of(floor(0.0, 0.6, 0.0, 0.6))
+    starts = crowd_starts(nav_of(env), env, RIG, [Streams(2, creature=i) for i in range(40)],
+                          crowd_separation(RIG))
+    assert len(starts) == 40
+    records = [r for r in caplog.records if "start nearer another" in r.getMessage()]
+    assert len(records) == 1 and records[0].getMessage().split()[2] == "40"
+
+
 def test_the_first_creature_starts_where_a_lone_creature_does(plane):
     env, nav = plane
     from baker.run.start import choose_start
