@@ -14,6 +14,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from baker.locomotion import contain as compiled
+
 #: The head walks up to this multiple of its top speed to close the gap to the agent
 CATCH_UP = 1.25
 #: Directions tried when the head is cornered (radians off the wanted turn, toward the agent's
@@ -24,17 +26,19 @@ _DEFLECT = np.radians(7.5) * np.arange(1, 13)
 #: turning radius apart: finer than the gap the agent radius leaves round a wall), and their
 #: angles.
 _ARC_STEPS = 26
-_ARC_COS = np.cos(np.linspace(0.0, math.pi, _ARC_STEPS + 1)).tolist()
-_ARC_SIN = np.sin(np.linspace(0.0, math.pi, _ARC_STEPS + 1)).tolist()
+_ARC_COS_SIN = (np.cos(np.linspace(0.0, math.pi, _ARC_STEPS + 1)),
+                np.sin(np.linspace(0.0, math.pi, _ARC_STEPS + 1)))
+_ARC_COS, _ARC_SIN = (a.tolist() for a in _ARC_COS_SIN)
 #: Turns tried, as fractions of the tightest turn a step may make, when the wanted one would
 #: leave the walkable surface (toward the agent's side first)
 _TIGHT = (0.25, 0.5, 0.75, 1.0)
+_TIGHT_ARRAY = np.array(_TIGHT)
 #: such a turn's largest yaw rate, in multiples of the head's yaw-rate limit (about the rate of
 #: its usual turning circle at full speed)
 CONTAIN_YAW = 2.0
 #: points tested along a turn's look-ahead, from the step to the look-ahead point, without a
 #: grid (HeadSteer.grid)
-LOOK_SAMPLES = 8
+LOOK_SAMPLES = compiled.LOOK_SAMPLES
 
 
 class HeadSteer:
@@ -190,6 +194,12 @@ class HeadSteer:
                    radius: float | None = None) -> bool:
         """True when the head reaches more points round its circle on side `second` than on
         side `first` (_circle_room); the second circle is walked only until that is known."""
+        if isinstance(allowed, compiled.SurfaceTest):
+            hx, _, hz = self.heading.tolist()
+            bx, _, bz = self.base.tolist()
+            return compiled.more_room(*allowed.kernel_args(), hx, hz, bx, bz, first, second,
+                                      self.turn_radius if radius is None else radius,
+                                      *_ARC_COS_SIN)
         room = self._circle_room(first, allowed, radius)
         return self._circle_room(second, allowed, radius, beat=room) > room
 
@@ -235,7 +245,11 @@ class HeadSteer:
         steps apart, or turns on the spot, fold the trail back on itself in a cusp that the
         body's chord placement cannot follow (joints jump across it); a reversal on circles of
         min_radius is a loop it follows.
+
+        With a SurfaceTest, the same turns are tried compiled (_contained).
         """
+        if isinstance(allowed, compiled.SurfaceTest):
+            return self._contained(a, ang, step, dt, allowed)
         hx, _, hz = self.heading.tolist()      # Python floats: the same bits, sooner
         bx, _, bz = self.base.tolist()
         side = 1.0 if ang >= a else -1.0
@@ -297,6 +311,31 @@ class HeadSteer:
                      if free(t, step, step)), ang)
         self._creep = 2.0 * self.min_radius
         return max(-turn, min(turn, want)), 0.0
+
+    def _contained(self, a: float, ang: float, step: float, dt: float,
+                   test: compiled.SurfaceTest) -> tuple[float, float]:
+        """_contain's turns tried by the compiled kernel (contain.contain), with its side
+        effects (the U-turn's side, held, the creep after a turn on the spot)."""
+        hx, _, hz = self.heading.tolist()
+        bx, _, bz = self.base.tolist()
+        h = np.array([hx, hz, bx, bz, a, ang, step, dt, self.tight_speed, self.min_radius,
+                      self.turn_radius, self._u_side, float(self.hold), self.max_yaw_rate])
+        out = np.empty(3)
+        flags = compiled.contain(*test.kernel_args(), h, grid_array(self.grid), *_ARC_COS_SIN,
+                                 _TIGHT_ARRAY, _DEFLECT, out)
+        if flags & compiled.SIDE:
+            self._u_side = float(out[2])
+        if flags & compiled.HELD:
+            self.held = True
+        if flags & compiled.CREPT:
+            self._creep = 2.0 * self.min_radius
+        a, step = out[:2].tolist()
+        return a, step
+
+
+def grid_array(grid: tuple[float, float, float] | None) -> np.ndarray:
+    """HeadSteer.grid as the compiled kernels take it: (x0, z0, cell), a zero cell for none."""
+    return np.array(grid if grid is not None else (0.0, 0.0, 0.0), dtype=np.float64)
 
 
 def way_end(s: float, reach: float, grid: tuple[float, float, float] | None) -> float | None:

@@ -7,7 +7,7 @@ head and its head path sampled a spacing apart over a body length, with the path
 rounded as the body's trail rounds them, and the straight start line before it has walked
 one) and one ball query finds, for all heads at once, the other creatures' points near each.
 Each head then treats those points as obstacles on its walkable surface, keeping `separation`
-metres from them (run.follow.Follower._avoiding): it turns or slides along another body as it
+metres from them (run.follow.Follower._surface_test): it turns or slides along another body as it
 does along an edge. A body only ever lies on its own head's trail, so a head that never comes
 within `separation` of another body keeps the bodies apart. A head the bodies corner while
 their creatures walk holds still for them to move on (up to run.follow.HOLD_MAX) instead of

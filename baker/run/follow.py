@@ -35,8 +35,11 @@ from baker.geometry import polyline
 from baker.geometry.transforms import normalize
 from baker.locomotion.agent import PathAgent
 from baker.locomotion.body import project_to_surface
-from baker.locomotion.head import HeadSteer, way_points
+from baker.locomotion.contain import SurfaceTest, grid_arrays, line_clear, plain_test
+from baker.locomotion.head import HeadSteer, grid_array, way_points
 from baker.locomotion.legs import STANCE_TURN, folded_lever, hip_line
+from baker.navmesh.lazy import LazyNav
+from baker.navmesh.query import NavSurface
 
 #: steps between checks of what the head can see of the agent's path
 AIM_EVERY = 4
@@ -92,6 +95,11 @@ class Follower:
                               max_offset=SLITHER_OFFSET * body.length,
                               min_radius=MIN_TURN * body.spacing)
         self.head.grid = (float(nav.origin[0]), float(nav.origin[1]), float(nav.cell_size))
+        # the head's surface tests compiled (contain.py), reading the grid's arrays as the
+        # navigation's layer_height does (a NavSurface's, a lazy surface's window's); else in
+        # Python through its layer_height
+        self._compiled = type(nav).layer_height in (NavSurface.layer_height,
+                                                    LazyNav.layer_height)
         self.height = float(start[1])
         self.body_length = body.length
         self.rough_speed = loco.rough_speed
@@ -133,8 +141,8 @@ class Follower:
         # a crowd's local avoidance (run.crowd): other creatures' body points near the head,
         # (m, 2) x, z, or None; the head keeps `separation` metres from them
         self.others: np.ndarray | None = None
-        # _avoiding's sort of `others`: (others, (x, z) it was sorted from, [(distance, x, z)]
-        # nearest first), or None
+        # _surface_test's sort of `others`: (others, (x, z) it was sorted from, (m, 3) rows
+        # (distance, x, z) nearest first), or None
         self._sorted: tuple | None = None
         self.separation = 0.0
         self.held_for = 0.0         # [s] the head has held still, cornered by other bodies
@@ -216,7 +224,7 @@ class Follower:
             self._bends()
         aim = agent.point_behind(self._back) if self._back > 0.0 else None
         base = head.base.copy()
-        allowed = self._on_layer if self.others is None else self._avoiding(self.others)
+        allowed = self._surface_test()
         head.hold = self.others is not None and self.others_move and self.held_for < HOLD_MAX
         head.held = False
         head.step(dt, agent.position, agent.speed, allowed=allowed, aim=aim)
@@ -341,10 +349,12 @@ class Follower:
         free = np.where(prim >= 0, t * cos[:, 0], np.inf)
         return float(folded_lever(free.min(), reach, hip_x))
 
-    def _avoiding(self, others: np.ndarray):
-        """The head's surface test in a crowd: on its layer, and at least `separation` from
-        every other creature's body point (or, where it already is closer, no closer than it
-        is), so other bodies are obstacles the head turns or slides along as it does edges.
+    def _surface_test(self):
+        """The head's surface test this step (a SurfaceTest, or plain_test where the
+        navigation's layer_height is not a NavSurface's): on its layer, and in a crowd
+        (`others`) at least `separation` from every other creature's body point (or, where it
+        already is closer, no closer than it is), so other bodies are obstacles the head turns
+        or slides along as it does edges.
 
         A point is measured only against the body points that can come within `separation`
         of it: those not much farther from a reference point than it is (the base where these
@@ -352,6 +362,10 @@ class Follower:
         distance from it less a margin far above the rounding of these distances, once per
         neighbour query). The points skipped cannot be within `separation`, so the answer is
         that of every point measured."""
+        test = SurfaceTest if self._compiled else plain_test
+        if self.others is None:
+            return test(self.nav, self.height, self.tol)
+        others = self.others
         ox, oz = others[:, 0], others[:, 1]
         b = self.head.base
         d2 = (ox - b[0]) ** 2 + (oz - b[2]) ** 2
@@ -360,29 +374,9 @@ class Follower:
         if self._sorted is None or self._sorted[0] is not others:
             order = np.argsort(d2, kind="stable")
             self._sorted = (others, (float(b[0]), float(b[2])),
-                            list(zip((np.sqrt(d2[order]) - 1e-6).tolist(), ox[order].tolist(),
-                                     oz[order].tolist())))
-        _, (bx, bz), near = self._sorted
-        root = math.sqrt(max(need, 0.0))
-        layer_height, y, tol = self.nav.layer_height, self.height, self.tol
-
-        def allowed(x: float, z: float) -> bool:
-            # ((ox - x) ** 2 + (oz - z) ** 2).min() >= need, over the points that can be
-            # closer than `separation`
-            reach = math.hypot(x - bx, z - bz) + root
-            for d, px, pz in near:
-                if d > reach:
-                    break
-                if (px - x) * (px - x) + (pz - z) * (pz - z) < need:
-                    return False
-            h = layer_height(x, y, z, tol)
-            return h == h                                 # on the layer: not NaN
-
-        return allowed
-
-    def _on_layer(self, x: float, z: float) -> bool:
-        """True when the column of (x, z) has a walkable sample on the head's layer."""
-        return not math.isnan(self.nav.layer_height(x, self.height, z, self.tol))
+                            np.stack([np.sqrt(d2[order]) - 1e-6, ox[order], oz[order]], axis=1))
+        _, ref, near = self._sorted
+        return test(self.nav, self.height, self.tol, near, ref, need)
 
     def _aim_back(self) -> float:
         """How far back along the agent's path the head should aim: 0 (at the agent) when it
@@ -399,11 +393,15 @@ class Follower:
     def _clear(self, p: np.ndarray) -> bool:
         """True when the straight line from the head's base to p stays on the head's layer of
         the walkable surface (tested in every column it crosses, head.way_points)."""
-        bx, bz = self.head.base[0], self.head.base[2]
-        dx, dz = p[0] - bx, p[2] - bz
+        bx, bz = float(self.head.base[0]), float(self.head.base[2])
+        dx, dz = float(p[0]) - bx, float(p[2]) - bz
         n = math.hypot(dx, dz)
         if n < 1e-12:
             return True
+        if self._compiled:
+            cols, positions, normals, grid = grid_arrays(self.nav)
+            return line_clear(cols, positions, normals, grid, bx, bz, dx, dz, n, self.height,
+                              self.tol, grid_array(self.head.grid))
         y = self.height
         for r in way_points(bx, bz, dx / n, dz / n, 0.0, n, self.head.grid):
             y = self.nav.layer_height(bx + r * dx / n, y, bz + r * dz / n, self.tol)

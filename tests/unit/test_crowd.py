@@ -309,7 +309,7 @@ def test_creatures_whose_peer_cannot_start_step_here_the_same(monkeypatch, plane
 
 
 def test_the_avoidance_test_is_every_point_measured_while_the_base_moves_on():
-    """Follower._avoiding sorts the other bodies' points once per neighbour query (nearest the
+    """Follower._surface_test sorts the other bodies' points once per neighbour query (nearest the
     base where it first tests them) and skips, point by point, those too far to matter: as the
     base walks on between queries its answers stay those of measuring every point."""
     env = env_of(floor(0.0, 1.0, 0.0, 1.0))
@@ -323,11 +323,13 @@ def test_the_avoidance_test_is_every_point_measured_while_the_base_moves_on():
         for _ in range(4):                                  # the steps until the next query
             f.head.base = f.head.base + np.r_[rng.uniform(-0.004, 0.004), 0.0,
                                               rng.uniform(-0.004, 0.004)]
-            allowed = f._avoiding(others)
+            f.others = others
+            allowed = f._surface_test()
             b = f.head.base
             need = min(sep ** 2, float(((others - b[[0, 2]]) ** 2).sum(axis=1).min())) - 1e-12
             for x, z in b[[0, 2]] + rng.uniform(-0.06, 0.06, (200, 2)):
                 every = bool((((others - [x, z]) ** 2).sum(axis=1) >= need).all())
-                assert allowed(x, z) == (every and f._on_layer(x, z))
+                on_layer = not np.isnan(nav.layer_height(x, f.height, z, f.tol))
+                assert allowed(x, z) == (every and on_layer)
                 outcomes.add(every)
     assert outcomes == {True, False}

@@ -1,0 +1,324 @@
+"""The head's surface test as data, and the turns that keep the head on the walkable surface,
+compiled with numba (HeadSteer._contain, _more_room and the follower's line of sight).
+
+A SurfaceTest is `allowed(x, z)` as plain arrays: the navigation grid's columns (the arrays
+NavSurface.layer_height reads), the layer's height and tolerance, and, in a crowd, the other
+bodies' points near the head, sorted by distance from a reference point (run.follow.Follower
+builds it every step). Called, it answers as the Python test it replaces; given to HeadSteer,
+the head's turns are tried in the compiled kernels below, with the same arithmetic in the same
+order as head.py's Python (the same bits: tests/unit/test_head_compiled.py).
+
+These calls are made directly on the main thread, not through parallel.off_main_thread (its
+thread hop, 25-95 us, is more than these calls cost, and a 100-creature run makes a hundred
+thousand of them). That is safe because each kernel returns only a number or a bool and writes
+anything else into arrays it is given: numba converts those in C, while an array returned is
+boxed through Python code, where a signal handler's exception (baker.signals) would crash the
+process.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+#: points tested along a look-ahead without a grid (head.LOOK_SAMPLES)
+LOOK_SAMPLES = 8
+#: _contain's result flags: the U-turn's side changed (out[2]); cornered, held still; turned
+#: on the spot (the head creeps away from the corner)
+SIDE, HELD, CREPT = 1, 2, 4
+#: rows of a SurfaceTest's parameters: the grid (x0, z0, cell, nx, nz), the layer (y, tol),
+#: the other bodies' reference point and reach (x, z, sqrt(need), need)
+_NO_NEAR = np.empty((0, 3))
+
+
+class SurfaceTest:
+    """allowed(x, z) -> bool: the column of (x, z) has a walkable sample within `tol` of height
+    `y` (NavSurface.layer_height is not NaN), and the point is at least sqrt(need) from every
+    point of `near` that can be that close. near: (k, 3) rows (distance from (rx, rz) less a
+    margin, x, z), nearest first: a point farther from (rx, rz) than the test point is by more
+    than sqrt(need) is never measured, nor those after it.
+    """
+
+    __slots__ = ("cols", "positions", "normals", "near", "params")
+
+    def __init__(self, nav, y: float, tol: float, near: np.ndarray | None = None,
+                 ref: tuple[float, float] = (0.0, 0.0), need: float = 0.0):
+        self.cols, self.positions, self.normals, grid = grid_arrays(nav)
+        self.near = _NO_NEAR if near is None else near
+        self.params = np.concatenate(
+            [grid, (y, tol, ref[0], ref[1], math.sqrt(max(need, 0.0)), need)])
+
+    def __call__(self, x: float, z: float) -> bool:
+        return _allowed(self.cols, self.positions, self.normals, self.near, self.params,
+                        float(x), float(z))
+
+    def kernel_args(self) -> tuple:
+        return self.cols, self.positions, self.normals, self.near, self.params
+
+
+def plain_test(nav, y: float, tol: float, near: np.ndarray | None = None,
+               ref: tuple[float, float] = (0.0, 0.0), need: float = 0.0):
+    """SurfaceTest's answers in Python, through nav.layer_height: for any Navigation (a
+    SurfaceTest reads a NavSurface's arrays)."""
+    root = math.sqrt(max(need, 0.0))
+    rows = [] if near is None else near.tolist()
+    layer_height = nav.layer_height
+
+    def allowed(x: float, z: float) -> bool:
+        if rows:
+            reach = math.hypot(x - ref[0], z - ref[1]) + root
+            for d, px, pz in rows:
+                if d > reach:
+                    break
+                if (px - x) * (px - x) + (pz - z) * (pz - z) < need:
+                    return False
+        h = layer_height(x, y, z, tol)
+        return h == h                                 # on the layer: not NaN
+
+    return allowed
+
+
+def grid_arrays(nav) -> tuple:
+    """(col_start, positions, normals, [x0, z0, cell, nx, nz]) of the navigation surface's
+    current grid, as the kernels read them (kept in its query cache: a lazy surface's grid is
+    that of its current window)."""
+    cache = nav._cache
+    got = cache.get("kernel_grid")
+    if got is None:
+        got = cache["kernel_grid"] = (
+            np.ascontiguousarray(np.asarray(nav.col_start)),
+            np.ascontiguousarray(np.asarray(nav.positions)),
+            np.ascontiguousarray(np.asarray(nav.normals)),
+            np.array([nav.origin[0], nav.origin[1], nav.cell_size, nav.shape[0], nav.shape[1]],
+                     dtype=np.float64))
+    return got
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _layer(cols, pos, nrm, p, x, y, z, tol):
+    """navmesh.query.layer_height: the height of the walkable layer in the column of (x, z)
+    closest to y, NaN when none is within tol (the same arithmetic)."""
+    fx = (x - p[0]) / p[2]
+    fz = (z - p[1]) / p[2]
+    if not (fx >= 0.0 and fx < p[3] and fz >= 0.0 and fz < p[4]):
+        return math.nan
+    col = int(fx) * int(p[4]) + int(fz)
+    best, bestd = math.nan, tol
+    for k in range(cols[col], cols[col + 1]):
+        px, py, pz = float(pos[k, 0]), float(pos[k, 1]), float(pos[k, 2])
+        h = py - (float(nrm[k, 0]) * (x - px) + float(nrm[k, 2]) * (z - pz)) / float(nrm[k, 1])
+        d = abs(h - y)
+        if d <= bestd:
+            best, bestd = h, d
+    return best
+
+
+@njit(cache=True, nogil=True)
+def _allowed(cols, pos, nrm, near, p, x, z):
+    """SurfaceTest's answer for (x, z)."""
+    if near.shape[0] > 0:
+        reach = math.hypot(x - p[7], z - p[8]) + p[9]
+        for i in range(near.shape[0]):
+            if near[i, 0] > reach:
+                break
+            dx, dz = near[i, 1] - x, near[i, 2] - z
+            if dx * dx + dz * dz < p[10]:
+                return False
+    h = _layer(cols, pos, nrm, p, x, p[5], z, p[6])
+    return h == h
+
+
+@njit(cache=True, nogil=True)
+def layer_height(cols, pos, nrm, p, x, y, z, tol):
+    """_layer on its own (tests)."""
+    return _layer(cols, pos, nrm, p, x, y, z, tol)
+
+
+@njit(cache=True, nogil=True)
+def circle_room(cols, pos, nrm, near, p, hx, hz, px, pz, side, r, beat, cos, sin):
+    """HeadSteer._circle_room: how many points round the first half of the circle of radius r
+    on `side` the head reaches walking it from (px, pz), heading (hx, hz); beat < 0: no beat."""
+    steps = cos.shape[0] - 1
+    lx, lz = side * hz, -side * hx
+    cx, cz = px + r * lx, pz + r * lz
+    d = math.pi * r / steps
+    n = 0
+    for j in range(steps):
+        if beat >= 0 and (n > beat or n + steps - j <= beat):
+            break
+        c, s = cos[j + 1], sin[j + 1]
+        qx, qz = cx + r * (-lx * c + hx * s), cz + r * (-lz * c + hz * s)
+        m = max(1, math.ceil(math.hypot(qx - px, qz - pz) / d - 1e-9))
+        reached = True
+        for i in range(1, m + 1):
+            if not _allowed(cols, pos, nrm, near, p, px + (qx - px) * i / m,
+                            pz + (qz - pz) * i / m):
+                reached = False
+                break
+        if reached:
+            n += 1
+            px, pz = qx, qz
+    return n
+
+
+@njit(cache=True, nogil=True)
+def more_room(cols, pos, nrm, near, p, hx, hz, px, pz, first, second, r, cos, sin):
+    """HeadSteer._more_room: more points reached round the circle on `second` than on
+    `first`."""
+    room = circle_room(cols, pos, nrm, near, p, hx, hz, px, pz, first, r, -1, cos, sin)
+    return circle_room(cols, pos, nrm, near, p, hx, hz, px, pz, second, r, room, cos,
+                       sin) > room
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _crossings(x, dx, s, reach, o, cell, ts, n):
+    """head.way_points' column crossings along one axis, appended to ts[n:]; returns the new
+    count."""
+    if dx > 1e-12 or dx < -1e-12:
+        a, b = (x + dx * s - o) / cell, (x + dx * reach - o) / cell
+        if a > b:
+            a, b = b, a
+        for i in range(math.floor(a) + 1, math.ceil(b)):
+            ts[n] = (o + i * cell - x) / dx
+            n += 1
+    return n
+
+
+@njit(cache=True, nogil=True)
+def way_points(x, z, dx, dz, s, reach, grid, out):
+    """head.way_points into out (grid: (x0, z0, cell), or a cell <= 0 for none); returns how
+    many. out must hold the way's column crossings plus one (crossings_bound)."""
+    if reach <= s:
+        return 0
+    if grid[2] <= 0.0:
+        for i in range(1, LOOK_SAMPLES):
+            out[i - 1] = s + (reach - s) * i / LOOK_SAMPLES
+        out[LOOK_SAMPLES - 1] = s + (reach - s) * LOOK_SAMPLES / LOOK_SAMPLES
+        return LOOK_SAMPLES
+    ts = np.empty(out.shape[0])
+    n = _crossings(x, dx, s, reach, grid[0], grid[2], ts, 0)
+    n = _crossings(z, dz, s, reach, grid[1], grid[2], ts, n)
+    if n == 0:
+        out[0] = reach
+        return 1
+    ts = np.sort(ts[:n])
+    k = 0
+    for i in range(n - 1):
+        if ts[i + 1] - ts[i] > 1e-12:
+            out[k] = 0.5 * (ts[i] + ts[i + 1])
+            k += 1
+    out[k] = reach
+    return k + 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def crossings_bound(s, reach, grid):
+    """At least the length way_points needs for a way from s to reach."""
+    if grid[2] <= 0.0:
+        return LOOK_SAMPLES
+    return int(2.0 * (abs(reach - s) / grid[2] + 2.0)) + 1
+
+
+@njit(cache=True, nogil=True)
+def _free(cols, pos, nrm, near, p, hx, hz, bx, bz, t, s, reach, grid):
+    """HeadSteer._contain's free(t, s, reach): the step of length s turned by t, and the
+    straight way on from it to `reach`, on the surface (the way's far end first)."""
+    c, sn = math.cos(t), math.sin(t)
+    dx, dz = c * hx + sn * hz, -sn * hx + c * hz
+    if reach > s:
+        end = reach if grid[2] > 0.0 else s + (reach - s) * LOOK_SAMPLES / LOOK_SAMPLES
+        if not _allowed(cols, pos, nrm, near, p, bx + dx * end, bz + dz * end):
+            return False
+    if not _allowed(cols, pos, nrm, near, p, bx + dx * s, bz + dz * s):
+        return False
+    if reach > s:
+        way = np.empty(crossings_bound(s, reach, grid))
+        k = way_points(bx, bz, dx, dz, s, reach, grid, way)
+        for i in range(k - 1):
+            if not _allowed(cols, pos, nrm, near, p, bx + dx * way[i], bz + dz * way[i]):
+                return False
+    return True
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _clamp(x, lo, hi):
+    """Python's max(lo, min(hi, x)), ties and signed zeros included."""
+    y = x if x < hi else hi
+    return y if y > lo else lo
+
+
+@njit(cache=True, nogil=True)
+def contain(cols, pos, nrm, near, p, h, grid, cos, sin, fracs, deflect, out):
+    """HeadSteer._contain. h: (hx, hz, bx, bz, a, ang, step, dt, tight_speed, min_radius,
+    turn_radius, u_side, hold, max_yaw_rate). Writes (a, step, u_side) to out and returns the
+    flags (SIDE, HELD, CREPT) of what else changed."""
+    hx, hz, bx, bz, a, ang, step, dt = h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7]
+    min_radius, turn_radius = h[9], h[10]
+    side = 1.0 if ang >= a else -1.0
+    slow = h[8] * dt
+    slow = slow if slow < step else step
+    tight = slow / min_radius
+    reach = 0.25 * turn_radius
+    reach = 2.0 * min_radius if 2.0 * min_radius > reach else reach
+    reach = step if step > reach else reach
+    out[0], out[1], out[2] = a, step, h[11]
+    if _free(cols, pos, nrm, near, p, hx, hz, bx, bz, a, step, reach, grid):
+        return 0
+    tighter = np.empty(2 * fracs.shape[0])
+    for i in range(fracs.shape[0]):
+        tighter[2 * i] = _clamp(a + side * fracs[i] * tight, -tight, tight)
+        tighter[2 * i + 1] = _clamp(a + -side * fracs[i] * tight, -tight, tight)
+    for t in tighter:
+        if _free(cols, pos, nrm, near, p, hx, hz, bx, bz, t, slow, reach, grid):
+            out[0], out[1] = t, slow
+            return 0
+    clear0 = _free(cols, pos, nrm, near, p, hx, hz, bx, bz, side * tight, slow, slow, grid)
+    clear1 = _free(cols, pos, nrm, near, p, hx, hz, bx, bz, -side * tight, slow, slow, grid)
+    if clear0 or clear1:
+        k = more_room(cols, pos, nrm, near, p, hx, hz, bx, bz, side, -side, min_radius, cos,
+                      sin)
+        if (clear1 if k else clear0):
+            sd = -side if k else side
+            out[0], out[1] = sd * tight, slow
+            if h[11] != 0.0:
+                out[2] = sd
+                return SIDE
+            return 0
+    if _free(cols, pos, nrm, near, p, hx, hz, bx, bz, a, step, step, grid):
+        return 0
+    for t in tighter:
+        if _free(cols, pos, nrm, near, p, hx, hz, bx, bz, t, slow, slow, grid):
+            out[0], out[1] = t, slow
+            return 0
+    if h[12] != 0.0:
+        out[0], out[1] = 0.0, 0.0
+        return HELD
+    turn = h[13] * dt
+    want = ang
+    found = False
+    for d in deflect:
+        for sd in (side, -side):
+            t = a + sd * d
+            if _free(cols, pos, nrm, near, p, hx, hz, bx, bz, t, step, step, grid):
+                want, found = t, True
+                break
+        if found:
+            break
+    out[0], out[1] = _clamp(want, -turn, turn), 0.0
+    return CREPT
+
+
+@njit(cache=True, nogil=True)
+def line_clear(cols, pos, nrm, p, bx, bz, dx, dz, n, y, tol, grid):
+    """Follower._clear's walk: the straight line from (bx, bz) along (dx, dz) (n long) stays on
+    the layer, continued from height y point by point (head.way_points' points)."""
+    way = np.empty(crossings_bound(0.0, n, grid))
+    k = way_points(bx, bz, dx / n, dz / n, 0.0, n, grid, way)
+    for i in range(k):
+        r = way[i]
+        y = _layer(cols, pos, nrm, p, bx + r * dx / n, y, bz + r * dz / n, tol)
+        if y != y:
+            return False
+    return True

@@ -1,0 +1,194 @@
+"""The head's compiled surface test and turns (locomotion/contain.py) against the Python they
+replace (navmesh.query.layer_height, HeadSteer's turns with a plain `allowed`, the follower's
+line of sight walked with head.way_points): the same answers, bit for bit, on random patchy
+layered grids, with and without other bodies' points to keep away from; and signals during
+the direct (main-thread) calls stop them cleanly."""
+
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from signal_stops import assert_signals_stop_cleanly
+
+from baker.config import SIM_RATE_HZ
+from baker.locomotion import contain
+from baker.locomotion.head import HeadSteer, grid_array, way_points
+from baker.navmesh.query import layer_height
+
+DT = 1.0 / SIM_RATE_HZ
+CELL = 0.015
+HERE = Path(__file__).resolve().parent
+
+
+def patchy_grid(seed: int, n: int = 40, holes: float = 0.25):
+    """A navigation grid as NavSurface.layer_height reads it (and its layer_height): n x n
+    columns of CELL, each with 0-2 samples (a floor with holes, sloped a little, and a second
+    storey over part of it)."""
+    rng = np.random.default_rng(seed)
+    origin = (float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1)))
+    pos, nrm, starts = [], [], [0]
+    for ix in range(n):
+        for iz in range(n):
+            cx, cz = origin[0] + (ix + 0.5) * CELL, origin[1] + (iz + 0.5) * CELL
+            if rng.random() < 0.3:                                  # an upper storey
+                pos.append((cx, 0.2 + rng.normal(0, 0.003), cz))
+                nrm.append(rng.normal((0.0, 1.0, 0.0), 0.1))
+            if rng.random() > holes:
+                pos.append((cx, rng.normal(0, 0.003), cz))
+                nrm.append(rng.normal((0.0, 1.0, 0.0), 0.1))
+            starts.append(len(pos))
+    nrm = np.array(nrm).reshape(-1, 3)
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    nav = SimpleNamespace(origin=origin, cell_size=CELL, shape=(n, n),
+                          col_start=np.array(starts, dtype=np.int64),
+                          positions=np.array(pos, dtype=np.float32).reshape(-1, 3),
+                          normals=nrm.astype(np.float32), _cache={})
+    nav.layer_height = lambda x, y, z, tol: layer_height(nav, x, y, z, tol)
+    return nav
+
+
+def crowded(nav, rng, centre):
+    """(near, ref, need) as Follower._surface_test sorts them: a few dozen body points round
+    `centre`, sorted by distance from it."""
+    pts = centre + rng.uniform(-0.06, 0.06, (int(rng.integers(1, 40)), 2))
+    d2 = ((pts - centre) ** 2).sum(axis=1)
+    order = np.argsort(d2, kind="stable")
+    near = np.stack([np.sqrt(d2[order]) - 1e-6, pts[order, 0], pts[order, 1]], axis=1)
+    return near, (float(centre[0]), float(centre[1])), min(0.023 ** 2, float(d2.min())) - 1e-12
+
+
+def a_head(rng, nav, grid: bool) -> HeadSteer:
+    lo = np.array(nav.origin) + 0.1
+    x, z = rng.uniform(lo, lo + 0.4)
+    yaw = rng.uniform(-math.pi, math.pi)
+    head = HeadSteer(np.array([x, 0.0, z]), np.array([math.cos(yaw), 0.0, math.sin(yaw)]),
+                     max_speed=0.2, turn_radius=0.0375, lead=0.0375, turn_rate=4.0,
+                     amplitude=math.radians(25.0), max_offset=0.008, min_radius=0.009375)
+    if grid:
+        head.grid = (nav.origin[0], nav.origin[1], CELL)
+    return head
+
+
+def test_the_compiled_layer_height_is_the_query_s():
+    for seed in range(3):
+        nav = patchy_grid(seed)
+        cols, pos, nrm, p = contain.grid_arrays(nav)
+        rng = np.random.default_rng(seed)
+        lo = np.array(nav.origin)
+        for x, z in rng.uniform(lo - 0.05, lo + 0.65, (3000, 2)):
+            y, tol = float(rng.choice([0.0, 0.2, 0.1])), float(rng.choice([0.01, 0.15]))
+            want = layer_height(nav, x, y, z, tol)
+            got = contain.layer_height(cols, pos, nrm, p, x, y, z, tol)
+            assert (math.isnan(want) and math.isnan(got)) or want == got
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_compiled_turns_are_the_python_turns(seed):
+    """HeadSteer._contain and _more_room with a SurfaceTest (compiled) and with the same test
+    in Python: the same turn, step, U-turn side, hold and creep, bit for bit."""
+    nav = patchy_grid(seed)
+    rng = np.random.default_rng(100 + seed)
+    seen = set()
+    for trial in range(400):
+        grid = trial % 2 == 0
+        one = a_head(rng, nav, grid)
+        two = copy.deepcopy(one)
+        y = 0.2 if trial % 5 == 0 else 0.0
+        near = crowded(nav, rng, one.base[[0, 2]]) if trial % 3 else ()
+        args = (nav, y, 0.05) + near
+        fast, slow = contain.SurfaceTest(*args), contain.plain_test(*args)
+        for h in (one, two):
+            h._u_side = float(rng.choice([0.0, 1.0, -1.0]))
+            h.hold = trial % 4 == 0
+        two._u_side, two.hold = one._u_side, one.hold
+        ang = float(rng.uniform(-math.pi, math.pi))
+        a = float(np.clip(ang, -0.05, 0.05))
+        step = float(rng.choice([0.2 * DT, 0.05 * DT, 0.25 * DT]))
+        got = one._contain(a, ang, step, DT, fast)
+        want = two._contain(a, ang, step, DT, slow)
+        assert got == want
+        assert (one._u_side, one.held, one._creep) == (two._u_side, two.held, two._creep)
+        for side in (1.0, -1.0):
+            assert one._more_room(side, -side, fast) == two._more_room(side, -side, slow)
+        seen.add((got == (a, step), one.held, one._creep > 0.0))
+    assert len(seen) >= 3          # the wanted turn, other turns, and holds or turns on the spot
+
+
+def test_compiled_heads_walk_the_python_heads_steps():
+    """Whole walks: two heads chasing the same agent over patchy ground, one with a SurfaceTest
+    and one with the Python test, stay bit for bit the same."""
+    nav = patchy_grid(7, n=60, holes=0.35)
+    rng = np.random.default_rng(7)
+    for walk in range(6):
+        one = a_head(rng, nav, walk % 2 == 0)
+        two = copy.deepcopy(one)
+        lo = np.array(nav.origin)
+        for k in range(600):
+            if k % 150 == 0:
+                ax, az = rng.uniform(lo + 0.05, lo + 0.85)
+            agent = np.array([ax, 0.0, az])
+            for h, test in ((one, contain.SurfaceTest(nav, 0.0, 0.05)),
+                            (two, contain.plain_test(nav, 0.0, 0.05))):
+                h.step(DT, agent, 0.2, allowed=test)
+            assert one.base.tobytes() == two.base.tobytes()
+            assert one.position.tobytes() == two.position.tobytes()
+
+
+def test_the_compiled_line_of_sight_is_the_python_walk():
+    """contain.line_clear against the follower's walk in Python (head.way_points, the height
+    continued point by point), and contain.way_points against head.way_points."""
+    nav = patchy_grid(11)
+    cols, pos, nrm, p = contain.grid_arrays(nav)
+    rng = np.random.default_rng(11)
+    lo = np.array(nav.origin)
+    outcomes = set()
+    for trial in range(2000):
+        grid = (nav.origin[0], nav.origin[1], CELL) if trial % 3 else None
+        (bx, bz), (qx, qz) = rng.uniform(lo, lo + 0.6, (2, 2))
+        dx, dz = qx - bx, qz - bz
+        n = math.hypot(dx, dz)
+        y = 0.0
+        want = True
+        for r in way_points(bx, bz, dx / n, dz / n, 0.0, n, grid):
+            y = layer_height(nav, bx + r * dx / n, y, bz + r * dz / n, 0.05)
+            if y != y:
+                want = False
+                break
+        got = contain.line_clear(cols, pos, nrm, p, bx, bz, dx, dz, n, 0.0, 0.05,
+                                 grid_array(grid))
+        assert got == want
+        outcomes.add(got)
+        s = float(rng.uniform(0.0, 0.5 * n))
+        py = way_points(bx, bz, dx / n, dz / n, s, n, grid)
+        out = np.empty(contain.crossings_bound(s, n, grid_array(grid)))
+        k = contain.way_points(bx, bz, dx / n, dz / n, s, n, grid_array(grid), out)
+        assert out[:k].tolist() == py
+    assert outcomes == {True, False}
+
+
+def test_signals_during_the_direct_compiled_calls_stop_cleanly():
+    """The kernels are called on the main thread: 100 SIGTERMs at staggered moments, each
+    raising there, during repeated calls of each stop them cleanly (an array returned would
+    crash the process, parallel.off_main_thread)."""
+    assert_signals_stop_cleanly("""
+        import sys, math
+        sys.path[:0] = [%r, %r]
+        from test_head_compiled import patchy_grid, crowded, a_head, DT
+        from baker.locomotion import contain
+        nav = patchy_grid(3)
+        rng = np.random.default_rng(3)
+        head = a_head(rng, nav, True)
+        test = contain.SurfaceTest(nav, 0.0, 0.05, *crowded(nav, rng, head.base[[0, 2]]))
+        head._contain(0.05, 3.0, 0.2 * DT, DT, test)     # compiled (or loaded) before the signals
+        head._more_room(1.0, -1.0, test)
+        test(head.base[0], head.base[2])
+        """ % (str(HERE), str(HERE.parent / "tools")), """
+        head._contain(0.05, 3.0, 0.2 * DT, DT, test)
+        head._more_room(1.0, -1.0, test)
+        test(head.base[0], head.base[2])
+        """, times=100)
