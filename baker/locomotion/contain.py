@@ -47,8 +47,8 @@ class SurfaceTest:
                  ref: tuple[float, float] = (0.0, 0.0), need: float = 0.0):
         self.cols, self.positions, self.normals, grid = grid_arrays(nav)
         self.near = _NO_NEAR if near is None else near
-        self.params = np.concatenate(
-            [grid, (y, tol, ref[0], ref[1], math.sqrt(max(need, 0.0)), need)])
+        self.params = np.array((*grid.tolist(), y, tol, ref[0], ref[1],
+                                math.sqrt(max(need, 0.0)), need))
 
     def __call__(self, x: float, z: float) -> bool:
         return _allowed(self.cols, self.positions, self.normals, self.near, self.params,
@@ -94,6 +94,19 @@ def grid_arrays(nav) -> tuple:
             np.array([nav.origin[0], nav.origin[1], nav.cell_size, nav.shape[0], nav.shape[1]],
                      dtype=np.float64))
     return got
+
+
+@njit(cache=True, nogil=True)
+def nearest_sq(points, x, z):
+    """((points[:, 0] - x) ** 2 + (points[:, 1] - z) ** 2).min() (the same bits; inf when
+    there are no points)."""
+    best = math.inf
+    for i in range(points.shape[0]):
+        dx, dz = points[i, 0] - x, points[i, 1] - z
+        d = dx * dx + dz * dz
+        if d < best:
+            best = d
+    return best
 
 
 @njit(cache=True, nogil=True, inline="always")

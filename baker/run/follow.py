@@ -35,7 +35,8 @@ from baker.geometry import polyline
 from baker.geometry.transforms import normalize
 from baker.locomotion.agent import PathAgent
 from baker.locomotion.body import project_to_surface
-from baker.locomotion.contain import SurfaceTest, grid_arrays, line_clear, plain_test
+from baker.locomotion.contain import (SurfaceTest, grid_arrays, line_clear, nearest_sq,
+                                      plain_test)
 from baker.locomotion.head import HeadSteer, grid_array, way_points
 from baker.locomotion.legs import STANCE_TURN, folded_lever, hip_line
 from baker.navmesh.lazy import LazyNav
@@ -366,14 +367,14 @@ class Follower:
         if self.others is None:
             return test(self.nav, self.height, self.tol)
         others = self.others
-        ox, oz = others[:, 0], others[:, 1]
-        b = self.head.base
-        d2 = (ox - b[0]) ** 2 + (oz - b[2]) ** 2
-        need = min(self.separation ** 2, float(d2.min()))
+        bx, _, bz = self.head.base.tolist()
+        need = min(self.separation ** 2, nearest_sq(others, bx, bz))
         need -= 1e-12
         if self._sorted is None or self._sorted[0] is not others:
+            ox, oz = others[:, 0], others[:, 1]
+            d2 = (ox - bx) ** 2 + (oz - bz) ** 2
             order = np.argsort(d2, kind="stable")
-            self._sorted = (others, (float(b[0]), float(b[2])),
+            self._sorted = (others, (bx, bz),
                             np.stack([np.sqrt(d2[order]) - 1e-6, ox[order], oz[order]], axis=1))
         _, ref, near = self._sorted
         return test(self.nav, self.height, self.tol, near, ref, need)
