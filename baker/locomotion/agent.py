@@ -7,8 +7,23 @@ import math
 from bisect import bisect_right
 
 import numpy as np
+from numba import njit
 
 from baker.geometry import polyline
+
+
+@njit(cache=True, nogil=True)
+def _largest_jump(points, i0, i1):
+    """np.abs(np.diff(points[i0:i1, 1])).max(): NaN when a height is NaN (returns a number:
+    called on the main thread, see locomotion.contain)."""
+    best = 0.0
+    for i in range(i0, i1 - 1):
+        d = abs(points[i + 1, 1] - points[i, 1])
+        if d != d:
+            return math.nan
+        if d > best:
+            best = d
+    return best
 
 
 class PathAgent:
@@ -83,7 +98,7 @@ class PathAgent:
         i1 = min(bisect_right(cum, self._s + ahead) + 1, len(cum))
         if i1 - i0 < 2:
             return 0.0
-        return float(np.abs(np.diff(self._points[i0:i1, 1])).max())
+        return _largest_jump(self._points, i0, i1)
 
     @property
     def goal(self) -> np.ndarray:

@@ -145,7 +145,7 @@ def _allowed(cols, pos, nrm, near, p, x, z):
 
 @njit(cache=True, nogil=True)
 def layer_height(cols, pos, nrm, p, x, y, z, tol):
-    """_layer on its own (tests)."""
+    """NavSurface.layer_height on grid_arrays' arrays (the same bits)."""
     return _layer(cols, pos, nrm, p, x, y, z, tol)
 
 

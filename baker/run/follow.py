@@ -26,6 +26,7 @@ Every step:
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import numpy as np
 
@@ -37,6 +38,7 @@ from baker.locomotion.agent import PathAgent
 from baker.locomotion.body import project_to_surface
 from baker.locomotion.contain import (SurfaceTest, grid_arrays, line_clear, nearest_sq,
                                       plain_test)
+from baker.locomotion.contain import layer_height as compiled_layer_height
 from baker.locomotion.head import HeadSteer, grid_array, way_points
 from baker.locomotion.legs import STANCE_TURN, folded_lever, hip_line
 from baker.navmesh.lazy import LazyNav
@@ -442,11 +444,13 @@ class Follower:
         (the slither), the layer's height under the head's base (kept on the surface), then the
         floor found by rays near that height; else the previous height. (Rays at the side of a
         staircase can find the tread below; the base's column is on the flight.)"""
-        y = self.nav.layer_height(float(p[0]), self.height, float(p[2]), self.tol)
+        layer = (partial(compiled_layer_height, *grid_arrays(self.nav)) if self._compiled
+                 else self.nav.layer_height)
+        y = layer(float(p[0]), self.height, float(p[2]), self.tol)
         if not math.isnan(y):
             return y
         b = self.head.base
-        y = self.nav.layer_height(float(b[0]), self.height, float(b[2]), self.tol)
+        y = layer(float(b[0]), self.height, float(b[2]), self.tol)
         if not math.isnan(y):
             return y
         g, _, hit = project_to_surface(self.rays, np.array([[p[0], self.height, p[2]]]), self.probe)
