@@ -109,7 +109,7 @@ def nearest_sq(points, x, z):
     return best
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _layer(cols, pos, nrm, p, x, y, z, tol):
     """navmesh.query.layer_height: the height of the walkable layer in the column of (x, z)
     closest to y, NaN when none is within tol (the same arithmetic)."""
@@ -185,7 +185,7 @@ def more_room(cols, pos, nrm, near, p, hx, hz, px, pz, first, second, r, cos, si
                        sin) > room
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _crossings(x, dx, s, reach, o, cell, ts, n):
     """head.way_points' column crossings along one axis, appended to ts[n:]; returns the new
     count."""
@@ -216,7 +216,12 @@ def way_points(x, z, dx, dz, s, reach, grid, out):
     if n == 0:
         out[0] = reach
         return 1
-    ts = np.sort(ts[:n])
+    for i in range(1, n):          # insertion sort: a few crossings (the same order as a sort)
+        v, j = ts[i], i - 1
+        while j >= 0 and ts[j] > v:
+            ts[j + 1] = ts[j]
+            j -= 1
+        ts[j + 1] = v
     k = 0
     for i in range(n - 1):
         if ts[i + 1] - ts[i] > 1e-12:
@@ -226,7 +231,7 @@ def way_points(x, z, dx, dz, s, reach, grid, out):
     return k + 1
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def crossings_bound(s, reach, grid):
     """At least the length way_points needs for a way from s to reach."""
     if grid[2] <= 0.0:
@@ -255,7 +260,7 @@ def _free(cols, pos, nrm, near, p, hx, hz, bx, bz, t, s, reach, grid):
     return True
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _clamp(x, lo, hi):
     """Python's max(lo, min(hi, x)), ties and signed zeros included."""
     y = x if x < hi else hi
