@@ -7,23 +7,9 @@ import math
 from bisect import bisect_right
 
 import numpy as np
-from numba import njit
 
 from baker.geometry import polyline
-
-
-@njit(cache=True, nogil=True)
-def _largest_jump(points, i0, i1):
-    """np.abs(np.diff(points[i0:i1, 1])).max(): NaN when a height is NaN (returns a number:
-    called on the main thread, see locomotion.contain)."""
-    best = 0.0
-    for i in range(i0, i1 - 1):
-        d = abs(points[i + 1, 1] - points[i, 1])
-        if d != d:
-            return math.nan
-        if d > best:
-            best = d
-    return best
+from baker.locomotion.contain import largest_jump
 
 
 class PathAgent:
@@ -52,7 +38,7 @@ class PathAgent:
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         if len(pts) == 0 or np.linalg.norm(pts[0] - self.position) > 1e-9:
             pts = np.vstack([self.position, pts])
-        self._points = pts
+        self._points = np.ascontiguousarray(pts)
         self._cum = polyline.arc_lengths(pts).tolist()
         self._rows = pts.tolist()
         self._s = 0.0
@@ -98,7 +84,7 @@ class PathAgent:
         i1 = min(bisect_right(cum, self._s + ahead) + 1, len(cum))
         if i1 - i0 < 2:
             return 0.0
-        return _largest_jump(self._points, i0, i1)
+        return largest_jump(self._points, i0, i1)
 
     @property
     def goal(self) -> np.ndarray:

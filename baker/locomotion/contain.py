@@ -1,5 +1,7 @@
 """The head's surface test as data, and the turns that keep the head on the walkable surface,
-compiled with numba (HeadSteer._contain, _more_room and the follower's line of sight).
+compiled with numba (HeadSteer._contain, _more_room and the follower's line of sight), with the
+other small kernels the run calls every step (layer heights, the nearest other body point, the
+agent's largest rise ahead).
 
 A SurfaceTest is `allowed(x, z)` as plain arrays: the navigation grid's columns (the arrays
 NavSurface.layer_height reads), the layer's height and tolerance, and, in a crowd, the other
@@ -13,7 +15,7 @@ thread hop, 25-95 us, is more than these calls cost, and a 100-creature run make
 thousand of them). That is safe because each kernel returns only a number or a bool and writes
 anything else into arrays it is given: numba converts those in C, while an array returned is
 boxed through Python code, where a signal handler's exception (baker.signals) would crash the
-process.
+process. They are compiled (or loaded from numba's cache) off the main thread first (ready).
 """
 
 from __future__ import annotations
@@ -21,7 +23,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, typeof
+
+from baker.parallel import off_main_thread
 
 #: points tested along a look-ahead without a grid (head.LOOK_SAMPLES)
 LOOK_SAMPLES = 8
@@ -80,6 +84,41 @@ def plain_test(nav, y: float, tol: float, near: np.ndarray | None = None,
     return allowed
 
 
+#: the grids' array types whose kernels are compiled (or loaded) in this process (ready)
+_READY: set = set()
+
+
+def ready(nav) -> None:
+    """Compile the kernels for this grid's array types (or load them from numba's cache) on
+    parallel.off_main_thread's thread, once per process, before they are called directly: a
+    signal whose handler raises during a compile on the main thread lands in LLVM's callbacks,
+    which print the exception they ignore."""
+    arrays = grid_arrays(nav)
+    key = tuple(typeof(a) for a in arrays[:3])
+    if key not in _READY:
+        off_main_thread(_first_calls, *arrays)
+        _READY.add(key)
+
+
+def _first_calls(cols, pos, nrm, grid) -> None:
+    """Every kernel called once on these arrays (ready)."""
+    test = SurfaceTest.__new__(SurfaceTest)
+    test.cols, test.positions, test.normals = cols, pos, nrm
+    test.near = np.zeros((1, 3))
+    test.params = np.concatenate([grid, (0.0, 1.0, 0.0, 0.0, 0.01, 1e-4)])
+    args = test.kernel_args()
+    cos = sin = np.linspace(0.0, 1.0, 3)
+    none = np.zeros(3)
+    _allowed(*args, 0.0, 0.0)
+    more_room(*args, 1.0, 0.0, 0.0, 0.0, 1.0, -1.0, 0.01, cos, sin)
+    contain(*args, np.array([1.0, 0.0, 0.0, 0.0, 0.1, 0.2, 1e-3, 4e-3, 0.1, 0.01, 0.04, 1.0,
+                             0.0, 3.0]), none, cos, sin, cos, sin, np.empty(3))
+    line_clear(cols, pos, nrm, grid, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0, none)
+    layer_height(cols, pos, nrm, grid, 0.0, 0.0, 0.0, 1.0)
+    nearest_sq(np.zeros((1, 2)), 0.0, 0.0)
+    largest_jump(np.zeros((2, 3)), 0, 2)
+
+
 def grid_arrays(nav) -> tuple:
     """(col_start, positions, normals, [x0, z0, cell, nx, nz]) of the navigation surface's
     current grid, as the kernels read them (kept in its query cache: a lazy surface's grid is
@@ -94,6 +133,20 @@ def grid_arrays(nav) -> tuple:
             np.array([nav.origin[0], nav.origin[1], nav.cell_size, nav.shape[0], nav.shape[1]],
                      dtype=np.float64))
     return got
+
+
+@njit(cache=True, nogil=True)
+def largest_jump(points, i0, i1):
+    """np.abs(np.diff(points[i0:i1, 1])).max() (PathAgent.largest_rise; NaN when a height is
+    NaN)."""
+    best = 0.0
+    for i in range(i0, i1 - 1):
+        d = abs(points[i + 1, 1] - points[i, 1])
+        if d != d:
+            return math.nan
+        if d > best:
+            best = d
+    return best
 
 
 @njit(cache=True, nogil=True)

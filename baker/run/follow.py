@@ -39,6 +39,7 @@ from baker.locomotion.body import project_to_surface
 from baker.locomotion.contain import (SurfaceTest, grid_arrays, line_clear, nearest_sq,
                                       plain_test)
 from baker.locomotion.contain import layer_height as compiled_layer_height
+from baker.locomotion.contain import ready as compiled_ready
 from baker.locomotion.head import HeadSteer, grid_array, way_points
 from baker.locomotion.legs import STANCE_TURN, folded_lever, hip_line
 from baker.navmesh.lazy import LazyNav
@@ -103,6 +104,8 @@ class Follower:
         # Python through its layer_height
         self._compiled = type(nav).layer_height in (NavSurface.layer_height,
                                                     LazyNav.layer_height)
+        if self._compiled:
+            compiled_ready(nav)
         self.height = float(start[1])
         self.body_length = body.length
         self.rough_speed = loco.rough_speed

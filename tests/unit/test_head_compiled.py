@@ -192,3 +192,20 @@ def test_signals_during_the_direct_compiled_calls_stop_cleanly():
         head._more_room(1.0, -1.0, test)
         test(head.base[0], head.base[2])
         """, times=100)
+
+
+def test_ready_compiles_every_direct_kernel_for_the_grid_s_array_types():
+    """contain.ready compiles (off the main thread) each kernel the run calls directly for the
+    grid's array types, read-only ones (a memory-mapped cache's) included, so no call compiles
+    on the main thread, where a signal would land inside LLVM's callbacks."""
+    from numba import typeof
+
+    for writeable in (True, False):
+        nav = patchy_grid(5)
+        for a in (nav.col_start, nav.positions, nav.normals):
+            a.flags.writeable = writeable
+        contain.ready(nav)
+        types = tuple(typeof(a) for a in contain.grid_arrays(nav)[:3])
+        for kernel in (contain._allowed, contain.contain, contain.more_room, contain.line_clear,
+                       contain.layer_height):
+            assert any(tuple(sig[:3]) == types for sig in kernel.signatures), kernel
