@@ -114,6 +114,8 @@ def _first_calls(cols, pos, nrm, grid) -> None:
     contain(*args, np.array([1.0, 0.0, 0.0, 0.0, 0.1, 0.2, 1e-3, 4e-3, 0.1, 0.01, 0.04, 1.0,
                              0.0, 3.0]), none, cos, sin, cos, sin, np.empty(3))
     line_clear(cols, pos, nrm, grid, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0, none)
+    head_step(*args, np.zeros(len(ST)), np.linspace(0.1, 1.0, len(PRM)), np.ones(3), none, 0.1,
+              1e-3, none, cos, sin, cos, sin)
     layer_height(cols, pos, nrm, grid, 0.0, 0.0, 0.0, 1.0)
     nearest_sq(np.zeros((1, 2)), 0.0, 0.0)
     largest_jump(np.zeros((2, 3)), 0, 2)
@@ -433,6 +435,113 @@ def contain(cols, pos, nrm, near, p, h, grid, cos, sin, fracs, deflect, out):
             break
     out[0], out[1] = _clamp(want, -turn, turn), 0.0
     return CREPT
+
+
+#: HeadSteer's state in head_step's `st` (read and written) and its settings in `prm`
+ST = ("bx", "by", "bz", "hx", "hz", "phase", "lateral_amp", "sx", "sz", "u_side", "creep",
+      "hold", "held", "speed", "px", "py", "pz")
+PRM = ("lead", "max_speed", "speed_cap", "tight_speed", "turn_radius", "max_yaw_rate",
+       "min_radius", "turn_rate", "turn_rate_scale", "amplitude", "max_offset", "catch_up")
+
+
+@njit(cache=True, nogil=True)
+def head_step(cols, pos, nrm, near, p, st, prm, agent, aim, agent_speed, dt, grid, cos, sin,
+              fracs, deflect):
+    """HeadSteer.step with a SurfaceTest, the same arithmetic in the same order: st (ST) is
+    updated in place; agent (3,), aim (3,) or NaN (none). Returns 1 when the base moved (the
+    heading and base are new), else 0."""
+    bx, by, bz, hx, hz = st[0], st[1], st[2], st[3], st[4]
+    lead, max_speed, speed_cap, turn_radius = prm[0], prm[1], prm[2], prm[4]
+    ax, ay, az = agent[0], agent[1], agent[2]
+    tx, tz = ax - bx, az - bz
+    dist = hypot(tx, tz)
+    if aim[0] == aim[0] and hypot(aim[0] - bx, aim[2] - bz) > 1e-9:
+        tx, tz = aim[0] - bx, aim[2] - bz
+        dist = hypot(tx, tz) + hypot(ax - aim[0], az - aim[2])
+    u = agent_speed + 4.0 * (dist - lead)          # Python's min(u, catch-up, cap), max(0, ..)
+    cap = prm[11] * max_speed
+    u = cap if cap < u else u
+    u = speed_cap if speed_cap < u else u
+    u = u if u > 0.0 else 0.0
+    if dist < 1e-9:
+        u = 0.0
+    moved = 0
+    if u > 0.0 and dist > 1e-9:
+        if agent_speed == 0.0:
+            rest = dist - 0.25 * lead
+            rest = 0.0 if 0.0 > rest else rest
+            step = u * dt
+            step = rest if rest < step else step
+        else:
+            step = u * dt
+        if st[10] > 0.0:
+            slow = prm[3] * dt
+            step = slow if slow < step else step
+        m = hypot(tx, tz)
+        m = 1e-12 if 1e-12 > m else m
+        wx, wz = tx / m, tz / m
+        ang = math.atan2(hz * wx - hx * wz, hx * wx + hz * wz)
+        if abs(ang) <= 0.5 * math.pi:                  # HeadSteer._u_turn
+            st[9] = 0.0
+        else:
+            if st[9] == 0.0:
+                side = 1.0 if ang >= 0.0 else -1.0
+                if more_room(cols, pos, nrm, near, p, hx, hz, bx, bz, side, -side, turn_radius,
+                             cos, sin):
+                    side = -side
+                st[9] = side
+            if ang * st[9] < 0.0:
+                ang += st[9] * 2.0 * math.pi
+        lim = step / turn_radius
+        if abs(ang) > 0.5:
+            quick = prm[5] * turn_radius * dt
+            step = quick if quick < step else step
+            lim = step / turn_radius
+        a = _clamp(ang, -lim, lim)
+        if _allowed(cols, pos, nrm, near, p, bx, bz):
+            h = np.array([hx, hz, bx, bz, a, ang, step, dt, prm[3], prm[6], turn_radius, st[9],
+                          st[11], prm[5]])
+            out = np.empty(3)
+            flags = contain(cols, pos, nrm, near, p, h, grid, cos, sin, fracs, deflect, out)
+            a, step = out[0], out[1]
+            if flags & SIDE:
+                st[9] = out[2]
+            if flags & HELD:
+                st[12] = 1.0
+            if flags & CREPT:
+                st[10] = 2.0 * prm[6]
+        creep = st[10] - step
+        st[10] = creep if creep > 0.0 else 0.0
+        c, sn = math.cos(a), math.sin(a)
+        hx, hz = c * hx + sn * hz, -sn * hx + c * hz
+        bx, by, bz = bx + hx * step, ay, bz + hz * step
+        st[0], st[1], st[2], st[3], st[4] = bx, by, bz, hx, hz
+        u = step / dt
+        moved = 1
+    st[13] = u
+    frac = u / max_speed
+    frac = frac if frac < 2.0 else 2.0
+    rate = prm[7] * prm[8]
+    omega = rate * frac
+    st[5] += omega * dt
+    if omega > 1e-9:
+        want = u * prm[9] / (rate if rate > 1e-9 else 1e-9)
+        want = prm[10] if prm[10] < want else want
+    else:
+        want = st[6]
+    dmax = 0.1 * u * dt
+    st[6] += _clamp(want - st[6], -dmax, dmax)
+    w = u * dt / (0.5 * turn_radius)
+    w = w if w < 1.0 else 1.0
+    sx, sz = st[7], st[8]
+    dx, dz = sx + w * (hx - sx), sz + w * (hz - sz)
+    n = hypot(dx, dz)
+    if n > 1e-9:
+        sx, sz = dx / n, dz / n
+        st[7], st[8] = sx, sz
+    k = st[6] * math.sin(st[5])
+    st[14], st[15], st[16] = bx + sz * k, by + 0.0 * k, bz + -sx * k
+    return moved
 
 
 @njit(cache=True, nogil=True)

@@ -33,6 +33,8 @@ _ARC_COS, _ARC_SIN = (a.tolist() for a in _ARC_COS_SIN)
 #: leave the walkable surface (toward the agent's side first)
 _TIGHT = (0.25, 0.5, 0.75, 1.0)
 _TIGHT_ARRAY = np.array(_TIGHT)
+#: no aim point (contain.head_step)
+_NO_AIM = np.full(3, np.nan)
 #: such a turn's largest yaw rate, in multiples of the head's yaw-rate limit (about the rate of
 #: its usual turning circle at full speed)
 CONTAIN_YAW = 2.0
@@ -101,6 +103,8 @@ class HeadSteer:
         aim     : optional point to steer toward instead of the agent (a point of the agent's
                   path the head can see); the speed still keeps the head a lead behind the agent
         """
+        if isinstance(allowed, compiled.SurfaceTest):
+            return self._step_compiled(dt, agent_pos, agent_speed, allowed, aim)
         # in Python floats (the same operations, so the same bits as on the (3,) arrays)
         bx, by, bz = self.base.tolist()
         ax, ay, az = np.asarray(agent_pos, dtype=np.float64).tolist()
@@ -167,6 +171,30 @@ class HeadSteer:
             self.sway_dir = np.array([sx, 0.0, sz])
         k = self.lateral_amp * math.sin(self.phase)
         self.position = np.array([bx + sz * k, by + 0.0 * k, bz + -sx * k])
+
+    def _step_compiled(self, dt: float, agent_pos, agent_speed: float,
+                       test: compiled.SurfaceTest, aim) -> None:
+        """step() with a SurfaceTest, compiled (contain.head_step: the same bits)."""
+        (hx, _, hz), (sx, _, sz) = self.heading.tolist(), self.sway_dir.tolist()
+        st = np.array([*self.base.tolist(), hx, hz, self.phase, self.lateral_amp, sx, sz,
+                       self._u_side, self._creep, float(self.hold), float(self.held),
+                       self.speed, 0.0, 0.0, 0.0])
+        prm = np.array([self.lead, self.max_speed, self.speed_cap, self.tight_speed,
+                        self.turn_radius, self.max_yaw_rate, self.min_radius, self.turn_rate,
+                        self.turn_rate_scale, self.amplitude, self.max_offset, CATCH_UP])
+        moved = compiled.head_step(*test.kernel_args(), st, prm,
+                                   np.asarray(agent_pos, dtype=np.float64),
+                                   _NO_AIM if aim is None else np.asarray(aim, dtype=np.float64),
+                                   float(agent_speed), float(dt), grid_array(self.grid),
+                                   *_ARC_COS_SIN, _TIGHT_ARRAY, _DEFLECT)
+        v = st.tolist()
+        if moved:
+            self.base = np.array(v[0:3])
+            self.heading = np.array([v[3], 0.0, v[4]])
+        self.phase, self.lateral_amp = v[5], v[6]
+        self.sway_dir = np.array([v[7], 0.0, v[8]])
+        self._u_side, self._creep, self.held, self.speed = v[9], v[10], bool(v[12]), v[13]
+        self.position = np.array(v[14:17])
 
     def _u_turn(self, ang: float, allowed) -> float:
         """A target more than a right angle off the heading is a U-turn: it keeps to the side it

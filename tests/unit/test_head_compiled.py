@@ -122,7 +122,9 @@ def test_compiled_turns_are_the_python_turns(seed):
 
 def test_compiled_heads_walk_the_python_heads_steps():
     """Whole walks: two heads chasing the same agent over patchy ground, one with a SurfaceTest
-    and one with the Python test, stay bit for bit the same."""
+    (its whole step compiled, contain.head_step) and one with the Python test (head.py's
+    step), stay bit for bit the same, aiming at a point at times, with the agent stopped at
+    times, under a speed cap and other slither rates."""
     nav = patchy_grid(7, n=60, holes=0.35)
     rng = np.random.default_rng(7)
     for walk in range(6):
@@ -133,11 +135,20 @@ def test_compiled_heads_walk_the_python_heads_steps():
             if k % 150 == 0:
                 ax, az = rng.uniform(lo + 0.05, lo + 0.85)
             agent = np.array([ax, 0.0, az])
+            aim = None
+            if k % 200 > 120:            # at times an aim point almost straight ahead (a turn
+                hx, _, hz = one.heading  # smaller than a step's largest)
+                aim = one.base + [0.08 * hx + 0.0005 * hz, 0.0, 0.08 * hz - 0.0005 * hx]
+            speed = 0.0 if k % 150 > 130 else 0.2                         # the agent stopped
+            one.speed_cap = two.speed_cap = math.inf if k % 100 < 70 else 0.05
+            one.turn_rate_scale = two.turn_rate_scale = 1.0 + (k % 3) * 0.5
             for h, test in ((one, contain.SurfaceTest(nav, 0.0, 0.05)),
                             (two, contain.plain_test(nav, 0.0, 0.05))):
-                h.step(DT, agent, 0.2, allowed=test)
-            assert one.base.tobytes() == two.base.tobytes()
-            assert one.position.tobytes() == two.position.tobytes()
+                h.step(DT, agent, speed, allowed=test, aim=aim)
+            for name in ("base", "heading", "position", "sway_dir"):
+                assert getattr(one, name).tobytes() == getattr(two, name).tobytes(), name
+            assert ((one.phase, one.lateral_amp, one.speed, one._u_side, one._creep, one.held)
+                    == (two.phase, two.lateral_amp, two.speed, two._u_side, two._creep, two.held))
 
 
 def test_the_compiled_line_of_sight_is_the_python_walk():
@@ -208,7 +219,7 @@ def test_ready_compiles_every_direct_kernel_for_the_grid_s_array_types():
         contain.ready(nav)
         types = tuple(typeof(a) for a in contain.grid_arrays(nav)[:3])
         for kernel in (contain._allowed, contain.contain, contain.more_room, contain.line_clear,
-                       contain.layer_height):
+                       contain.layer_height, contain.head_step):
             assert any(tuple(sig[:3]) == types for sig in kernel.signatures), kernel
 
 
