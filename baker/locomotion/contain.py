@@ -1,14 +1,14 @@
-"""The head's surface test as data, and the turns that keep the head on the walkable surface,
-compiled with numba (HeadSteer._contain, _more_room and the follower's line of sight), with the
-other small kernels the run calls every step (layer heights, the nearest other body point, the
-agent's largest rise ahead).
+"""The head's surface test as data, and the head's step with the turns that keep it on the
+walkable surface, compiled with numba (HeadSteer.step, _contain, _more_room and the follower's
+line of sight), with the other small kernels the run calls every step (layer heights, the
+nearest other body point, the agent's largest rise ahead).
 
 A SurfaceTest is `allowed(x, z)` as plain arrays: the navigation grid's columns (the arrays
 NavSurface.layer_height reads), the layer's height and tolerance, and, in a crowd, the other
 bodies' points near the head, sorted by distance from a reference point (run.follow.Follower
 builds it every step). Called, it answers as the Python test it replaces; given to HeadSteer,
-the head's turns are tried in the compiled kernels below, with the same arithmetic in the same
-order as head.py's Python (the same bits: tests/unit/test_head_compiled.py).
+the head's whole step runs in the compiled kernels below (head_step), with the same arithmetic
+in the same order as head.py's Python (the same bits: tests/unit/test_head_compiled.py).
 
 These calls are made directly on the main thread, not through parallel.off_main_thread (its
 thread hop, 25-95 us, is more than these calls cost, and a 100-creature run makes a hundred
@@ -32,8 +32,7 @@ LOOK_SAMPLES = 8
 #: _contain's result flags: the U-turn's side changed (out[2]); cornered, held still; turned
 #: on the spot (the head creeps away from the corner)
 SIDE, HELD, CREPT = 1, 2, 4
-#: rows of a SurfaceTest's parameters: the grid (x0, z0, cell, nx, nz), the layer (y, tol),
-#: the other bodies' reference point and reach (x, z, sqrt(need), need)
+#: no other bodies' points (a SurfaceTest off a crowd)
 _NO_NEAR = np.empty((0, 3))
 
 
@@ -42,7 +41,8 @@ class SurfaceTest:
     `y` (NavSurface.layer_height is not NaN), and the point is at least sqrt(need) from every
     point of `near` that can be that close. near: (k, 3) rows (distance from (rx, rz) less a
     margin, x, z), nearest first: a point farther from (rx, rz) than the test point is by more
-    than sqrt(need) is never measured, nor those after it.
+    than sqrt(need) is never measured, nor those after it. params: the grid (x0, z0, cell,
+    nx, nz), the layer (y, tol), the reference point and reach (rx, rz, sqrt(need), need).
     """
 
     __slots__ = ("cols", "positions", "normals", "near", "params")

@@ -222,12 +222,6 @@ class HeadSteer:
                    radius: float | None = None) -> bool:
         """True when the head reaches more points round its circle on side `second` than on
         side `first` (_circle_room); the second circle is walked only until that is known."""
-        if isinstance(allowed, compiled.SurfaceTest):
-            hx, _, hz = self.heading.tolist()
-            bx, _, bz = self.base.tolist()
-            return compiled.more_room(*allowed.kernel_args(), hx, hz, bx, bz, first, second,
-                                      self.turn_radius if radius is None else radius,
-                                      *_ARC_COS_SIN)
         room = self._circle_room(first, allowed, radius)
         return self._circle_room(second, allowed, radius, beat=room) > room
 
@@ -273,11 +267,7 @@ class HeadSteer:
         steps apart, or turns on the spot, fold the trail back on itself in a cusp that the
         body's chord placement cannot follow (joints jump across it); a reversal on circles of
         min_radius is a loop it follows.
-
-        With a SurfaceTest, the same turns are tried compiled (_contained).
         """
-        if isinstance(allowed, compiled.SurfaceTest):
-            return self._contained(a, ang, step, dt, allowed)
         hx, _, hz = self.heading.tolist()      # Python floats: the same bits, sooner
         bx, _, bz = self.base.tolist()
         side = 1.0 if ang >= a else -1.0
@@ -339,26 +329,6 @@ class HeadSteer:
                      if free(t, step, step)), ang)
         self._creep = 2.0 * self.min_radius
         return max(-turn, min(turn, want)), 0.0
-
-    def _contained(self, a: float, ang: float, step: float, dt: float,
-                   test: compiled.SurfaceTest) -> tuple[float, float]:
-        """_contain's turns tried by the compiled kernel (contain.contain), with its side
-        effects (the U-turn's side, held, the creep after a turn on the spot)."""
-        hx, _, hz = self.heading.tolist()
-        bx, _, bz = self.base.tolist()
-        h = np.array([hx, hz, bx, bz, a, ang, step, dt, self.tight_speed, self.min_radius,
-                      self.turn_radius, self._u_side, float(self.hold), self.max_yaw_rate])
-        out = np.empty(3)
-        flags = compiled.contain(*test.kernel_args(), h, grid_array(self.grid), *_ARC_COS_SIN,
-                                 _TIGHT_ARRAY, _DEFLECT, out)
-        if flags & compiled.SIDE:
-            self._u_side = float(out[2])
-        if flags & compiled.HELD:
-            self.held = True
-        if flags & compiled.CREPT:
-            self._creep = 2.0 * self.min_radius
-        a, step = out[:2].tolist()
-        return a, step
 
 
 def grid_array(grid: tuple[float, float, float] | None) -> np.ndarray:

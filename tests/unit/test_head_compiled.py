@@ -18,7 +18,8 @@ from signal_stops import assert_signals_stop_cleanly
 
 from baker.config import SIM_RATE_HZ
 from baker.locomotion import contain
-from baker.locomotion.head import HeadSteer, grid_array, way_points
+from baker.locomotion.head import (_ARC_COS_SIN, _DEFLECT, _TIGHT_ARRAY, HeadSteer, grid_array,
+                                   way_points)
 from baker.navmesh.query import layer_height
 
 DT = 1.0 / SIM_RATE_HZ
@@ -75,6 +76,31 @@ def a_head(rng, nav, grid: bool) -> HeadSteer:
     return head
 
 
+def compiled_contain(head: HeadSteer, a, ang, step, test) -> tuple[float, float]:
+    """HeadSteer._contain's turns by the kernel head_step calls (contain.contain), with its
+    side effects on the head."""
+    (hx, _, hz), (bx, _, bz) = head.heading.tolist(), head.base.tolist()
+    h = np.array([hx, hz, bx, bz, a, ang, step, DT, head.tight_speed, head.min_radius,
+                  head.turn_radius, head._u_side, float(head.hold), head.max_yaw_rate])
+    out = np.empty(3)
+    flags = contain.contain(*test.kernel_args(), h, grid_array(head.grid), *_ARC_COS_SIN,
+                            _TIGHT_ARRAY, _DEFLECT, out)
+    if flags & contain.SIDE:
+        head._u_side = float(out[2])
+    if flags & contain.HELD:
+        head.held = True
+    if flags & contain.CREPT:
+        head._creep = 2.0 * head.min_radius
+    return tuple(out[:2].tolist())
+
+
+def compiled_more_room(head: HeadSteer, first, second, test) -> bool:
+    """HeadSteer._more_room by the kernel head_step calls (contain.more_room)."""
+    (hx, _, hz), (bx, _, bz) = head.heading.tolist(), head.base.tolist()
+    return contain.more_room(*test.kernel_args(), hx, hz, bx, bz, first, second,
+                             head.turn_radius, *_ARC_COS_SIN)
+
+
 def test_the_compiled_layer_height_is_the_query_s():
     for seed in range(3):
         nav = patchy_grid(seed)
@@ -90,8 +116,8 @@ def test_the_compiled_layer_height_is_the_query_s():
 
 @pytest.mark.parametrize("seed", range(4))
 def test_compiled_turns_are_the_python_turns(seed):
-    """HeadSteer._contain and _more_room with a SurfaceTest (compiled) and with the same test
-    in Python: the same turn, step, U-turn side, hold and creep, bit for bit."""
+    """HeadSteer._contain and _more_room compiled (the kernels head_step calls) and in Python
+    with the same test: the same turn, step, U-turn side, hold and creep, bit for bit."""
     nav = patchy_grid(seed)
     rng = np.random.default_rng(100 + seed)
     seen = set()
@@ -110,12 +136,12 @@ def test_compiled_turns_are_the_python_turns(seed):
         ang = float(rng.uniform(-math.pi, math.pi))
         a = float(np.clip(ang, -0.05, 0.05))
         step = float(rng.choice([0.2 * DT, 0.05 * DT, 0.25 * DT]))
-        got = one._contain(a, ang, step, DT, fast)
+        got = compiled_contain(one, a, ang, step, fast)
         want = two._contain(a, ang, step, DT, slow)
         assert got == want
         assert (one._u_side, one.held, one._creep) == (two._u_side, two.held, two._creep)
         for side in (1.0, -1.0):
-            assert one._more_room(side, -side, fast) == two._more_room(side, -side, slow)
+            assert compiled_more_room(one, side, -side, fast) == two._more_room(side, -side, slow)
         seen.add((got == (a, step), one.held, one._creep > 0.0))
     assert len(seen) >= 3          # the wanted turn, other turns, and holds or turns on the spot
 
@@ -190,18 +216,19 @@ def test_signals_during_the_direct_compiled_calls_stop_cleanly():
     assert_signals_stop_cleanly("""
         import sys, math
         sys.path[:0] = [%r, %r]
-        from test_head_compiled import patchy_grid, crowded, a_head, DT
+        from test_head_compiled import (patchy_grid, crowded, a_head, DT, compiled_contain,
+                                        compiled_more_room)
         from baker.locomotion import contain
         nav = patchy_grid(3)
         rng = np.random.default_rng(3)
         head = a_head(rng, nav, True)
         test = contain.SurfaceTest(nav, 0.0, 0.05, *crowded(nav, rng, head.base[[0, 2]]))
-        head._contain(0.05, 3.0, 0.2 * DT, DT, test)     # compiled (or loaded) before the signals
-        head._more_room(1.0, -1.0, test)
+        compiled_contain(head, 0.05, 3.0, 0.2 * DT, test)  # compiled (or loaded) before the signals
+        compiled_more_room(head, 1.0, -1.0, test)
         test(head.base[0], head.base[2])
         """ % (str(HERE), str(HERE.parent / "tools")), """
-        head._contain(0.05, 3.0, 0.2 * DT, DT, test)
-        head._more_room(1.0, -1.0, test)
+        compiled_contain(head, 0.05, 3.0, 0.2 * DT, test)
+        compiled_more_room(head, 1.0, -1.0, test)
         test(head.base[0], head.base[2])
         """, times=100)
 
