@@ -23,6 +23,7 @@ from baker.geometry.conventions import UP
 from baker.geometry.transforms import (frames_to_quat, length, limit_rotation, normalize,
                                        quat_angle)
 from baker.locomotion.cobra import limit_lift
+from baker.locomotion.trail_kernels import gaussian_weights, interp_rows, trail_pass
 from baker.parallel import off_main_thread
 
 
@@ -222,19 +223,18 @@ def trail_ends(paths: np.ndarray, cums: np.ndarray, ends: np.ndarray, extent: fl
     m = max(int(np.ceil(extent / res)), 1) + 1
     out = np.empty((n, m, 3))
     todo = rows
+    w_xz, w_y = gaussian_weights(sigma), gaussian_weights(2.0 * spacing / res)
+    paths = np.ascontiguousarray(paths, dtype=np.float64)
     while len(todo):
         # a dithering head's raw arc length is longer than its trail's: look farther back
         w = int(np.ceil(span[todo[0]] / res)) + 1
         s = total[todo, None] + np.linspace(-span[todo[0]], 0.0, w)[None, :]
-        pts = _interp_rows(np.maximum(s, 0.0), np.where(np.arange(cums.shape[1]) <= ends[todo, None],
-                                                        cums[todo], total[todo, None]),
-                           paths[todo])
+        xp = np.where(np.arange(cums.shape[1]) <= ends[todo, None], cums[todo], total[todo, None])
         k = min(pad, w - 1)
-        pts[..., [0, 2]] = straight_ended_smooth(pts[..., [0, 2]], sigma, axis=1, reach=pad)
-        pts[..., 1] = gaussian_filter1d(pts[..., 1], 2.0 * spacing / res, axis=1,
-                                        mode="nearest")
-        arc = np.concatenate([np.zeros((len(todo), 1)),
-                              np.cumsum(length(np.diff(pts, axis=1)), axis=1)], axis=1)
+        # resampled (_interp_rows), x and z smoothed with straight ends (straight_ended_smooth,
+        # reach pad), y smoothed: compiled, the same bits (locomotion.trail_kernels)
+        pts, arc = np.empty((len(todo), w, 3)), np.empty((len(todo), w))
+        trail_pass(np.maximum(s, 0.0), xp, paths[todo], _row_shifts(xp), w_xz, w_y, k, pts, arc)
         short = (s[:, 0] > 0.0) & (arc[:, -1] - arc[:, k] < extent)
         done = ~short
         q = arc[done, -1:] + np.linspace(-extent, 0.0, m)[None, :]
@@ -244,18 +244,23 @@ def trail_ends(paths: np.ndarray, cums: np.ndarray, ends: np.ndarray, extent: fl
     return out
 
 
+def _row_shifts(xp: np.ndarray) -> np.ndarray:
+    """(n,) the offsets _interp_rows adds to each row of knots xp (n, b) (and its keys) so
+    that the rows follow one another, at least 1 apart."""
+    width = float((xp[:, -1] - xp[:, 0]).max()) + 1.0
+    return width * np.arange(len(xp)) - xp[:, 0]
+
+
 def _interp_rows(x: np.ndarray, xp: np.ndarray, fp: np.ndarray) -> np.ndarray:
     """np.interp row by row, in one call: x (n, a), xp (n, b) non-decreasing rows, fp (n, b, d)
     -> (n, a, d) (each row's values clamped to its ends)."""
     n = len(x)
-    if n == 0:
-        return np.zeros((0, x.shape[1], fp.shape[2]))
-    x = np.clip(x, xp[:, :1], xp[:, -1:])
-    width = float((xp[:, -1] - xp[:, 0]).max()) + 1.0
-    shift = (width * np.arange(n) - xp[:, 0])[:, None]
-    flat_x, flat_xp = (x + shift).ravel(), (xp + shift).ravel()
-    return np.stack([np.interp(flat_x, flat_xp, fp[..., k].ravel()).reshape(x.shape)
-                     for k in range(fp.shape[2])], axis=-1)
+    out = np.empty((n, x.shape[1], fp.shape[2]))
+    if n:
+        interp_rows(np.ascontiguousarray(x, dtype=np.float64),
+                    np.ascontiguousarray(xp, dtype=np.float64),
+                    np.ascontiguousarray(fp, dtype=np.float64), _row_shifts(xp), out)
+    return out
 
 
 def chain_on(trails: np.ndarray, lift: np.ndarray, spacing: float,

@@ -185,16 +185,13 @@ class Bodies:
     def _place(self, rows: np.ndarray, amount: np.ndarray) -> np.ndarray:
         """(len(rows), size, 2) the body points of creatures `rows`."""
         ends = self.count[rows]
-        starts = [int(np.searchsorted(self.cum[i, :j + 1], self.cum[i, j] - self.window))
-                  for i, j in zip(rows, ends)]
-        size = int((ends + 1 - np.array(starts)).max())
-        paths = np.empty((len(rows), size, 3))
-        cums = np.empty((len(rows), size))
-        for r, (i, a, j) in enumerate(zip(rows, starts, ends)):
-            w = j + 1 - a
-            paths[r, :w], paths[r, w:] = self.path[i, a:j + 1], self.path[i, j]
-            cums[r, :w] = self.cum[i, a:j + 1] - self.cum[i, a]
-            cums[r, w:] = cums[r, w - 1]
+        starts = np.array([np.searchsorted(self.cum[i, :j + 1], self.cum[i, j] - self.window)
+                           for i, j in zip(rows.tolist(), ends.tolist())], dtype=np.intp)
+        size = int((ends + 1 - starts).max())
+        # each path from its window's start, held at its head's point after it
+        at = np.minimum(starts[:, None] + np.arange(size), ends[:, None])
+        paths = self.path[rows[:, None], at]
+        cums = self.cum[rows[:, None], at] - self.cum[rows, starts][:, None]
         trails = trail_ends(paths, cums, np.full(len(rows), size - 1), self.extent,
                             self.spacing, self.res)
         lift = np.zeros((len(rows), self.size))

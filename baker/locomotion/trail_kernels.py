@@ -1,0 +1,178 @@
+"""Compiled passes of locomotion.body.trail_ends (a crowd's body points for the neighbour
+query, placed every few steps of the run for every creature near another): the rows'
+interpolation (np.interp's arithmetic, row by row, on the shifted arc lengths body._interp_rows
+makes) and the smoothing (scipy.ndimage.gaussian_filter1d's correlation with mode "nearest",
+after straight_ended_smooth's straight ends), with the same bits as the numpy and scipy calls
+they replace (tests/unit/test_trail_kernels.py compares them).
+
+- np.interp (numpy/_core/src/multiarray/compiled_base.c, arr_interp): the key's interval j is
+  the last with xp[j] <= x; a key on a knot (or on the last one) takes that knot's value, else
+  slope * (x - xp[j]) + fp[j] with slope = (fp[j+1] - fp[j]) / (xp[j+1] - xp[j]) (and from the
+  other end when that is NaN). body._interp_rows shifts each row by its own offset so that the
+  rows follow one another in one flat call; a key clipped to its row's range never reaches the
+  next row's knots, so the flat call's answer is its row's.
+- correlate1d (scipy/ndimage/src/ni_filters.c, NI_Correlate1D) with a symmetric kernel of
+  radius r: out = in[0] * w[0], then += (in[-j] + in[j]) * w[j] for j = r down to 1, on the
+  line extended by r copies of its end values ("nearest").
+
+The kernels write into arrays they are given and return nothing. Each is compiled on
+parallel.off_main_thread's thread at its first call in a process, and called directly after
+that (`_call`).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+from numba import njit
+
+from baker.parallel import off_main_thread
+
+
+@functools.lru_cache(maxsize=16)
+def gaussian_weights(sigma: float) -> np.ndarray:
+    """(2 r + 1,) the weights scipy.ndimage.gaussian_filter1d correlates with for `sigma`
+    (truncated at 4 sigma), read back from its answer for a unit impulse: each output is
+    1 * w[j] plus products with zeros, exactly w[j]. Kept per sigma: not to be written to."""
+    from scipy.ndimage import gaussian_filter1d
+
+    r = int(4.0 * float(sigma) + 0.5)
+    impulse = np.zeros(2 * r + 1)
+    impulse[r] = 1.0
+    return gaussian_filter1d(impulse, sigma, mode="constant")
+
+
+def trail_pass(s, xp, fp, shift, w_xz, w_y, k, pts, arc) -> None:
+    """One pass of trail_ends over rows: pts (n, w, 3) = the paths fp (n, T, 3) interpolated at
+    arc lengths s (n, w) on knots xp (n, T) (shifted by shift (n,), as body._interp_rows does),
+    then x and z smoothed with w_xz after k straight samples at either end, y with w_y; arc
+    (n, w) its arc lengths from the first point. All float64, C-contiguous; pts, arc written."""
+    _call(_trail_pass, _c(s), _c(xp), _c(fp), _c(shift), _c(w_xz), _c(w_y), int(k), pts, arc)
+
+
+def interp_rows(x, xp, fp, shift, out) -> None:
+    """out (n, a, d) = np.interp of each row of x (n, a) on knots xp (n, b) with values
+    fp (n, b, d), each row shifted by shift (n,) (body._interp_rows); out float64,
+    C-contiguous."""
+    _call(_interp_rows, _c(x), _c(xp), _c(fp), _c(shift), out)
+
+
+def _c(a) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+#: the kernels compiled (or loaded from numba's cache) in this process
+_READY: set = set()
+
+
+def _call(kernel, *args) -> None:
+    """kernel(*args), on the main thread once compiled: its first call in a process runs on
+    parallel.off_main_thread's thread, which compiles it (a signal whose handler raises during
+    a compile on the main thread lands in LLVM's callbacks); the calls after it skip that
+    thread's hop (0.1-0.3 ms, more than a call). The kernels return nothing (a result boxed on
+    the main thread is what a raising handler broke: parallel.off_main_thread), and their
+    arguments always have the same types (float64, C-contiguous, writable; an int)."""
+    if kernel in _READY:
+        kernel(*args)
+    else:
+        off_main_thread(kernel, *args)
+        _READY.add(kernel)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _interp_row(x, xp, fp, s, out):
+    """np.interp of keys x (a,) on knots xp (b,) + s with values fp (b, d), into out (a, d);
+    the keys clipped to the knots' range first, then shifted by s."""
+    b = len(xp)
+    lo, hi = xp[0], xp[b - 1]
+    j = 0
+    for i in range(len(x)):
+        v = x[i]
+        v = lo if v < lo else v                  # np.clip(x, lo, hi)
+        v = hi if v > hi else v
+        v = v + s
+        # the last knot j with xp[j] + s <= v (the keys rise: search on from the last one)
+        if xp[j] + s > v:
+            j = 0
+        while j + 1 < b and xp[j + 1] + s <= v:
+            j += 1
+        xj = xp[j] + s
+        for c in range(out.shape[1]):
+            if j == b - 1 or xj == v:
+                out[i, c] = fp[j, c]
+            else:
+                xn = xp[j + 1] + s
+                slope = (fp[j + 1, c] - fp[j, c]) / (xn - xj)
+                y = slope * (v - xj) + fp[j, c]
+                if np.isnan(y):
+                    y = slope * (v - xn) + fp[j + 1, c]
+                    if np.isnan(y) and fp[j, c] == fp[j + 1, c]:
+                        y = fp[j, c]
+                out[i, c] = y
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _interp_rows(x, xp, fp, shift, out):
+    for r in range(x.shape[0]):
+        _interp_row(x[r], xp[r], fp[r], shift[r], out[r])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _smooth(line, wts, k, buf, out):
+    """gaussian_filter1d(mode="nearest") with weights wts (2 r + 1,) of the line (n,) carried
+    on straight for k samples at either end (body.straight_ended_smooth), into out (n,);
+    buf: scratch of at least n + 2 k + 2 r."""
+    n = len(line)
+    r = (len(wts) - 1) // 2
+    m = n + 2 * k
+    for i in range(k):                     # 2 x[0] - x[k:0:-1]
+        buf[r + i] = 2.0 * line[0] - line[k - i]
+    for i in range(n):
+        buf[r + k + i] = line[i]
+    for i in range(k):                     # 2 x[-1] - x[-2:-k-2:-1]
+        buf[r + k + n + i] = 2.0 * line[n - 1] - line[n - 2 - i]
+    for i in range(r):                     # mode "nearest"
+        buf[i] = buf[r]
+        buf[r + m + i] = buf[r + m - 1]
+    # each output's sum in scipy's order, the offsets outside: the outputs are summed side by
+    # side (SIMD) in an array of the kernel's own, which nothing else can alias
+    c = r + k
+    acc = np.empty(n)
+    for i in range(n):
+        acc[i] = buf[c + i] * wts[r]
+    for d in range(r, 0, -1):
+        wd = wts[r - d]
+        lo, hi = buf[c - d:c - d + n], buf[c + d:c + d + n]
+        for i in range(n):
+            acc[i] += (lo[i] + hi[i]) * wd
+    out[:] = acc
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _trail_pass(s, xp, fp, shift, w_xz, w_y, k, pts, arc):
+    n, w = s.shape
+    raw = np.empty((w, 3))
+    line = np.empty(w)
+    sm = np.empty(w)
+    buf = np.empty(w + 2 * k + len(w_xz) + len(w_y))
+    for r in range(n):
+        _interp_row(s[r], xp[r], fp[r], shift[r], raw)
+        for c in range(3):
+            for i in range(w):
+                line[i] = raw[i, c]
+            if c == 1:
+                _smooth(line, w_y, 0, buf, sm)
+            else:
+                _smooth(line, w_xz, k, buf, sm)
+            for i in range(w):
+                pts[r, i, c] = sm[i]
+        arc[r, 0] = 0.0
+        total = 0.0
+        for i in range(w - 1):
+            d0 = pts[r, i + 1, 0] - pts[r, i, 0]
+            d1 = pts[r, i + 1, 1] - pts[r, i, 1]
+            d2 = pts[r, i + 1, 2] - pts[r, i, 2]
+            seg = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            total = seg if i == 0 else total + seg
+            arc[r, i + 1] = total

@@ -1,0 +1,144 @@
+"""The compiled passes of locomotion.body.trail_ends (locomotion.trail_kernels) give the same
+bits as the numpy and scipy calls they replace: np.interp on rows shifted apart, scipy's
+gaussian_filter1d with mode "nearest" after straight_ended_smooth's straight ends, and the
+whole trail_ends against its numpy form (kept here as the reference), on random rows with flat
+stretches, keys outside the knots, short lines and dithering heads."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.ndimage import gaussian_filter1d
+
+from baker.geometry.transforms import length
+from baker.locomotion import trail_kernels as tk
+from baker.locomotion.body import ROUND, _row_shifts, straight_ended_smooth, trail_ends
+
+SPACING = 0.0125
+
+
+def bits(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64).view(np.int64)
+
+
+def numpy_interp_rows(x, xp, fp):
+    """trail_ends' row interpolation as numpy computed it: the rows shifted apart, one flat
+    np.interp per component."""
+    x = np.clip(x, xp[:, :1], xp[:, -1:])
+    width = float((xp[:, -1] - xp[:, 0]).max()) + 1.0
+    shift = (width * np.arange(len(x)) - xp[:, 0])[:, None]
+    flat_x, flat_xp = (x + shift).ravel(), (xp + shift).ravel()
+    return np.stack([np.interp(flat_x, flat_xp, fp[..., k].ravel()).reshape(x.shape)
+                     for k in range(fp.shape[2])], axis=-1)
+
+
+def numpy_trail_ends(paths, cums, ends, extent, spacing, res):
+    """trail_ends in numpy and scipy (the code the kernels replaced)."""
+    sigma = ROUND * spacing / res
+    pad = int(4.0 * max(sigma, 2.0 * spacing / res) + 0.5)
+    n = len(paths)
+    rows = np.arange(n)
+    total = cums[rows, ends]
+    span = np.full(n, 2.0 * extent + 2.0 * pad * res)
+    m = max(int(np.ceil(extent / res)), 1) + 1
+    out = np.empty((n, m, 3))
+    todo = rows
+    while len(todo):
+        w = int(np.ceil(span[todo[0]] / res)) + 1
+        s = total[todo, None] + np.linspace(-span[todo[0]], 0.0, w)[None, :]
+        pts = numpy_interp_rows(np.maximum(s, 0.0),
+                                np.where(np.arange(cums.shape[1]) <= ends[todo, None],
+                                         cums[todo], total[todo, None]), paths[todo])
+        k = min(pad, w - 1)
+        pts[..., [0, 2]] = straight_ended_smooth(pts[..., [0, 2]], sigma, axis=1, reach=pad)
+        pts[..., 1] = gaussian_filter1d(pts[..., 1], 2.0 * spacing / res, axis=1,
+                                        mode="nearest")
+        arc = np.concatenate([np.zeros((len(todo), 1)),
+                              np.cumsum(length(np.diff(pts, axis=1)), axis=1)], axis=1)
+        short = (s[:, 0] > 0.0) & (arc[:, -1] - arc[:, k] < extent)
+        done = ~short
+        q = arc[done, -1:] + np.linspace(-extent, 0.0, m)[None, :]
+        out[todo[done]] = numpy_interp_rows(q, arc[done], pts[done])
+        todo = todo[short]
+        span[todo] *= 2.0
+    return out
+
+
+def knots(rng, n, b):
+    """(n, b) non-decreasing rows with flat stretches (repeated knots) and their values
+    (n, b, 3)."""
+    steps = rng.exponential(0.01, (n, b)) * (rng.random((n, b)) > 0.2)
+    xp = np.cumsum(steps, axis=1) + rng.uniform(-1.0, 5.0, (n, 1))
+    return xp, rng.normal(size=(n, b, 3)) * rng.choice([1e-3, 1.0, 50.0], (n, 1, 1))
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_interp_rows_gives_numpy_interps_bits(seed):
+    rng = np.random.default_rng(seed)
+    n, b, a = int(rng.integers(1, 9)), int(rng.integers(2, 200)), int(rng.integers(1, 300))
+    xp, fp = knots(rng, n, b)
+    lo, hi = xp[:, :1], xp[:, -1:]
+    x = lo + (hi - lo) * rng.uniform(-0.2, 1.2, (n, a))
+    x[:, :a // 3] = np.sort(x[:, :a // 3], axis=1)      # rising keys, then any order
+    h = a // 4                                            # the last keys on knots
+    if h:
+        x[:, a - h:] = np.take_along_axis(xp, rng.integers(0, b, (n, h)), axis=1)
+    out = np.empty((n, a, 3))
+    tk.interp_rows(x, xp, fp, _row_shifts(xp), out)
+    np.testing.assert_array_equal(bits(out), bits(numpy_interp_rows(x, xp, fp)))
+
+
+@pytest.mark.parametrize("sigma", [0.5, 1.0, 2.4, 6.0, 8.0])
+@pytest.mark.parametrize("n", [1, 2, 5, 40, 313])
+def test_smoothing_gives_scipys_bits(sigma, n):
+    rng = np.random.default_rng(int(sigma * 10) + n)
+    line = np.cumsum(rng.normal(size=n)) * rng.choice([1e-3, 1.0, 100.0])
+    wts = tk.gaussian_weights(sigma)
+    r = (len(wts) - 1) // 2
+    for k in sorted({0, min(1, n - 1), min(3, n - 1), min(r + 2, n - 1), n - 1}):
+        out = np.empty(n)
+        tk._smooth(line, wts, k, np.empty(n + 2 * k + 2 * r), out)
+        want = (gaussian_filter1d(line, sigma, mode="nearest") if k < 1 else
+                straight_ended_smooth(line, sigma, reach=k))
+        np.testing.assert_array_equal(bits(out), bits(want), err_msg=f"k={k}")
+
+
+def head_path(rng, T, dither: bool):
+    """(T, 3) a wandering head path (a step of a few millimetres), dithering back and forth
+    over its middle when `dither`, and its horizontal arc lengths."""
+    turn = np.cumsum(rng.normal(0.0, 0.3, T))
+    step = rng.uniform(0.0, 0.004, T) * (rng.random(T) > 0.1)
+    if dither:
+        a, b = T // 3, 2 * T // 3
+        turn[a:b] += np.pi * (np.arange(b - a) % 6 < 3)
+    xz = np.cumsum(np.stack([np.cos(turn) * step, np.sin(turn) * step], 1), axis=0)
+    path = np.column_stack([xz[:, 0], rng.normal(0.0, 0.002, T).cumsum() * 0.1, xz[:, 1]])
+    d = np.diff(path[:, [0, 2]], axis=0)
+    return path, np.r_[0.0, np.cumsum(np.hypot(d[:, 0], d[:, 1]))]
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_trail_ends_gives_the_numpy_forms_bits(seed):
+    rng = np.random.default_rng(100 + seed)
+    n, T = int(rng.integers(1, 12)), int(rng.integers(20, 900))
+    paths, cums = np.zeros((n, T, 3)), np.zeros((n, T))
+    ends = rng.integers(1, T, n)
+    for i in range(n):
+        p, c = head_path(rng, T, dither=bool(i % 2))
+        paths[i], cums[i] = p, c
+    extent = float(rng.uniform(5, 30)) * SPACING
+    for res in (0.25 * SPACING, SPACING / 8.0):
+        got = trail_ends(paths, cums, ends, extent, SPACING, res)
+        want = numpy_trail_ends(paths, cums, ends, extent, SPACING, res)
+        np.testing.assert_array_equal(bits(got), bits(want))
+
+
+def test_weights_are_scipys_kernel():
+    from scipy.ndimage import correlate1d
+
+    rng = np.random.default_rng(7)
+    line = rng.normal(size=60)
+    for sigma in (0.7, 3.0, 6.0):
+        np.testing.assert_array_equal(
+            bits(correlate1d(line, tk.gaussian_weights(sigma), mode="nearest")),
+            bits(gaussian_filter1d(line, sigma, mode="nearest")))
