@@ -6,6 +6,8 @@ stretches, keys outside the knots, short lines and dithering heads."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter1d
@@ -142,3 +144,24 @@ def test_weights_are_scipys_kernel():
         np.testing.assert_array_equal(
             bits(correlate1d(line, tk.gaussian_weights(sigma), mode="nearest")),
             bits(gaussian_filter1d(line, sigma, mode="nearest")))
+
+
+def test_signals_during_the_direct_compiled_calls_stop_cleanly():
+    """After their first call (compiled off the main thread) the kernels are called on the
+    main thread: 100 SIGTERMs at staggered moments, each raising there, during repeated
+    trail_ends stop them cleanly (parallel.off_main_thread: a result boxed there crashed)."""
+    from signal_stops import assert_signals_stop_cleanly
+
+    assert_signals_stop_cleanly("""
+        import sys
+        sys.path[:0] = [%r]
+        from test_trail_kernels import head_path, SPACING
+        from baker.locomotion.body import trail_ends
+        rng = np.random.default_rng(5)
+        paths, cums = zip(*(head_path(rng, 600, dither=bool(i %% 2)) for i in range(8)))
+        paths, cums = np.stack(paths), np.stack(cums)
+        ends = np.full(8, 599)
+        trail_ends(paths, cums, ends, 20 * SPACING, SPACING, 0.25 * SPACING)
+    """ % str(Path(__file__).resolve().parent), """
+        trail_ends(paths, cums, ends, 20 * SPACING, SPACING, 0.25 * SPACING)
+    """, times=100)
