@@ -30,6 +30,7 @@ their shares at once (run.group.Followers): the same bits as one process.
 from __future__ import annotations
 
 import functools
+import itertools
 import logging
 
 import numpy as np
@@ -287,12 +288,19 @@ def neighbours(bodies: Bodies, heads: np.ndarray, speeds: np.ndarray, reach: flo
         return out
     pts, owner = bodies.points(need, cobra)
     near = cKDTree(pts).query_ball_point(xz[need], reach)
-    walking = speeds > 0.0
-    for i, idx in zip(need.tolist(), near):
-        idx = np.asarray(idx, dtype=np.intp)
-        idx = idx[owner[idx] != i]
-        # the bodies near move on (their heads walk): a head they corner may wait for them
-        out[i] = ((pts[idx], bool(walking[owner[idx]].all())) if len(idx) else (None, False))
+    # every head's points in one flat array (in the tree's order), the head's own body's out
+    lens = np.fromiter(map(len, near), np.intp, len(near))
+    idx = np.fromiter(itertools.chain.from_iterable(near), np.intp, int(lens.sum()))
+    who = np.repeat(np.arange(len(need)), lens)
+    keep = owner[idx] != need[who]
+    idx, who = idx[keep], who[keep]
+    count = np.bincount(who, minlength=len(need))
+    # the bodies near move on (their heads walk): a head they corner may wait for them
+    stopped = np.bincount(who, weights=~(speeds[owner[idx]] > 0.0), minlength=len(need))
+    near_pts = np.split(pts[idx], np.cumsum(count)[:-1])
+    for r, i in enumerate(need.tolist()):
+        if count[r]:
+            out[i] = (near_pts[r], not stopped[r])
     return out
 
 
