@@ -249,7 +249,7 @@ def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
             others = None
             if (k - 1) % AVOID_EVERY == 0 and n > 1:
                 others = neighbours(bodies, heads[:, k - 1], state.speeds, reach, cobra)
-            told = [senses(t, state, i) for i in range(n)]
+            told = senses(t, state)
             due = [i for i in range(n) if brains[i].perceives(t)]
             if due:                     # what the brains perceiving this step sense, at once
                 sense_together([brains[i] for i in due], [told[i] for i in due])
@@ -304,9 +304,13 @@ def neighbours(bodies: Bodies, heads: np.ndarray, speeds: np.ndarray, reach: flo
     return out
 
 
-def senses(t: float, state: States, i: int) -> Senses:
-    """What creature i's brain is told at time t about its follower."""
-    return Senses(t, state.position(i), state.heading(i), state.arrived(i))
+def senses(t: float, state: States) -> list[Senses]:
+    """What each creature's brain is told at time t about its follower (its head point and
+    heading are rows of one copy of the states: no brain's Senses shares memory with
+    another's, nor with the states the next step writes)."""
+    rows = state.rows[:, 0:7].copy()
+    arrived = (rows[:, 6] != 0.0).tolist()
+    return [Senses(t, rows[i, 0:3], rows[i, 3:6], arrived[i]) for i in range(len(rows))]
 
 
 def step_prey(preys, t: float, dt: float, heads: np.ndarray) -> None:
