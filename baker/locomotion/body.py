@@ -24,6 +24,7 @@ from baker.geometry.transforms import (frames_to_quat, length, limit_rotation, n
                                        quat_angle)
 from baker.locomotion.cobra import limit_lift
 from baker.locomotion.trail_kernels import gaussian_weights, interp_rows, trail_pass
+from baker.locomotion.trail_kernels import place_chain as place_compiled
 from baker.parallel import off_main_thread
 
 
@@ -479,42 +480,16 @@ def place_chain(trail: Trail, head_arc: np.ndarray, offset: np.ndarray, spacing:
     arc = np.empty((F, S))
     w = np.zeros((F, S)) if raised is None or trail.high is None else raised
     rise = (trail.high - trail.points[:, 1]) if trail.high is not None else np.zeros(len(trail.cum))
-
-    def at(s, i):
-        """Trail points at arcs s (F,) or (F, k), raised by joint i's offset and reference."""
-        q = polyline.sample(trail.points, trail.cum, s)
-        wi = w[:, i] if s.ndim == 1 else w[:, i:i + 1]
-        oi = offset[:, i] if s.ndim == 1 else offset[:, i:i + 1]
-        q[..., 1] += oi + wi * np.interp(s, trail.cum, rise)
-        return q
-
-    arc[:, 0] = head_arc
-    pos[:, 0] = at(head_arc, 0)
-    steps = np.linspace(0.0, 4.0 * spacing, 33)
-    rows = np.arange(F)
-    for i in range(1, S):
-        prev = pos[:, i - 1]
-        if raised is not None:
-            # at the arc of the joint ahead, this joint lies at most RAISED_RISE spacings below
-            # it, so a point a spacing behind exists on its trail (a joint riding the smooth
-            # profile less than the one ahead, over a dip, would otherwise hang straight down
-            # from it, short of the trail)
-            below = prev[:, 1] - at(arc[:, i - 1], i)[:, 1] - RAISED_RISE * spacing
-            offset[:, i] += np.maximum(below, 0.0)
-        # bracket: the first of a few arc steps back whose point is a spacing away (the trail
-        # can fold back on itself over a crease or in a tight turn)
-        cand = arc[:, i - 1:i] - steps[None, :]
-        beyond = length(at(cand, i) - prev[:, None, :]) > spacing
-        k = np.where(beyond.any(axis=1), np.argmax(beyond, axis=1), len(steps) - 1)
-        hi = cand[rows, np.maximum(k, 1)]
-        lo = cand[rows, np.maximum(k - 1, 0)]
-        for _ in range(16):   # bisection on the arc: distance to the joint ahead == spacing
-            mid = 0.5 * (lo + hi)
-            far = length(at(mid, i) - prev) > spacing
-            hi = np.where(far, mid, hi)
-            lo = np.where(far, lo, mid)
-        arc[:, i] = 0.5 * (lo + hi)
-        pos[:, i] = at(arc[:, i], i)
+    # compiled, with the numpy form's arithmetic (tests/unit/test_trail_kernels.py): for each
+    # frame and joint, the first of 33 arc steps back (up to four spacings: the trail can fold
+    # back on itself over a crease or in a tight turn) whose point is a spacing from the joint
+    # ahead, then 16 bisections of the arc; a raised joint (`raised`) first kept at most
+    # RAISED_RISE spacings below the joint ahead at its arc, so a point a spacing behind
+    # exists on its trail (a joint riding the smooth profile less than the one ahead, over a
+    # dip, would otherwise hang straight down from it, short of the trail)
+    place_compiled(trail.points, trail.cum, rise, head_arc, offset, w,
+                   np.linspace(0.0, 4.0 * spacing, 33), spacing,
+                   None if raised is None else RAISED_RISE * spacing, pos, arc)
     return pos, arc
 
 

@@ -1,6 +1,7 @@
-"""Compiled passes of locomotion.body.trail_ends (a crowd's body points for the neighbour
-query, placed every few steps of the run for every creature near another): the rows'
-interpolation (np.interp's arithmetic, row by row, on the shifted arc lengths body._interp_rows
+"""Compiled passes over trails, with the same bits as the numpy forms they replace: the
+solve's follow-the-leader placement (body.place_chain: `place_chain` below), and
+body.trail_ends (a crowd's body points for the neighbour query, placed every few steps of the
+run for every creature near another): the rows' interpolation (np.interp's arithmetic, row by row, on the shifted arc lengths body._interp_rows
 makes) and the smoothing (scipy.ndimage.gaussian_filter1d's correlation with mode "nearest",
 after straight_ended_smooth's straight ends), with the same bits as the numpy and scipy calls
 they replace (tests/unit/test_trail_kernels.py compares them).
@@ -15,9 +16,10 @@ they replace (tests/unit/test_trail_kernels.py compares them).
   radius r: out = in[0] * w[0], then += (in[-j] + in[j]) * w[j] for j = r down to 1, on the
   line extended by r copies of its end values ("nearest").
 
-The kernels write into arrays they are given and return nothing. Each is compiled on
-parallel.off_main_thread's thread at its first call in a process, and called directly after
-that (`_call`).
+The kernels write into arrays they are given and return nothing. trail_ends' are compiled on
+parallel.off_main_thread's thread at their first call in a process, and called directly after
+that (`_call`: the run calls them thousands of times); place_chain's, called once a solve,
+runs on that thread.
 """
 
 from __future__ import annotations
@@ -176,3 +178,121 @@ def _trail_pass(s, xp, fp, shift, w_xz, w_y, k, pts, arc):
             seg = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
             total = seg if i == 0 else total + seg
             arc[r, i + 1] = total
+
+
+def place_chain(points, cum, rise, head_arc, offset, w, steps, spacing: float,
+                raised_rise: float | None, pos, arc) -> None:
+    """body.place_chain's placement, compiled with its arithmetic (the same bits): the head at
+    head_arc (F,) on the trail (points (T, 3), cum (T,)), every other joint `spacing` behind
+    the joint ahead, found by the first of the arc `steps` back (33,) past it and 16
+    bisections; each joint's point raised by offset (F, S) + w (F, S) x the trail's rise
+    (T,) over its surface heights there (np.interp on the unclipped arc). raised_rise: None, or
+    how far below the joint ahead a joint may start ([m]: offset is raised in place, as
+    place_chain does with `raised`). Writes pos (F, S, 3) and arc (F, S)."""
+    off_main_thread(_place_chain, _c(points), _c(cum), _c(rise), _c(head_arc), offset, _c(w),
+                    _c(steps), float(spacing), raised_rise is not None,
+                    0.0 if raised_rise is None else float(raised_rise), pos, arc)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _interp_one(x, xp, fp):
+    """np.interp(x, xp, fp) of one key (arr_interp: left and right values fp[0], fp[-1])."""
+    n = len(xp)
+    if n == 1:
+        return fp[0]                # left, right and the knot's value are all fp[0]
+    if x != x:
+        return x
+    if x > xp[n - 1]:
+        return fp[n - 1]
+    if x < xp[0]:
+        return fp[0]
+    lo, hi = 0, n                  # the count of knots at or below x, by bisection
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if x >= xp[mid]:
+            lo = mid + 1
+        else:
+            hi = mid
+    j = lo - 1
+    if j == n - 1 or xp[j] == x:
+        return fp[j]
+    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+    y = slope * (x - xp[j]) + fp[j]
+    if np.isnan(y):
+        y = slope * (x - xp[j + 1]) + fp[j + 1]
+        if np.isnan(y) and fp[j] == fp[j + 1]:
+            y = fp[j]
+    return y
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _at(points, cum, rise, s, off, w, out):
+    """polyline.sample(points, cum, s) into out (3,), its y raised by off + w * rise at s
+    (place_chain's `at`)."""
+    n = len(cum)
+    if n == 1:
+        out[0], out[1], out[2] = points[0, 0], points[0, 1], points[0, 2]
+    else:
+        flat = min(max(s, cum[0]), cum[n - 1]) if s == s else s     # np.clip
+        if flat != flat:
+            i = n - 2
+        else:
+            lo, hi = 0, n          # searchsorted(cum, flat, "right")
+            while lo < hi:
+                mid = (lo + hi) >> 1
+                if flat >= cum[mid]:
+                    lo = mid + 1
+                else:
+                    hi = mid
+            i = min(max(lo - 1, 0), n - 2)
+        seg = cum[i + 1] - cum[i]
+        t = (flat - cum[i]) / seg if seg > 0 else 0.0
+        for c in range(3):
+            out[c] = points[i, c] + t * (points[i + 1, c] - points[i, c])
+    out[1] += off + w * _interp_one(s, cum, rise)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _gap(q, px, py, pz):
+    """transforms.length(q - p): the sum of squares left to right."""
+    d0, d1, d2 = q[0] - px, q[1] - py, q[2] - pz
+    return np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _place_chain(points, cum, rise, head_arc, offset, w, steps, spacing, raised, raised_rise,
+                 pos, arc):
+    F, S = offset.shape
+    q = np.empty(3)
+    K = len(steps)
+    for f in range(F):
+        a = head_arc[f]
+        arc[f, 0] = a
+        _at(points, cum, rise, a, offset[f, 0], w[f, 0], q)
+        pos[f, 0, 0], pos[f, 0, 1], pos[f, 0, 2] = q[0], q[1], q[2]
+        for i in range(1, S):
+            px, py, pz = pos[f, i - 1, 0], pos[f, i - 1, 1], pos[f, i - 1, 2]
+            back = arc[f, i - 1]
+            if raised:
+                _at(points, cum, rise, back, offset[f, i], w[f, i], q)
+                below = py - q[1] - raised_rise
+                offset[f, i] += below if below >= 0.0 or below != below else 0.0
+            k = K - 1
+            for j in range(K):
+                _at(points, cum, rise, back - steps[j], offset[f, i], w[f, i], q)
+                if _gap(q, px, py, pz) > spacing:
+                    k = j
+                    break
+            hi = back - steps[max(k, 1)]
+            lo = back - steps[max(k - 1, 0)]
+            for _ in range(16):
+                mid = 0.5 * (lo + hi)
+                _at(points, cum, rise, mid, offset[f, i], w[f, i], q)
+                if _gap(q, px, py, pz) > spacing:
+                    hi = mid
+                else:
+                    lo = mid
+            a = 0.5 * (lo + hi)
+            arc[f, i] = a
+            _at(points, cum, rise, a, offset[f, i], w[f, i], q)
+            pos[f, i, 0], pos[f, i, 1], pos[f, i, 2] = q[0], q[1], q[2]

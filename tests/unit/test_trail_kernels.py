@@ -1,8 +1,9 @@
-"""The compiled passes of locomotion.body.trail_ends (locomotion.trail_kernels) give the same
-bits as the numpy and scipy calls they replace: np.interp on rows shifted apart, scipy's
-gaussian_filter1d with mode "nearest" after straight_ended_smooth's straight ends, and the
-whole trail_ends against its numpy form (kept here as the reference), on random rows with flat
-stretches, keys outside the knots, short lines and dithering heads."""
+"""The compiled trail passes (locomotion.trail_kernels) give the same bits as the numpy and
+scipy calls they replace: np.interp on rows shifted apart, scipy's gaussian_filter1d with mode
+"nearest" after straight_ended_smooth's straight ends, the whole trail_ends against its numpy
+form, and body.place_chain against its numpy form (both kept here as the references), on
+random rows with flat stretches, keys outside the knots, short lines, dithering heads and
+trails that fold back on themselves."""
 
 from __future__ import annotations
 
@@ -12,9 +13,11 @@ import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter1d
 
+from baker.geometry import polyline
 from baker.geometry.transforms import length
 from baker.locomotion import trail_kernels as tk
-from baker.locomotion.body import ROUND, _row_shifts, straight_ended_smooth, trail_ends
+from baker.locomotion.body import (RAISED_RISE, ROUND, Trail, _row_shifts, place_chain,
+                                   straight_ended_smooth, trail_ends)
 
 SPACING = 0.0125
 
@@ -165,3 +168,85 @@ def test_signals_during_the_direct_compiled_calls_stop_cleanly():
     """ % str(Path(__file__).resolve().parent), """
         trail_ends(paths, cums, ends, 20 * SPACING, SPACING, 0.25 * SPACING)
     """, times=100)
+
+
+def numpy_place_chain(trail, head_arc, offset, spacing, raised=None):
+    """body.place_chain in numpy (the code the kernel replaced)."""
+    F, S = offset.shape
+    offset = np.array(offset, dtype=np.float64, copy=True)
+    pos = np.empty((F, S, 3))
+    arc = np.empty((F, S))
+    w = np.zeros((F, S)) if raised is None or trail.high is None else raised
+    rise = (trail.high - trail.points[:, 1]) if trail.high is not None else np.zeros(len(trail.cum))
+
+    def at(s, i):
+        q = polyline.sample(trail.points, trail.cum, s)
+        wi = w[:, i] if s.ndim == 1 else w[:, i:i + 1]
+        oi = offset[:, i] if s.ndim == 1 else offset[:, i:i + 1]
+        q[..., 1] += oi + wi * np.interp(s, trail.cum, rise)
+        return q
+
+    arc[:, 0] = head_arc
+    pos[:, 0] = at(head_arc, 0)
+    steps = np.linspace(0.0, 4.0 * spacing, 33)
+    rows = np.arange(F)
+    for i in range(1, S):
+        prev = pos[:, i - 1]
+        if raised is not None:
+            below = prev[:, 1] - at(arc[:, i - 1], i)[:, 1] - RAISED_RISE * spacing
+            offset[:, i] += np.maximum(below, 0.0)
+        cand = arc[:, i - 1:i] - steps[None, :]
+        beyond = length(at(cand, i) - prev[:, None, :]) > spacing
+        k = np.where(beyond.any(axis=1), np.argmax(beyond, axis=1), len(steps) - 1)
+        hi = cand[rows, np.maximum(k, 1)]
+        lo = cand[rows, np.maximum(k - 1, 0)]
+        for _ in range(16):
+            mid = 0.5 * (lo + hi)
+            far = length(at(mid, i) - prev) > spacing
+            hi = np.where(far, mid, hi)
+            lo = np.where(far, lo, mid)
+        arc[:, i] = 0.5 * (lo + hi)
+        pos[:, i] = at(arc[:, i], i)
+    return pos, arc
+
+
+def folding_trail(rng, T: int, high: bool) -> Trail:
+    """A trail of T points a fraction of a spacing apart, bumpy, turning, folding back on
+    itself at times (a crease, a tight turn) and with repeated points (zero-length segments)."""
+    turn = np.cumsum(rng.normal(0.0, 0.2, T))
+    turn[rng.random(T) < 0.02] += np.pi
+    step = rng.uniform(0.0, 0.3 * SPACING, T) * (rng.random(T) > 0.05)
+    xz = np.cumsum(np.stack([np.cos(turn) * step, np.sin(turn) * step], 1), axis=0)
+    y = np.cumsum(rng.normal(0.0, 0.002, T)) + 0.01 * (rng.random(T) < 0.01).cumsum()
+    pts = np.column_stack([xz[:, 0], y, xz[:, 1]])
+    hi = gaussian_filter1d(y, 20.0) + 0.003 if high else None
+    return Trail(points=pts, normals=np.tile([0.0, 1.0, 0.0], (T, 1)), ground=y,
+                 cum=polyline.arc_lengths(pts), cum_h=polyline.arc_lengths(pts[:, [0, 2]]),
+                 high=hi)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_place_chain_gives_the_numpy_forms_bits(seed):
+    rng = np.random.default_rng(200 + seed)
+    T, F, S = int(rng.integers(2, 3000)), int(rng.integers(1, 60)), int(rng.integers(2, 24))
+    trail = folding_trail(rng, T, high=bool(seed % 2))
+    end = trail.cum[-1]
+    head = np.sort(rng.uniform(-0.1 * end - SPACING, 1.1 * end + SPACING, F))
+    offset = rng.uniform(0.0, 0.02, (F, S))
+    for raised in (None, rng.uniform(0.0, 1.0, (F, S))):
+        got = place_chain(trail, head, offset, SPACING, raised=raised)
+        want = numpy_place_chain(trail, head, offset, SPACING, raised=raised)
+        for g, w in zip(got, want):
+            np.testing.assert_array_equal(bits(g), bits(w))
+
+
+def test_place_chain_of_a_one_point_trail():
+    trail = Trail(points=np.array([[0.1, 0.2, 0.3]]), normals=np.array([[0.0, 1.0, 0.0]]),
+                  ground=np.array([0.2]), cum=np.zeros(1), cum_h=np.zeros(1),
+                  high=np.array([0.25]))
+    offset = np.full((3, 4), 0.01)
+    for raised in (None, np.full((3, 4), 0.5)):
+        got = place_chain(trail, np.array([-1.0, 0.0, 2.0]), offset, SPACING, raised=raised)
+        want = numpy_place_chain(trail, np.array([-1.0, 0.0, 2.0]), offset, SPACING, raised)
+        for g, w in zip(got, want):
+            np.testing.assert_array_equal(bits(g), bits(w))
