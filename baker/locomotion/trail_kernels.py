@@ -1,15 +1,19 @@
-"""Compiled passes over trails, with the same bits as the numpy forms they replace: the
-solve's follow-the-leader placement (body.place_chain: `place_chain` below), and
-body.trail_ends (a crowd's body points for the neighbour query, placed every few steps of the
-run for every creature near another): the rows' interpolation (np.interp's arithmetic, row by row, on the shifted arc lengths body._interp_rows
-makes) and the smoothing (scipy.ndimage.gaussian_filter1d's correlation with mode "nearest",
-after straight_ended_smooth's straight ends), with the same bits as the numpy and scipy calls
-they replace (tests/unit/test_trail_kernels.py compares them).
+"""Compiled passes over trails, with the same bits as the numpy and scipy forms they replace
+(tests/unit/test_trail_kernels.py compares them):
+
+- `place_chain`: the solve's follow-the-leader placement (body.place_chain), with
+  polyline.sample's and np.interp's arithmetic;
+- `trail_pass`, `interp_rows`: body.trail_ends (a crowd's body points for the neighbour query,
+  placed every few steps of the run for every creature near another): the rows' interpolation
+  (np.interp on the shifted arc lengths body._interp_rows makes) and the smoothing
+  (scipy.ndimage.gaussian_filter1d's correlation with mode "nearest", after
+  straight_ended_smooth's straight ends).
 
 - np.interp (numpy/_core/src/multiarray/compiled_base.c, arr_interp): the key's interval j is
   the last with xp[j] <= x; a key on a knot (or on the last one) takes that knot's value, else
   slope * (x - xp[j]) + fp[j] with slope = (fp[j+1] - fp[j]) / (xp[j+1] - xp[j]) (and from the
-  other end when that is NaN). body._interp_rows shifts each row by its own offset so that the
+  other end when that is NaN); a key below the first knot takes fp[0], above the last fp[-1]
+  (and with one knot, fp[0]). body._interp_rows shifts each row by its own offset so that the
   rows follow one another in one flat call; a key clipped to its row's range never reaches the
   next row's knots, so the flat call's answer is its row's.
 - correlate1d (scipy/ndimage/src/ni_filters.c, NI_Correlate1D) with a symmetric kernel of
