@@ -13,7 +13,9 @@ own would then cost more bytes than every frame's), and at once when more of its
 that miss even between their two neighbours (`tight_misses`). The keys only grow, so that
 gives what splitting to the end and then promoting gives.
 
-The functions run off the main thread (parallel.off_main_thread), as the rasterizer's do.
+`_fit` writes into the keys it is given and runs on the main thread once compiled
+(parallel.compiled_call); `_tight` returns its counts, and runs off the main thread
+(parallel.off_main_thread), as the rasterizer's kernels do.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import numpy as np
 from numba import njit
 
 from baker.export.replay import NEAR_DOT, dot4
-from baker.parallel import off_main_thread
+from baker.parallel import compiled_call, off_main_thread
 
 
 def fit_channels(vals: np.ndarray, kept: np.ndarray, times: np.ndarray, rotation: bool,
@@ -32,7 +34,7 @@ def fit_channels(vals: np.ndarray, kept: np.ndarray, times: np.ndarray, rotation
     each channel's tolerance (metres, or radians for rotations), bound the key count past which
     a channel keeps every frame."""
     t = np.asarray(times, dtype=np.float32).astype(np.float64)
-    off_main_thread(_fit, np.ascontiguousarray(vals, dtype=np.float64),
+    compiled_call(_fit, np.ascontiguousarray(vals, dtype=np.float64),
                     np.ascontiguousarray(kept, dtype=np.float64), t, bool(rotation),
                     np.ascontiguousarray(tol, dtype=np.float64),
                     np.ascontiguousarray(rows, dtype=np.int64), float(bound), keep)

@@ -12,8 +12,9 @@ One level of the skeleton at a time, over the (joint, frame) pairs a mask select
 Each pair is computed on its own with the arithmetic of the numpy kernels it replaces
 (baker.export.reduce: `_raw_matrix`, `_qmul`, `_qrot`, `_slerp`, sums left to right),
 so a replay of some pairs gives what a fresh playback of all of them gives. The arrays are the
-player's, component first ((W, J, F)); the functions run off the main thread
-(parallel.off_main_thread), as the rasterizer's do.
+player's, component first ((W, J, F)); the kernels write into them and return nothing, and
+run on the main thread once compiled (parallel.compiled_call: thousands of short calls a
+bake).
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from baker.parallel import off_main_thread
+from baker.parallel import compiled_call
 
 #: a rotation segment whose keys' |dot| reaches this is lerped and normalized (three.js)
 NEAR_DOT = 0.9995
@@ -34,7 +35,7 @@ def sample_level(level, st, sr, seg_t, seg_r, times, vt, vq, static_t, static_r,
     each frame (reduce._segments), vt, vq (J, F, W) float32 the stored key values, static_t,
     static_r (J, W) the values of channels with no key."""
     t = np.asarray(times, dtype=np.float32).astype(np.float64)
-    off_main_thread(_sample, level, st, sr, seg_t[0], seg_t[1], seg_r[0], seg_r[1], t, vt, vq,
+    compiled_call(_sample, level, st, sr, seg_t[0], seg_t[1], seg_r[0], seg_r[1], t, vt, vq,
                     np.asarray(static_t, np.float64), np.asarray(static_r, np.float64),
                     tr, rr, nlerp)
 
@@ -43,7 +44,7 @@ def pose_level(level, parents, turned, moved, root: bool, p) -> None:
     """World poses of the joints `level` as the three players pose them: rotations at the
     frames `turned`, positions (and errors) at the frames `moved` (L, F) bool, into the arrays
     of the player p."""
-    off_main_thread(_pose, level, parents, turned, moved, bool(root), p.rr, p.nlerp, p.tr,
+    compiled_call(_pose, level, parents, turned, moved, bool(root), p.rr, p.nlerp, p.tr,
                     p.mat, p.wq, p.wn, p.pos, p.unit, p.blender, p.pos0, p.spread, p.diff,
                     p.err)
 
@@ -241,7 +242,7 @@ def targets_level(level, parents, target_t, target_r, root: bool, short: bool, x
     (L, F)) bool: the frames whose stored value vt, vq changed (bit for bit)."""
     changed_t = np.zeros(target_t.shape, dtype=bool)
     changed_r = np.zeros(target_r.shape, dtype=bool)
-    off_main_thread(_targets, level, parents, target_t, target_r, bool(root), bool(short),
+    compiled_call(_targets, level, parents, target_t, target_r, bool(root), bool(short),
                     x.t0, x.q0, x.wq0, p.pos0, p.pos, p.mat, p.wq, p.tt, p.vt, p.tq, p.vq,
                     p.codes, changed_t, changed_r)
     return changed_t, changed_r
@@ -293,7 +294,7 @@ def targets_at(i: np.ndarray, x, p) -> tuple[np.ndarray, np.ndarray]:
     j * F + f) from the player p's current poses: what `targets_level` gives there (p.tt, p.tq
     hold them at key frames only)."""
     tt, tq = np.empty((len(i), 3)), np.empty((len(i), 4))
-    off_main_thread(_targets_at, np.ascontiguousarray(i, dtype=np.int64), x.parents, x.t0,
+    compiled_call(_targets_at, np.ascontiguousarray(i, dtype=np.int64), x.parents, x.t0,
                     x.q0, x.wq0, p.pos0, p.pos, p.mat, p.wq, tt, tq)
     return tt, tq
 

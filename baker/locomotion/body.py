@@ -25,7 +25,7 @@ from baker.geometry.transforms import (frames_to_quat, length, limit_rotation, n
 from baker.locomotion.cobra import limit_lift
 from baker.locomotion.trail_kernels import gaussian_weights, interp_rows, trail_pass
 from baker.locomotion.trail_kernels import place_chain as place_compiled
-from baker.parallel import off_main_thread
+from baker.parallel import compiled_call
 
 
 #: the smoothed trail stays at most this many clearances below the surface under it (so a
@@ -269,7 +269,7 @@ def chain_on(trails: np.ndarray, lift: np.ndarray, spacing: float,
     """Follow-the-leader placement on trails as place_chain does it: the head at each trail's
     last point, every other joint on the trail exactly `spacing` behind the joint ahead (the
     chord, so across a fold of the trail it is not the arc length), each raised by its lift.
-    Compiled (_chain_on), off the main thread (parallel.off_main_thread).
+    Compiled (_chain_on; parallel.compiled_call).
 
     trails : (n, m, 3) float, oldest first, a point every `resolution` (default spacing / 8)
              of horizontal arc length (trail_ends); lift : (n, S) float [m]
@@ -280,7 +280,7 @@ def chain_on(trails: np.ndarray, lift: np.ndarray, spacing: float,
     out = np.empty((n, lift.shape[1], 3))
     # bracket within four spacings back, as place_chain does (the trail can fold back)
     look = min(int(round(4.0 * spacing / res)) + 1, m)
-    off_main_thread(_chain_on, np.ascontiguousarray(trails, dtype=np.float64),
+    compiled_call(_chain_on, np.ascontiguousarray(trails, dtype=np.float64),
                     np.ascontiguousarray(lift, dtype=np.float64), float(spacing), look, out)
     return out
 

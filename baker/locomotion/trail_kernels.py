@@ -20,10 +20,8 @@
   radius r: out = in[0] * w[0], then += (in[-j] + in[j]) * w[j] for j = r down to 1, on the
   line extended by r copies of its end values ("nearest").
 
-The kernels write into arrays they are given and return nothing. trail_ends' are compiled on
-parallel.off_main_thread's thread at their first call in a process, and called directly after
-that (`_call`: the run calls them thousands of times); place_chain's, called once a solve,
-runs on that thread.
+The kernels write into arrays they are given and return nothing: they are called directly on
+the main thread once compiled (parallel.compiled_call).
 """
 
 from __future__ import annotations
@@ -33,7 +31,7 @@ import functools
 import numpy as np
 from numba import njit
 
-from baker.parallel import off_main_thread
+from baker.parallel import compiled_call
 
 
 @functools.lru_cache(maxsize=16)
@@ -54,36 +52,19 @@ def trail_pass(s, xp, fp, shift, w_xz, w_y, k, pts, arc) -> None:
     arc lengths s (n, w) on knots xp (n, T) (shifted by shift (n,), as body._interp_rows does),
     then x and z smoothed with w_xz after k straight samples at either end, y with w_y; arc
     (n, w) its arc lengths from the first point. All float64, C-contiguous; pts, arc written."""
-    _call(_trail_pass, _c(s), _c(xp), _c(fp), _c(shift), _c(w_xz), _c(w_y), int(k), pts, arc)
+    compiled_call(_trail_pass, _c(s), _c(xp), _c(fp), _c(shift), _c(w_xz), _c(w_y), int(k),
+                  pts, arc)
 
 
 def interp_rows(x, xp, fp, shift, out) -> None:
     """out (n, a, d) = np.interp of each row of x (n, a) on knots xp (n, b) with values
     fp (n, b, d), each row shifted by shift (n,) (body._interp_rows); out float64,
     C-contiguous."""
-    _call(_interp_rows, _c(x), _c(xp), _c(fp), _c(shift), out)
+    compiled_call(_interp_rows, _c(x), _c(xp), _c(fp), _c(shift), out)
 
 
 def _c(a) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.float64)
-
-
-#: the kernels compiled (or loaded from numba's cache) in this process
-_READY: set = set()
-
-
-def _call(kernel, *args) -> None:
-    """kernel(*args), on the main thread once compiled: its first call in a process runs on
-    parallel.off_main_thread's thread, which compiles it (a signal whose handler raises during
-    a compile on the main thread lands in LLVM's callbacks); the calls after it skip that
-    thread's hop (0.1-0.3 ms, more than a call). The kernels return nothing (a result boxed on
-    the main thread is what a raising handler broke: parallel.off_main_thread), and their
-    arguments always have the same types (float64, C-contiguous, writable; an int)."""
-    if kernel in _READY:
-        kernel(*args)
-    else:
-        off_main_thread(kernel, *args)
-        _READY.add(kernel)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -193,7 +174,7 @@ def place_chain(points, cum, rise, head_arc, offset, w, steps, spacing: float,
     (T,) over its surface heights there (np.interp on the unclipped arc). raised_rise: None, or
     how far below the joint ahead a joint may start ([m]: offset is raised in place, as
     place_chain does with `raised`). Writes pos (F, S, 3) and arc (F, S)."""
-    off_main_thread(_place_chain, _c(points), _c(cum), _c(rise), _c(head_arc), offset, _c(w),
+    compiled_call(_place_chain, _c(points), _c(cum), _c(rise), _c(head_arc), offset, _c(w),
                     _c(steps), float(spacing), raised_rise is not None,
                     0.0 if raised_rise is None else float(raised_rise), pos, arc)
 

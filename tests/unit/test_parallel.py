@@ -343,3 +343,27 @@ print("ok")
     run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                          timeout=120)
     assert run.returncode == 0 and run.stdout.split() == ["ok"], run.stderr[-2000:]
+
+
+def test_compiled_call_runs_the_first_call_of_each_argument_kind_off_the_main_thread():
+    """compiled_call: a kernel's first call for some argument kinds runs on off_main_thread's
+    thread (which compiles it), the calls after it on the main thread; other kinds (a
+    read-only array, another dtype, a non-contiguous view) are new and go to that thread
+    first too."""
+    seen = []
+
+    def kernel(a, x):
+        seen.append(threading.current_thread() is threading.main_thread())
+
+    a = np.zeros((4, 3))
+    parallel.compiled_call(kernel, a, 1.0)
+    parallel.compiled_call(kernel, np.ones((4, 3)), 2.0)
+    ro = np.zeros((4, 3))
+    ro.flags.writeable = False
+    parallel.compiled_call(kernel, ro, 1.0)
+    parallel.compiled_call(kernel, ro, 1.0)
+    parallel.compiled_call(kernel, a[:, ::2], 1.0)
+    parallel.compiled_call(kernel, a.astype(np.float32), 1.0)
+    parallel.compiled_call(kernel, a, 1)
+    parallel.compiled_call(kernel, a, 3.0)
+    assert seen == [False, True, False, True, False, False, False, True]
