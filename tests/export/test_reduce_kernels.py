@@ -106,8 +106,9 @@ def test_compiled_quantization_picks_the_codes_of_quantize_rotations():
 
 
 def test_signals_during_the_compiled_reduction_stop_cleanly():
-    """As for the rasterizer (test_navmesh_raster): 20 SIGTERMs at staggered moments during
-    repeated compiled calls, each raising in the main thread, stop them cleanly."""
+    """As for the rasterizer (test_navmesh_raster): 100 SIGTERMs at staggered moments during
+    repeated compiled calls, each raising in the main thread, stop them cleanly (the key
+    fitting's kernel runs on the main thread once compiled: parallel.compiled_call)."""
     assert_signals_stop_cleanly("""
         from baker.export import keyfit
         rng = np.random.default_rng(0)
@@ -118,4 +119,4 @@ def test_signals_during_the_compiled_reduction_stop_cleanly():
         keep = np.zeros((400, 3000), dtype=bool)
         keyfit.fit_channels(v, v, t, False, tol, np.arange(400), 2500.0, keep)
         keyfit.tight_misses(v, v, t, False, tol)
-        """)
+        """, times=100)
