@@ -3,6 +3,8 @@
 scipy's Rotation is imported where it is used: baker.config imports this module, and the CLI's
 option errors come before scipy is imported (issue 15)."""
 
+import math
+
 import numpy as np
 
 
@@ -198,8 +200,19 @@ def quat_about(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     return np.concatenate([np.asarray(axis, dtype=np.float64) * np.sin(h), np.cos(h)], axis=-1)
 
 
+#: quat_rotate's batches of at least this many vectors are rotated in one compiled pass
+#: (geometry.fused, the same bits)
+FUSED_ROTATE = 64
+
+
 def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Rotate vectors v (..., 3) by unit quaternions q (..., 4), xyzw."""
+    sq, sv = np.shape(q)[:-1], np.shape(v)[:-1]
+    shape = sq if sq == sv else np.broadcast_shapes(sq, sv)
+    if math.prod(shape) >= FUSED_ROTATE:
+        from baker.geometry import fused
+
+        return fused.quat_rotate(np.asarray(q), np.asarray(v), shape)
     qv = q[..., :3]
     w = q[..., 3:4]
     t = cross(qv, v)

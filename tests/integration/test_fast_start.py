@@ -19,8 +19,8 @@ code = main(sys.argv[1:])
 print(json.dumps({"code": code, "modules": sorted(sys.modules)}), file=sys.stdout)
 """
 
-#: never imported before a command runs: geometry, meshes, USD, ray casting, glTF
-HEAVY = ("scipy", "trimesh", "pxr", "embreex", "pygltflib", "matplotlib")
+#: never imported before a command runs: geometry, meshes, USD, ray casting, glTF, compiled code
+HEAVY = ("scipy", "trimesh", "pxr", "embreex", "pygltflib", "matplotlib", "numba", "llvmlite")
 #: nor, for the help texts, the option schema and the arrays
 HELP_HEAVY = HEAVY + ("numpy", "pydantic", "baker.config", "baker.schema")
 
