@@ -180,6 +180,20 @@ def place_chain(points, cum, rise, head_arc, offset, w, steps, spacing: float,
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _at_or_below(xp, x):
+    """How many of the non-decreasing xp are at or below x (searchsorted "right"), by
+    bisection."""
+    lo, hi = 0, len(xp)
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if x >= xp[mid]:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _interp_one(x, xp, fp):
     """np.interp(x, xp, fp) of one key (arr_interp: left and right values fp[0], fp[-1])."""
     n = len(xp)
@@ -191,14 +205,7 @@ def _interp_one(x, xp, fp):
         return fp[n - 1]
     if x < xp[0]:
         return fp[0]
-    lo, hi = 0, n                  # the count of knots at or below x, by bisection
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if x >= xp[mid]:
-            lo = mid + 1
-        else:
-            hi = mid
-    j = lo - 1
+    j = _at_or_below(xp, x) - 1
     if j == n - 1 or xp[j] == x:
         return fp[j]
     slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
@@ -219,17 +226,8 @@ def _at(points, cum, rise, s, off, w, out):
         out[0], out[1], out[2] = points[0, 0], points[0, 1], points[0, 2]
     else:
         flat = min(max(s, cum[0]), cum[n - 1]) if s == s else s     # np.clip
-        if flat != flat:
-            i = n - 2
-        else:
-            lo, hi = 0, n          # searchsorted(cum, flat, "right")
-            while lo < hi:
-                mid = (lo + hi) >> 1
-                if flat >= cum[mid]:
-                    lo = mid + 1
-                else:
-                    hi = mid
-            i = min(max(lo - 1, 0), n - 2)
+        # searchsorted(cum, flat, "right") - 1, within the segments (NaN: the last one)
+        i = n - 2 if flat != flat else min(max(_at_or_below(cum, flat) - 1, 0), n - 2)
         seg = cum[i + 1] - cum[i]
         t = (flat - cum[i]) / seg if seg > 0 else 0.0
         for c in range(3):

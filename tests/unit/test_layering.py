@@ -13,7 +13,8 @@ PKG = Path(__file__).resolve().parents[2] / "baker"
 
 #: what each part may import from baker (besides itself, errors and geometry)
 ALLOWED = {
-    "geometry": set(),
+    "geometry": {"parallel"},           # fused: quat_rotate's kernel run on the main thread
+                                        # once compiled (parallel imports only the stdlib)
     "errors": set(),
     "signals": set(),
     "atomic": {"signals"},
