@@ -225,7 +225,6 @@ def trail_ends(paths: np.ndarray, cums: np.ndarray, ends: np.ndarray, extent: fl
     out = np.empty((n, m, 3))
     todo = rows
     w_xz, w_y = gaussian_weights(sigma), gaussian_weights(2.0 * spacing / res)
-    paths = np.ascontiguousarray(paths, dtype=np.float64)
     while len(todo):
         # a dithering head's raw arc length is longer than its trail's: look farther back
         w = int(np.ceil(span[todo[0]] / res)) + 1
@@ -253,14 +252,13 @@ def _row_shifts(xp: np.ndarray) -> np.ndarray:
 
 
 def _interp_rows(x: np.ndarray, xp: np.ndarray, fp: np.ndarray) -> np.ndarray:
-    """np.interp row by row, in one call: x (n, a), xp (n, b) non-decreasing rows, fp (n, b, d)
+    """np.interp row by row, the rows shifted apart as one flat call would have them (compiled:
+    trail_kernels.interp_rows): x (n, a), xp (n, b) non-decreasing rows, fp (n, b, d)
     -> (n, a, d) (each row's values clamped to its ends)."""
     n = len(x)
     out = np.empty((n, x.shape[1], fp.shape[2]))
     if n:
-        interp_rows(np.ascontiguousarray(x, dtype=np.float64),
-                    np.ascontiguousarray(xp, dtype=np.float64),
-                    np.ascontiguousarray(fp, dtype=np.float64), _row_shifts(xp), out)
+        interp_rows(x, xp, fp, _row_shifts(xp), out)
     return out
 
 
@@ -281,7 +279,7 @@ def chain_on(trails: np.ndarray, lift: np.ndarray, spacing: float,
     # bracket within four spacings back, as place_chain does (the trail can fold back)
     look = min(int(round(4.0 * spacing / res)) + 1, m)
     compiled_call(_chain_on, np.ascontiguousarray(trails, dtype=np.float64),
-                    np.ascontiguousarray(lift, dtype=np.float64), float(spacing), look, out)
+                  np.ascontiguousarray(lift, dtype=np.float64), float(spacing), look, out)
     return out
 
 

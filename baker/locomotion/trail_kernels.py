@@ -89,14 +89,20 @@ def _interp_row(x, xp, fp, s, out):
             if j == b - 1 or xj == v:
                 out[i, c] = fp[j, c]
             else:
-                xn = xp[j + 1] + s
-                slope = (fp[j + 1, c] - fp[j, c]) / (xn - xj)
-                y = slope * (v - xj) + fp[j, c]
-                if np.isnan(y):
-                    y = slope * (v - xn) + fp[j + 1, c]
-                    if np.isnan(y) and fp[j, c] == fp[j + 1, c]:
-                        y = fp[j, c]
-                out[i, c] = y
+                out[i, c] = _between(v, xj, xp[j + 1] + s, fp[j, c], fp[j + 1, c])
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _between(x, x0, x1, y0, y1):
+    """np.interp's value at x strictly inside the interval (x0, y0) - (x1, y1): from its
+    start, or from its end when that is NaN (and y0 when both are and y0 == y1)."""
+    slope = (y1 - y0) / (x1 - x0)
+    y = slope * (x - x0) + y0
+    if np.isnan(y):
+        y = slope * (x - x1) + y1
+        if np.isnan(y) and y0 == y1:
+            y = y0
+    return y
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -208,13 +214,7 @@ def _interp_one(x, xp, fp):
     j = _at_or_below(xp, x) - 1
     if j == n - 1 or xp[j] == x:
         return fp[j]
-    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
-    y = slope * (x - xp[j]) + fp[j]
-    if np.isnan(y):
-        y = slope * (x - xp[j + 1]) + fp[j + 1]
-        if np.isnan(y) and fp[j] == fp[j + 1]:
-            y = fp[j]
-    return y
+    return _between(x, xp[j], xp[j + 1], fp[j], fp[j + 1])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -49,15 +49,6 @@ class States:
     def positions(self) -> np.ndarray:
         return self.rows[:, 0:3]
 
-    def position(self, i: int) -> np.ndarray:
-        return self.rows[i, 0:3].copy()
-
-    def heading(self, i: int) -> np.ndarray:
-        return self.rows[i, 3:6].copy()
-
-    def arrived(self, i: int) -> bool:
-        return bool(self.rows[i, 6])
-
     @property
     def speeds(self) -> np.ndarray:
         return self.rows[:, 7]
