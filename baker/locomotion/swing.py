@@ -43,6 +43,7 @@ import numpy as np
 
 from baker.geometry.transforms import (length, normalize, quat_about, quat_angle, quat_conj,
                                        quat_mul, quat_rotate, quat_slerp)
+from baker.locomotion.swing_kernels import arc_pose, crowding, leg_pose
 from baker.locomotion.trellis import cheapest_path
 
 #: deep tucks (the foot drawn up to the hip) tried with the larger raises, last [rad]
@@ -371,11 +372,12 @@ def _own_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner, same):
     return cost, end
 
 
-def _turn_faults(lim: Limits, U, T, q_u, q_t, same) -> np.ndarray:
+def _turn_faults(lim: Limits, dots, same) -> np.ndarray:
     """(n-1,) the cost of a joint turning more than `turn` (1) or the breaking turn (HARD)
-    from each entry to the next of the same swing (`same`); U, T, q_u, q_t: (n, 4) local and
-    world rotations of the upper and tip bones."""
-    steps = np.maximum.reduce([quat_angle(x[:-1], x[1:]) for x in (U, T, q_u, q_t)])
+    from each entry to the next of the same swing (`same`); dots: (4, n-1) the dot products of
+    consecutive entries' local and world rotations of the upper and tip bones (leg_pose): the
+    largest of their quat_angle."""
+    steps = np.maximum.reduce(2.0 * np.arccos(np.clip(np.abs(dots), 0.0, 1.0)))
     return (same & (steps > lim.turn)) + (HARD - 1.0) * (same & (steps > lim.breaking_turn))
 
 
@@ -388,12 +390,12 @@ def _bounded_faults(rays: "_Answers", lim: Limits, hip, q_seg, U, T, l1, l2, inn
     something, feet inside a solid, touching feet that slide), each only for the groups whose
     score so far is below `bound`: a group's cost and score are whole where its score is below
     `bound`, else its score is at least `bound`."""
-    q_u, q_t, mid, end = _pose(q_seg, hip, U, T, l1, l2)
+    _, _, mid, end, dots = leg_pose(q_seg, hip, U, T, l1, l2)
     n = len(U)
     cost = np.zeros(n)
     crowd = np.zeros(n) if near is None else w * _crowding(end, inner, near, lim)
     if n > 1:
-        cost[:-1] += _turn_faults(lim, U, T, q_u, q_t, same)
+        cost[:-1] += _turn_faults(lim, dots, same)
     row = np.full(n, -1)
     reach = [l1 - 1e-9, max(l2 - lim.tol, 0.0)]
 
@@ -435,9 +437,7 @@ def _bounded_faults(rays: "_Answers", lim: Limits, hip, q_seg, U, T, l1, l2, inn
 def _crowding(end, inner, near_feet, lim: Limits):
     """(n,) the cost of an inner frame's foot (n, 3) near a neighbour's foot (near_feet
     (n, 2, 3), NaN for none): 1 within lim.gap, HARD within lim.hard_gap."""
-    with np.errstate(invalid="ignore"):
-        d = np.nanmin(length(near_feet - end[:, None]), axis=1, initial=np.inf)
-    return inner * ((d < lim.gap) + (HARD - 1.0) * (d < lim.breaking_gap))
+    return crowding(end, inner, near_feet, lim.gap, lim.breaking_gap, HARD)
 
 
 def _entry_costs(sw: "_Swings", own, w, feet, lim: Limits, k: np.ndarray) -> np.ndarray:
@@ -709,29 +709,21 @@ class _Trial:
             uj = np.clip((uj - delay) / (1.0 - delay), 0.0, 1.0)
         elif delay < 0:
             uj = np.clip(uj / (1.0 + delay), 0.0, 1.0)
-        axis = np.broadcast_to(_Z, (len(j), 3))
         if kind == "plan":
-            U, T = self.U_plan[j], self.T_plan[j]
-        elif kind == "even":
-            U, T = _retimed(self.U_plan[j], self.T_plan[j], sj, uj)
-        elif kind == "peak":
-            U, T = _peak_spread(chosen_U[j], chosen_T[j], sj, int(r))
-        elif kind == "bump":              # the current swing, lifted round its crowded frame
+            return self.U_plan[j], self.T_plan[j]
+        if kind == "even":
+            return _retimed(self.U_plan[j], self.T_plan[j], sj, uj)
+        if kind == "peak":
+            return _peak_spread(chosen_U[j], chosen_T[j], sj, int(r))
+        if kind == "bump":                # the current swing, lifted round its crowded frame
             bump = np.nan_to_num(np.exp(-((uj - self.u_c[j]) / BUMP_WIDTH) ** 2)
                                  * np.sin(np.pi * uj))
-            U = quat_mul(quat_about(axis, s * r * bump), self.U0[j])
-            T = self.T0[j]
-        else:
-            U, T = self._arc(j, uj, pace)
-            U = quat_mul(quat_about(axis, s * np.minimum(r * profile(uj), cap)), U)
-        if swivel:
-            U = _swivel(U, T, swivel * profile(uj), l1, l2)
-        if yaw:
-            U = quat_mul(quat_about(np.broadcast_to(_Y, (len(j), 3)), s * yaw
-                                    * np.sin(np.pi * uj)), U)
-        if flex:
-            T = _flex(U, T, flex * profile(uj), l1, l2)
-        return U, T
+            return quat_mul(quat_about(np.broadcast_to(_Z, (len(j), 3)), s * r * bump),
+                            self.U0[j]), self.T0[j]
+        # the "arc" family, the only one with a swivel, a yaw or a flex (see _candidates)
+        U, T = self._arc(j, uj, pace)
+        return arc_pose(U, T, s, profile(uj), np.sin(np.pi * uj) if yaw else uj,
+                        np.broadcast_to(cap, uj.shape), r, swivel, yaw, flex, l1, l2)
 
 
 def _trial(lim, hip, q_seg, U_all, T_all, sw: _Swings, feet, todo, plan) -> _Trial:

@@ -1,0 +1,219 @@
+"""Compiled passes of the joint-space swings (baker.locomotion.swing), with the same bits as the
+numpy forms they replace (tests/unit/test_swing_kernels.py compares them):
+
+- `arc_pose`: a candidate of the "arc" family (_Trial.pose) from its slerped poses: the leg
+  raised about the body's long axis, then the knee swivelled round the hip -> foot line, the
+  leg yawed round the hip and the foot tucked in, as the candidate asks;
+- `leg_pose`: swing._pose (the world rotations of a leg's two bones, its knee and foot), with
+  the dot products of consecutive entries' rotations that swing._turn_faults turns into angles;
+- `crowding`: swing._crowding, the cost of swinging feet near their neighbours' feet.
+
+Each formula is written out in transforms' order: quat_mul's sums left to right in the
+result's columns (o = aw bx; o += ax bw; o += ay bz; o -= az by, ...), quat_about's
+[axis sin(h), cos(h)] with h = angle / 2 (a zero axis component times sin(h), not a zero),
+quat_rotate's (v + w t) + cross(q.xyz, t) with t = 2 cross(q.xyz, v), dot's products summed
+left to right, np.minimum's and np.maximum's choice (the first argument when it is smaller,
+larger or NaN, else the second). sin, cos and sqrt are the C library's in both (numpy's
+float64 sin and cos give the same bits here; tests check it). The profiles (x ** 0.25) and
+arccos stay in numpy, whose SIMD forms differ from the C library's in the last bit.
+
+The kernels write into arrays they are given and return nothing: they are called directly on
+the main thread once compiled (parallel.compiled_call).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from baker.parallel import compiled_call
+
+
+def arc_pose(U, T, side, prof, sin_u, cap, r, swivel, yaw, flex, l1, l2):
+    """(U, T) (n, 4) local poses of an "arc" candidate (swing._Trial.pose) from the slerped
+    poses U, T (n, 4): U turned by side * min(r * prof, cap) about the segment's +Z, then (when
+    non-zero) swivelled by swivel * prof (swing._swivel), yawed by side * yaw * sin_u about +Y,
+    and T bent by flex * prof (swing._flex). side, prof, sin_u, cap: (n,) float64 (sin_u
+    sin(pi u), read only for a yaw; cap inf for none)."""
+    n = len(U)
+    U_out, T_out = np.empty((n, 4)), np.empty((n, 4))
+    compiled_call(_arc_pose, _c(U), _c(T), _c(side), _c(prof), _c(sin_u), _c(cap), float(r),
+                  float(swivel), float(yaw), float(flex), float(l1), float(l2), U_out, T_out)
+    return U_out, T_out
+
+
+def leg_pose(q_seg, hip, U, T, l1, l2):
+    """(q_u, q_t, mid, end, dots): swing._pose of local poses U, T (n, 4) on segment rotations
+    q_seg (n, 4) and hips (n, 3), and dots (4, n - 1): the dot products of consecutive entries'
+    U, T, q_u and q_t, in that order (quat_angle's before its arccos)."""
+    n = len(U)
+    q_u, q_t = np.empty((n, 4)), np.empty((n, 4))
+    mid, end = np.empty((n, 3)), np.empty((n, 3))
+    dots = np.empty((4, max(n - 1, 0)))
+    compiled_call(_leg_pose, _c(q_seg), _c(hip), _c(U), _c(T), float(l1), float(l2), q_u, q_t,
+                  mid, end, dots)
+    return q_u, q_t, mid, end, dots
+
+
+def crowding(end, inner, near, gap, breaking_gap, hard):
+    """(n,) swing._crowding: inner * ((d < gap) + (hard - 1) * (d < breaking_gap)) with d the
+    distance of each foot end (n, 3) to the nearer of its neighbours' feet near (n, 2, 3) (NaN
+    for none: np.nanmin with initial inf); inner (n,) bool."""
+    out = np.empty(len(end))
+    compiled_call(_crowding, _c(end), np.ascontiguousarray(inner, dtype=np.bool_), _c(near),
+                  float(gap), float(breaking_gap), float(hard), out)
+    return out
+
+
+def _c(a) -> np.ndarray:
+    """a as a C-contiguous float64 array (itself when it is one)."""
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+_OPTS = dict(cache=True, nogil=True, error_model="numpy")
+
+
+@njit(**_OPTS)
+def _minimum(a, b):
+    """np.minimum's choice."""
+    return a if (a < b or a != a) else b
+
+
+@njit(**_OPTS)
+def _maximum(a, b):
+    """np.maximum's choice."""
+    return a if (a > b or a != a) else b
+
+
+@njit(**_OPTS)
+def _qmul(ax, ay, az, aw, bx, by, bz, bw):
+    """transforms.quat_mul of one pair."""
+    o0 = aw * bx
+    o0 += ax * bw
+    o0 += ay * bz
+    o0 -= az * by
+    o1 = aw * by
+    o1 -= ax * bz
+    o1 += ay * bw
+    o1 += az * bx
+    o2 = aw * bz
+    o2 += ax * by
+    o2 -= ay * bx
+    o2 += az * bw
+    o3 = aw * bw
+    o3 -= ax * bx
+    o3 -= ay * by
+    o3 -= az * bz
+    return o0, o1, o2, o3
+
+
+@njit(**_OPTS)
+def _rot(x, y, z, w, v0, v1, v2):
+    """transforms.quat_rotate of one vector."""
+    t0 = (y * v2 - z * v1) * 2.0
+    t1 = (z * v0 - x * v2) * 2.0
+    t2 = (x * v1 - y * v0) * 2.0
+    return ((v0 + w * t0) + (y * t2 - z * t1), (v1 + w * t1) + (z * t0 - x * t2),
+            (v2 + w * t2) + (x * t1 - y * t0))
+
+
+@njit(**_OPTS)
+def _about(a0, a1, a2, angle):
+    """transforms.quat_about of one unit axis and angle."""
+    h = 0.5 * angle
+    s = math.sin(h)
+    return a0 * s, a1 * s, a2 * s, math.cos(h)
+
+
+@njit(**_OPTS)
+def _foot_length(ux, uy, uz, uw, tx, ty, tz, tw, k0, k1, k2, l2):
+    """|knee k + the tip bone (length l2) of the leg U, T|: the lengths swing._flex compares."""
+    q = _qmul(ux, uy, uz, uw, tx, ty, tz, tw)
+    f = _rot(q[0], q[1], q[2], q[3], 0.0, l2, 0.0)
+    f0, f1, f2 = k0 + f[0], k1 + f[1], k2 + f[2]
+    return math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+
+
+@njit(**_OPTS)
+def _arc_pose(U, T, side, prof, sin_u, cap, r, swivel, yaw, flex, l1, l2, U_out, T_out):
+    for i in range(U.shape[0]):
+        s = side[i]
+        a = _about(0.0, 0.0, 1.0, s * _minimum(r * prof[i], cap[i]))
+        u = _qmul(a[0], a[1], a[2], a[3], U[i, 0], U[i, 1], U[i, 2], U[i, 3])
+        t = (T[i, 0], T[i, 1], T[i, 2], T[i, 3])
+        if swivel != 0.0:                   # swing._swivel
+            k = _rot(u[0], u[1], u[2], u[3], 0.0, l1, 0.0)
+            ut = _qmul(u[0], u[1], u[2], u[3], t[0], t[1], t[2], t[3])
+            e = _rot(ut[0], ut[1], ut[2], ut[3], 0.0, l2, 0.0)
+            f0, f1, f2 = k[0] + e[0], k[1] + e[1], k[2] + e[2]
+            d = _maximum(math.sqrt(f0 * f0 + f1 * f1 + f2 * f2), 1e-12)
+            a = _about(f0 / d, f1 / d, f2 / d, swivel * prof[i])
+            u = _qmul(a[0], a[1], a[2], a[3], u[0], u[1], u[2], u[3])
+        if yaw != 0.0:
+            a = _about(0.0, 1.0, 0.0, s * yaw * sin_u[i])
+            u = _qmul(a[0], a[1], a[2], a[3], u[0], u[1], u[2], u[3])
+        if flex != 0.0:                     # swing._flex
+            k = _rot(u[0], u[1], u[2], u[3], 0.0, l1, 0.0)
+            angle = flex * prof[i]
+            a = _about(1.0, 0.0, 0.0, 1.0 * angle)
+            t_in = _qmul(a[0], a[1], a[2], a[3], t[0], t[1], t[2], t[3])
+            a = _about(1.0, 0.0, 0.0, -1.0 * angle)
+            t_out = _qmul(a[0], a[1], a[2], a[3], t[0], t[1], t[2], t[3])
+            n_in = _foot_length(u[0], u[1], u[2], u[3], t_in[0], t_in[1], t_in[2], t_in[3],
+                                k[0], k[1], k[2], l2)
+            n_out = _foot_length(u[0], u[1], u[2], u[3], t_out[0], t_out[1], t_out[2],
+                                 t_out[3], k[0], k[1], k[2], l2)
+            t = t_in if n_in <= n_out else t_out
+        for c in range(4):
+            U_out[i, c] = u[c]
+            T_out[i, c] = t[c]
+
+
+@njit(**_OPTS)
+def _leg_pose(q_seg, hip, U, T, l1, l2, q_u, q_t, mid, end, dots):
+    n = U.shape[0]
+    for i in range(n):
+        u = _qmul(q_seg[i, 0], q_seg[i, 1], q_seg[i, 2], q_seg[i, 3],
+                  U[i, 0], U[i, 1], U[i, 2], U[i, 3])
+        t = _qmul(u[0], u[1], u[2], u[3], T[i, 0], T[i, 1], T[i, 2], T[i, 3])
+        k = _rot(u[0], u[1], u[2], u[3], 0.0, l1, 0.0)
+        m0, m1, m2 = hip[i, 0] + k[0], hip[i, 1] + k[1], hip[i, 2] + k[2]
+        e = _rot(t[0], t[1], t[2], t[3], 0.0, l2, 0.0)
+        for c in range(4):
+            q_u[i, c] = u[c]
+            q_t[i, c] = t[c]
+        mid[i, 0], mid[i, 1], mid[i, 2] = m0, m1, m2
+        end[i, 0], end[i, 1], end[i, 2] = m0 + e[0], m1 + e[1], m2 + e[2]
+    for i in range(n - 1):
+        dots[0, i] = _dot4(U, i)
+        dots[1, i] = _dot4(T, i)
+        dots[2, i] = _dot4(q_u, i)
+        dots[3, i] = _dot4(q_t, i)
+
+
+@njit(**_OPTS)
+def _dot4(x, i):
+    """transforms.dot of rows i and i + 1 of x (n, 4)."""
+    d = x[i, 0] * x[i + 1, 0]
+    d += x[i, 1] * x[i + 1, 1]
+    d += x[i, 2] * x[i + 1, 2]
+    d += x[i, 3] * x[i + 1, 3]
+    return d
+
+
+@njit(**_OPTS)
+def _crowding(end, inner, near, gap, breaking_gap, hard, out):
+    for i in range(end.shape[0]):
+        d = np.inf
+        for k in range(near.shape[1]):
+            x = near[i, k, 0] - end[i, 0]
+            y = near[i, k, 1] - end[i, 1]
+            z = near[i, k, 2] - end[i, 2]
+            v = math.sqrt(x * x + y * y + z * z)
+            if v < d:                       # NaN (no neighbour) never is
+                d = v
+        near_miss = 1.0 if d < gap else 0.0
+        breaks = 1.0 if d < breaking_gap else 0.0
+        out[i] = (1.0 if inner[i] else 0.0) * (near_miss + (hard - 1.0) * breaks)

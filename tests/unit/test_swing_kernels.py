@@ -1,0 +1,149 @@
+"""The compiled joint-space swing passes (locomotion.swing_kernels) give the same bits as the
+numpy forms they replace, kept here as the references: the "arc" candidates' raise, swivel,
+yaw and flex (swing._Trial.pose), a leg's pose with its turn dot products (swing._pose and
+quat_angle's dot), and the crowding cost (swing._crowding), on random poses with caps that
+bind and do not, zero and negative angles, missing neighbours and NaN."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from baker.geometry.transforms import dot, length, quat_about, quat_mul, quat_rotate
+from baker.locomotion import swing
+from baker.locomotion import swing_kernels as sk
+
+L1, L2 = 0.0123, 0.0171
+
+
+def bits(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64).view(np.int64)
+
+
+def unit_quats(rng, n):
+    q = rng.normal(size=(n, 4))
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def numpy_arc_pose(U, T, s, prof, sin_u, cap, r, swivel, yaw, flex):
+    """_Trial.pose's numpy form of the arc family after the slerp."""
+    axis = np.broadcast_to(swing._Z, (len(U), 3))
+    U = quat_mul(quat_about(axis, s * np.minimum(r * prof, cap)), U)
+    if swivel:
+        U = swing._swivel(U, T, swivel * prof, L1, L2)
+    if yaw:
+        U = quat_mul(quat_about(np.broadcast_to(swing._Y, (len(U), 3)), s * yaw * sin_u), U)
+    if flex:
+        T = swing._flex(U, T, flex * prof, L1, L2)
+    return U, T
+
+
+def arc_inputs(seed, n):
+    rng = np.random.default_rng(seed)
+    u = np.clip(rng.uniform(-0.1, 1.1, n), 0.0, 1.0)
+    u[: min(n, 2)] = [0.0, 1.0][: min(n, 2)]
+    side = np.where(rng.random(n) < 0.5, 1.0, -1.0)
+    prof = swing.PROFILES[seed % 3](u)
+    cap = np.where(rng.random(n) < 0.5, rng.uniform(0.0, 0.3, n), np.inf)
+    return unit_quats(rng, n), unit_quats(rng, n), side, prof, np.sin(np.pi * u), cap
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("n", [1, 7, 64, 300])
+@pytest.mark.parametrize("mods", [(0.0, 0.0, 0.0), (0.44, 0.0, 0.0), (-0.87, 0.0, 0.0),
+                                  (0.0, 0.21, 0.0), (0.0, -0.42, 0.0), (0.0, 0.0, 0.35),
+                                  (0.0, 0.0, 1.57), (0.44, 0.21, 0.7)])
+def test_arc_pose_gives_the_numpy_forms_bits(seed, n, mods):
+    U, T, side, prof, sin_u, cap = arc_inputs(seed, n)
+    swivel, yaw, flex = mods
+    for r in (0.0, 0.07, 1.05):
+        want = numpy_arc_pose(U, T, side, prof, sin_u, cap, r, swivel, yaw, flex)
+        got = sk.arc_pose(U, T, side, prof, sin_u, cap, r, swivel, yaw, flex, L1, L2)
+        for g, w in zip(got, want):
+            assert np.array_equal(bits(g), bits(w))
+
+
+def test_arc_pose_keeps_nans_and_signed_zeros_as_numpy():
+    U, T, side, prof, sin_u, cap = arc_inputs(3, 40)
+    prof[5], cap[6], U[7, 2] = np.nan, np.nan, np.nan
+    prof[8], cap[8] = -0.0, 0.0
+    prof[9], cap[9] = 0.0, -0.0
+    want = numpy_arc_pose(U, T, side, prof, sin_u, cap, 0.3, 0.44, 0.21, 0.7)
+    got = sk.arc_pose(U, T, side, prof, sin_u, cap, 0.3, 0.44, 0.21, 0.7, L1, L2)
+    for g, w in zip(got, want):
+        assert np.array_equal(bits(g), bits(w))
+
+
+def test_only_arc_candidates_swivel_yaw_or_flex():
+    """_Trial.pose applies the modifiers in the arc family's kernel only."""
+    for kind, _, _, swivel, flex, _, yaw in swing.CANDIDATES:
+        if swivel or flex or yaw:
+            assert kind.split("/")[0] == "arc", kind
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("n", [1, 2, 63, 64, 500])
+def test_leg_pose_gives_the_numpy_forms_bits(seed, n):
+    rng = np.random.default_rng(seed)
+    q_seg, U, T = unit_quats(rng, n), unit_quats(rng, n), unit_quats(rng, n)
+    hip = rng.normal(size=(n, 3)) * 50.0
+    q_u, q_t, mid, end, dots = sk.leg_pose(q_seg, hip, U, T, L1, L2)
+    want = swing._pose(q_seg, hip, U, T, L1, L2)
+    for g, w in zip((q_u, q_t, mid, end), want):
+        assert np.array_equal(bits(g), bits(w))
+    for row, x in zip(dots, (U, T, want[0], want[1])):
+        assert np.array_equal(bits(row), bits(dot(x[:-1], x[1:])))
+
+
+def test_turn_faults_match_quat_angle():
+    """_turn_faults from leg_pose's dots is the largest quat_angle of the four rotations."""
+    rng = np.random.default_rng(5)
+    n = 400
+
+    def walk(axis):
+        """Rotations turning up to 0.45 rad a step about `axis`."""
+        return quat_about(np.broadcast_to(axis, (n, 3)), np.cumsum(rng.uniform(-0.45, 0.45, n)))
+
+    q_seg = quat_mul(unit_quats(rng, 1), walk(swing._Y))
+    U, T = walk(swing._Z), walk(swing._X)
+    hip = rng.normal(size=(n, 3))
+    q_u, q_t, _, _, dots = sk.leg_pose(q_seg, hip, U, T, L1, L2)
+    same = rng.random(n - 1) < 0.8
+    lim = swing.Limits(contact=0.002, slide=0.001, tol=0.001, turn=0.4, gap=0.01,
+                       hard_turn=0.6)
+    from baker.geometry.transforms import quat_angle
+
+    steps = np.maximum.reduce([quat_angle(x[:-1], x[1:]) for x in (U, T, q_u, q_t)])
+    want = (same & (steps > lim.turn)) + (swing.HARD - 1.0) * (same & (steps > lim.breaking_turn))
+    got = swing._turn_faults(lim, dots, same)
+    assert np.array_equal(bits(got), bits(want))
+    assert 0 < np.count_nonzero(got == 1.0) and 0 < np.count_nonzero(got == swing.HARD)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_crowding_gives_the_numpy_forms_bits(seed):
+    rng = np.random.default_rng(seed)
+    n = 500
+    end = rng.normal(size=(n, 3)) * 0.02
+    near = end[:, None] + rng.normal(size=(n, 2, 3)) * 0.01
+    near[rng.random(n) < 0.2, 0] = np.nan
+    near[rng.random(n) < 0.2, 1] = np.nan
+    end[3] = np.nan
+    inner = rng.random(n) < 0.7
+    gap, hard_gap = 0.01, 0.004
+    with np.errstate(invalid="ignore"):
+        d = np.nanmin(length(near - end[:, None]), axis=1, initial=np.inf)
+    want = inner * ((d < gap) + (swing.HARD - 1.0) * (d < hard_gap))
+    got = sk.crowding(end, inner, near, gap, hard_gap, swing.HARD)
+    assert np.array_equal(bits(got), bits(want))
+    assert {0.0, 1.0, swing.HARD} <= set(got.tolist())
+
+
+def test_rotations_are_quat_rotates():
+    """The kernels' one-vector rotate is transforms.quat_rotate's (both its numpy form, below
+    FUSED_ROTATE vectors, and its fused one)."""
+    rng = np.random.default_rng(9)
+    q = unit_quats(rng, 40)
+    _, _, mid, _, _ = sk.leg_pose(q, np.zeros((40, 3)), np.tile([0.0, 0.0, 0.0, 1.0], (40, 1)),
+                                  np.tile([0.0, 0.0, 0.0, 1.0], (40, 1)), L1, L2)
+    assert np.array_equal(bits(mid), bits(quat_rotate(q, L1 * swing._Y)))
