@@ -37,13 +37,12 @@ only where the swing then breaks a limit in fewer frames.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from itertools import repeat
 
 import numpy as np
 
 from baker.geometry.transforms import (length, normalize, quat_about, quat_angle, quat_conj,
                                        quat_mul, quat_rotate, quat_slerp)
-from baker.locomotion.swing_kernels import arc_pose, crowding, leg_pose
+from baker.locomotion.swing_kernels import PoseRows, arc_pose, crowding, leg_pose
 from baker.locomotion.trellis import cheapest_path
 
 #: deep tucks (the foot drawn up to the hip) tried with the larger raises, last [rad]
@@ -264,9 +263,7 @@ class _Answers:
 
     def __init__(self, rays):
         self.rays = rays
-        self.rows = {}                          # a pose's hash -> its row
-        self.n = 0
-        self.key = np.zeros((0, 9), np.uint64)  # each row's hip, knee, foot (bits)
+        self.poses = PoseRows()                 # each pose's row (its hip, knee, foot bits)
         self.dist = np.zeros(0)                 # NaN: not asked yet
         self.inside = np.zeros(0, np.int8)      # -1: not asked yet
 
@@ -292,20 +289,16 @@ class _Answers:
         return (prim[:n] >= 0) | (prim[n:] >= 0)
 
     def row_of(self, hip, mid, end) -> np.ndarray:
-        """(n,) the rows of poses hip -> mid -> end (n, 3), new poses added."""
-        key = np.concatenate([hip, mid, end], axis=1).view(np.uint64)
-        h = np.zeros(len(key), np.uint64)
-        for c in range(9):
-            h = (h ^ key[:, c]) * np.uint64(0x100000001B3)
-        row = np.fromiter(map(self.rows.get, h.tolist(), repeat(-1)), np.int64, len(h))
-        known = row >= 0
-        known[known] = (self.key[row[known]] == key[known]).all(axis=1)
-        new = np.nonzero(~known)[0]
-        if len(new):
-            _, first, inv = np.unique(h[new], return_index=True, return_inverse=True)
-            if not (key[new[first]][inv] == key[new]).all():     # a hash shared: ask each
-                first, inv = np.arange(len(new)), np.arange(len(new))
-            row[new] = self._add(key[new[first]], h[new[first]])[inv]
+        """(n,) the rows of poses hip -> mid -> end (n, 3), new poses added (nothing asked
+        about them yet)."""
+        had = self.poses.n
+        row = self.poses.rows(hip, mid, end)
+        n = self.poses.n
+        if n > len(self.dist):
+            size = max(2 * len(self.dist), n, 1024)
+            self.dist, self.inside = np.resize(self.dist, size), np.resize(self.inside, size)
+        self.dist[had:n] = np.nan
+        self.inside[had:n] = -1
         return row
 
     def dist_of(self, row, end) -> np.ndarray:
@@ -325,22 +318,6 @@ class _Answers:
             r, first = np.unique(row[ask], return_index=True)
             self.inside[r] = self.rays.inside(end[ask[first]])
         return self.inside[row] == 1
-
-    def _add(self, key, h) -> np.ndarray:
-        """The rows of new poses (m,), nothing asked about them yet."""
-        m = len(key)
-        rows = np.arange(self.n, self.n + m)
-        if self.n + m > len(self.dist):
-            size = max(2 * len(self.dist), self.n + m, 1024)
-            self.key = np.resize(self.key, (size, 9))
-            self.dist, self.inside = np.resize(self.dist, size), np.resize(self.inside, size)
-        self.key[rows] = key
-        self.dist[rows] = np.nan
-        self.inside[rows] = -1
-        self.rows.update(zip(h.tolist(), rows.tolist()))
-        self.n += m
-        return rows
-
 
 def _node_faults(rays, lim: Limits, hip, q_seg, U, T, l1, l2, inner):
     """(cost (n,), q_u, q_t, feet (n, 3), touch (n,) bool) of single poses: a bone through the

@@ -6,7 +6,9 @@ numpy forms they replace (tests/unit/test_swing_kernels.py compares them):
   leg yawed round the hip and the foot tucked in, as the candidate asks;
 - `leg_pose`: swing._pose (the world rotations of a leg's two bones, its knee and foot), with
   the dot products of consecutive entries' rotations that swing._turn_faults turns into angles;
-- `crowding`: swing._crowding, the cost of swinging feet near their neighbours' feet.
+- `crowding`: swing._crowding, the cost of swinging feet near their neighbours' feet;
+- `PoseRows`: the rows of swing._Answers, poses told apart by the exact bits of their hip,
+  knee and foot, in an open-addressing table (each new pose the next row, in order).
 
 Each formula is written out in transforms' order: quat_mul's sums left to right in the
 result's columns (o = aw bx; o += ax bw; o += ay bz; o -= az by, ...), quat_about's
@@ -65,6 +67,38 @@ def crowding(end, inner, near, gap, breaking_gap, hard):
     compiled_call(_crowding, _c(end), np.ascontiguousarray(inner, dtype=np.bool_), _c(near),
                   float(gap), float(breaking_gap), float(hard), out)
     return out
+
+
+class PoseRows:
+    """Rows of poses, each told apart by its 9 float64 words' bits (hip, knee, foot): a pose
+    asked about again gets its first row; new poses get the next rows, in the order asked.
+
+    key : (capacity, 9) uint64, the rows' poses (the first `n` rows in use)"""
+
+    def __init__(self):
+        self.key = np.zeros((0, 9), np.uint64)
+        self.n = 0
+        self._table = np.full(16, -1, np.int64)     # slot -> row, -1 empty (a power of 2)
+        self._count = np.zeros(1, np.int64)
+
+    def rows(self, hip, mid, end) -> np.ndarray:
+        """(m,) int64 the rows of poses hip -> mid -> end (each (m, 3) float64)."""
+        key = np.ascontiguousarray(np.concatenate([hip, mid, end], axis=1),
+                                   dtype=np.float64).view(np.uint64)
+        m = len(key)
+        if self.n + m > len(self.key):
+            self.key = np.resize(self.key, (max(2 * len(self.key), self.n + m, 1024), 9))
+        if 2 * (self.n + m) > len(self._table):       # at most half full
+            size = len(self._table)
+            while 2 * (self.n + m) > size:
+                size *= 4
+            self._table = np.full(size, -1, np.int64)
+            compiled_call(_rehash, self.key, self.n, self._table)
+        out = np.empty(m, np.int64)
+        self._count[0] = self.n
+        compiled_call(_pose_rows, key, self.key, self._count, self._table, out)
+        self.n = int(self._count[0])
+        return out
 
 
 def _c(a) -> np.ndarray:
@@ -217,3 +251,53 @@ def _crowding(end, inner, near, gap, breaking_gap, hard, out):
         near_miss = 1.0 if d < gap else 0.0
         breaks = 1.0 if d < breaking_gap else 0.0
         out[i] = (1.0 if inner[i] else 0.0) * (near_miss + (hard - 1.0) * breaks)
+
+
+_FNV_START = np.uint64(0xCBF29CE484222325)
+_FNV_PRIME = np.uint64(0x100000001B3)
+
+
+@njit(**_OPTS)
+def _slot(key, i, mask):
+    """The first table slot of row i of key (n, 9) uint64: FNV-1a over its 9 words."""
+    h = _FNV_START
+    for c in range(9):
+        h = (h ^ key[i, c]) * _FNV_PRIME
+    return np.int64(h & np.uint64(mask))
+
+
+@njit(**_OPTS)
+def _rehash(store, n, table):
+    mask = len(table) - 1
+    for r in range(n):
+        slot = _slot(store, r, mask)
+        while table[slot] >= 0:
+            slot = (slot + 1) & mask
+        table[slot] = r
+
+
+@njit(**_OPTS)
+def _pose_rows(key, store, count, table, out):
+    mask = len(table) - 1
+    n = count[0]
+    for i in range(key.shape[0]):
+        slot = _slot(key, i, mask)
+        while True:
+            r = table[slot]
+            if r < 0:                       # a new pose: the next row
+                for c in range(9):
+                    store[n, c] = key[i, c]
+                table[slot] = n
+                out[i] = n
+                n += 1
+                break
+            same = True
+            for c in range(9):
+                if store[r, c] != key[i, c]:
+                    same = False
+                    break
+            if same:
+                out[i] = r
+                break
+            slot = (slot + 1) & mask
+    count[0] = n

@@ -147,3 +147,36 @@ def test_rotations_are_quat_rotates():
     _, _, mid, _, _ = sk.leg_pose(q, np.zeros((40, 3)), np.tile([0.0, 0.0, 0.0, 1.0], (40, 1)),
                                   np.tile([0.0, 0.0, 0.0, 1.0], (40, 1)), L1, L2)
     assert np.array_equal(bits(mid), bits(quat_rotate(q, L1 * swing._Y)))
+
+
+def reference_rows(batches):
+    """Each pose's row by a dict of its bytes: new poses numbered in the order asked."""
+    seen, out = {}, []
+    for hip, mid, end in batches:
+        key = np.concatenate([hip, mid, end], axis=1)
+        out.append(np.array([seen.setdefault(k.tobytes(), len(seen)) for k in key]))
+    return out
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_pose_rows_tell_poses_apart_by_their_bits(seed):
+    """Poses asked again (in the same batch or a later one) keep their first row; new ones
+    get the next rows in order, through the table's growth and its probing; -0.0 and 0.0 are
+    different poses, a NaN pose is itself."""
+    rng = np.random.default_rng(seed)
+    pool = rng.normal(size=(3000, 9))
+    pool[1, 0], pool[2, 0] = 0.0, -0.0
+    pool[2, 1:] = pool[1, 1:]
+    pool[3, 4] = np.nan
+    batches = []
+    for size in (1, 5, 40, 300, 2000, 7, 1500):
+        pick = pool[rng.integers(0, len(pool), size)]
+        if size >= 5:
+            pick[:5] = pool[:5]
+        batches.append((pick[:, :3], pick[:, 3:6], pick[:, 6:]))
+    table = sk.PoseRows()
+    got = [table.rows(*b) for b in batches]
+    for g, w in zip(got, reference_rows(batches)):
+        assert np.array_equal(g, w)
+    assert table.n == len({k.tobytes() for b in batches for k in np.concatenate(b, axis=1)})
+    assert got[1][1] != got[1][2]
