@@ -11,9 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from baker.geometry.transforms import cross, dot, length, normalize
+from baker.geometry.transforms import cross, dot, frame_quats, length, normalize
 
 #: fraction of the full reach (l1 + l2) where the soft clamp starts
 SOFT_START = 0.96
@@ -102,6 +101,4 @@ def bone_frames(start: np.ndarray, end: np.ndarray, hinge: np.ndarray) -> np.nda
     x = np.asarray(hinge, float)
     x = normalize(x - np.sum(x * y, axis=-1, keepdims=True) * y)
     z = cross(x, y)
-    m = np.stack([x, y, z], axis=-1)
-    shape = m.shape[:-2]
-    return Rotation.from_matrix(m.reshape(-1, 3, 3)).as_quat().reshape(*shape, 4)
+    return frame_quats(np.stack([x, y, z], axis=-1))

@@ -77,3 +77,57 @@ def test_quat_rotate_on_large_batches_gives_the_numpy_forms_bits(seed, monkeypat
         monkeypatch.undo()
         assert got.dtype == want.dtype and got.shape == want.shape
         np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+
+
+def _frames(rng, n, parallel=0):
+    """Rotation matrices built as ik.bone_frames builds them (y along a bone, x the hinge made
+    orthogonal, z = x cross y), some hinges nearly along the bone, the first `parallel` exactly
+    along it (a zero x column)."""
+    y = normalize(rng.normal(size=(n, 3)))
+    hinge = rng.normal(size=(n, 3))
+    near = rng.random(n) < 0.1
+    hinge[near] = y[near] + rng.normal(size=(near.sum(), 3)) * 10.0 ** rng.uniform(-9, -3, (near.sum(), 1))
+    hinge[:parallel] = 2.0 * y[:parallel]
+    x = normalize(hinge - dot(hinge, y)[:, None] * y)
+    z = cross(x, y)
+    return np.stack([x, y, z], axis=-1), z
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_frame_quats_are_scipys_validated_bits(seed):
+    """frame_quats skips scipy's validation only where it changes nothing: the same bits as
+    Rotation.from_matrix on frames made as the solve makes them, hinges nearly along the bone
+    included."""
+    from scipy.spatial.transform import Rotation
+
+    from baker.geometry.transforms import frame_quats
+
+    m, z = _frames(np.random.default_rng(seed), 100_000)
+    want = Rotation.from_matrix(m).as_quat()
+    got = frame_quats(m)
+    assert np.array_equal(got.view(np.int64), want.view(np.int64))
+    assert np.array_equal(frame_quats(m.reshape(100, 1000, 3, 3)), want.reshape(100, 1000, 4))
+
+
+def test_frame_quats_leave_degenerate_frames_to_scipys_check():
+    """A zero column (a hinge along the bone) still fails as scipy's validated call fails; NaN
+    frames go the validated way too."""
+    from scipy.spatial.transform import Rotation
+
+    from baker.geometry.transforms import frame_quats
+
+    m, z = _frames(np.random.default_rng(7), 50, parallel=1)
+    with pytest.raises(ValueError):
+        Rotation.from_matrix(m)
+    with pytest.raises(ValueError):
+        frame_quats(m)
+    m, z = _frames(np.random.default_rng(8), 50)
+    m[3, 0, 0] = z[3, 0] = np.nan
+    with np.errstate(invalid="ignore"):         # scipy's determinant of the NaN frame
+        try:
+            want = Rotation.from_matrix(m).as_quat()
+        except np.linalg.LinAlgError:
+            with pytest.raises(np.linalg.LinAlgError):
+                frame_quats(m)
+        else:
+            assert np.array_equal(frame_quats(m), want, equal_nan=True)
