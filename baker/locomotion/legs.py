@@ -51,9 +51,10 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 from baker.config import LegsConfig, RigConfig
 from baker.geometry.conventions import FORWARD, LEFT, UP
 from baker.geometry.ik import bone_frames, soft_clamp, two_bone_ik
-from baker.geometry.transforms import cross, dot, normalize, quat_rotate
+from baker.geometry.transforms import cross, dot, length, normalize, quat_rotate
 from baker.locomotion.body import BodyFrames
 from baker.locomotion.gait import gait_clock
+from baker.locomotion.leg_kernels import stance_traces
 from baker.locomotion.swing import Limits, joint_space_swings
 from baker.rig.limbs import LegLayout, chains, leg_layout, leg_pole
 
@@ -1069,19 +1070,14 @@ def _stance_turns(hip, hold, fwd, left, q_inv, lay, legs, knee_out) -> np.ndarra
     """(n, W-1) degrees the bones of legs `legs` (n,) with their feet planted at `hold` (n, 3)
     turn between consecutive frames of a window (hip, fwd, left: (n, W, 3); q_inv (n, W, 4) the
     segments' inverse rotations), in the world and the upper bone in its segment's own space
-    (a segment turning one way while the planted leg turns the other adds the two)."""
-    n, W, _ = hip.shape
-    target = np.broadcast_to(hold[:, None, :], hip.shape)
-    u = normalize(target - hip)
-    s = lay.side[legs][:, None, None]
-    pole = s * cross(fwd, u) + knee_out * s * left
-    sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
-    sw = (lambda a: np.swapaxes(a, 0, 1))
-    m, hg = quat_rotate(q_inv, sol.mid - hip), quat_rotate(q_inv, sol.hinge)
-    # the three bones' steps in one call (frames first, the bones next)
-    steps = _frame_steps(np.stack([sw(hip), sw(sol.mid), np.zeros_like(sw(m))], axis=1),
-                         np.stack([sw(sol.mid), sw(sol.end), sw(m)], axis=1),
-                         np.stack([sw(sol.hinge), sw(sol.hinge), sw(hg)], axis=1))
+    (a segment turning one way while the planted leg turns the other adds the two): the leg
+    solved as two_bone_ik solves it with the knee toward side * cross(fwd, u) + knee_out * side
+    * left, each bone's steps as _frame_steps measures them (compiled to the arccos:
+    leg_kernels.stance_traces; the soft clamp's exp and the arccos stay in numpy)."""
+    l1, l2 = float(lay.l1), float(lay.l2)
+    d = soft_clamp(length(hold[:, None, :] - hip), abs(l1 - l2) + 1e-6 * (l1 + l2), l1 + l2)
+    tr = stance_traces(hip, hold, fwd, left, q_inv, lay.side[legs], knee_out, l1, l2, d)
+    steps = np.degrees(np.arccos(np.clip(0.5 * (tr - 1.0), -1.0, 1.0)))
     return steps.max(axis=1).T
 
 

@@ -42,7 +42,7 @@ import numpy as np
 
 from baker.geometry.transforms import (length, normalize, quat_about, quat_angle, quat_conj,
                                        quat_mul, quat_rotate, quat_slerp)
-from baker.locomotion.swing_kernels import PoseRows, arc_pose, crowding, leg_pose
+from baker.locomotion.leg_kernels import PoseRows, arc_pose, crowding, leg_pose
 from baker.locomotion.trellis import cheapest_path
 
 #: deep tucks (the foot drawn up to the hip) tried with the larger raises, last [rad]

@@ -1,4 +1,4 @@
-"""The compiled joint-space swing passes (locomotion.swing_kernels) give the same bits as the
+"""The compiled joint-space swing passes (locomotion.leg_kernels) give the same bits as the
 numpy forms they replace, kept here as the references: the "arc" candidates' raise, swivel,
 yaw and flex (swing._Trial.pose), a leg's pose with its turn dot products (swing._pose and
 quat_angle's dot), and the crowding cost (swing._crowding), on random poses with caps that
@@ -11,7 +11,7 @@ import pytest
 
 from baker.geometry.transforms import dot, length, quat_about, quat_mul, quat_rotate
 from baker.locomotion import swing
-from baker.locomotion import swing_kernels as sk
+from baker.locomotion import leg_kernels as sk
 
 L1, L2 = 0.0123, 0.0171
 
@@ -180,3 +180,61 @@ def test_pose_rows_tell_poses_apart_by_their_bits(seed):
         assert np.array_equal(g, w)
     assert table.n == len({k.tobytes() for b in batches for k in np.concatenate(b, axis=1)})
     assert got[1][1] != got[1][2]
+
+
+def numpy_stance_turns(hip, hold, fwd, left, q_inv, lay, legs, knee_out):
+    """legs._stance_turns' numpy form: two_bone_ik over the window, then _frame_steps of the
+    three bones."""
+    from baker.geometry.ik import two_bone_ik
+    from baker.geometry.transforms import cross, normalize
+    from baker.locomotion.legs import _frame_steps
+
+    target = np.broadcast_to(hold[:, None, :], hip.shape)
+    u = normalize(target - hip)
+    s = lay.side[legs][:, None, None]
+    pole = s * cross(fwd, u) + knee_out * s * left
+    sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
+    sw = (lambda a: np.swapaxes(a, 0, 1))
+    m, hg = quat_rotate(q_inv, sol.mid - hip), quat_rotate(q_inv, sol.hinge)
+    steps = _frame_steps(np.stack([sw(hip), sw(sol.mid), np.zeros_like(sw(m))], axis=1),
+                         np.stack([sw(sol.mid), sw(sol.end), sw(m)], axis=1),
+                         np.stack([sw(sol.hinge), sw(sol.hinge), sw(hg)], axis=1))
+    return steps.max(axis=1).T
+
+
+def stance_window(seed, n, W):
+    """Planted feet near, at and beyond reach of hips that wander over a window, with some
+    feet on their hip and some poles along the leg."""
+    from types import SimpleNamespace
+
+    from baker.geometry.transforms import normalize
+
+    rng = np.random.default_rng(seed)
+    lay = SimpleNamespace(side=np.array([1.0, -1.0, 1.0, -1.0]), l1=L1, l2=L2)
+    legs = rng.integers(0, 4, n)
+    hold = rng.normal(size=(n, 3)) * 0.01
+    reach = rng.uniform(0.0, 1.3 * (L1 + L2), (n, 1, 1))
+    hip = hold[:, None, :] + normalize(rng.normal(size=(n, 1, 3))) * reach
+    hip = hip + np.cumsum(rng.normal(size=(n, W, 3)) * 0.002, axis=1)
+    hip[0, 1] = hold[0]                                 # a foot on its hip
+    fwd = normalize(rng.normal(size=(n, W, 3)))
+    left = normalize(rng.normal(size=(n, W, 3)))
+    fwd[1, -1] = normalize(hold[1] - hip[1, -1])        # a pole along the leg (knee_out 0)
+    q_inv = quat_mul(np.broadcast_to(unit_quats(rng, n)[:, None], (n, W, 4)),
+                     quat_about(np.broadcast_to(swing._Y, (n, W, 3)),
+                                np.cumsum(rng.uniform(-0.3, 0.3, (n, W)), axis=1)))
+    return hip, hold, fwd, left, q_inv, lay, legs
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("knee_out", [0.0, 0.35])
+@pytest.mark.parametrize("W", [2, 9, 49])
+def test_stance_turns_give_the_numpy_forms_bits(seed, knee_out, W):
+    from baker.locomotion.legs import _stance_turns
+
+    args = stance_window(seed, 60, W)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        want = numpy_stance_turns(*args, knee_out)
+        got = _stance_turns(*args, knee_out)
+    assert got.shape == (60, W - 1)
+    assert np.array_equal(bits(got), bits(want))

@@ -1,5 +1,11 @@
-"""Compiled passes of the joint-space swings (baker.locomotion.swing), with the same bits as the
-numpy forms they replace (tests/unit/test_swing_kernels.py compares them):
+"""Compiled passes of the legs' planning (baker.locomotion.legs) and joint-space swings
+(baker.locomotion.swing), with the same bits as the numpy forms they replace
+(tests/unit/test_leg_kernels.py compares them):
+
+- `stance_traces`: legs._stance_turns up to its arccos: a planted leg's two-bone IK over a
+  window of frames (ik.two_bone_ik after its soft clamp, which stays in numpy) and the trace
+  of each bone's frame-to-frame rotation (legs._frame_steps) for its hip -> knee and
+  knee -> foot bones in the world and its upper bone in its segment's space;
 
 - `arc_pose`: a candidate of the "arc" family (_Trial.pose) from its slerped poses: the leg
   raised about the body's long axis, then the knee swivelled round the hip -> foot line, the
@@ -16,8 +22,8 @@ result's columns (o = aw bx; o += ax bw; o += ay bz; o -= az by, ...), quat_abou
 quat_rotate's (v + w t) + cross(q.xyz, t) with t = 2 cross(q.xyz, v), dot's products summed
 left to right, np.minimum's and np.maximum's choice (the first argument when it is smaller,
 larger or NaN, else the second). sin, cos and sqrt are the C library's in both (numpy's
-float64 sin and cos give the same bits here; tests check it). The profiles (x ** 0.25) and
-arccos stay in numpy, whose SIMD forms differ from the C library's in the last bit.
+float64 sin and cos give the same bits here; tests check it). The profiles (x ** 0.25),
+exp and arccos stay in numpy, whose SIMD forms differ from the C library's in the last bit.
 
 The kernels write into arrays they are given and return nothing: they are called directly on
 the main thread once compiled (parallel.compiled_call).
@@ -99,6 +105,20 @@ class PoseRows:
         compiled_call(_pose_rows, key, self.key, self._count, self._table, out)
         self.n = int(self._count[0])
         return out
+
+
+def stance_traces(hip, hold, fwd, left, q_inv, side, knee_out, l1, l2, d):
+    """(W - 1, 3, n) legs._frame_steps' traces (the sum of the dot products of consecutive
+    frames' bone axes x, y, z) of the bones hip -> knee, knee -> foot (world) and the upper
+    bone in its segment's space (q_inv), of legs planted at hold (n, 3) over windows of W
+    frames: hip, fwd, left (n, W, 3), q_inv (n, W, 4), side (n,) +1 left, -1 right; d (n, W)
+    the soft-clamped reach (ik.soft_clamp of |hold - hip|); the knee bends toward
+    side * cross(fwd, u) + knee_out * side * left as in legs._stance_turns."""
+    n, W = hip.shape[:2]
+    tr = np.empty((max(W - 1, 0), 3, n))
+    compiled_call(_stance_traces, _c(hip), _c(hold), _c(fwd), _c(left), _c(q_inv), _c(side),
+                  float(knee_out), float(l1), float(l2), _c(d), tr)
+    return tr
 
 
 def _c(a) -> np.ndarray:
@@ -301,3 +321,92 @@ def _pose_rows(key, store, count, table, out):
                 break
             slot = (slot + 1) & mask
     count[0] = n
+
+
+@njit(**_OPTS)
+def _cross(a0, a1, a2, b0, b1, b2):
+    """transforms.cross of one pair."""
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+@njit(**_OPTS)
+def _unit(v0, v1, v2):
+    """transforms.normalize of one 3-vector (eps 1e-12)."""
+    m = _maximum(math.sqrt(v0 * v0 + v1 * v1 + v2 * v2), 1e-12)
+    return v0 / m, v1 / m, v2 / m
+
+
+@njit(**_OPTS)
+def _bone_axes(a0, a1, a2, b0, b1, b2, h0, h1, h2, out, k):
+    """legs._frame_steps' axes of the bone a -> b with hinge h: y along it, x the hinge made
+    orthogonal, z = x cross y, into out[k:k + 9] (x, y, z)."""
+    y = _unit(b0 - a0, b1 - a1, b2 - a2)
+    dh = h0 * y[0] + h1 * y[1] + h2 * y[2]
+    x = _unit(h0 - dh * y[0], h1 - dh * y[1], h2 - dh * y[2])
+    z = _cross(x[0], x[1], x[2], y[0], y[1], y[2])
+    out[k], out[k + 1], out[k + 2] = x
+    out[k + 3], out[k + 4], out[k + 5] = y
+    out[k + 6], out[k + 7], out[k + 8] = z
+
+
+@njit(**_OPTS)
+def _stance_traces(hip, hold, fwd, left, q_inv, side, knee_out, l1, l2, d_all, tr):
+    n, W = hip.shape[0], hip.shape[1]
+    ll = l1 * l1 - l2 * l2
+    axes = np.empty((2, 27))                # this frame's and the previous frame's bone axes
+    for i in range(n):
+        s, t0, t1, t2 = side[i], hold[i, 0], hold[i, 1], hold[i, 2]
+        for f in range(W):
+            r0, r1, r2 = hip[i, f, 0], hip[i, f, 1], hip[i, f, 2]
+            v0, v1, v2 = t0 - r0, t1 - r1, t2 - r2
+            u = _unit(v0, v1, v2)                                       # the pole's
+            c = _cross(fwd[i, f, 0], fwd[i, f, 1], fwd[i, f, 2], u[0], u[1], u[2])
+            ks = knee_out * s
+            p0 = s * c[0] + ks * left[i, f, 0]
+            p1 = s * c[1] + ks * left[i, f, 1]
+            p2 = s * c[2] + ks * left[i, f, 2]
+            # ik.two_bone_ik, element by element
+            d_raw = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+            if d_raw > 1e-12:
+                m = _maximum(d_raw, 1e-12)
+                u = (v0 / m, v1 / m, v2 / m)
+            else:
+                a = _cross(p0, p1, p2, 0.0, 0.0, 1.0)
+                u = _unit(a[0] + 1e-9, a[1] + 1e-9, a[2] + 1e-9)
+            d = d_all[i, f]
+            dp = p0 * u[0] + p1 * u[1] + p2 * u[2]
+            w0, w1, w2 = p0 - dp * u[0], p1 - dp * u[1], p2 - dp * u[2]
+            wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+            if wn > 1e-9:
+                m = _maximum(wn, 1e-300)
+                w0, w1, w2 = w0 / m, w1 / m, w2 / m
+            else:
+                if abs(u[1]) < 0.9:
+                    a = _cross(u[0], u[1], u[2], 0.0, 1.0, 0.0)
+                else:
+                    a = _cross(u[0], u[1], u[2], 1.0, 0.0, 0.0)
+                w0, w1, w2 = _unit(a[0], a[1], a[2])
+            a_ = (ll + d * d) / (2.0 * d)
+            h = math.sqrt(_maximum(l1 * l1 - a_ * a_, 0.0))
+            m0 = (r0 + a_ * u[0]) + h * w0
+            m1 = (r1 + a_ * u[1]) + h * w1
+            m2 = (r2 + a_ * u[2]) + h * w2
+            e = _unit((r0 + d * u[0]) - m0, (r1 + d * u[1]) - m1, (r2 + d * u[2]) - m2)
+            e0, e1, e2 = m0 + e[0] * l2, m1 + e[1] * l2, m2 + e[2] * l2
+            g = _cross(u[0], u[1], u[2], w0, w1, w2)                    # the hinge
+            qx, qy, qz, qw = q_inv[i, f, 0], q_inv[i, f, 1], q_inv[i, f, 2], q_inv[i, f, 3]
+            lm = _rot(qx, qy, qz, qw, m0 - r0, m1 - r1, m2 - r2)
+            lg = _rot(qx, qy, qz, qw, g[0], g[1], g[2])
+            cur = axes[f % 2]
+            _bone_axes(r0, r1, r2, m0, m1, m2, g[0], g[1], g[2], cur, 0)
+            _bone_axes(m0, m1, m2, e0, e1, e2, g[0], g[1], g[2], cur, 9)
+            _bone_axes(0.0, 0.0, 0.0, lm[0], lm[1], lm[2], lg[0], lg[1], lg[2], cur, 18)
+            if f > 0:
+                prev = axes[(f - 1) % 2]
+                for b in range(3):
+                    t = 0.0
+                    for v in range(3):
+                        k = 9 * b + 3 * v
+                        t = t + ((cur[k] * prev[k] + cur[k + 1] * prev[k + 1])
+                                 + cur[k + 2] * prev[k + 2])
+                    tr[f - 1, b, i] = t
