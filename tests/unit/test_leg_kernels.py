@@ -2,9 +2,12 @@
 numpy forms they replace, kept here as the references: the "arc" candidates' raise, swivel,
 yaw and flex (swing._Trial.pose), a leg's pose with its turn dot products (swing._pose and
 quat_angle's dot), and the crowding cost (swing._crowding), on random poses with caps that
-bind and do not, zero and negative angles, missing neighbours and NaN."""
+bind and do not, zero and negative angles, missing neighbours and NaN; and
+SIGTERMs during their direct calls stop them cleanly."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -238,3 +241,30 @@ def test_stance_turns_give_the_numpy_forms_bits(seed, knee_out, W):
         got = _stance_turns(*args, knee_out)
     assert got.shape == (60, W - 1)
     assert np.array_equal(bits(got), bits(want))
+
+
+def test_signals_during_the_direct_compiled_calls_stop_cleanly():
+    """After their first call (compiled off the main thread) the leg kernels run on the main
+    thread: 100 SIGTERMs at staggered moments, each raising there, during repeated arc poses,
+    leg poses, crowding, pose rows and stance traces stop them cleanly."""
+    from signal_stops import assert_signals_stop_cleanly
+
+    assert_signals_stop_cleanly("""
+        import sys
+        sys.path[:0] = [%r]
+        from test_leg_kernels import arc_inputs, stance_window, L1, L2
+        from baker.locomotion import leg_kernels as sk
+        from baker.locomotion.legs import _stance_turns
+        U, T, side, prof, sin_u, cap = arc_inputs(2, 3000)
+        win = stance_window(1, 200, 49)
+        hip = np.zeros((3000, 3))
+        def calls():
+            sk.arc_pose(U, T, side, prof, sin_u, cap, 0.3, 0.44, 0.21, 0.7, L1, L2)
+            sk.leg_pose(U, hip, U, T, L1, L2)
+            sk.crowding(hip, side > 0, np.zeros((3000, 2, 3)), 0.01, 0.004, 100.0)
+            sk.PoseRows().rows(hip, hip, hip + U[:, :3])
+            _stance_turns(*win, 0.35)
+        calls()
+    """ % str(Path(__file__).resolve().parent), """
+        calls()
+    """, times=100)
