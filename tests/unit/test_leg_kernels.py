@@ -1,9 +1,11 @@
-"""The compiled joint-space swing passes (locomotion.leg_kernels) give the same bits as the
-numpy forms they replace, kept here as the references: the "arc" candidates' raise, swivel,
-yaw and flex (swing._Trial.pose), a leg's pose with its turn dot products (swing._pose and
-quat_angle's dot), and the crowding cost (swing._crowding), on random poses with caps that
-bind and do not, zero and negative angles, missing neighbours and NaN; and
-SIGTERMs during their direct calls stop them cleanly."""
+"""The compiled passes of the legs and the joint-space swings (locomotion.leg_kernels) give
+the same bits as the numpy forms they replace, kept here as the references: the "arc"
+candidates' raise, swivel, yaw and flex (swing._Trial.pose), a leg's pose with its turn dot
+products (swing._pose and quat_angle's dot), the crowding cost (swing._crowding) and a
+planted leg's turns over a window (legs._stance_turns: two_bone_ik and _frame_steps), on
+random poses with caps that bind and do not, zero, negative and NaN angles, missing
+neighbours, feet on their hips and poles along the leg; the pose rows number poses as a dict
+of their bytes would; and SIGTERMs during the direct calls stop them cleanly."""
 
 from __future__ import annotations
 
