@@ -2,10 +2,11 @@
 (baker.locomotion.swing), with the same bits as the numpy forms they replace
 (tests/unit/test_leg_kernels.py compares them):
 
-- `stance_traces`: legs._stance_turns up to its arccos: a planted leg's two-bone IK over a
-  window of frames (ik.two_bone_ik after its soft clamp, which stays in numpy) and the trace
-  of each bone's frame-to-frame rotation (legs._frame_steps) for its hip -> knee and
-  knee -> foot bones in the world and its upper bone in its segment's space;
+- `leg_traces`: legs._stance_turns and legs._joint_steps up to their arccos: a leg's
+  two-bone IK over frames (ik.two_bone_ik after its soft clamp, which stays in numpy), the
+  trace of each bone's frame-to-frame rotation (legs._frame_steps) for its hip -> knee and
+  knee -> foot bones in the world and its upper bone in its segment's space, and the cosine
+  of its knee angle;
 
 - `arc_pose`: a candidate of the "arc" family (_Trial.pose) from its slerped poses: the leg
   raised about the body's long axis, then the knee swivelled round the hip -> foot line, the
@@ -107,18 +108,22 @@ class PoseRows:
         return out
 
 
-def stance_traces(hip, hold, fwd, left, q_inv, side, knee_out, l1, l2, d):
-    """(W - 1, 3, n) legs._frame_steps' traces (the sum of the dot products of consecutive
-    frames' bone axes x, y, z) of the bones hip -> knee, knee -> foot (world) and the upper
-    bone in its segment's space (q_inv), of legs planted at hold (n, 3) over windows of W
-    frames: hip, fwd, left (n, W, 3), q_inv (n, W, 4), side (n,) +1 left, -1 right; d (n, W)
-    the soft-clamped reach (ik.soft_clamp of |hold - hip|); the knee bends toward
-    side * cross(fwd, u) + knee_out * side * left as in legs._stance_turns."""
+def leg_traces(hip, target, fwd, left, q_inv, side, knee_out, l1, l2, d):
+    """(tr (W - 1, 3, n), knee (n, W)) of legs reaching for target over W frames (each row a
+    leg, as legs._stance_turns and legs._joint_steps solve them): tr, legs._frame_steps'
+    traces (the sum of the dot products of consecutive frames' bone axes x, y, z) of the bones
+    hip -> knee, knee -> foot (world) and the upper bone in its segment's space (q_inv); knee,
+    the cosine of the knee angle in the segment's space (the upper bone's direction dotted with
+    the tip bone's) before its clip and arccos. hip, target, fwd, left (n, W, 3), q_inv (n, W,
+    4), side (n,) +1 left, -1 right; d (n, W) the soft-clamped reach (ik.soft_clamp of
+    |target - hip|); the knee bends toward side * cross(fwd, u) + knee_out * side * left
+    (rig.limbs.leg_pole)."""
     n, W = hip.shape[:2]
     tr = np.empty((max(W - 1, 0), 3, n))
-    compiled_call(_stance_traces, _c(hip), _c(hold), _c(fwd), _c(left), _c(q_inv), _c(side),
-                  float(knee_out), float(l1), float(l2), _c(d), tr)
-    return tr
+    knee = np.empty((n, W))
+    compiled_call(_leg_traces, _c(hip), _c(target), _c(fwd), _c(left), _c(q_inv), _c(side),
+                  float(knee_out), float(l1), float(l2), _c(d), tr, knee)
+    return tr, knee
 
 
 def _c(a) -> np.ndarray:
@@ -350,13 +355,14 @@ def _bone_axes(a0, a1, a2, b0, b1, b2, h0, h1, h2, out, k):
 
 
 @njit(**_OPTS)
-def _stance_traces(hip, hold, fwd, left, q_inv, side, knee_out, l1, l2, d_all, tr):
+def _leg_traces(hip, target, fwd, left, q_inv, side, knee_out, l1, l2, d_all, tr, knee):
     n, W = hip.shape[0], hip.shape[1]
     ll = l1 * l1 - l2 * l2
     axes = np.empty((2, 27))                # this frame's and the previous frame's bone axes
     for i in range(n):
-        s, t0, t1, t2 = side[i], hold[i, 0], hold[i, 1], hold[i, 2]
+        s = side[i]
         for f in range(W):
+            t0, t1, t2 = target[i, f, 0], target[i, f, 1], target[i, f, 2]
             r0, r1, r2 = hip[i, f, 0], hip[i, f, 1], hip[i, f, 2]
             v0, v1, v2 = t0 - r0, t1 - r1, t2 - r2
             u = _unit(v0, v1, v2)                                       # the pole's
@@ -397,6 +403,10 @@ def _stance_traces(hip, hold, fwd, left, q_inv, side, knee_out, l1, l2, d_all, t
             qx, qy, qz, qw = q_inv[i, f, 0], q_inv[i, f, 1], q_inv[i, f, 2], q_inv[i, f, 3]
             lm = _rot(qx, qy, qz, qw, m0 - r0, m1 - r1, m2 - r2)
             lg = _rot(qx, qy, qz, qw, g[0], g[1], g[2])
+            le = _rot(qx, qy, qz, qw, e0 - r0, e1 - r1, e2 - r2)
+            y = _unit(lm[0], lm[1], lm[2])
+            k = _unit(le[0] - lm[0], le[1] - lm[1], le[2] - lm[2])
+            knee[i, f] = (y[0] * k[0] + y[1] * k[1]) + y[2] * k[2]
             cur = axes[f % 2]
             _bone_axes(r0, r1, r2, m0, m1, m2, g[0], g[1], g[2], cur, 0)
             _bone_axes(m0, m1, m2, e0, e1, e2, g[0], g[1], g[2], cur, 9)

@@ -54,7 +54,7 @@ from baker.geometry.ik import bone_frames, soft_clamp, two_bone_ik
 from baker.geometry.transforms import cross, dot, length, normalize, quat_rotate
 from baker.locomotion.body import BodyFrames
 from baker.locomotion.gait import gait_clock
-from baker.locomotion.leg_kernels import stance_traces
+from baker.locomotion.leg_kernels import leg_traces
 from baker.locomotion.swing import Limits, joint_space_swings
 from baker.rig.limbs import LegLayout, chains, leg_layout, leg_pole
 
@@ -1073,12 +1073,22 @@ def _stance_turns(hip, hold, fwd, left, q_inv, lay, legs, knee_out) -> np.ndarra
     (a segment turning one way while the planted leg turns the other adds the two): the leg
     solved as two_bone_ik solves it with the knee toward side * cross(fwd, u) + knee_out * side
     * left, each bone's steps as _frame_steps measures them (compiled to the arccos:
-    leg_kernels.stance_traces; the soft clamp's exp and the arccos stay in numpy)."""
+    leg_kernels.leg_traces; the soft clamp's exp and the arccos stay in numpy)."""
+    target = np.broadcast_to(hold[:, None, :], hip.shape)
+    tr, _ = leg_traces(hip, target, fwd, left, q_inv, lay.side[legs], knee_out, lay.l1,
+                       lay.l2, _clamped_reach(hip, target, lay))
+    return _step_degrees(tr).max(axis=1).T
+
+
+def _clamped_reach(hip, target, lay) -> np.ndarray:
+    """two_bone_ik's soft-clamped reach |target - hip| (...) of bones lay.l1, lay.l2."""
     l1, l2 = float(lay.l1), float(lay.l2)
-    d = soft_clamp(length(hold[:, None, :] - hip), abs(l1 - l2) + 1e-6 * (l1 + l2), l1 + l2)
-    tr = stance_traces(hip, hold, fwd, left, q_inv, lay.side[legs], knee_out, l1, l2, d)
-    steps = np.degrees(np.arccos(np.clip(0.5 * (tr - 1.0), -1.0, 1.0)))
-    return steps.max(axis=1).T
+    return soft_clamp(length(target - hip), abs(l1 - l2) + 1e-6 * (l1 + l2), l1 + l2)
+
+
+def _step_degrees(tr: np.ndarray) -> np.ndarray:
+    """_frame_steps' degrees from its traces."""
+    return np.degrees(np.arccos(np.clip(0.5 * (tr - 1.0), -1.0, 1.0)))
 
 
 def _frame_steps(a: np.ndarray, b: np.ndarray, hinge: np.ndarray) -> np.ndarray:
@@ -1087,26 +1097,22 @@ def _frame_steps(a: np.ndarray, b: np.ndarray, hinge: np.ndarray) -> np.ndarray:
     x = normalize(hinge - dot(hinge, y)[..., None] * y)
     z = cross(x, y)
     tr = sum(dot(v[1:], v[:-1]) for v in (x, y, z))
-    return np.degrees(np.arccos(np.clip(0.5 * (tr - 1.0), -1.0, 1.0)))
+    return _step_degrees(tr)
 
 
 def _joint_steps(hip, target, q_inv, fwd, left, lay, knee_out):
     """(F-1, L) degrees: the largest per-frame rotation of a leg's upper bone (relative to its
     segment, and in the world) or tip bone (relative to the upper bone, and in the world) that
-    the IK gives for these targets."""
-    pole = leg_pole(lay, hip, target, fwd, left, knee_out)
-    sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
-    m = quat_rotate(q_inv, sol.mid - hip)
-    e = quat_rotate(q_inv, sol.end - hip)
-    hg = quat_rotate(q_inv, sol.hinge)
-    up_step = _frame_steps(np.zeros_like(m), m, hg)
-    # the tip turns about the same hinge: its step relative to the upper bone is the change of
-    # the knee angle
-    y = normalize(m)
-    knee = np.arccos(np.clip(dot(y, normalize(e - m)), -1.0, 1.0))
-    world = np.maximum(_frame_steps(hip, sol.mid, sol.hinge),
-                       _frame_steps(sol.mid, sol.end, sol.hinge))
-    return np.maximum(np.maximum(up_step, np.degrees(np.abs(np.diff(knee, axis=0)))), world)
+    the IK gives for these targets (with rig.limbs.leg_pole's knee pole; compiled to the
+    arccos: leg_kernels.leg_traces, legs in rows). The tip turns about the same hinge as the
+    upper bone: its step relative to the upper bone is the change of the knee angle."""
+    sw = (lambda a: np.swapaxes(a, 0, 1))
+    tr, knee = leg_traces(sw(hip), sw(target), sw(fwd), sw(left), sw(q_inv), lay.side, knee_out,
+                          lay.l1, lay.l2, sw(_clamped_reach(hip, target, lay)))
+    steps = _step_degrees(tr)                               # (F-1, bone, L)
+    knee = np.arccos(np.clip(knee.T, -1.0, 1.0))
+    world = np.maximum(steps[:, 0], steps[:, 1])
+    return np.maximum(np.maximum(steps[:, 2], np.degrees(np.abs(np.diff(knee, axis=0)))), world)
 
 
 def _even_joint_swings(target, hip, q, q_inv, fwd, left, lay, knee_out, cidx, LOs, Ts, sw,

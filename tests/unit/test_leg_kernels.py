@@ -2,7 +2,8 @@
 the same bits as the numpy forms they replace, kept here as the references: the "arc"
 candidates' raise, swivel, yaw and flex (swing._Trial.pose), a leg's pose with its turn dot
 products (swing._pose and quat_angle's dot), the crowding cost (swing._crowding) and a
-planted leg's turns over a window (legs._stance_turns: two_bone_ik and _frame_steps), on
+planted leg's turns over a window and a swinging leg's over its frames (legs._stance_turns,
+legs._joint_steps: two_bone_ik, _frame_steps and the knee angle), on
 random poses with caps that bind and do not, zero, negative and NaN angles, missing
 neighbours, feet on their hips and poles along the leg; the pose rows number poses as a dict
 of their bytes would; and SIGTERMs during the direct calls stop them cleanly."""
@@ -270,3 +271,43 @@ def test_signals_during_the_direct_compiled_calls_stop_cleanly():
     """ % str(Path(__file__).resolve().parent), """
         calls()
     """, times=100)
+
+
+def numpy_joint_steps(hip, target, q_inv, fwd, left, lay, knee_out):
+    """legs._joint_steps' numpy form: leg_pole and two_bone_ik over the frames, then
+    _frame_steps of the three bones and the knee angle's change."""
+    from baker.geometry.ik import two_bone_ik
+    from baker.geometry.transforms import normalize
+    from baker.locomotion.legs import _frame_steps
+    from baker.rig.limbs import leg_pole
+
+    pole = leg_pole(lay, hip, target, fwd, left, knee_out)
+    sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
+    m = quat_rotate(q_inv, sol.mid - hip)
+    e = quat_rotate(q_inv, sol.end - hip)
+    hg = quat_rotate(q_inv, sol.hinge)
+    up_step = _frame_steps(np.zeros_like(m), m, hg)
+    knee = np.arccos(np.clip(dot(normalize(m), normalize(e - m)), -1.0, 1.0))
+    world = np.maximum(_frame_steps(hip, sol.mid, sol.hinge),
+                       _frame_steps(sol.mid, sol.end, sol.hinge))
+    return np.maximum(np.maximum(up_step, np.degrees(np.abs(np.diff(knee, axis=0)))), world)
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("knee_out", [0.0, 0.35])
+@pytest.mark.parametrize("F", [2, 40])
+def test_joint_steps_give_the_numpy_forms_bits(seed, knee_out, F):
+    """Swinging feet (a target per frame) of 4 legs over F frames, some on their hips, some
+    poles along the leg, some beyond reach."""
+    from baker.locomotion.legs import _joint_steps
+
+    hip, hold, fwd, left, q_inv, lay, _ = stance_window(seed, 4, F)
+    rng = np.random.default_rng(seed + 100)
+    hip, fwd, left, q_inv = (np.swapaxes(a, 0, 1) for a in (hip, fwd, left, q_inv))
+    target = hold[None] + np.cumsum(rng.normal(size=(F, 4, 3)) * 0.004, axis=0)
+    target[-1, 0] = hip[-1, 0]                          # a foot on its hip
+    with np.errstate(invalid="ignore", divide="ignore"):
+        want = numpy_joint_steps(hip, target, q_inv, fwd, left, lay, knee_out)
+        got = _joint_steps(hip, target, q_inv, fwd, left, lay, knee_out)
+    assert got.shape == (F - 1, 4)
+    assert np.array_equal(bits(got), bits(want))
