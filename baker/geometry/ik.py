@@ -46,6 +46,12 @@ def soft_clamp(d: np.ndarray, lo: float | np.ndarray, hi: float | np.ndarray,
     return out
 
 
+def reach_clamp(d: np.ndarray, l1, l2) -> np.ndarray:
+    """The reach two_bone_ik solves for at distance d (...) of bones l1, l2: d soft-clamped
+    into [|l1 - l2| + 1e-6 (l1 + l2), l1 + l2]."""
+    return soft_clamp(d, np.abs(l1 - l2) + 1e-6 * (l1 + l2), l1 + l2)
+
+
 def two_bone_ik(root: np.ndarray, target: np.ndarray, pole: np.ndarray,
                 l1: float | np.ndarray, l2: float | np.ndarray) -> TwoBoneSolution:
     """Solve root -> mid -> end so that end is at `target` (or as close as the soft clamp lets).
@@ -68,9 +74,8 @@ def two_bone_ik(root: np.ndarray, target: np.ndarray, pole: np.ndarray,
     ok = d_raw > 1e-12
     if not (ok.all() and np.shape(pole) == u.shape):
         u = np.where(ok[..., None], u, normalize(cross(pole, [0.0, 0.0, 1.0]) + 1e-9))
-    lo = np.abs(l1 - l2) + 1e-6 * (l1 + l2)
+    d = reach_clamp(d_raw, l1, l2)
     hi = l1 + l2
-    d = soft_clamp(d_raw, lo, hi)
     p = np.asarray(pole, dtype=np.float64)
     w = p - dot(p, u)[..., None] * u
     wn = length(w)[..., None]

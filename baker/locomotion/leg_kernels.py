@@ -17,14 +17,11 @@
 - `PoseRows`: the rows of swing._Answers, poses told apart by the exact bits of their hip,
   knee and foot, in an open-addressing table (each new pose the next row, in order).
 
-Each formula is written out in transforms' order: quat_mul's sums left to right in the
-result's columns (o = aw bx; o += ax bw; o += ay bz; o -= az by, ...), quat_about's
-[axis sin(h), cos(h)] with h = angle / 2 (a zero axis component times sin(h), not a zero),
-quat_rotate's (v + w t) + cross(q.xyz, t) with t = 2 cross(q.xyz, v), dot's products summed
-left to right, np.minimum's and np.maximum's choice (the first argument when it is smaller,
-larger or NaN, else the second). sin, cos and sqrt are the C library's in both (numpy's
-float64 sin and cos give the same bits here; tests check it). The profiles (x ** 0.25),
-exp and arccos stay in numpy, whose SIMD forms differ from the C library's in the last bit.
+Each formula is transforms' arithmetic element by element (geometry.fused's one-element forms:
+quat_mul1, quat_rotate1, quat_about1, cross1, normalize1, minimum1, maximum1; dot's products
+summed left to right). sin, cos and sqrt are the C library's in both (numpy's float64 sin and
+cos give the same bits here; tests check it). The profiles (x ** 0.25), exp and arccos stay
+in numpy, whose SIMD forms differ from the C library's in the last bit.
 
 The kernels write into arrays they are given and return nothing: they are called directly on
 the main thread once compiled (parallel.compiled_call).
@@ -37,6 +34,8 @@ import math
 import numpy as np
 from numba import njit
 
+from baker.geometry.fused import (cross1, maximum1, minimum1, normalize1, quat_about1,
+                                  quat_mul1, quat_rotate1)
 from baker.parallel import compiled_call
 
 
@@ -135,62 +134,10 @@ _OPTS = dict(cache=True, nogil=True, error_model="numpy")
 
 
 @njit(**_OPTS)
-def _minimum(a, b):
-    """np.minimum's choice."""
-    return a if (a < b or a != a) else b
-
-
-@njit(**_OPTS)
-def _maximum(a, b):
-    """np.maximum's choice."""
-    return a if (a > b or a != a) else b
-
-
-@njit(**_OPTS)
-def _qmul(ax, ay, az, aw, bx, by, bz, bw):
-    """transforms.quat_mul of one pair."""
-    o0 = aw * bx
-    o0 += ax * bw
-    o0 += ay * bz
-    o0 -= az * by
-    o1 = aw * by
-    o1 -= ax * bz
-    o1 += ay * bw
-    o1 += az * bx
-    o2 = aw * bz
-    o2 += ax * by
-    o2 -= ay * bx
-    o2 += az * bw
-    o3 = aw * bw
-    o3 -= ax * bx
-    o3 -= ay * by
-    o3 -= az * bz
-    return o0, o1, o2, o3
-
-
-@njit(**_OPTS)
-def _rot(x, y, z, w, v0, v1, v2):
-    """transforms.quat_rotate of one vector."""
-    t0 = (y * v2 - z * v1) * 2.0
-    t1 = (z * v0 - x * v2) * 2.0
-    t2 = (x * v1 - y * v0) * 2.0
-    return ((v0 + w * t0) + (y * t2 - z * t1), (v1 + w * t1) + (z * t0 - x * t2),
-            (v2 + w * t2) + (x * t1 - y * t0))
-
-
-@njit(**_OPTS)
-def _about(a0, a1, a2, angle):
-    """transforms.quat_about of one unit axis and angle."""
-    h = 0.5 * angle
-    s = math.sin(h)
-    return a0 * s, a1 * s, a2 * s, math.cos(h)
-
-
-@njit(**_OPTS)
 def _foot_length(ux, uy, uz, uw, tx, ty, tz, tw, k0, k1, k2, l2):
     """|knee k + the tip bone (length l2) of the leg U, T|: the lengths swing._flex compares."""
-    q = _qmul(ux, uy, uz, uw, tx, ty, tz, tw)
-    f = _rot(q[0], q[1], q[2], q[3], 0.0, l2, 0.0)
+    q = quat_mul1(ux, uy, uz, uw, tx, ty, tz, tw)
+    f = quat_rotate1(q[0], q[1], q[2], q[3], 0.0, l2, 0.0)
     f0, f1, f2 = k0 + f[0], k1 + f[1], k2 + f[2]
     return math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
 
@@ -199,27 +146,27 @@ def _foot_length(ux, uy, uz, uw, tx, ty, tz, tw, k0, k1, k2, l2):
 def _arc_pose(U, T, side, prof, sin_u, cap, r, swivel, yaw, flex, l1, l2, U_out, T_out):
     for i in range(U.shape[0]):
         s = side[i]
-        a = _about(0.0, 0.0, 1.0, s * _minimum(r * prof[i], cap[i]))
-        u = _qmul(a[0], a[1], a[2], a[3], U[i, 0], U[i, 1], U[i, 2], U[i, 3])
+        a = quat_about1(0.0, 0.0, 1.0, s * minimum1(r * prof[i], cap[i]))
+        u = quat_mul1(a[0], a[1], a[2], a[3], U[i, 0], U[i, 1], U[i, 2], U[i, 3])
         t = (T[i, 0], T[i, 1], T[i, 2], T[i, 3])
         if swivel != 0.0:                   # swing._swivel
-            k = _rot(u[0], u[1], u[2], u[3], 0.0, l1, 0.0)
-            ut = _qmul(u[0], u[1], u[2], u[3], t[0], t[1], t[2], t[3])
-            e = _rot(ut[0], ut[1], ut[2], ut[3], 0.0, l2, 0.0)
+            k = quat_rotate1(u[0], u[1], u[2], u[3], 0.0, l1, 0.0)
+            ut = quat_mul1(u[0], u[1], u[2], u[3], t[0], t[1], t[2], t[3])
+            e = quat_rotate1(ut[0], ut[1], ut[2], ut[3], 0.0, l2, 0.0)
             f0, f1, f2 = k[0] + e[0], k[1] + e[1], k[2] + e[2]
-            d = _maximum(math.sqrt(f0 * f0 + f1 * f1 + f2 * f2), 1e-12)
-            a = _about(f0 / d, f1 / d, f2 / d, swivel * prof[i])
-            u = _qmul(a[0], a[1], a[2], a[3], u[0], u[1], u[2], u[3])
+            d = maximum1(math.sqrt(f0 * f0 + f1 * f1 + f2 * f2), 1e-12)
+            a = quat_about1(f0 / d, f1 / d, f2 / d, swivel * prof[i])
+            u = quat_mul1(a[0], a[1], a[2], a[3], u[0], u[1], u[2], u[3])
         if yaw != 0.0:
-            a = _about(0.0, 1.0, 0.0, s * yaw * sin_u[i])
-            u = _qmul(a[0], a[1], a[2], a[3], u[0], u[1], u[2], u[3])
+            a = quat_about1(0.0, 1.0, 0.0, s * yaw * sin_u[i])
+            u = quat_mul1(a[0], a[1], a[2], a[3], u[0], u[1], u[2], u[3])
         if flex != 0.0:                     # swing._flex
-            k = _rot(u[0], u[1], u[2], u[3], 0.0, l1, 0.0)
+            k = quat_rotate1(u[0], u[1], u[2], u[3], 0.0, l1, 0.0)
             angle = flex * prof[i]
-            a = _about(1.0, 0.0, 0.0, 1.0 * angle)
-            t_in = _qmul(a[0], a[1], a[2], a[3], t[0], t[1], t[2], t[3])
-            a = _about(1.0, 0.0, 0.0, -1.0 * angle)
-            t_out = _qmul(a[0], a[1], a[2], a[3], t[0], t[1], t[2], t[3])
+            a = quat_about1(1.0, 0.0, 0.0, 1.0 * angle)
+            t_in = quat_mul1(a[0], a[1], a[2], a[3], t[0], t[1], t[2], t[3])
+            a = quat_about1(1.0, 0.0, 0.0, -1.0 * angle)
+            t_out = quat_mul1(a[0], a[1], a[2], a[3], t[0], t[1], t[2], t[3])
             n_in = _foot_length(u[0], u[1], u[2], u[3], t_in[0], t_in[1], t_in[2], t_in[3],
                                 k[0], k[1], k[2], l2)
             n_out = _foot_length(u[0], u[1], u[2], u[3], t_out[0], t_out[1], t_out[2],
@@ -234,12 +181,12 @@ def _arc_pose(U, T, side, prof, sin_u, cap, r, swivel, yaw, flex, l1, l2, U_out,
 def _leg_pose(q_seg, hip, U, T, l1, l2, q_u, q_t, mid, end, dots):
     n = U.shape[0]
     for i in range(n):
-        u = _qmul(q_seg[i, 0], q_seg[i, 1], q_seg[i, 2], q_seg[i, 3],
+        u = quat_mul1(q_seg[i, 0], q_seg[i, 1], q_seg[i, 2], q_seg[i, 3],
                   U[i, 0], U[i, 1], U[i, 2], U[i, 3])
-        t = _qmul(u[0], u[1], u[2], u[3], T[i, 0], T[i, 1], T[i, 2], T[i, 3])
-        k = _rot(u[0], u[1], u[2], u[3], 0.0, l1, 0.0)
+        t = quat_mul1(u[0], u[1], u[2], u[3], T[i, 0], T[i, 1], T[i, 2], T[i, 3])
+        k = quat_rotate1(u[0], u[1], u[2], u[3], 0.0, l1, 0.0)
         m0, m1, m2 = hip[i, 0] + k[0], hip[i, 1] + k[1], hip[i, 2] + k[2]
-        e = _rot(t[0], t[1], t[2], t[3], 0.0, l2, 0.0)
+        e = quat_rotate1(t[0], t[1], t[2], t[3], 0.0, l2, 0.0)
         for c in range(4):
             q_u[i, c] = u[c]
             q_t[i, c] = t[c]
@@ -329,26 +276,13 @@ def _pose_rows(key, store, count, table, out):
 
 
 @njit(**_OPTS)
-def _cross(a0, a1, a2, b0, b1, b2):
-    """transforms.cross of one pair."""
-    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
-
-
-@njit(**_OPTS)
-def _unit(v0, v1, v2):
-    """transforms.normalize of one 3-vector (eps 1e-12)."""
-    m = _maximum(math.sqrt(v0 * v0 + v1 * v1 + v2 * v2), 1e-12)
-    return v0 / m, v1 / m, v2 / m
-
-
-@njit(**_OPTS)
 def _bone_axes(a0, a1, a2, b0, b1, b2, h0, h1, h2, out, k):
     """legs._frame_steps' axes of the bone a -> b with hinge h: y along it, x the hinge made
     orthogonal, z = x cross y, into out[k:k + 9] (x, y, z)."""
-    y = _unit(b0 - a0, b1 - a1, b2 - a2)
+    y = normalize1(b0 - a0, b1 - a1, b2 - a2)
     dh = h0 * y[0] + h1 * y[1] + h2 * y[2]
-    x = _unit(h0 - dh * y[0], h1 - dh * y[1], h2 - dh * y[2])
-    z = _cross(x[0], x[1], x[2], y[0], y[1], y[2])
+    x = normalize1(h0 - dh * y[0], h1 - dh * y[1], h2 - dh * y[2])
+    z = cross1(x[0], x[1], x[2], y[0], y[1], y[2])
     out[k], out[k + 1], out[k + 2] = x
     out[k + 3], out[k + 4], out[k + 5] = y
     out[k + 6], out[k + 7], out[k + 8] = z
@@ -365,47 +299,43 @@ def _leg_traces(hip, target, fwd, left, q_inv, side, knee_out, l1, l2, d_all, tr
             t0, t1, t2 = target[i, f, 0], target[i, f, 1], target[i, f, 2]
             r0, r1, r2 = hip[i, f, 0], hip[i, f, 1], hip[i, f, 2]
             v0, v1, v2 = t0 - r0, t1 - r1, t2 - r2
-            u = _unit(v0, v1, v2)                                       # the pole's
-            c = _cross(fwd[i, f, 0], fwd[i, f, 1], fwd[i, f, 2], u[0], u[1], u[2])
+            u = normalize1(v0, v1, v2)      # the pole's; the IK's too, the foot off the hip
+            c = cross1(fwd[i, f, 0], fwd[i, f, 1], fwd[i, f, 2], u[0], u[1], u[2])
             ks = knee_out * s
             p0 = s * c[0] + ks * left[i, f, 0]
             p1 = s * c[1] + ks * left[i, f, 1]
             p2 = s * c[2] + ks * left[i, f, 2]
             # ik.two_bone_ik, element by element
-            d_raw = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-            if d_raw > 1e-12:
-                m = _maximum(d_raw, 1e-12)
-                u = (v0 / m, v1 / m, v2 / m)
-            else:
-                a = _cross(p0, p1, p2, 0.0, 0.0, 1.0)
-                u = _unit(a[0] + 1e-9, a[1] + 1e-9, a[2] + 1e-9)
+            if not math.sqrt(v0 * v0 + v1 * v1 + v2 * v2) > 1e-12:
+                a = cross1(p0, p1, p2, 0.0, 0.0, 1.0)
+                u = normalize1(a[0] + 1e-9, a[1] + 1e-9, a[2] + 1e-9)
             d = d_all[i, f]
             dp = p0 * u[0] + p1 * u[1] + p2 * u[2]
             w0, w1, w2 = p0 - dp * u[0], p1 - dp * u[1], p2 - dp * u[2]
             wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
             if wn > 1e-9:
-                m = _maximum(wn, 1e-300)
+                m = maximum1(wn, 1e-300)
                 w0, w1, w2 = w0 / m, w1 / m, w2 / m
             else:
                 if abs(u[1]) < 0.9:
-                    a = _cross(u[0], u[1], u[2], 0.0, 1.0, 0.0)
+                    a = cross1(u[0], u[1], u[2], 0.0, 1.0, 0.0)
                 else:
-                    a = _cross(u[0], u[1], u[2], 1.0, 0.0, 0.0)
-                w0, w1, w2 = _unit(a[0], a[1], a[2])
+                    a = cross1(u[0], u[1], u[2], 1.0, 0.0, 0.0)
+                w0, w1, w2 = normalize1(a[0], a[1], a[2])
             a_ = (ll + d * d) / (2.0 * d)
-            h = math.sqrt(_maximum(l1 * l1 - a_ * a_, 0.0))
+            h = math.sqrt(maximum1(l1 * l1 - a_ * a_, 0.0))
             m0 = (r0 + a_ * u[0]) + h * w0
             m1 = (r1 + a_ * u[1]) + h * w1
             m2 = (r2 + a_ * u[2]) + h * w2
-            e = _unit((r0 + d * u[0]) - m0, (r1 + d * u[1]) - m1, (r2 + d * u[2]) - m2)
+            e = normalize1((r0 + d * u[0]) - m0, (r1 + d * u[1]) - m1, (r2 + d * u[2]) - m2)
             e0, e1, e2 = m0 + e[0] * l2, m1 + e[1] * l2, m2 + e[2] * l2
-            g = _cross(u[0], u[1], u[2], w0, w1, w2)                    # the hinge
+            g = cross1(u[0], u[1], u[2], w0, w1, w2)                    # the hinge
             qx, qy, qz, qw = q_inv[i, f, 0], q_inv[i, f, 1], q_inv[i, f, 2], q_inv[i, f, 3]
-            lm = _rot(qx, qy, qz, qw, m0 - r0, m1 - r1, m2 - r2)
-            lg = _rot(qx, qy, qz, qw, g[0], g[1], g[2])
-            le = _rot(qx, qy, qz, qw, e0 - r0, e1 - r1, e2 - r2)
-            y = _unit(lm[0], lm[1], lm[2])
-            k = _unit(le[0] - lm[0], le[1] - lm[1], le[2] - lm[2])
+            lm = quat_rotate1(qx, qy, qz, qw, m0 - r0, m1 - r1, m2 - r2)
+            lg = quat_rotate1(qx, qy, qz, qw, g[0], g[1], g[2])
+            le = quat_rotate1(qx, qy, qz, qw, e0 - r0, e1 - r1, e2 - r2)
+            y = normalize1(lm[0], lm[1], lm[2])
+            k = normalize1(le[0] - lm[0], le[1] - lm[1], le[2] - lm[2])
             knee[i, f] = (y[0] * k[0] + y[1] * k[1]) + y[2] * k[2]
             cur = axes[f % 2]
             _bone_axes(r0, r1, r2, m0, m1, m2, g[0], g[1], g[2], cur, 0)

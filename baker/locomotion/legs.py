@@ -50,7 +50,7 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from baker.config import LegsConfig, RigConfig
 from baker.geometry.conventions import FORWARD, LEFT, UP
-from baker.geometry.ik import bone_frames, soft_clamp, two_bone_ik
+from baker.geometry.ik import bone_frames, reach_clamp, soft_clamp, two_bone_ik
 from baker.geometry.transforms import cross, dot, length, normalize, quat_rotate
 from baker.locomotion.body import BodyFrames
 from baker.locomotion.gait import gait_clock
@@ -1082,8 +1082,8 @@ def _stance_turns(hip, hold, fwd, left, q_inv, lay, legs, knee_out) -> np.ndarra
 
 def _clamped_reach(hip, target, lay) -> np.ndarray:
     """two_bone_ik's soft-clamped reach |target - hip| (...) of bones lay.l1, lay.l2."""
-    l1, l2 = float(lay.l1), float(lay.l2)
-    return soft_clamp(length(target - hip), abs(l1 - l2) + 1e-6 * (l1 + l2), l1 + l2)
+    return reach_clamp(length(target - hip), np.asarray(lay.l1, np.float64),
+                       np.asarray(lay.l2, np.float64))
 
 
 def _step_degrees(tr: np.ndarray) -> np.ndarray:

@@ -150,12 +150,13 @@ def _runs(swing: np.ndarray):
 
 
 def _pose(q_seg, hip, U, T, l1, l2):
-    """World upper/tip rotations and the knee and foot of local poses U, T."""
-    q_u = quat_mul(q_seg, U)
-    q_t = quat_mul(q_u, T)
-    mid = hip + quat_rotate(q_u, l1 * _Y)
-    end = mid + quat_rotate(q_t, l2 * _Y)
-    return q_u, q_t, mid, end
+    """World upper/tip rotations and the knee and foot of local poses U, T (..., 4) on segment
+    rotations q_seg (..., 4) and hips (..., 3) of one shape (leg_kernels.leg_pose)."""
+    lead = U.shape[:-1]
+    q_u, q_t, mid, end, _ = leg_pose(q_seg.reshape(-1, 4), hip.reshape(-1, 3),
+                                     U.reshape(-1, 4), T.reshape(-1, 4), l1, l2)
+    return (q_u.reshape(lead + (4,)), q_t.reshape(lead + (4,)), mid.reshape(lead + (3,)),
+            end.reshape(lead + (3,)))
 
 
 def _swivel(U, T, angle, l1, l2):
