@@ -163,8 +163,10 @@ class Keys:
         return [f if len(f) else None for f in np.split(cols.astype(np.int64), ends[:-1])]
 
     def play(self, times: np.ndarray, rotation: bool) -> np.ndarray:
-        """(F, C, W) float32: every channel as a player evaluates it at every frame."""
-        return sample(self.values, self.keep, self.static, times, rotation).astype(np.float32)
+        """(F, C, W) float32: every channel as a player evaluates it at every frame (`sample`
+        rounded to float32, the same bits: compiled, baker.export.replay.play_channels)."""
+        return replay.play_channels(self.values, *_segments(self.keep), self.static, times,
+                                    rotation)
 
 
 @dataclass(frozen=True)

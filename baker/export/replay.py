@@ -49,6 +49,45 @@ def pose_level(level, parents, turned, moved, root: bool, p) -> None:
                     p.err)
 
 
+def play_channels(values, prev, nxt, static, times, rotation: bool) -> np.ndarray:
+    """(F, C, W) float32: every channel as the players evaluate it at every frame (what the
+    player's `_sample` plays, rounded to float32 as the files hold it): values (F, C, W)
+    float32 the stored values, prev, nxt (C, F) each frame's key frames (reduce._segments),
+    static (C, W) the values of channels with no key, times (F,) the key times (as float32);
+    the translation's lerp, or the rotation's slerp (three.js's)."""
+    out = np.empty(values.shape, np.float32)
+    t = np.asarray(times, dtype=np.float32).astype(np.float64)
+    compiled_call(_play, np.ascontiguousarray(values, np.float32), prev, nxt,
+                  np.asarray(static, np.float64), t, bool(rotation), out)
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _play(values, prev, nxt, static, t, rotation, out):
+    f_count, c_count, width = values.shape
+    for c in range(c_count):
+        for f in range(f_count):
+            p, n, a, fixed, last = _span(prev, nxt, c, f, t, f_count)
+            if fixed:
+                for k in range(width):
+                    out[f, c, k] = np.float32(static[c, k])
+            elif last:
+                for k in range(width):
+                    out[f, c, k] = values[p, c, k]
+            elif rotation:
+                s0, s1, s2, s3 = _slerp(
+                    np.float64(values[p, c, 0]), np.float64(values[p, c, 1]),
+                    np.float64(values[p, c, 2]), np.float64(values[p, c, 3]),
+                    np.float64(values[n, c, 0]), np.float64(values[n, c, 1]),
+                    np.float64(values[n, c, 2]), np.float64(values[n, c, 3]), a)
+                out[f, c, 0], out[f, c, 1] = np.float32(s0), np.float32(s1)
+                out[f, c, 2], out[f, c, 3] = np.float32(s2), np.float32(s3)
+            else:
+                for k in range(width):
+                    v0, v1 = np.float64(values[p, c, k]), np.float64(values[n, c, k])
+                    out[f, c, k] = np.float32((v1 - v0) * a + v0)
+
+
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _span(prev, nxt, j, f, t, f_count):
     """(p, n, alpha, fixed, last) of the pair (j, f) (reduce._around)."""

@@ -212,6 +212,47 @@ def test_incremental_playback_is_a_fresh_playback(clip, rig):
         assert np.array_equal(getattr(player, name), getattr(fresh, name)), name
 
 
+def _bits_equal(a, b) -> bool:
+    a, b = np.asarray(a, np.float32), np.asarray(b, np.float32)
+    return a.shape == b.shape and np.array_equal(a.view(np.int32), b.view(np.int32))
+
+
+def test_compiled_playback_is_the_numpy_playback(reduced):
+    """Keys.play (compiled: replay.play_channels) gives `sample` rounded to float32, bit for
+    bit, on every channel of a reduced clip: static channels, key frames, the last key, lerps
+    and slerps."""
+    k = reduced.keys
+    for keys, rotation in ((k.translations, False), (k.rotations, True), (k.scales, False)):
+        want = red.sample(keys.values, keys.keep, keys.static, reduced.times, rotation)
+        assert _bits_equal(keys.play(reduced.times, rotation), want.astype(np.float32))
+
+
+def test_compiled_playback_of_awkward_rotation_keys():
+    """Nearly equal keys (lerped and normalized), equal keys (the first as stored), keys of
+    opposite sign (the short way round), unnormalized stored keys, a channel with one key (held
+    after it) and one with none (static): the compiled slerp is the numpy one, bit for bit."""
+    rng = np.random.default_rng(5)
+    f_count, c_count = 40, 7
+    q = Rotation.random(f_count * c_count, random_state=3).as_quat().reshape(f_count, c_count, 4)
+    q[:, 1] = q[0, 1] + 1e-5 * rng.standard_normal((f_count, 4))      # nearly equal
+    q[:, 2] = q[0, 2]                                                 # equal
+    q[1::2, 3] = -q[1::2, 3]                                          # opposite signs
+    q[:, 4] *= 1.0 + 1e-3 * rng.standard_normal((f_count, 1))         # unnormalized
+    values = q.astype(np.float32)
+    keep = rng.random((c_count, f_count)) < 0.3
+    keep[:, 0] = True
+    keep[5] = False
+    keep[5, 7] = True                                                 # one key
+    keep[6] = False                                                   # static
+    static = Rotation.random(c_count, random_state=4).as_quat().astype(np.float32)
+    times = np.arange(f_count) / 30.0
+    keys = red.Keys(keep, values, static)
+    want = red.sample(values, keep, static, times, True).astype(np.float32)
+    assert _bits_equal(keys.play(times, True), want)
+    want = red.sample(values[..., :3], keep, static[:, :3], times, False).astype(np.float32)
+    assert _bits_equal(red.Keys(keep, values[..., :3], static[:, :3]).play(times, False), want)
+
+
 def test_blame_in_small_blocks_is_the_same(clip, rig, monkeypatch):
     """The refinement blames the offending pairs in blocks (a long skeleton's chains times a
     clip's pairs were gigabytes at once): blocks of a few pairs give the same keys, bit for
