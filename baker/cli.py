@@ -44,9 +44,10 @@ def parse_vec3(text: str | None, what: str):
 def max_memory_option(f):
     return click.option(
         "--max-memory", type=float, default=None, metavar="MB",
-        help="Refuse a navigation build estimated to need more memory than this, in MB "
-             "[default: half of the memory this process may use: the RAM, or less under "
-             "ulimit -v or a container's limit].")(f)
+        help="Refuse a navigation build, or a bake (its creatures and frames), estimated to "
+             "need more memory than this, in MB [default: for a navigation build half, for a "
+             "bake 80% of the memory this process may use: the RAM, or less under ulimit -v "
+             "or a container's limit].")(f)
 
 
 def rig_options(f):

@@ -221,8 +221,9 @@ class BakeConfig:
     nav_cache_dir: Path | None = None  # None: no cache; a folder or a navmesh.cache.NavCache (folder + bound)
     nav_build: str = "auto"      # auto | full | lazy: the whole level at once, or windows
                                  # around where the creatures go (auto: lazy on big levels)
-    max_memory_mb: float | None = None  # [>0] [MB] largest navigation build allowed;
-                                 # None: half of the memory the process may use (navmesh.budget)
+    max_memory_mb: float | None = None  # [>0] [MB] largest navigation build and bake allowed;
+                                 # None: half (a build, navmesh.budget) or 80 % (a bake,
+                                 # baker.memory) of the memory the process may use
     tolerance: float = 0.001     # [0..0.1] [BL] keyframe reduction: largest world-space
                                  # position error of any joint at any frame, in body lengths
                                  # (0.001 = 0.1% BL); 0 keeps every frame as a key

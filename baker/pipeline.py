@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from baker.config import BakeConfig, validate_bake
+from baker import memory
 from baker.context import Context
 from baker.parallel import available_cpus, fork_map
 from baker.streams import Streams
@@ -105,9 +106,10 @@ def navigation_surface(cfg: BakeConfig, env):
 
 
 def bake(cfg: BakeConfig, ctx: Context | None = None) -> BakeResult:
-    """Run steps 1-7 on `cfg`. Every navigation build (the whole level, or each lazy window) is
-    refused before it starts when its estimated memory is over cfg.max_memory_mb
-    (navmesh.budget)."""
+    """Run steps 1-7 on `cfg`. A bake whose estimated memory is over cfg.max_memory_mb (or most
+    of the memory the process may use) is refused before it starts (baker.memory), and so is
+    every navigation build (the whole level, or each lazy window) estimated over
+    cfg.max_memory_mb (navmesh.budget)."""
     from baker.navmesh.budget import memory_limit
     from baker.signals import deferred
 
@@ -127,6 +129,9 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
     from baker.rig import build_rig
 
     cfg = validate_bake(cfg)
+    workers = cfg.workers or available_cpus()
+    # a bake estimated to run out of memory part way is refused now (baker.memory)
+    memory.check(cfg.creatures, cfg.seconds, cfg.fps, workers, cfg.max_memory_mb)
     if cfg.preview:
         from baker.export.preview import check_dependencies
 
@@ -153,7 +158,6 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
 
     # Step 4: behaviour, agent, head and body, at the fixed simulation rate (--creatures N:
     # all of them at once, keeping apart; creature 0 is the lone creature's).
-    workers = cfg.workers or available_cpus()
     with ctx.stage("simulate"):
         trajs = simulate_creatures(run_cfg, env, nav, ctx, workers)
     traj = trajs[0]

@@ -207,7 +207,7 @@ class Options(_Table):
     step_height: Num | None = key("m", "largest riser climbed", ge=0, le=1e3)
     max_slope: Num | None = key("deg", "steepest walkable slope", gt=0, lt=90)
     cell_size: Num | None = key("m", "navigation grid cell size", gt=0, le=1e3)
-    max_memory: Num | None = key("MB", "largest navigation build allowed", gt=0, le=1e9)
+    max_memory: Num | None = key("MB", "largest navigation build and bake allowed", gt=0, le=1e9)
     cache_max: Num | None = key("MB", "bound of the navigation cache folder", ge=0, le=1e9)
     tolerance: Num | None = key("BL", "keyframe reduction: largest joint position error "
                                 "(0.001 = 0.1% of the body length; 0 keeps every key)",

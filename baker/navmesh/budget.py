@@ -50,11 +50,17 @@ def estimate(columns: int, triangles: int) -> Estimate:
 
 
 def default_limit() -> float:
-    """[bytes] half of the memory this process may use: the machine's physical RAM, or less
-    where the process's address space is limited (`ulimit -v`, RLIMIT_AS) or its control group
-    has a memory limit (cgroup v2 memory.max, v1 memory.limit_in_bytes); 4 GB when none can be
+    """[bytes] half of the memory this process may use (usable_memory); 4 GB when none can be
     read. (A build refused at once names a cell size that fits; one that runs out of memory
     half way is only an error line.)"""
+    return 0.5 * usable_memory()
+
+
+def usable_memory() -> float:
+    """[bytes] the memory this process may use: the machine's physical RAM, or less where the
+    process's address space is limited (`ulimit -v`, RLIMIT_AS) or its control group has a
+    memory limit (cgroup v2 memory.max, v1 memory.limit_in_bytes); 8 GB when none can be
+    read."""
     sizes = []
     try:
         sizes.append(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
@@ -69,7 +75,7 @@ def default_limit() -> float:
     except (ImportError, ValueError, OSError):  # pragma: no cover - not Unix
         pass
     sizes += _cgroup_limits()
-    return 0.5 * min(sizes) if sizes else 4e9
+    return float(min(sizes)) if sizes else 8e9
 
 
 #: the files holding this process's control-group memory limit (v2, then v1)
