@@ -30,7 +30,7 @@ import numpy as np
 from baker.config import BakeConfig, validate_bake
 from baker import memory
 from baker.context import Context
-from baker.parallel import available_cpus, fork_map
+from baker.parallel import available_cpus, fork_map, in_background
 from baker.streams import Streams
 
 log = logging.getLogger(__name__)
@@ -169,10 +169,10 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
     clip, rig, root_motion = posed[0]
 
     # Step 6: motion-quality metrics (independent ray casts against the environment), per
-    # creature, and how a crowd's creatures keep apart.
+    # creature, and how a crowd's creatures keep apart (a lone creature's on a thread beside
+    # step 7: its stage time is what they add to the bake's).
     with ctx.stage("metrics"):
-        motions, crowd = measure_creatures(cfg, trajs, env, nav, workers)
-    motion = motions[0]
+        measured = measure_beside(cfg, trajs, env, nav, workers)
 
     # Step 7: keyframe reduction: each channel keeps the keys that hold every joint within
     # cfg.tolerance body lengths of its unreduced world position (planted feet do not slide).
@@ -184,6 +184,9 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
         (clip, segments, animation), *rest = reduce_creatures(
             cfg, rig, env, trajs, [clip] + [p[0] for p in posed[1:]], segments, workers)
     others = [(c, a) for c, _, a in rest]
+    with ctx.stage("metrics"):
+        motions, crowd = measured()
+    motion = motions[0]
 
     # Step 8: files, all or nothing: each is written to a temporary beside its target and
     # they are renamed together at the end (atomic.OutputSet); a failure or a signal before
@@ -267,6 +270,16 @@ def measure_creatures(cfg: BakeConfig, trajs, env, nav, workers: int = 1) -> tup
     out = fork_map(lambda i: crowd_report(cfg, trajs) if i == 0 else
                    measure(cfg, trajs[i - 1], env, nav), n + 1, workers)
     return out[1:], out[0]
+
+
+def measure_beside(cfg: BakeConfig, trajs, env, nav, workers: int = 1):
+    """A callable returning measure_creatures(...): a lone creature's measured on a thread of
+    its own (parallel.in_background: its ray casts and numpy release the GIL, beside the
+    keyframe reduction), a crowd's now (its creatures share the worker processes)."""
+    if len(trajs) == 1:
+        return in_background(measure_creatures, cfg, trajs, env, nav, workers)
+    out = measure_creatures(cfg, trajs, env, nav, workers)
+    return lambda: out
 
 
 def crowd_report(cfg: BakeConfig, trajs) -> dict | None:
