@@ -163,10 +163,10 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
     traj = trajs[0]
 
     # Step 5: joint-local transforms at the export fps, relative to a placement near the path,
-    # on a skeleton with a `root` joint when root motion is asked for; one clip per creature.
+    # on a skeleton with a `root` joint when root motion is asked for; one clip per creature
+    # (a crowd's others are posed where they are reduced, step 7, on the worker processes).
     with ctx.stage("pose"):
-        posed = [posed_clip(cfg, t, base_rig, env) for t in trajs]
-    clip, rig, root_motion = posed[0]
+        clip, rig, root_motion = posed_clip(cfg, traj, base_rig, env)
 
     # Step 6: motion-quality metrics (independent ray casts against the environment), per
     # creature, and how a crowd's creatures keep apart (a lone creature's on a thread beside
@@ -181,9 +181,9 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
     clip = replace(clip, events=events(0, clip.n_frames))
     segments = behaviour_clips(clip, traj.events, cfg.fps, events) if cfg.clips else ()
     with ctx.stage("reduce"):
-        (clip, segments, animation), *rest = reduce_creatures(
-            cfg, rig, env, trajs, [clip] + [p[0] for p in posed[1:]], segments, workers)
-    others = [(c, a) for c, _, a in rest]
+        (clip, segments, animation, _), *rest = reduce_creatures(
+            cfg, (base_rig, rig), env, trajs, clip, segments, workers)
+    others = [(c, a) for c, _, a, _ in rest]
     with ctx.stage("metrics"):
         motions, crowd = measured()
     motion = motions[0]
@@ -203,7 +203,7 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
     scene = dict(extras=extras, debug_meshes=debug_meshes, props=prey_props(cfg.rig, traj),
                  extra_clips=segments, root_motion=root_motion)
     if len(trajs) > 1:
-        scene.update(crowd=[c for c, _ in others], crowd_root_motion=[p[2] for p in posed[1:]])
+        scene.update(crowd=[c for c, _ in others], crowd_root_motion=[m for *_, m in rest])
     with OutputSet(paths) as out:
         glb = write_scene(cfg, paths, out, env, rig, clip, scene, ctx, workers)
         # --preview: the map and the contact sheet, drawn from the GLB's bytes, committed with
@@ -297,20 +297,24 @@ def body_radius(rig_cfg) -> float:
     return float(max(rig_cfg.body.width_profile))
 
 
-def reduce_creatures(cfg: BakeConfig, rig, env, trajs, clips, segments: tuple,
+def reduce_creatures(cfg: BakeConfig, rigs: tuple, env, trajs, clip, segments: tuple,
                      workers: int = 1) -> list:
     """reduce_clips of every creature, on up to `workers` processes (baker.parallel.fork_map,
     the same bits as one): (reduced clip, reduced per-behaviour clips, the report's `animation`
-    section). Creature 0 keeps its clip as it is and the per-behaviour `segments`; a crowd's
-    further creatures get their own events (events_of), no node tracks (the prey and the sun
+    section, root motion). rigs: (the base rig, creature 0's posed rig). Creature 0 keeps its
+    clip `clip` as it is and the per-behaviour `segments` (its root motion: None, the caller
+    has it); a crowd's further creatures are posed here (posed_clip: no unreduced clip of
+    theirs is kept), with their own events (events_of), no node tracks (the prey and the sun
     ride on creature 0's clip) and no per-behaviour clips."""
+    base_rig, rig = rigs
+
     def one(i: int):
         if i == 0:
-            return reduce_clips(cfg, rig, trajs[0], clips[0], segments, env)
-        clip = clips[i]
-        clip = replace(clip, tracks=(),
-                       events=events_of(cfg, trajs[i], env.origin)(0, clip.n_frames))
-        return reduce_clips(cfg, rig, trajs[i], clip, (), env)
+            return (*reduce_clips(cfg, rig, trajs[0], clip, segments, env), None)
+        own, _, motion = posed_clip(cfg, trajs[i], base_rig, env)
+        own = replace(own, tracks=(),
+                      events=events_of(cfg, trajs[i], env.origin)(0, own.n_frames))
+        return (*reduce_clips(cfg, rig, trajs[i], own, (), env), motion)
 
     return fork_map(one, len(trajs), workers)
 
