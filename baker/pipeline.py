@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from baker.config import BakeConfig, validate_bake
 from baker import memory
+from baker.config import BakeConfig, validate_bake
 from baker.context import Context
 from baker.parallel import available_cpus, fork_map, in_background
 from baker.streams import Streams
