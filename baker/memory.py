@@ -70,7 +70,7 @@ def check(creatures: int, seconds: float, fps: int, workers: int,
     what = f"{n} creatures for {seconds:g} s" if n > 1 else f"{seconds:g} s"
     fits = []
     most = _most_creatures(frames, workers, cap)
-    if n > 1 and most >= 2:
+    if n > 1 and most:
         fits.append(f"at most {most} creatures for {seconds:g} s")
     longest = _longest(n, fps, workers, cap)
     if longest > 0:

@@ -1082,8 +1082,7 @@ def _stance_turns(hip, hold, fwd, left, q_inv, lay, legs, knee_out) -> np.ndarra
 
 def _clamped_reach(hip, target, lay) -> np.ndarray:
     """two_bone_ik's soft-clamped reach |target - hip| (...) of bones lay.l1, lay.l2."""
-    return reach_clamp(length(target - hip), np.asarray(lay.l1, np.float64),
-                       np.asarray(lay.l2, np.float64))
+    return reach_clamp(length(target - hip), float(lay.l1), float(lay.l2))
 
 
 def _step_degrees(tr: np.ndarray) -> np.ndarray:
