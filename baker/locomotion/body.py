@@ -21,7 +21,7 @@ from baker.environment.rays import RayCaster
 from baker.geometry import polyline
 from baker.geometry.conventions import UP
 from baker.geometry.transforms import (frames_to_quat, length, limit_rotation, normalize,
-                                       quat_angle)
+                                       quat_angle, quat_rotate)
 from baker.locomotion.cobra import limit_lift
 from baker.locomotion.trail_kernels import gaussian_weights, interp_rows, trail_pass
 from baker.locomotion.trail_kernels import place_chain as place_compiled
@@ -63,13 +63,15 @@ LIFT_ROUNDS = 3
 class BodyFrames:
     """positions : (F, S, 3) float64 metres, world; rotations : (F, S, 4) xyzw world;
     normals : (F, S, 3) unit surface normals under each joint; ground : (F, S) surface heights;
-    lift : (F, S) cobra lift applied to each joint, metres (None: no lift requested)."""
+    lift : (F, S) cobra lift applied to each joint, metres (None: no lift requested);
+    arcs : (F, S) each joint's 3D arc length on its trail (None: not kept)."""
 
     positions: np.ndarray
     rotations: np.ndarray
     normals: np.ndarray
     ground: np.ndarray
     lift: np.ndarray | None = None
+    arcs: np.ndarray | None = None
 
 
 def project_to_surface(rays: RayCaster, points: np.ndarray, probe: float):
@@ -180,6 +182,47 @@ def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: flo
     high = smooth_envelope(y, RAISED_SMOOTH * spacing / res)
     return Trail(points=pts, normals=normals, ground=ground, cum=polyline.arc_lengths(pts), cum_h=s,
                  high=high)
+
+
+def raised_for_hips(trail: Trail, bf: BodyFrames, rays, hips: np.ndarray, segment: np.ndarray,
+                    clearance: float, spacing: float) -> Trail | None:
+    """The trail raised where a placed joint's hip comes within half of HIP_CLEAR clearances
+    of an up-facing surface under it, by what takes it back to HIP_CLEAR (None: no hip does).
+
+    build_trail keeps the hips clear on either side of the path; a joint's hips lie across its
+    own facing, the chord to the joint ahead, which in a tight turn or over a fold of the path
+    can be most of a right angle off the path's: they then pass over ground the path's sides
+    never sampled (the corner of a platform beside the walked floor). The bound is put at the
+    joints' arc lengths (bf.arcs), so a second placement lifts them there.
+
+    hips : (L, 3) the hips in their joint's frame; segment : (L,) the joint each hangs from
+    """
+    q = bf.rotations[:, segment]
+    origin = bf.positions[:, segment]
+    hip = origin + quat_rotate(q, np.broadcast_to(hips, q.shape[:-1] + (3,)))
+    want = HIP_CLEAR * clearance
+    # down from the joint's own height (it is clear of the surface) at the hip's ground point
+    o = hip.reshape(-1, 3).copy()
+    o[:, 1] = origin[..., 1].ravel()
+    reach = np.maximum(o[:, 1] - hip[..., 1].ravel(), 0.0) + want
+    h = rays.cast_down(o, 0.0, max_distance=reach)
+    deficit = np.where(h.hit & (np.abs(h.normals[:, 1]) > 0.5),
+                       h.points[:, 1] + want - hip[..., 1].ravel(), 0.0)
+    bad = deficit > 0.5 * want
+    if not bad.any():
+        return None
+    arcs = bf.arcs[:, segment].ravel()[bad]
+    need = np.zeros(len(trail.cum))
+    k = np.clip(np.searchsorted(trail.cum, arcs), 0, len(need) - 1)
+    np.maximum.at(need, k, deficit[bad])
+    res = float(trail.cum_h[1] - trail.cum_h[0]) if len(trail.cum_h) > 1 else spacing / 8.0
+    # the joint's arc is kept to within a few samples: its neighbours get the bound too
+    need = maximum_filter1d(need, size=2 * max(int(round(0.25 * spacing / res)), 1) + 1)
+    pts = trail.points.copy()
+    pts[:, 1] += smooth_envelope(need, 2.0 * spacing / res)
+    return Trail(points=pts, normals=trail.normals, ground=trail.ground,
+                 cum=polyline.arc_lengths(pts), cum_h=trail.cum_h,
+                 high=smooth_envelope(pts[:, 1], RAISED_SMOOTH * spacing / res))
 
 
 def straight_ended_smooth(xy: np.ndarray, sigma: float, axis: int = 0,
@@ -588,11 +631,11 @@ def body_frames(trail: Trail, head_arc: np.ndarray, spacing: float, segments: in
         # over all frames (a joint's turn limit runs frame by frame)
         again = _points(trail, head_arc[slow], spacing, clearance, lift[slow],
                         _raised(lift, ramp)[slow])
-        pos, normals, ground = (_spliced(a, b, slow) for a, b in
-                                zip((bf.positions, bf.normals, bf.ground), again))
+        pos, normals, ground, arcs = (_spliced(a, b, slow) for a, b in
+                                      zip((bf.positions, bf.normals, bf.ground, bf.arcs), again))
         bf = BodyFrames(positions=pos, rotations=_oriented(trail, head_arc, pos, normals,
                                                            spacing, fps),
-                        normals=normals, ground=ground, lift=lift)
+                        normals=normals, ground=ground, lift=lift, arcs=arcs)
     return _turn_limited(bf)
 
 
@@ -640,18 +683,19 @@ def _placed(trail: Trail, head_arc: np.ndarray, spacing: float, clearance: float
             lift: np.ndarray, raised: np.ndarray | None, fps: int) -> BodyFrames:
     """The spine at the given frames (every frame from the first: the joints' directions are
     limited frame by frame), each joint `clearance + lift` above the trail."""
-    pos, normals, ground = _points(trail, head_arc, spacing, clearance, lift, raised)
+    pos, normals, ground, arcs = _points(trail, head_arc, spacing, clearance, lift, raised)
     rot = _oriented(trail, head_arc, pos, normals, spacing, fps)
-    return BodyFrames(positions=pos, rotations=rot, normals=normals, ground=ground, lift=lift)
+    return BodyFrames(positions=pos, rotations=rot, normals=normals, ground=ground, lift=lift,
+                      arcs=arcs)
 
 
 def _points(trail: Trail, head_arc: np.ndarray, spacing: float, clearance: float,
             lift: np.ndarray, raised: np.ndarray | None):
-    """(positions (F, S, 3), normals (F, S, 3), ground heights (F, S)) of the spine's joints at
-    the given frames, each on its own."""
+    """(positions (F, S, 3), normals (F, S, 3), ground heights (F, S), arc lengths (F, S)) of
+    the spine's joints at the given frames, each on its own."""
     pos, s = place_chain(trail, head_arc, clearance + lift, spacing, raised=raised)
     normals = normalize(polyline.sample(trail.normals, trail.cum, s))
-    return pos, normals, np.interp(s, trail.cum, trail.ground)
+    return pos, normals, np.interp(s, trail.cum, trail.ground), s
 
 
 def _oriented(trail: Trail, head_arc: np.ndarray, pos: np.ndarray, normals: np.ndarray,

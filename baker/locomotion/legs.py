@@ -1655,6 +1655,15 @@ def hip_extent(cfg: RigConfig) -> tuple[float, float]:
     return float(np.abs(lay.hip[:, 0]).max()), float(-lay.hip[:, 1].min())
 
 
+def hip_layout(cfg: RigConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(hips (L, 3) in their spine joint's frame [m], the joint each hangs from (L,)) of the
+    walking legs (no legs: none)."""
+    if not cfg.legs.enabled:
+        return np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
+    lay = leg_layout(cfg)
+    return lay.hip, lay.segment
+
+
 def hip_line(cfg: RigConfig) -> tuple[float, float]:
     """(largest lateral offset, mean height above the spine) of the walking legs' hips [m]:
     where the run stage measures the room beside them (no legs: 0, 0)."""

@@ -21,9 +21,10 @@ from baker.config import RigConfig
 from baker.geometry import polyline
 from baker.geometry.conventions import UP
 from baker.geometry.transforms import frames_to_quat, quat_mul, quat_rotate
-from baker.locomotion.body import body_frames, build_trail, project_to_surface, step_over_lips
+from baker.locomotion.body import (body_frames, build_trail, project_to_surface,
+                                   raised_for_hips, step_over_lips)
 from baker.locomotion.cobra import lift_profile
-from baker.locomotion.legs import hip_extent, leg_frames
+from baker.locomotion.legs import hip_extent, hip_layout, leg_frames
 from baker.run.record import RunRecord
 from baker.solve.trajectory import Trajectory
 
@@ -32,6 +33,8 @@ from baker.solve.trajectory import Trajectory
 LIP_SLOPE = np.radians(58.0)
 #: how far along its trail a head sampled over a steep strip may move off it [spacings]
 LIP_REACH = 0.5
+#: at most this many raises of the trail where placed hips come too close to the surface
+HIP_ROUNDS = 2
 
 
 def solve(rec: RunRecord, rays, rig: RigConfig) -> Trajectory:
@@ -44,16 +47,23 @@ def solve(rec: RunRecord, rays, rig: RigConfig) -> Trajectory:
     flat = path.copy()
     flat[:, 1] = 0.0
     cum_h = polyline.arc_lengths(flat)
-    frame_steps = rec.frame_steps
     times = rec.times
-    head_arc = trail.arc_at(cum_h[len(rec.start_line) + frame_steps])
-    head_arc = step_over_lips(trail, head_arc, rays, body.clearance, LIP_SLOPE,
-                              reach=LIP_REACH * body.spacing,
-                              depth=0.5 * body.spacing * body.segments)
     lift = lift_profile(rec.cobra, rig.cobra.curve, rig.cobra.height, body.segments)
-    bf = body_frames(trail, head_arc, body.spacing, body.segments, body.clearance, lift=lift,
-                     rays=rays, ceiling_margin=rig.cobra.ceiling_margin, fps=rec.fps,
-                     ramp_time=rig.cobra.ramp_time)
+    hips, hip_joints = hip_layout(rig)
+    for rounds in range(HIP_ROUNDS, -1, -1):
+        head_arc = trail.arc_at(cum_h[len(rec.start_line) + rec.frame_steps])
+        head_arc = step_over_lips(trail, head_arc, rays, body.clearance, LIP_SLOPE,
+                                  reach=LIP_REACH * body.spacing,
+                                  depth=0.5 * body.spacing * body.segments)
+        bf = body_frames(trail, head_arc, body.spacing, body.segments, body.clearance,
+                         lift=lift, rays=rays, ceiling_margin=rig.cobra.ceiling_margin,
+                         fps=rec.fps, ramp_time=rig.cobra.ramp_time)
+        # a hip placed over ground its trail's sides never sampled raises the trail there
+        raised = (raised_for_hips(trail, bf, rays, hips, hip_joints, body.clearance,
+                                  body.spacing) if rounds and len(hips) else None)
+        if raised is None:
+            break
+        trail = raised
     limbs = {}
     if rig.legs.enabled:
         lf = leg_frames(bf, head_arc, times, rays, rig, warning=rec.warning,
