@@ -52,6 +52,14 @@ own with the arithmetic of the numpy kernels here (sums over 3 or 4 components w
 to right), so a replay gives what a fresh playback gives, bit for bit (tests/export/test_reduce.py
 checks it).
 
+Rigid bones: a joint whose unreduced local translation keeps one length while it turns (a spine
+joint, a spacing from the joint ahead) keeps it within `LENGTH_SHARE` of it when played. The
+world error alone lets a joint and its parent each be off by up to the tolerance, their distance
+by twice it: 4 % of a spine spacing at the default tolerance, where the limit is 2 %. A played
+translation off by more, once every joint is within the tolerance, is keyed at that frame; where
+it is a key already (its compensated value is off by its parent's error), its parent's chain is
+(compensated keys put the chain exactly on its unreduced pose there).
+
 Planted feet: with `contacts` (frames where a joint is planted), a foot that does not move in the
 original may not slide in the reduced clip: between two planted frames its error may change by at
 most `PLANTED_SLIDE * tol` (the refinement treats a larger change like an error over the bound).
@@ -103,6 +111,12 @@ BLAME_SHARE = 0.8
 #: joints at their tight frames (a bone within the tolerance of the environment) keep within
 #: this share of the tolerance
 TIGHT_SHARE = 0.1
+#: rigid bones: the largest change of a played bone's length, as a fraction of its length (the
+#: quality limit on the spine's spacing is 2 %)
+LENGTH_SHARE = 0.015
+#: a joint's translation is a rigid bone when its length varies by less than this fraction (its
+#: float32 components round it by a few millionths)
+RIGID_SPREAD = 1e-5
 #: planted joints: largest change of the reduced joint's error between two planted frames, as a
 #: fraction of the tolerance
 PLANTED_SLIDE = 0.5
@@ -669,6 +683,7 @@ class _Target:
     tol: float
     short: bool
     tight: np.ndarray | None = None
+    rigid: tuple | None = None
 
 
 def _target(clip: Clip, parents, planted, tol: float, short: bool, tight=None) -> _Target:
@@ -681,7 +696,20 @@ def _target(clip: Clip, parents, planted, tol: float, short: bool, tight=None) -
     first = (lambda a: np.ascontiguousarray(np.swapaxes(a, 0, 1)))
     return _Target(first(t0), first(q0), first(pos0), first(wq0), clip.times, parents, levels,
                    None if planted is None else first(planted), tol, short,
-                   None if tight is None else first(tight))
+                   None if tight is None else first(tight), rigid_bones(t0, parents))
+
+
+def rigid_bones(t0: np.ndarray, parents: np.ndarray) -> tuple | None:
+    """(joints (R,), lengths (R,)) of the non-root joints whose local translation t0 (F, J, 3)
+    turns while keeping one length (within RIGID_SPREAD of it), or None."""
+    if len(t0) < 2:
+        return None
+    n = np.linalg.norm(t0, axis=-1)                                  # (F, J)
+    length = n.mean(axis=0)
+    turns = np.ptp(t0, axis=0).max(axis=-1) > RIGID_SPREAD * length
+    j = np.flatnonzero((parents >= 0) & (length > 0) & turns
+                       & (np.ptp(n, axis=0) <= RIGID_SPREAD * length))
+    return (j, length[j]) if len(j) else None
 
 
 # Component-first kernels: vectors (3, ...), xyzw quaternions (4, ...) and matrices (3, 3, ...),
@@ -792,6 +820,7 @@ class _Player:
         self.pos0 = np.ascontiguousarray(np.moveaxis(x.pos0, -1, 0))       # (3, J, F)
         self.slide = np.zeros((j_count, max(f_count - 1, 0)))
         self.viol = np.zeros((j_count, f_count), dtype=bool)
+        self.stretch = np.zeros((j_count, f_count), dtype=bool)
         self.segments = None        # ((segments, keys) of translations, of rotations) last played
         self.row = np.zeros(j_count, dtype=np.int64)        # each joint's row in its level
         if x.planted is not None:   # the joints planted at two frames in a row, and those pairs
@@ -848,6 +877,10 @@ class _Player:
             viol[:, 1:] |= bad
             viol[:, :-1] |= bad
         self.viol = viol
+        if x.rigid is not None:
+            j, length = x.rigid
+            played = np.sqrt(sum(np.take(c, j, axis=0) ** 2 for c in self.tr))      # (R, F)
+            self.stretch[j] = np.abs(played - length[:, None]) > LENGTH_SHARE * length[:, None]
         return viol
 
     def complete(self, keep_t: np.ndarray, keep_r: np.ndarray) -> None:
@@ -1004,22 +1037,52 @@ def _refine(x: _Target, keep_t: np.ndarray, keep_r: np.ndarray, player: _Player)
     for _ in range(MAX_ROUNDS):
         viol = player.play(keep_t, keep_r)
         if not viol.any():
-            return player
-        cand_t, score_t, cand_r, score_r = _blame(x, chains, player)
-        added = _add_worst(keep_t, score_t, cand_t) + _add_worst(keep_r, score_r, cand_r)
-        if added == 0:          # only rounding is left: key the offending chains there
-            ki, fi = np.nonzero(viol)
-            ch = chains[ki]
-            v, d = np.nonzero(ch >= 0)
-            for keep in (keep_t, keep_r):
-                before = int(keep.sum())
-                keep[ch[v, d], fi[v]] = True
-                _close(keep)
-                added += int(keep.sum()) - before
-            if added == 0:
-                raise ExportError(f"keyframe reduction cannot reach {x.tol:g} m: the stored "
-                                  f"values alone are off by {player.err.max():.3g} m")
+            if not player.stretch.any():
+                return player
+            added = _key_stretched(keep_t, keep_r, x.parents, chains, player.stretch)
+        else:
+            cand_t, score_t, cand_r, score_r = _blame(x, chains, player)
+            added = _add_worst(keep_t, score_t, cand_t) + _add_worst(keep_r, score_r, cand_r)
+            if added == 0:      # only rounding is left: key the offending chains there
+                added = _key_chains(keep_t, keep_r, chains, viol)
+        if added == 0:
+            raise ExportError(f"keyframe reduction cannot reach {x.tol:g} m: the stored "
+                              f"values alone are off by {player.err.max():.3g} m")
     raise ExportError("keyframe reduction did not converge")
+
+
+def _key_stretched(keep_t: np.ndarray, keep_r: np.ndarray, parents: np.ndarray,
+                   chains: np.ndarray, stretch: np.ndarray) -> int:
+    """Every joint within the tolerance, some rigid bones' lengths not (`stretch` (J, F)): key
+    each such bone's translation there, or where it is a key already (its compensated value is
+    off by its parent's error), its parent's chain. In place; returns how many keys were added."""
+    before = int(keep_t.sum())
+    own = stretch & ~keep_t
+    keep_t |= own
+    _close(keep_t)
+    added = int(keep_t.sum()) - before
+    j, f = np.nonzero(stretch & ~own)
+    if len(j):
+        up = np.zeros_like(stretch)
+        up[parents[j], f] = True
+        added += _key_chains(keep_t, keep_r, chains, up)
+    return added
+
+
+def _key_chains(keep_t: np.ndarray, keep_r: np.ndarray, chains: np.ndarray,
+                where: np.ndarray) -> int:
+    """Key every channel of the chains of the (joint, frame) pairs `where` (J, F) at their
+    frames, in place; returns how many keys were added."""
+    ki, fi = np.nonzero(where)
+    ch = chains[ki]
+    v, d = np.nonzero(ch >= 0)
+    added = 0
+    for keep in (keep_t, keep_r):
+        before = int(keep.sum())
+        keep[ch[v, d], fi[v]] = True
+        _close(keep)
+        added += int(keep.sum()) - before
+    return added
 
 
 def _promote(keep: np.ndarray, value_bytes: int) -> None:

@@ -598,3 +598,51 @@ def test_a_long_body_shares_the_local_tolerance_along_its_chains(clip, rig, monk
     alone, err_alone = _first_round_offenders(long_clip, chain, monkeypatch)
     assert shared < alone
     assert err <= TOL and err_alone <= TOL
+
+
+def _turning_chain_clip(j_count: int = 21, f_count: int = 150, spacing: float = 0.0125) -> tuple:
+    """A chain of j_count joints a spacing apart whose bones turn (each local translation keeps
+    its length and swings on a wave of its own) while the joints rotate: (clip, parents)."""
+    rng = np.random.default_rng(5)
+    t = np.arange(f_count, dtype=np.float32) / np.float32(30)
+    phase = rng.uniform(0, 2 * np.pi, (j_count, 3))
+    angle = 0.3 * np.sin(1.5 * t[:, None, None] + phase[None])              # (F, J, 3)
+    rot = Rotation.from_euler("xyz", angle.reshape(-1, 3)).as_quat().astype(np.float32)
+    trans = np.zeros((f_count, j_count, 3))
+    swing = angle[..., 0]
+    trans[:, 1:, 0] = spacing * np.sin(swing[:, 1:])
+    trans[:, 1:, 2] = -spacing * np.cos(swing[:, 1:])
+    trans[:, 0] = np.stack([t, 0.0 * t, 0.2 * t], axis=-1)
+    clip = Clip("turning", t, trans.astype(np.float32), rot.reshape(f_count, j_count, 4),
+                np.ones((f_count, j_count, 3), np.float32))
+    return clip, np.arange(j_count) - 1
+
+
+def test_rigid_bones_keep_their_length(monkeypatch):
+    """A spine joint turns while its translation keeps its length (a spacing from the joint
+    ahead). World errors alone let a joint and its parent each be off by up to the tolerance, so
+    their distance by twice it. The reduction keys a rigid bone's chain where its played length
+    is off by more than LENGTH_SHARE, so the spacing stays within it; without that check it
+    does not (here 3.3 % off at a 0.5 mm tolerance on a 12.5 mm spacing)."""
+    from baker.rig.skeleton import forward_kinematics
+
+    spacing = 0.0125
+    clip, parents = _turning_chain_clip(spacing=spacing)
+    joints, lengths = red.rigid_bones(clip.translations.astype(np.float64), parents)
+    assert joints.tolist() == list(range(1, len(parents)))
+    np.testing.assert_allclose(lengths, spacing, rtol=1e-6)
+
+    def spacing_error(c):
+        t, q, _ = red.played_joints(c)
+        pos = forward_kinematics(parents, t.astype(np.float64), q.astype(np.float64))[0]
+        d = np.linalg.norm(pos[:, 1:] - pos[:, :-1], axis=-1)
+        return np.abs(d / spacing - 1.0).max()
+
+    tol = 0.0005
+    got = red.reduce_clip(clip, parents, tol, short_rotations=True)
+    assert spacing_error(got) <= red.LENGTH_SHARE + 1e-5
+    assert got.keys.max_error_m <= tol
+    assert got.keys.translations.keep.sum() < 0.25 * got.keys.translations.keep.size
+    share = red.LENGTH_SHARE
+    monkeypatch.setattr(red, "LENGTH_SHARE", 1.0)
+    assert spacing_error(red.reduce_clip(clip, parents, tol, short_rotations=True)) > 2 * share
