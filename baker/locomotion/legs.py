@@ -51,8 +51,8 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 from baker.config import LegsConfig, RigConfig
 from baker.geometry.conventions import FORWARD, LEFT, UP
 from baker.geometry.ik import bone_frames, reach_clamp, soft_clamp, two_bone_ik
-from baker.geometry.transforms import cross, dot, length, normalize, quat_rotate
-from baker.locomotion.body import BodyFrames
+from baker.geometry.transforms import cross, dot, length, limit_rotation, normalize, quat_rotate
+from baker.locomotion.body import SPINE_FRAME_TURN, BodyFrames
 from baker.locomotion.gait import gait_clock
 from baker.locomotion.leg_kernels import leg_traces
 from baker.locomotion.swing import Limits, joint_space_swings
@@ -1641,10 +1641,29 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
         yaw = yaw1 + dyaw
         hinge = quat_rotate(q, np.stack([(-1.0 if back else 1.0) * np.cos(yaw), np.zeros(F),
                                          -s * np.sin(yaw)], -1))
+        r1, r2 = bone_frames(o, knee, hinge), bone_frames(knee, knee + d2, hinge)
+        if not back:
+            r1, r2, knee = _turn_limited_antenna(q, o, r1, r2, knee, l1)
         names += list(ch.names)
         pos += [o, knee]
-        rot += [bone_frames(o, knee, hinge), bone_frames(knee, knee + d2, hinge)]
+        rot += [r1, r2]
     return names, np.stack(pos, 1), np.stack(rot, 1)
+
+
+def _turn_limited_antenna(q: np.ndarray, o: np.ndarray, r1: np.ndarray, r2: np.ndarray,
+                          knee: np.ndarray, l1: float):
+    """An antenna's bone rotations (F, 4) turning at most SPINE_FRAME_TURN a frame, in the world
+    and relative to the bone it hangs from (the head q, then its first bone), and its knee
+    (F, 3), moved where the first bone was turned less. The sweep is timed in seconds: at a low
+    export rate (12 fps) it adds to the head's turn between frames, 35 degrees where the quality
+    limit is 30; at 30 fps the limit seldom holds it back."""
+    lim = np.radians(SPINE_FRAME_TURN)
+    limited = limit_rotation(r1, lim, parent=q)
+    moved = np.any(limited != r1, axis=1)
+    if moved.any():
+        knee = knee.copy()
+        knee[moved] = o[moved] + quat_rotate(limited[moved], UP) * l1
+    return limited, limit_rotation(r2, lim, parent=limited), knee
 
 
 def hip_extent(cfg: RigConfig) -> tuple[float, float]:
