@@ -209,6 +209,14 @@ def raised_for_hips(trail: Trail, bf: BodyFrames, rays, hips: np.ndarray, segmen
     deficit = np.where(h.hit & (np.abs(h.normals[:, 1]) > 0.5),
                        h.points[:, 1] + want - hip[..., 1].ravel(), 0.0)
     bad = deficit > 0.5 * want
+    if bad.any():
+        # a floor: nothing over it up to the joint's height, and not the underside of a solid
+        # the ray started in (a shelf's edge level with the joint, beside the body)
+        i = np.flatnonzero(bad)
+        above = h.points[i] + 1e-4 * UP
+        t, _ = rays.cast(above, np.tile(UP, (len(i), 1)),
+                         np.maximum(o[i, 1] - above[:, 1], 1e-6))
+        bad[i] = ~np.isfinite(t) & ~rays.inside(above)
     if not bad.any():
         return None
     arcs = bf.arcs[:, segment].ravel()[bad]

@@ -116,3 +116,15 @@ def test_a_wall_beside_the_hips_raises_nothing():
     trail = trail_of(env)
     assert raised_for_hips(trail, frames(trail, 40.0), env.rays, HIPS, JOINTS, BODY.clearance,
                            BODY.spacing) is None
+
+
+def test_a_shelf_level_with_the_joints_raises_nothing():
+    """A thin shelf whose edge lies between the joints and their hips, level with the joints
+    (its underside just under them): the ray down from a joint's height starts inside it and
+    meets its underside, which is no floor to raise the body over (it would raise the body into
+    the shelf)."""
+    env = env_of(floor(-0.2, 1.0, -0.3, 0.3),
+                 box((0.30, 0.8 * BODY.clearance, 0.45 * OFFSET), (0.34, 1.3 * BODY.clearance, 0.9 * OFFSET)))
+    trail = trail_of(env)
+    assert raised_for_hips(trail, frames(trail, 40.0), env.rays, HIPS, JOINTS, BODY.clearance,
+                           BODY.spacing) is None
