@@ -191,6 +191,11 @@ class RigConfig:
 PREVIEW_SUFFIXES = {"map": "_map.png", "sheet": "_sheet.png", "gif": ".gif"}
 
 
+def frame_count(seconds: float, fps: int) -> int:
+    """Frames a bake of `seconds` exports at `fps`: frame 0 to the last frame at `seconds`."""
+    return int(round(seconds * fps)) + 1
+
+
 @dataclass(frozen=True)
 class BakeConfig:
     environment: Path = DEFAULT_ENVIRONMENT  # file to load
@@ -242,7 +247,7 @@ class BakeConfig:
     @property
     def n_frames(self) -> int:
         """Frames exported, including frame 0 and the last frame at `seconds`."""
-        return int(round(self.seconds * self.fps)) + 1
+        return frame_count(self.seconds, self.fps)
 
     def output_paths(self) -> dict[str, Path]:
         ext = {"glb": ".glb", "usd": ".usd", "usda": ".usda"}

@@ -20,6 +20,7 @@ The limit is --max-memory when given, else USABLE_SHARE of the memory this proce
 
 from __future__ import annotations
 
+from baker.config import frame_count
 from baker.errors import BudgetError
 
 #: [bytes] the process with the bundled level and its navigation surface loaded (379 MB
@@ -63,7 +64,7 @@ def check(creatures: int, seconds: float, fps: int, workers: int,
           max_memory_mb: float | None) -> float:
     """Raise BudgetError when the bake is estimated over the limit, naming the largest crowd
     and the longest bake that fit. Returns the estimate [bytes]."""
-    n, frames = int(creatures), int(round(seconds * fps)) + 1
+    n, frames = int(creatures), frame_count(seconds, fps)
     est, cap = estimate(n, frames, workers), limit(max_memory_mb)
     if est <= cap:
         return est
@@ -90,7 +91,7 @@ def _most_creatures(frames: int, workers: int, cap: float) -> int:
 def _longest(creatures: int, fps: int, workers: int, cap: float) -> float:
     """[s] the longest bake of `creatures` creatures (in tenths of a second) that fits `cap`,
     or 0 when none does."""
-    tenths = _largest(lambda k: estimate(creatures, int(round(k * fps / 10)) + 1, workers) <= cap,
+    tenths = _largest(lambda k: estimate(creatures, frame_count(k / 10, fps), workers) <= cap,
                       1, 36000)
     return tenths / 10.0
 

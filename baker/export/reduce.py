@@ -820,7 +820,6 @@ class _Player:
         self.pos0 = np.ascontiguousarray(np.moveaxis(x.pos0, -1, 0))       # (3, J, F)
         self.slide = np.zeros((j_count, max(f_count - 1, 0)))
         self.viol = np.zeros((j_count, f_count), dtype=bool)
-        self.stretch = np.zeros((j_count, f_count), dtype=bool)
         self.segments = None        # ((segments, keys) of translations, of rotations) last played
         self.row = np.zeros(j_count, dtype=np.int64)        # each joint's row in its level
         if x.planted is not None:   # the joints planted at two frames in a row, and those pairs
@@ -877,11 +876,17 @@ class _Player:
             viol[:, 1:] |= bad
             viol[:, :-1] |= bad
         self.viol = viol
-        if x.rigid is not None:
-            j, length = x.rigid
-            played = np.sqrt(sum(np.take(c, j, axis=0) ** 2 for c in self.tr))      # (R, F)
-            self.stretch[j] = np.abs(played - length[:, None]) > LENGTH_SHARE * length[:, None]
         return viol
+
+    def stretched(self) -> np.ndarray:
+        """(J, F) bool: the rigid bones (x.rigid) whose played length is off by more than
+        LENGTH_SHARE of it."""
+        out = np.zeros(self.viol.shape, dtype=bool)
+        if self.x.rigid is not None:
+            j, length = self.x.rigid
+            played = np.sqrt(sum(np.take(c, j, axis=0) ** 2 for c in self.tr))      # (R, F)
+            out[j] = np.abs(played - length[:, None]) > LENGTH_SHARE * length[:, None]
+        return out
 
     def complete(self, keep_t: np.ndarray, keep_r: np.ndarray) -> None:
         """Fill in the key values (and targets) of the frames that are not keys, keep_t,
@@ -1037,9 +1042,10 @@ def _refine(x: _Target, keep_t: np.ndarray, keep_r: np.ndarray, player: _Player)
     for _ in range(MAX_ROUNDS):
         viol = player.play(keep_t, keep_r)
         if not viol.any():
-            if not player.stretch.any():
+            stretch = player.stretched()
+            if not stretch.any():
                 return player
-            added = _key_stretched(keep_t, keep_r, x.parents, chains, player.stretch)
+            added = _key_stretched(keep_t, keep_r, x.parents, chains, stretch)
         else:
             cand_t, score_t, cand_r, score_r = _blame(x, chains, player)
             added = _add_worst(keep_t, score_t, cand_t) + _add_worst(keep_r, score_r, cand_r)

@@ -20,8 +20,8 @@ from scipy.ndimage import gaussian_filter1d, label, maximum_filter1d
 from baker.environment.rays import RayCaster
 from baker.geometry import polyline
 from baker.geometry.conventions import UP
-from baker.geometry.transforms import (frames_to_quat, length, limit_rotation, normalize,
-                                       quat_angle, quat_rotate)
+from baker.geometry.transforms import (frames_to_quat, limit_rotation, normalize, quat_angle,
+                                       quat_rotate)
 from baker.locomotion.cobra import limit_lift
 from baker.locomotion.trail_kernels import gaussian_weights, interp_rows, trail_pass
 from baker.locomotion.trail_kernels import place_chain as place_compiled
@@ -179,9 +179,16 @@ def build_trail(path: np.ndarray, rays: RayCaster, *, probe: float, spacing: flo
     pts = ground_pts.copy()
     pts[:, 1] = y
     normals = normalize(gaussian_filter1d(normals, 0.5 * sigma, axis=0, mode="nearest"))
-    high = smooth_envelope(y, RAISED_SMOOTH * spacing / res)
-    return Trail(points=pts, normals=normals, ground=ground, cum=polyline.arc_lengths(pts), cum_h=s,
-                 high=high)
+    return _trail(pts, normals, ground, s, RAISED_SMOOTH * spacing / res)
+
+
+def _trail(points: np.ndarray, normals: np.ndarray, ground: np.ndarray, cum_h: np.ndarray,
+           high_sigma: float) -> Trail:
+    """The Trail of `points` (their heights final): its 3D arc lengths, and the smooth profile
+    raised joints ride on (smooth_envelope over `high_sigma` samples)."""
+    return Trail(points=points, normals=normals, ground=ground,
+                 cum=polyline.arc_lengths(points), cum_h=cum_h,
+                 high=smooth_envelope(points[:, 1], high_sigma))
 
 
 def raised_for_hips(trail: Trail, bf: BodyFrames, rays, hips: np.ndarray, segment: np.ndarray,
@@ -228,9 +235,7 @@ def raised_for_hips(trail: Trail, bf: BodyFrames, rays, hips: np.ndarray, segmen
     need = maximum_filter1d(need, size=2 * max(int(round(0.25 * spacing / res)), 1) + 1)
     pts = trail.points.copy()
     pts[:, 1] += smooth_envelope(need, 2.0 * spacing / res)
-    return Trail(points=pts, normals=trail.normals, ground=trail.ground,
-                 cum=polyline.arc_lengths(pts), cum_h=trail.cum_h,
-                 high=smooth_envelope(pts[:, 1], RAISED_SMOOTH * spacing / res))
+    return _trail(pts, trail.normals, trail.ground, trail.cum_h, RAISED_SMOOTH * spacing / res)
 
 
 def straight_ended_smooth(xy: np.ndarray, sigma: float, axis: int = 0,

@@ -40,7 +40,7 @@ ALLOWED = {
                "parallel"},                # the reduction's compiled kernels off the main thread
     "inspect": {"environment", "metrics"},     # reads a bake's files back to judge them
     "inspect_file": {"inspect"},               # `baker inspect`: a file's summary
-    "memory": {"navmesh"},                     # a bake's memory, against the same RAM reading
+    "memory": {"navmesh", "config"},                     # a bake's memory, against the same RAM reading
 }
 TOP = {"pipeline", "cycles", "cli", "entry", "__init__", "__main__"}   # cycles: a pipeline too
 
