@@ -21,6 +21,7 @@ Test hook (harmless when unset; read at every checkpoint):
                                   send a signal, or change the files, while the bake is in that
                                   phase.
     BAKER_TEST_MARKS=1            print "baker-test: at <phase>" at every checkpoint, no sleep.
+    With either set, a signal that stops the process prints "baker-test: at interrupted".
 Phases: "start" (handlers installed, nothing heavy imported), every pipeline stage as it starts
 ("load", "navmesh", "rig", "simulate", "pose", "metrics", "export"), "write:<format>" before each
 file is written to its temporary, and "commit" (every temporary written, nothing renamed yet);
@@ -137,6 +138,10 @@ def _handler(signum, frame):
         _again(signum)
         return
     _state["raised"] = signum
+    if os.environ.get("BAKER_TEST_PAUSE_AT") or os.environ.get("BAKER_TEST_MARKS"):
+        # the test hook: a test may wait for this before its next signal (os.write: the
+        # handler may run in the middle of a print)
+        os.write(1, b"baker-test: at interrupted\n")
     raise Interrupted(signum, _state["phase"])
 
 
