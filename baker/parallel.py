@@ -93,10 +93,24 @@ def fork_map(fn, n: int, workers: int) -> list:
 
     A child that dies (killed, out of memory) stops the map with a BakerError; an exception in
     the parent (a signal's Interrupted) ends the children at once."""
+    return _fork_map(fn, n, workers, None)[0]
+
+
+def fork_map_beside(fn, n: int, workers: int, beside) -> tuple:
+    """(fork_map(fn, n, workers), beside()): `beside` runs in this process while the calls
+    are made, on its main thread once the children are forked (no thread of this process is
+    busy while it forks: a child must not inherit a lock such a thread holds, numba's compiler
+    lock among them), or, where the calls run here, on a thread of its own beside them
+    (in_background: for work that releases the GIL)."""
+    return _fork_map(fn, n, workers, beside)
+
+
+def _fork_map(fn, n: int, workers: int, beside) -> tuple:
     global _TASK
     workers = min(int(workers), int(n))
     if workers <= 1 or not can_fork():
-        return [fn(i) for i in range(n)]
+        wait = in_background(beside) if beside is not None else (lambda: None)
+        return [fn(i) for i in range(n)], wait()
     from concurrent.futures import ProcessPoolExecutor
     from concurrent.futures.process import BrokenProcessPool
 
@@ -115,9 +129,11 @@ def fork_map(fn, n: int, workers: int) -> list:
             # not started, and Python 3.11's pool, broken by the children's end below, then
             # fails to mark them ("Exception in thread ... InvalidStateError" on stderr)
             futures = [pool.submit(_call, i) for i in range(n)]
+            # (a "fork" pool starts all its children at the first submit)
+            value = beside() if beside is not None else None
             out = [f.result() for f in futures]
         pool.shutdown()
-        return out
+        return out, value
     except BrokenProcessPool:
         raise BakerError(f"a worker process stopped (killed, or out of memory) with {workers} "
                          "workers; try fewer", where="--workers") from None

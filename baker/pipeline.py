@@ -30,7 +30,7 @@ import numpy as np
 from baker import memory
 from baker.config import BakeConfig, validate_bake
 from baker.context import Context
-from baker.parallel import available_cpus, fork_map, in_background
+from baker.parallel import available_cpus, fork_map, fork_map_beside
 from baker.streams import Streams
 
 log = logging.getLogger(__name__)
@@ -169,10 +169,15 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
         clip, rig, root_motion = posed_clip(cfg, traj, base_rig, env)
 
     # Step 6: motion-quality metrics (independent ray casts against the environment), per
-    # creature, and how a crowd's creatures keep apart (a lone creature's on a thread beside
-    # step 7: its stage time is what they add to the bake's).
-    with ctx.stage("metrics"):
-        measured = measure_beside(cfg, trajs, env, nav, workers)
+    # creature, and how a crowd's creatures keep apart: a crowd's now, a lone creature's
+    # beside step 7 (in the reduce stage's time: in this process while the pieces of its clip
+    # are reduced on others, or on a thread beside its reduction).
+    def measured():
+        return measure_creatures(cfg, trajs, env, nav, workers)
+
+    if len(trajs) > 1:
+        with ctx.stage("metrics"):
+            motions, crowd = measured()
 
     # Step 7: keyframe reduction: each channel keeps the keys that hold every joint within
     # cfg.tolerance body lengths of its unreduced world position (planted feet do not slide).
@@ -181,11 +186,12 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
     clip = replace(clip, events=events(0, clip.n_frames))
     segments = behaviour_clips(clip, traj.events, cfg.fps, events) if cfg.clips else ()
     with ctx.stage("reduce"):
-        (clip, segments, animation, _), *rest = reduce_creatures(
-            cfg, (base_rig, rig), env, trajs, clip, segments, workers)
+        ((clip, segments, animation, _), *rest), beside = reduce_creatures(
+            cfg, (base_rig, rig), env, trajs, clip, segments, workers,
+            beside=measured if len(trajs) == 1 else None)
     others = [(c, a) for c, _, a, _ in rest]
-    with ctx.stage("metrics"):
-        motions, crowd = measured()
+    if len(trajs) == 1:
+        motions, crowd = beside
     motion = motions[0]
 
     # Step 8: files, all or nothing: each is written to a temporary beside its target and
@@ -272,16 +278,6 @@ def measure_creatures(cfg: BakeConfig, trajs, env, nav, workers: int = 1) -> tup
     return out[1:], out[0]
 
 
-def measure_beside(cfg: BakeConfig, trajs, env, nav, workers: int = 1):
-    """A callable returning measure_creatures(...): a lone creature's measured on a thread of
-    its own (parallel.in_background: its ray casts and numpy release the GIL, beside the
-    keyframe reduction), a crowd's now (its creatures share the worker processes)."""
-    if len(trajs) == 1:
-        return in_background(measure_creatures, cfg, trajs, env, nav, workers)
-    out = measure_creatures(cfg, trajs, env, nav, workers)
-    return lambda: out
-
-
 def crowd_report(cfg: BakeConfig, trajs) -> dict | None:
     """The report's `crowd` section (metrics.crowd_metrics, capsules of the rig's body radius,
     its widest half-width), or None for a lone creature."""
@@ -298,25 +294,33 @@ def body_radius(rig_cfg) -> float:
 
 
 def reduce_creatures(cfg: BakeConfig, rigs: tuple, env, trajs, clip, segments: tuple,
-                     workers: int = 1) -> list:
-    """reduce_clips of every creature, on up to `workers` processes (baker.parallel.fork_map,
-    the same bits as one): (reduced clip, reduced per-behaviour clips, the report's `animation`
-    section, root motion). rigs: (the base rig, creature 0's posed rig). Creature 0 keeps its
-    clip `clip` as it is and the per-behaviour `segments` (its root motion: None, the caller
-    has it); a crowd's further creatures are posed here (posed_clip: no unreduced clip of
-    theirs is kept), with their own events (events_of), no node tracks (the prey and the sun
-    ride on creature 0's clip) and no per-behaviour clips."""
+                     workers: int = 1, beside=None) -> tuple:
+    """(reduce_clips of every creature, beside's value): (reduced clip, reduced per-behaviour
+    clips, the report's `animation` section, root motion) each, on up to `workers` processes
+    (baker.parallel.fork_map, the same bits as one). rigs: (the base rig, creature 0's posed
+    rig). Creature 0 keeps its clip `clip` as it is and the per-behaviour `segments` (its root
+    motion: None, the caller has it); a crowd's further creatures are posed here (posed_clip:
+    no unreduced clip of theirs is kept), with their own events (events_of), no node tracks
+    (the prey and the sun ride on creature 0's clip) and no per-behaviour clips.
+
+    A lone creature's clip is reduced in pieces (reduce_clips' `split`: the same pieces
+    whatever `workers`), the pieces on the worker processes, and `beside` (None, or a callable:
+    its metrics) runs in this process meanwhile (parallel.fork_map_beside)."""
     base_rig, rig = rigs
+    if len(trajs) == 1:
+        out, value = reduce_clips(cfg, rig, trajs[0], clip, segments, env, workers=workers,
+                                  beside=beside, split=True)
+        return [(*out, None)], value
 
     def one(i: int):
         if i == 0:
-            return (*reduce_clips(cfg, rig, trajs[0], clip, segments, env), None)
+            return (*reduce_clips(cfg, rig, trajs[0], clip, segments, env)[0], None)
         own, _, motion = posed_clip(cfg, trajs[i], base_rig, env)
         own = replace(own, tracks=(),
                       events=events_of(cfg, trajs[i], env.origin)(0, own.n_frames))
-        return (*reduce_clips(cfg, rig, trajs[i], own, (), env), motion)
+        return (*reduce_clips(cfg, rig, trajs[i], own, (), env)[0], motion)
 
-    return fork_map(one, len(trajs), workers)
+    return fork_map(one, len(trajs), workers), (beside() if beside is not None else None)
 
 
 def write_scene(cfg: BakeConfig, paths: dict, out, env, rig, clip, scene: dict, ctx,
@@ -375,12 +379,17 @@ def _import_stages() -> None:
     import baker.navmesh.lazy, baker.rig, baker.sim.loop  # noqa: F401
 
 
-def reduce_clips(cfg: BakeConfig, rig, traj, clip, segments: tuple, env=None):
+def reduce_clips(cfg: BakeConfig, rig, traj, clip, segments: tuple, env=None, workers: int = 1,
+                 beside=None, split: bool = False):
     """Keyframe reduction of the bake's clip and its per-behaviour segments (export.reduce),
     within cfg.tolerance body lengths, the walking feet held planted where the gait plants them,
     and the limbs' joints held closer where a bone passes within the tolerance of `env`.
-    Returns (clip, segments, the report's `animation` section)."""
-    from baker.export.reduce import reduce_clip, reduction_stats
+    Returns ((clip, segments, the report's `animation` section), beside's value).
+
+    split : the clip is refined in pieces (export.reduce.reduce_plan), on up to `workers`
+            processes, while `beside` (a callable or None) runs in this one
+            (parallel.fork_map_beside)"""
+    from baker.export.reduce import reduce_clip, reduce_plan, reduction_stats
     from baker.rig.limbs import leg_layout
 
     skel = rig.skeleton
@@ -393,7 +402,12 @@ def reduce_clips(cfg: BakeConfig, rig, traj, clip, segments: tuple, env=None):
     tight = limbs_near(cfg, skel, traj, env, tol)
     kw = dict(rest=(skel.rest_translations, skel.rest_rotations),
               short_rotations=cfg.rotations == "short")
-    reduced = reduce_clip(clip, skel.parents, tol, contacts=planted, tight=tight, **kw)
+    plan = reduce_plan(clip, skel.parents, tol, contacts=planted, tight=tight, split=split, **kw)
+    if plan is None:        # --tolerance 0
+        reduced, value = replace(clip, keys=None), (beside() if beside is not None else None)
+    else:
+        pieces, value = fork_map_beside(plan.piece, plan.pieces, workers, beside)
+        reduced = plan.finish(pieces)
     animation = {"tolerance_bl": cfg.tolerance, **reduction_stats(clip, reduced)}
     ranges = {name: (f0, f1) for f0, f1, name in behaviour_ranges(clip.n_frames, traj.events,
                                                                    cfg.fps)}
@@ -406,7 +420,7 @@ def reduce_clips(cfg: BakeConfig, rig, traj, clip, segments: tuple, env=None):
     if segments:
         animation["segment_clips"] = [{"name": a.name, **reduction_stats(b, a)}
                                       for b, a in zip(segments, out)]
-    return reduced, tuple(out), animation
+    return (reduced, tuple(out), animation), value
 
 
 def limbs_near(cfg: BakeConfig, skel, traj, env, tol: float):

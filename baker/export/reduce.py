@@ -125,6 +125,9 @@ PLANTED_SLIDE = 0.5
 PLAYER_SPREAD_M = 5e-5
 #: safety stop of the world refinement (each round adds at least one key)
 MAX_ROUNDS = 10_000
+#: a clip of more frames than this after its first is refined in pieces of at most as many
+#: (reduce_plan's `split`, piece_bounds): 30 s at 30 fps
+PIECE_FRAMES = 900
 #: normalized SHORT: stored code c decodes to c / SHORT_MAX
 SHORT_MAX = 32767
 #: bytes of one value in the GLB: translation/scale VEC3 float, rotation VEC4 float or SHORT
@@ -1131,10 +1134,24 @@ def reduce_clip(clip: Clip, parents, tolerance_m: float, *, contacts=None,
                 short_rotations: bool = False, tight=None) -> Clip:
     """`clip` with `keys` set (a ClipKeys): keys whose playback keeps every joint within
     `tolerance_m` of its unreduced world position at every frame (the two passes of the module
-    docstring).
+    docstring). reduce_plan's arguments; its pieces refined here one after the other.
+    tolerance_m 0 returns the clip with keys None (every frame is a key)."""
+    plan = reduce_plan(clip, parents, tolerance_m, contacts=contacts, rest=rest,
+                       short_rotations=short_rotations, tight=tight)
+    if plan is None:
+        return dataclasses.replace(clip, keys=None)
+    return plan.finish([plan.piece(i) for i in range(plan.pieces)])
+
+
+def reduce_plan(clip: Clip, parents, tolerance_m: float, *, contacts=None,
+                rest: tuple[np.ndarray, np.ndarray] | None = None,
+                short_rotations: bool = False, tight=None, split: bool = False):
+    """The local pass of reduce_clip, and its world refinement to come as a ReducePlan (None
+    for tolerance_m 0): plan.finish([plan.piece(i) for i in range(plan.pieces)]) is the
+    reduced clip, the pieces refined anywhere (each on a process of its own: baker.parallel).
 
     parents         : (J,) int, the skeleton's parents array (parents first)
-    tolerance_m     : [m] >= 0; 0 returns the clip with keys None (every frame is a key)
+    tolerance_m     : [m] >= 0
     contacts        : (F, J) bool, frames at which a joint is planted (feet in stance), or None
     rest            : ((J, 3) translations, (J, 4) xyzw rotations): the values static channels
                       take when they are within tolerance (so the nodes keep their rest TRS)
@@ -1143,12 +1160,13 @@ def reduce_clip(clip: Clip, parents, tolerance_m: float, *, contacts=None,
     tight           : (F, J) bool or None: frames at which a joint keeps within TIGHT_SHARE of
                       the tolerance (a bone passing that close to the environment, see
                       bones_near, must not be moved into it)
+    split           : refine a clip of more than PIECE_FRAMES frames in pieces (piece_bounds)
     """
     tol = float(tolerance_m)
     if not np.isfinite(tol) or tol < 0:
         raise ExportError(f"reduction tolerance must be a finite number >= 0 (got {tolerance_m})")
     if tol == 0:
-        return dataclasses.replace(clip, keys=None)
+        return None
     parents = np.asarray(parents)
     f_count, j_count = clip.translations.shape[:2]
     if len(parents) != j_count:
@@ -1178,22 +1196,106 @@ def reduce_clip(clip: Clip, parents, tolerance_m: float, *, contacts=None,
                                    np.ones((j_count, 3), np.float32), VALUE_BYTES["scale"])
     _promote(keep_t, VALUE_BYTES["translation"])
     _promote(keep_r, rot_bytes)
-    player = _Player(x, static_t, static_r)
-    _refine(x, keep_t, keep_r, player)
-    _promote(keep_t, VALUE_BYTES["translation"])
-    _promote(keep_r, VALUE_BYTES["rotation_short" if x.short else "rotation"])
-    _promote(keep_s, VALUE_BYTES["scale"])
-    p = _refine(x, keep_t, keep_r, player)
-    p.complete(keep_t, keep_r)
-    keys = ClipKeys(
-        translations=Keys(keep_t, _frames_first(p.vt), static_t),
-        rotations=Keys(keep_r, _frames_first(p.vq), static_r,
-                       _frames_first(p.codes) if x.short else None),
-        scales=Keys(keep_s, np.asarray(clip.scales, np.float32), static_s),
-        tracks=_track_keys(clip, tol, float(lever.max()), x.short), tolerance_m=tol,
-        max_error_m=float(p.err.max(initial=0.0)), max_slide_m=float(p.slide.max(initial=0.0)),
-        short_rotations=x.short, max_spread_m=float(p.spread.max(initial=0.0)))
-    return dataclasses.replace(clip, keys=keys)
+    bounds = piece_bounds(f_count) if split else np.array([0, f_count - 1])
+    for keep in (keep_t, keep_r):                   # every piece starts and ends on a key
+        keep[np.ix_(keep.any(axis=1), bounds)] = True
+    return ReducePlan(clip, x, lever, (keep_t, keep_r, keep_s), (static_t, static_r, static_s),
+                      bounds)
+
+
+def piece_bounds(f_count: int) -> np.ndarray:
+    """(n + 1,) the first frame of each of the n pieces a clip of f_count frames is refined in
+    (reduce_plan's `split`), then its last frame: pieces of at most PIECE_FRAMES frames after
+    their first (consecutive pieces share their seam frame), as even as may be."""
+    n = max(1, -(-(f_count - 1) // PIECE_FRAMES))
+    return np.round(np.linspace(0, max(f_count - 1, 0), n + 1)).astype(np.int64)
+
+
+@dataclass
+class ReducePlan:
+    """A keyframe reduction whose world refinement is to come (reduce_plan): the clip, its
+    _Target x, the joints' levers, the local pass's keys (keep_t, keep_r, keep_s), the static
+    values (static_t, static_r, static_s) and the pieces' bounds (piece_bounds)."""
+
+    clip: Clip
+    x: "_Target"
+    lever: np.ndarray
+    keeps: tuple
+    statics: tuple
+    bounds: np.ndarray
+
+    @property
+    def pieces(self) -> int:
+        return len(self.bounds) - 1
+
+    def piece(self, i: int) -> tuple:
+        """(keep_t, keep_r, player) of piece i (its frames bounds[i] to bounds[i + 1]). One
+        piece: the whole clip's world refinement, its key counts promoted (_promote), refined
+        again, and its player. Several: the piece's world refinement on its own (the promotion
+        is the whole clip's, in finish), without the player."""
+        a, b = int(self.bounds[i]), int(self.bounds[i + 1]) + 1
+        keep_t, keep_r = (k[:, a:b].copy() for k in self.keeps[:2])
+        if self.pieces > 1:
+            x = _frames_of(self.x, a, b)
+            _refine(x, keep_t, keep_r, _Player(x, *self.statics[:2]))
+            return keep_t, keep_r, None
+        player = _Player(self.x, *self.statics[:2])
+        _refine(self.x, keep_t, keep_r, player)
+        self._promote(keep_t, keep_r)
+        return keep_t, keep_r, _refine(self.x, keep_t, keep_r, player)
+
+    def _promote(self, keep_t: np.ndarray, keep_r: np.ndarray) -> None:
+        _promote(keep_t, VALUE_BYTES["translation"])
+        _promote(keep_r, VALUE_BYTES["rotation_short" if self.x.short else "rotation"])
+
+    def finish(self, pieces: list) -> Clip:
+        """The reduced clip from the pieces' results (piece(i) for every i, in order). Several
+        pieces' keys are played over the whole clip, promoted and refined: the pieces hold on
+        their own, so the whole clip's refinement adds keys only for the promotion, where a
+        seam's key values differ in their last bits (a key frame's played rotation depends on
+        the key after it, which the piece before the seam does not have), or where a channel
+        static in the local pass got keys in some pieces (keyed at the clip's ends, it is no
+        longer the static value in the others)."""
+        x, clip = self.x, self.clip
+        keep_t, keep_r, player = pieces[0]
+        if self.pieces > 1:
+            keep_t, keep_r = (k.copy() for k in self.keeps[:2])
+            for a, b, (kt, kr, _) in zip(self.bounds[:-1], self.bounds[1:] + 1, pieces):
+                keep_t[:, a:b] |= kt
+                keep_r[:, a:b] |= kr
+            # a channel static in the local pass that a piece keyed keeps the clip's ends too
+            # (players hold the first key before it: the piece before kept the static value)
+            _close(keep_t)
+            _close(keep_r)
+            player = _Player(x, *self.statics[:2])
+            _refine(x, keep_t, keep_r, player)
+            self._promote(keep_t, keep_r)
+            player = _refine(x, keep_t, keep_r, player)
+        keep_s = self.keeps[2]
+        _promote(keep_s, VALUE_BYTES["scale"])
+        static_t, static_r, static_s = self.statics
+        player.complete(keep_t, keep_r)
+        p = player
+        keys = ClipKeys(
+            translations=Keys(keep_t, _frames_first(p.vt), static_t),
+            rotations=Keys(keep_r, _frames_first(p.vq), static_r,
+                           _frames_first(p.codes) if x.short else None),
+            scales=Keys(keep_s, np.asarray(clip.scales, np.float32), static_s),
+            tracks=_track_keys(clip, x.tol, float(self.lever.max()), x.short),
+            tolerance_m=x.tol, max_error_m=float(p.err.max(initial=0.0)),
+            max_slide_m=float(p.slide.max(initial=0.0)), short_rotations=x.short,
+            max_spread_m=float(p.spread.max(initial=0.0)))
+        return dataclasses.replace(clip, keys=keys)
+
+
+def _frames_of(x: "_Target", a: int, b: int) -> "_Target":
+    """x over its frames a to b - 1 (a piece of the clip), contiguous."""
+    def cut(arr):
+        return None if arr is None else np.ascontiguousarray(arr[:, a:b])
+
+    return dataclasses.replace(x, t0=cut(x.t0), q0=cut(x.q0), pos0=cut(x.pos0), wq0=cut(x.wq0),
+                               times=np.ascontiguousarray(x.times[a:b]), planted=cut(x.planted),
+                               tight=cut(x.tight))
 
 
 def _local_share(parents: np.ndarray, tol: float) -> np.ndarray:

@@ -646,3 +646,52 @@ def test_rigid_bones_keep_their_length(monkeypatch):
     share = red.LENGTH_SHARE
     monkeypatch.setattr(red, "LENGTH_SHARE", 1.0)
     assert spacing_error(red.reduce_clip(clip, parents, tol, short_rotations=True)) > 2 * share
+
+
+def _world(clip, rig):
+    """(F, J, 3) world joint positions of the clip as a player plays its keys."""
+    from baker.rig.skeleton import forward_kinematics
+
+    t, q, _ = red.played_joints(clip)
+    return forward_kinematics(rig.skeleton.parents, t.astype(np.float64), q.astype(np.float64))[0]
+
+
+def test_a_clip_refined_in_pieces_keeps_the_bound(clip, rig, monkeypatch):
+    """A clip of more than PIECE_FRAMES frames (reduce_plan's `split`) is refined in pieces,
+    each on its own and in any order or process, keyed at their seams, then checked whole:
+    every joint stays within the tolerance as played, about as many keys as in one piece."""
+    from baker.parallel import can_fork, fork_map
+
+    skel = rig.skeleton
+    kw = dict(rest=(skel.rest_translations, skel.rest_rotations), short_rotations=True)
+    whole = red.reduce_clip(clip, skel.parents, TOL, **kw)
+    monkeypatch.setattr(red, "PIECE_FRAMES", clip.n_frames // 3)
+    plan = red.reduce_plan(clip, skel.parents, TOL, split=True, **kw)
+    assert plan.pieces == 3 and plan.bounds[0] == 0 and plan.bounds[-1] == clip.n_frames - 1
+    pieces = [plan.piece(i) for i in reversed(range(plan.pieces))][::-1]
+    split = plan.finish(pieces)
+    if can_fork():                    # the pieces on other processes: the same keys
+        forked = plan.finish(fork_map(plan.piece, plan.pieces, 2))
+        assert np.array_equal(forked.keys.rotations.keep, split.keys.rotations.keep)
+        assert _bits_equal(forked.keys.rotations.values, split.keys.rotations.values)
+    k = split.keys
+    for keys, local in zip((k.translations, k.rotations), plan.keeps):
+        animated = local.any(axis=1)                    # animated after the local pass
+        assert animated.any() and keys.keep[animated][:, plan.bounds].all()   # the seams
+        assert keys.keep[~keys.is_static][:, [0, -1]].all()         # every channel's ends
+    err = np.linalg.norm(_world(split, rig) - _world(clip, rig), axis=-1)
+    assert k.max_error_m <= TOL and err.max() <= TOL + SLACK and err.max() > 0.3 * TOL
+    count = k.translations.count + k.rotations.count
+    assert count <= 1.1 * (whole.keys.translations.count + whole.keys.rotations.count)
+
+
+def test_a_clip_in_one_piece_is_reduced_as_before(clip, rig):
+    """split on a clip of at most PIECE_FRAMES frames: one piece, the keys of reduce_clip."""
+    skel = rig.skeleton
+    kw = dict(rest=(skel.rest_translations, skel.rest_rotations), short_rotations=True)
+    plan = red.reduce_plan(clip, skel.parents, TOL, split=True, **kw)
+    assert clip.n_frames <= red.PIECE_FRAMES + 1 and plan.pieces == 1
+    got = plan.finish([plan.piece(0)])
+    want = red.reduce_clip(clip, skel.parents, TOL, **kw)
+    assert np.array_equal(got.keys.translations.keep, want.keys.translations.keep)
+    assert _bits_equal(got.keys.rotations.values, want.keys.rotations.values)

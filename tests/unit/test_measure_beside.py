@@ -1,51 +1,57 @@
-"""A lone creature's metrics run on a thread beside the keyframe reduction
-(pipeline.measure_beside); a crowd's run at once (its creatures share the worker processes).
-Either way the caller gets measure_creatures' own result, and its errors."""
+"""parallel.fork_map_beside: the map's results in order and the `beside` callable's value; beside
+runs in this process's main thread once the children are forked (a lone creature's metrics
+beside the pieces of its keyframe reduction, pipeline.reduce_creatures), or on a thread of its
+own beside the calls where they run here; an error in either is raised, the children ended."""
 
+import multiprocessing
+import os
 import threading
 
 import pytest
 
-from baker import parallel, pipeline
+from baker import parallel
+from baker.parallel import can_fork, fork_map_beside
+
+forks = pytest.mark.skipif(not can_fork(), reason="fork_map forks on Linux only")
 
 
-@pytest.fixture
-def recorded(monkeypatch):
-    calls = []
+@forks
+def test_beside_runs_here_once_the_children_are_forked():
+    seen = {}
 
-    def fake(cfg, trajs, env, nav, workers=1):
-        calls.append(threading.current_thread())
-        if trajs == ["broken"]:
-            raise ValueError("no metrics")
-        return [f"motion of {t}" for t in trajs], None if len(trajs) == 1 else "crowd"
+    def beside():
+        seen["thread"] = threading.current_thread()
+        seen["children"] = len(multiprocessing.active_children())
+        return "metrics"
 
-    monkeypatch.setattr(pipeline, "measure_creatures", fake)
-    return calls
+    out, value = fork_map_beside(lambda i: (i, os.getpid()), 4, 2, beside)
+    assert [o[0] for o in out] == [0, 1, 2, 3] and value == "metrics"
+    assert {o[1] for o in out} != {os.getpid()}
+    assert seen == {"thread": threading.main_thread(), "children": 2}
+    assert multiprocessing.active_children() == []
 
 
-def test_a_lone_creature_is_measured_on_another_thread(recorded, monkeypatch):
+def test_with_one_worker_beside_runs_on_another_thread(monkeypatch):
     monkeypatch.setattr(parallel, "thread_count", lambda: 2)
-    wait = pipeline.measure_beside(None, ["a"], None, None, 2)
-    assert wait() == (["motion of a"], None)
-    assert recorded and recorded[0] is not threading.main_thread()
+    seen = []
+    out, value = fork_map_beside(lambda i: i * i, 3, 1,
+                                 lambda: seen.append(threading.current_thread()) or 7)
+    assert out == [0, 1, 4] and value == 7
+    assert seen and seen[0] is not threading.main_thread()
 
 
-def test_a_crowd_is_measured_at_once(recorded):
-    wait = pipeline.measure_beside(None, ["a", "b"], None, None, 2)
-    assert recorded == [threading.main_thread()]          # before the wait
-    assert wait() == (["motion of a", "motion of b"], "crowd")
-
-
-def test_on_one_thread_the_metrics_run_at_the_wait(recorded, monkeypatch):
-    monkeypatch.setattr(parallel, "thread_count", lambda: 1)
-    wait = pipeline.measure_beside(None, ["a"], None, None, 1)
-    assert recorded == []
-    assert wait() == (["motion of a"], None)
-    assert recorded == [threading.main_thread()]
-
-
-def test_an_error_in_the_metrics_is_raised_at_the_wait(recorded, monkeypatch):
+@forks
+@pytest.mark.parametrize("workers", [1, 2])
+def test_an_error_beside_is_raised_and_the_children_end(workers, monkeypatch):
     monkeypatch.setattr(parallel, "thread_count", lambda: 2)
-    wait = pipeline.measure_beside(None, ["broken"], None, None, 2)
+
+    def beside():
+        raise ValueError("no metrics")
+
     with pytest.raises(ValueError, match="no metrics"):
-        wait()
+        fork_map_beside(lambda i: i, 3, workers, beside)
+    assert multiprocessing.active_children() == []
+
+
+def test_no_beside_is_none():
+    assert fork_map_beside(lambda i: -i, 2, 1, None) == ([0, -1], None)
