@@ -7,8 +7,11 @@
                                            (--creatures N: sim.loop.simulate_crowd -> N)
     Step 5  pose                           clip.build_clip   -> Clip (one per creature)
     Step 6  measure                        metrics.spine_metrics, surface_metrics, leg_metrics
-                                           (a crowd: metrics.crowd_metrics)
-    Step 7  reduce keys                    export.reduce.reduce_clip (world-space tolerance)
+                                           (a crowd: metrics.crowd_metrics; a lone creature:
+                                           beside step 7)
+    Step 7  reduce keys                    export.reduce.reduce_clip (world-space tolerance;
+                                           a lone creature: reduce_plan, its 30 s pieces on
+                                           parallel.fork_map_beside, ReducePlan.finish)
     Step 8  export                         export.gltf / export.usd / export.report
                                            (/ export.preview with --preview)
 
