@@ -1194,8 +1194,7 @@ def reduce_plan(clip: Clip, parents, tolerance_m: float, *, contacts=None,
                                    share / lever, r_q, rot_bytes)
     keep_s, static_s = _local_keys(clip.scales, clip.scales, clip.times, False, tol / lever,
                                    np.ones((j_count, 3), np.float32), VALUE_BYTES["scale"])
-    _promote(keep_t, VALUE_BYTES["translation"])
-    _promote(keep_r, rot_bytes)
+    _promote_joints(keep_t, keep_r, x.short)
     bounds = piece_bounds(f_count) if split else np.array([0, f_count - 1])
     for keep in (keep_t, keep_r):                   # every piece starts and ends on a key
         keep[np.ix_(keep.any(axis=1), bounds)] = True
@@ -1230,8 +1229,8 @@ class ReducePlan:
 
     def piece(self, i: int) -> tuple:
         """(keep_t, keep_r, player) of piece i (its frames bounds[i] to bounds[i + 1]). One
-        piece: the whole clip's world refinement, its key counts promoted (_promote), refined
-        again, and its player. Several: the piece's world refinement on its own (the promotion
+        piece: the whole clip's world refinement, its key counts promoted, refined again
+        (_settled), and its player. Several: the piece's world refinement on its own (the promotion
         is the whole clip's, in finish), without the player."""
         a, b = int(self.bounds[i]), int(self.bounds[i + 1]) + 1
         keep_t, keep_r = (k[:, a:b].copy() for k in self.keeps[:2])
@@ -1240,13 +1239,7 @@ class ReducePlan:
             _refine(x, keep_t, keep_r, _Player(x, *self.statics[:2]))
             return keep_t, keep_r, None
         player = _Player(self.x, *self.statics[:2])
-        _refine(self.x, keep_t, keep_r, player)
-        self._promote(keep_t, keep_r)
-        return keep_t, keep_r, _refine(self.x, keep_t, keep_r, player)
-
-    def _promote(self, keep_t: np.ndarray, keep_r: np.ndarray) -> None:
-        _promote(keep_t, VALUE_BYTES["translation"])
-        _promote(keep_r, VALUE_BYTES["rotation_short" if self.x.short else "rotation"])
+        return keep_t, keep_r, _settled(self.x, keep_t, keep_r, player)
 
     def finish(self, pieces: list) -> Clip:
         """The reduced clip from the pieces' results (piece(i) for every i, in order). Several
@@ -1257,7 +1250,7 @@ class ReducePlan:
         static in the local pass got keys in some pieces (keyed at the clip's ends, it is no
         longer the static value in the others)."""
         x, clip = self.x, self.clip
-        keep_t, keep_r, player = pieces[0]
+        keep_t, keep_r, p = pieces[0]             # p: the player of the final playback
         if self.pieces > 1:
             keep_t, keep_r = (k.copy() for k in self.keeps[:2])
             for a, b, (kt, kr, _) in zip(self.bounds[:-1], self.bounds[1:] + 1, pieces):
@@ -1267,15 +1260,11 @@ class ReducePlan:
             # (players hold the first key before it: the piece before kept the static value)
             _close(keep_t)
             _close(keep_r)
-            player = _Player(x, *self.statics[:2])
-            _refine(x, keep_t, keep_r, player)
-            self._promote(keep_t, keep_r)
-            player = _refine(x, keep_t, keep_r, player)
+            p = _settled(x, keep_t, keep_r, _Player(x, *self.statics[:2]))
         keep_s = self.keeps[2]
         _promote(keep_s, VALUE_BYTES["scale"])
         static_t, static_r, static_s = self.statics
-        player.complete(keep_t, keep_r)
-        p = player
+        p.complete(keep_t, keep_r)
         keys = ClipKeys(
             translations=Keys(keep_t, _frames_first(p.vt), static_t),
             rotations=Keys(keep_r, _frames_first(p.vq), static_r,
@@ -1286,6 +1275,21 @@ class ReducePlan:
             max_slide_m=float(p.slide.max(initial=0.0)), short_rotations=x.short,
             max_spread_m=float(p.spread.max(initial=0.0)))
         return dataclasses.replace(clip, keys=keys)
+
+
+def _promote_joints(keep_t: np.ndarray, keep_r: np.ndarray, short: bool) -> None:
+    """_promote of the joints' translation and rotation keys (in place)."""
+    _promote(keep_t, VALUE_BYTES["translation"])
+    _promote(keep_r, VALUE_BYTES["rotation_short" if short else "rotation"])
+
+
+def _settled(x: "_Target", keep_t: np.ndarray, keep_r: np.ndarray, player: "_Player"
+             ) -> "_Player":
+    """The world refinement of keep_t, keep_r (in place), their key counts promoted
+    (_promote_joints), refined again; returns the player holding the final playback."""
+    _refine(x, keep_t, keep_r, player)
+    _promote_joints(keep_t, keep_r, x.short)
+    return _refine(x, keep_t, keep_r, player)
 
 
 def _frames_of(x: "_Target", a: int, b: int) -> "_Target":
