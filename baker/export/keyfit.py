@@ -50,6 +50,32 @@ def tight_misses(vals: np.ndarray, kept: np.ndarray, times: np.ndarray, rotation
                            np.ascontiguousarray(tol, dtype=np.float64))
 
 
+def reach(chains: np.ndarray, world: np.ndarray, out: np.ndarray) -> None:
+    """out[a] = the largest of out[a] and the farthest any joint below a gets from it over all
+    frames (reduce.levers), in place: chains (J, D) each joint's chain (reduce.ancestors),
+    world (J, F, 3) contiguous positions, F > 0. Each distance as reduce._norm computes it."""
+    compiled_call(_reach, np.ascontiguousarray(chains, dtype=np.int64), world, out)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _reach(chains, world, out):
+    for j in range(1, chains.shape[0]):
+        for i in range(1, chains.shape[1]):
+            a = chains[j, i]
+            if a < 0:
+                break                       # past the root
+            far = -np.inf
+            for f in range(world.shape[1]):
+                d0 = world[j, f, 0] - world[a, f, 0]
+                d1 = world[j, f, 1] - world[a, f, 1]
+                d2 = world[j, f, 2] - world[a, f, 2]
+                d = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                if d > far or d != d:       # max's and np.maximum's (a NaN wins)
+                    far = d
+            if far > out[a] or far != far:
+                out[a] = far
+
+
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _alpha(t, p, n, f):
     span = t[n] - t[p]

@@ -392,22 +392,11 @@ def _put(a: np.ndarray, i: np.ndarray, v: np.ndarray) -> None:
 _ROWS: dict = {}
 
 
-def _cols(a: np.ndarray) -> np.ndarray:
-    """(..., J * F) view of a contiguous component-first (..., J, F) array: column j * F + f
-    is (j, f)."""
-    return a.reshape(a.shape[:-2] + (-1,))
-
-
-def _gather(a: np.ndarray, i: np.ndarray) -> np.ndarray:
-    """(..., N) the columns i of a component-first (..., M) array, contiguous: each component
-    a flat array over the pairs, ready for the kernels (no transposing copy)."""
-    return a.take(i, axis=-1)
-
-
-def _scatter(a: np.ndarray, i: np.ndarray, v: np.ndarray) -> None:
-    """a[..., i] = v for the columns i of a component-first array a, v (..., N) cast to a's
-    dtype as assignment casts it."""
-    a[..., i] = v
+def _pairs(a: np.ndarray, i: np.ndarray) -> np.ndarray:
+    """(W, ...) the pairs i (flat indices j * F + f, any shape) of a contiguous joints-first
+    (J, F, W) array, component first (a view of the gathered rows), for the component-first
+    kernels below."""
+    return _last_first(_take(_flat(a), i))
 
 
 def _inner(a: np.ndarray, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -647,12 +636,9 @@ def levers(parents, world: np.ndarray, local_t: np.ndarray) -> np.ndarray:
     (the geometry it carries). world (F, J, 3) positions, local_t (F, J, 3) local translations."""
     parents = np.asarray(parents)
     out = np.linalg.norm(local_t, axis=-1).max(axis=0) * (parents >= 0)
-    chains = ancestors(parents)
     world = np.ascontiguousarray(np.swapaxes(world, 0, 1))                     # (J, F, 3)
-    for j in range(1, len(parents)):                # each joint's reach to its ancestors
-        up = chains[j, 1:][chains[j, 1:] >= 0]
-        d = _norm(world[j] - world[up]).max(axis=1)
-        out[up] = np.maximum(out[up], d)
+    if world.shape[1]:                              # each joint's reach to its ancestors
+        keyfit.reach(ancestors(parents), world, out)
     return out
 
 
@@ -768,11 +754,6 @@ def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def _length(d: np.ndarray) -> np.ndarray:
-    """(...) lengths of (3, ...) vectors (squares summed left to right)."""
-    return np.sqrt(_inner(d, d))
-
-
 def _unit(q: np.ndarray) -> np.ndarray:
     return q / _norm(q)[..., None]
 
@@ -784,7 +765,7 @@ class _Player:
     (so a parent's interpolation error is not passed on at the child's keys); its curves are
     sampled between the keys as players do and posed with the players' matrices (raw_matrix:
     stored quaternions are not renormalized), and as the two other players pose them (see
-    `_pose`).
+    baker.export.replay).
 
     `play` recomputes only the (joint, frame) pairs whose result can change since the last play:
     frames whose segment (the keys around them) changed, frames whose segment's stored key
@@ -793,13 +774,13 @@ class _Player:
 
     Stored key values vt (J, F, 3), vq (J, F, 4) float32 and codes (J, F, 4) int16 (SHORT
     rotations) and their targets tt, tq (float64; codes are requantized only where tq changed),
-    at the key frames (the players read no others; `complete` fills in the rest). Component
-    first, (W, J, F) (`_cols`, `_gather`, `_scatter`: the kernels read and write them without
-    transposing copies, on contiguous components): the played local tr (3), rr (4) (float32
+    at the key frames (the players read no others; `complete` fills in the rest). Joints first
+    too, (J, F, W) (a pair's components side by side for the compiled kernels; `_pairs`
+    gathers them component first for numpy): the played local tr (3), rr (4) (float32
     values as float64) and Blender's nlerp (4); world positions pos (3), rotations wq (4) (the
-    matrices' rotation part) and matrices mat (3, 3, J, F); the other players' poses (unit (3):
-    renormalized slerp; blender (3), wn (4): nlerp); error vectors diff (3). Joints first: the
-    error lengths err (J, F) [m], the worst of the three players; slide (J, F-1) [m]: the change
+    matrices' rotation part) and matrices mat (J, F, 3, 3); the other players' poses (unit (3):
+    renormalized slerp; blender (3), wn (4): nlerp); error vectors diff (3). And (J, F): the
+    error lengths err [m], the worst of the three players; slide (J, F-1) [m]: the change
     of a planted joint's error between planted frames; spread (J, F) [m]: how far the other two
     players are from the first; viol (J, F) bool: over a bound."""
 
@@ -810,27 +791,22 @@ class _Player:
         def empty(*shape, dtype=np.float64):
             return np.zeros((j_count, f_count) + shape, dtype)
 
-        def comps(*shape):                          # component-first
-            return np.zeros(shape + (j_count, f_count))
-
         self.vt, self.vq = empty(3, dtype=np.float32), empty(4, dtype=np.float32)
         self.codes = empty(4, dtype=np.int16)
-        self.tt, self.tr, self.rr = empty(3), comps(3), comps(4)
+        self.tt, self.tr, self.rr = empty(3), empty(3), empty(4)
         self.tq = np.full((j_count, f_count, 4), np.nan)     # NaN: none quantized yet
-        self.pos, self.wq, self.mat = comps(3), comps(4), comps(3, 3)
-        self.nlerp, self.unit, self.blender, self.wn = comps(4), comps(3), comps(3), comps(4)
-        self.diff, self.err, self.spread = comps(3), empty(), empty()
-        self.pos0 = np.ascontiguousarray(np.moveaxis(x.pos0, -1, 0))       # (3, J, F)
+        self.pos, self.wq, self.mat = empty(3), empty(4), empty(3, 3)
+        self.nlerp, self.unit, self.blender, self.wn = empty(4), empty(3), empty(3), empty(4)
+        self.diff, self.err, self.spread = empty(3), empty(), empty()
+        self.pos0 = np.ascontiguousarray(x.pos0)
         self.slide = np.zeros((j_count, max(f_count - 1, 0)))
         self.viol = np.zeros((j_count, f_count), dtype=bool)
         self.segments = None        # ((segments, keys) of translations, of rotations) last played
-        self.row = np.zeros(j_count, dtype=np.int64)        # each joint's row in its level
+        self.order = np.concatenate(x.levels)              # the joints, parents first
         if x.planted is not None:   # the joints planted at two frames in a row, and those pairs
             both = x.planted[:, 1:] & x.planted[:, :-1]
             feet = np.flatnonzero(both.any(axis=1))
             self.planted_pairs = feet, both[feet]
-        for level in x.levels:
-            self.row[level] = np.arange(len(level))
 
     def play(self, keep_t: np.ndarray, keep_r: np.ndarray) -> np.ndarray:
         """Play the keys keep_t, keep_r (J, F) bool; returns viol."""
@@ -846,30 +822,13 @@ class _Player:
             new_t, new_r = keep_t & ~self.segments[0][1], keep_r & ~self.segments[1][1]
             dirty_t = _resegment(*self.segments[0], keep_t)
             dirty_r = _resegment(*self.segments[1], keep_r)
-        seg_t, seg_r = self.segments[0][0], self.segments[1][0]
         moved = np.zeros((j_count, f_count), dtype=bool)       # world position changed
         turned = np.zeros((j_count, f_count), dtype=bool)      # world rotation changed
-        for level in x.levels:
-            parents = x.parents[level]
-            root = parents[0] < 0
-            # a child's translation targets follow its parent's world position and
-            # rotation, its rotation targets the parent's world rotation alone
-            if root:
-                target_t = target_r = np.full((len(level), f_count), first)
-            else:
-                target_t, target_r = moved[parents], turned[parents]
-            if not (target_t.any() or dirty_t[level].any() or dirty_r[level].any()):
-                continue                                    # nothing below moves either
-            # frames played from a key whose stored value changed (a new key's frames are
-            # dirty: their segment changed)
-            changed_t, changed_r = self._targets(level, (target_t | new_t[level]) & keep_t[level],
-                                                 (target_r | new_r[level]) & keep_r[level], root)
-            st = dirty_t[level] | _touches(changed_t, seg_t, level)
-            sr = dirty_r[level] | _touches(changed_r, seg_r, level)
-            self._sample(level, st, sr, seg_t, seg_r)
-            turned[level] = sr | target_r
-            moved[level] = st | turned[level] | target_t
-            self._pose(level, turned[level], moved[level], root)
+        # key values where the parent moved or the key is new, then the frames played from a
+        # changed segment or a key whose stored value changed (a new key's frames are dirty:
+        # their segment changed), then the poses there and below (compiled, in one call)
+        replay.play_levels(x, self, keep_t, keep_r, new_t, new_r, dirty_t, dirty_r, first,
+                           moved, turned)
         self._slide_at(moved)
         viol = (self.err > x.tol) | (self.spread > PLAYER_SPREAD_M)
         if x.tight is not None:
@@ -887,7 +846,8 @@ class _Player:
         out = np.zeros(self.viol.shape, dtype=bool)
         if self.x.rigid is not None:
             j, length = self.x.rigid
-            played = np.sqrt(sum(np.take(c, j, axis=0) ** 2 for c in self.tr))      # (R, F)
+            tr = np.take(self.tr, j, axis=0)                                      # (R, F, 3)
+            played = np.sqrt(sum(tr[..., k] ** 2 for k in range(3)))              # (R, F)
             out[j] = np.abs(played - length[:, None]) > LENGTH_SHARE * length[:, None]
         return out
 
@@ -896,32 +856,16 @@ class _Player:
         keep_r (J, F) the last played keys: `play` computes them at key frames only (the
         players read no others), the files store every frame's."""
         for level in self.x.levels:
-            self._targets(level, ~keep_t[level], ~keep_r[level], self.x.parents[level[0]] < 0)
+            self._targets(level, ~keep_t[level], ~keep_r[level])
 
-    def _targets(self, level: np.ndarray, target_t: np.ndarray, target_r: np.ndarray,
-                 root: bool) -> tuple[np.ndarray, np.ndarray]:
+    def _targets(self, level: np.ndarray, target_t: np.ndarray, target_r: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
         """The key values of the joints `level`: translations at the frames target_t, rotations
         at the frames target_r (L, F) bool (new keys, and keys where the parent's pose, or only
         its rotation, moved); SHORT codes requantized only where the target changed. Returns
         ((L, F), (L, F)) bool: the frames whose stored value vt, vq changed (bit for bit)."""
-        return replay.targets_level(level, self.x.parents, target_t, target_r, root,
-                                    self.x.short, self.x, self)
-
-    def _sample(self, level, st, sr, seg_t, seg_r) -> None:
-        """Played local values of the joints `level` at the frames st (translations) and sr
-        (rotations) (L, F) bool; and Blender's nlerp of the rotations."""
-        replay.sample_level(level, st, sr, seg_t, seg_r, self.x.times, self.vt, self.vq,
-                            self.static_t, self.static_r, self.tr, self.rr, self.nlerp)
-
-    def _pose(self, level: np.ndarray, turned: np.ndarray, moved: np.ndarray,
-              root: bool) -> None:
-        """World poses of the joints `level`, as the three players pose them: rotations at the
-        frames `turned`, positions at the frames `moved` (L, F) bool; and their errors: pos, as
-        three.js and UsdSkel play the keys; unit, a player that normalizes the slerped
-        quaternions; and Blender's (blender), which interpolates the stored quaternions
-        component by component and normalizes (nlerp); err the worst of the three, spread how
-        far the other two are from the first."""
-        replay.pose_level(level, self.x.parents, turned, moved, root, self)
+        return replay.targets_level(level, self.x.parents, target_t, target_r, self.x.short,
+                                    self.x, self)
 
     def _slide_at(self, moved: np.ndarray) -> None:
         """slide at the planted frame pairs (f, f + 1) with a moved frame."""
@@ -929,18 +873,7 @@ class _Player:
         f_count = moved.shape[1]
         if x.planted is None or f_count < 2:
             return
-        feet, both = self.planted_pairs
-        j, f = np.nonzero(both & (moved[feet, 1:] | moved[feet, :-1]))
-        j = feet[j]
-        i = j * f_count + f
-        pos0 = _cols(self.pos0)
-        slide = np.zeros(len(j))
-        p0, p1 = _gather(pos0, i), _gather(pos0, i + 1)
-        for world in (self.pos, self.unit, self.blender):
-            w = _cols(world)
-            d = (_gather(w, i + 1) - p1) - (_gather(w, i) - p0)
-            np.maximum(slide, _length(d), out=slide)
-        np.put(self.slide, j * (f_count - 1) + f, slide)
+        replay.slide_at(*self.planted_pairs, moved, self)        # compiled
 
 
 def _resegment(segments: tuple, played: np.ndarray, keep: np.ndarray) -> np.ndarray:
@@ -955,21 +888,6 @@ def _resegment(segments: tuple, played: np.ndarray, keep: np.ndarray) -> np.ndar
         segments[0][rows], segments[1][rows] = prev, nxt
         played[rows] = keep[rows]
     return dirty
-
-
-def _touches(changed: np.ndarray, segments, level: np.ndarray) -> np.ndarray:
-    """(L, F) bool: frames of the joints `level` whose segment starts or ends on a key whose
-    value changed (changed (L, F) bool)."""
-    out = np.zeros(changed.shape, dtype=bool)
-    rows = np.flatnonzero(changed.any(axis=1))
-    if len(rows):
-        f_count = changed.shape[1]
-        prev = np.minimum(np.maximum(segments[0][level[rows]], 0), f_count - 1)
-        nxt = np.minimum(segments[1][level[rows]], f_count - 1)
-        sub = changed[rows].ravel()
-        base = np.arange(len(rows))[:, None] * f_count
-        out[rows] = sub.take(base + prev) | sub.take(base + nxt)
-    return out
 
 
 def _blame(x: _Target, chains: np.ndarray, p: _Player):
@@ -996,15 +914,14 @@ def _blame_block(x: _Target, chains: np.ndarray, p: _Player, ki, fi, out: list) 
     """_blame for the offending pairs (ki, fi): into out = [translation candidates, scores,
     rotation candidates, scores] (in place)."""
     f_count = p.viol.shape[1]
-    e = np.ascontiguousarray(_gather(_cols(p.diff), ki * f_count + fi).T)
+    e = _take(_flat(p.diff), ki * f_count + fi)                             # (V, 3)
     e = e / np.maximum(_norm(e), 1e-300)[:, None]
     chain = chains[ki]                                                     # (V, D)
     a = np.maximum(chain, 0)
     ft = np.broadcast_to(fi[:, None], a.shape)
     c_t, omega = _channel_moves(x, p, a, ft)
     ct = np.where(chain >= 0, np.einsum("vdk,vk->vd", c_t, e), -np.inf)
-    pos = _cols(p.pos)
-    arm = _cross(_gather(pos, ki * f_count + fi)[:, :, None] - _gather(pos, a * f_count + ft),
+    arm = _cross(_pairs(p.pos, ki * f_count + fi)[:, :, None] - _pairs(p.pos, a * f_count + ft),
                  e.T[:, :, None])                                                # (3, V, D)
     arm = np.ascontiguousarray(np.moveaxis(arm, 0, -1))
     strict = (chain >= 0) & (np.arange(chain.shape[1]) > 0)[None, :]       # ancestors of k
@@ -1028,11 +945,11 @@ def _channel_moves(x: _Target, p: _Player, a: np.ndarray, ft: np.ndarray):
     i = np.flatnonzero(need)
     j, f = np.divmod(i, f_count)
     parent = x.parents[j]
-    wp = np.where(parent >= 0, _gather(_cols(p.wq), np.maximum(parent, 0) * f_count + f),
+    wp = np.where(parent >= 0, _pairs(p.wq, np.maximum(parent, 0) * f_count + f),
                   np.array([0.0, 0.0, 0.0, 1.0])[:, None])
     tt, tq = replay.targets_at(i, x, p)
-    c_t = _qrot(wp, _gather(_cols(p.tr), i) - tt.T).T
-    err_q = _qmul(_gather(_cols(p.rr), i), quat_conj(tq).T).T
+    c_t = _qrot(wp, _pairs(p.tr, i) - tt.T).T
+    err_q = _qmul(_pairs(p.rr, i), quat_conj(tq).T).T
     omega = _qrot(wp, _rotvec(err_q).T).T
     at = np.take(np.cumsum(need) - 1, flat)         # each pair's row in i
     return _take(np.ascontiguousarray(c_t), at), _take(np.ascontiguousarray(omega), at)

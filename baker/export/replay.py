@@ -1,20 +1,28 @@
 """The reduction player's per-pair arithmetic, compiled with numba (baker.export.reduce._Player).
 
-One level of the skeleton at a time, over the (joint, frame) pairs a mask selects:
+`play_levels` replays the skeleton joint by joint, parents first, over the (joint, frame) pairs
+that can change since the last play (one call a play: the per-level numpy masks and calls cost
+as much as the arithmetic did):
 
-- `sample_level`: the local values the players play between the stored keys: the lerped
-  translation and the slerped rotation (three.js's slerp, rounded to float32 as the files hold
-  them), and Blender's nlerp of the rotation (component-wise lerp, normalized);
-- `pose_level`: the world poses as the three players pose them (raw matrices of the stored
-  quaternions; a renormalized slerp; Blender's nlerp) from the parents' poses, and the errors
-  against the unreduced world positions.
+- `_keys_of`: the compensated key values (targets) at the key frames to redo;
+- `_samples_of` (`_lerp`, `_rotation`): the local values the players play between the stored
+  keys: the lerped translation and the slerped rotation (three.js's slerp, rounded to float32
+  as the files hold them), and Blender's nlerp of the rotation (component-wise lerp,
+  normalized);
+- `_poses_of` (`_place`): the world poses as the three players pose them (raw matrices of the
+  stored quaternions; a renormalized slerp; Blender's nlerp) from the parents' poses, and the
+  errors against the unreduced world positions.
+
+`targets_level` (the key values of the other frames, once at the end) and `targets_at` (any
+pairs, for the blame) share the targets' arithmetic.
 
 Each pair is computed on its own with the arithmetic of the numpy kernels it replaces
 (baker.export.reduce: `_raw_matrix`, `_qmul`, `_qrot`, `_slerp`, sums left to right),
 so a replay of some pairs gives what a fresh playback of all of them gives. The arrays are the
-player's, component first ((W, J, F)); the kernels write into them and return nothing, and
-run on the main thread once compiled (parallel.compiled_call: thousands of short calls a
-bake).
+player's, joints first ((J, F, W), matrices (J, F, 3, 3)): a pair's components share a cache
+line or two, where component-first arrays had the kernels read and write some forty streams at
+once (about twice as slow); the kernels write into them and return nothing, and run on the main
+thread once compiled (parallel.compiled_call: thousands of short calls a bake).
 """
 
 from __future__ import annotations
@@ -28,25 +36,48 @@ from baker.parallel import compiled_call
 NEAR_DOT = 0.9995
 
 
-def sample_level(level, st, sr, seg_t, seg_r, times, vt, vq, static_t, static_r, tr, rr,
-                 nlerp) -> None:
-    """Played local values of the joints `level` at the frames st (translations) and sr
-    (rotations) (L, F) bool, into tr, rr and nlerp; seg_t, seg_r the (prev, nxt) key frames of
-    each frame (reduce._segments), vt, vq (J, F, W) float32 the stored key values, static_t,
-    static_r (J, W) the values of channels with no key."""
-    t = np.asarray(times, dtype=np.float32).astype(np.float64)
-    compiled_call(_sample, level, st, sr, seg_t[0], seg_t[1], seg_r[0], seg_r[1], t, vt, vq,
-                    np.asarray(static_t, np.float64), np.asarray(static_r, np.float64),
-                    tr, rr, nlerp)
+def play_levels(x, p, keep_t, keep_r, new_t, new_r, dirty_t, dirty_r, first: bool, moved,
+                turned) -> None:
+    """One play of the player p (reduce._Player.play) down the skeleton, joint by joint, parents
+    first, at the pairs that can change: key values (targets) at the key frames keep_t, keep_r
+    (J, F) bool that are new (new_t, new_r) or whose parent moved (or only turned, for
+    rotations); the local values played at the frames whose segment changed (dirty_t, dirty_r)
+    or starts or ends on a key whose stored value changed (bit for bit); the world poses where
+    either changed or the parent's did. Into moved, turned (J, F) bool (zeros on entry): the
+    frames whose world position, rotation was recomputed. `first`: nothing played yet (every
+    root frame is a target). The keys' segments are p.segments', brought up to date."""
+    (prev_t, nxt_t), (prev_r, nxt_r) = p.segments[0][0], p.segments[1][0]
+    t = np.asarray(x.times, dtype=np.float32).astype(np.float64)
+    compiled_call(_replay, p.order, x.parents, bool(first), keep_t, keep_r, new_t, new_r,
+                  dirty_t, dirty_r, prev_t, nxt_t, prev_r, nxt_r, t, bool(x.short), x.t0,
+                  x.q0, x.wq0, np.asarray(p.static_t, np.float64),
+                  np.asarray(p.static_r, np.float64), p.pos0, p.tt, p.vt, p.tq, p.vq, p.codes,
+                  p.tr, p.rr, p.nlerp, p.mat, p.wq, p.wn, p.pos, p.unit, p.blender, p.spread,
+                  p.diff, p.err, moved, turned)
 
 
-def pose_level(level, parents, turned, moved, root: bool, p) -> None:
-    """World poses of the joints `level` as the three players pose them: rotations at the
-    frames `turned`, positions (and errors) at the frames `moved` (L, F) bool, into the arrays
-    of the player p."""
-    compiled_call(_pose, level, parents, turned, moved, bool(root), p.rr, p.nlerp, p.tr,
-                    p.mat, p.wq, p.wn, p.pos, p.unit, p.blender, p.pos0, p.spread, p.diff,
-                    p.err)
+def slide_at(feet, both, moved, p) -> None:
+    """p.slide (J, F - 1) at the planted frame pairs (f, f + 1) of the joints feet (N,) (both
+    (N, F - 1) bool) where frame f or f + 1 moved (J, F) bool: the largest change of the three
+    players' errors between the two frames (reduce._Player._slide_at)."""
+    compiled_call(_slide, feet, both, moved, p.pos0, p.pos, p.unit, p.blender, p.slide)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _slide(feet, both, moved, pos0, pos, unit, blender, slide):
+    for r in range(len(feet)):
+        j = feet[r]
+        for f in range(both.shape[1]):
+            if both[r, f] and (moved[j, f + 1] or moved[j, f]):
+                s = 0.0
+                for w in (pos, unit, blender):
+                    d0 = (w[j, f + 1, 0] - pos0[j, f + 1, 0]) - (w[j, f, 0] - pos0[j, f, 0])
+                    d1 = (w[j, f + 1, 1] - pos0[j, f + 1, 1]) - (w[j, f, 1] - pos0[j, f, 1])
+                    d2 = (w[j, f + 1, 2] - pos0[j, f + 1, 2]) - (w[j, f, 2] - pos0[j, f, 2])
+                    e = _len(d0, d1, d2)
+                    if e > s or e != e:         # np.maximum's (a NaN wins)
+                        s = e
+                slide[j, f] = s
 
 
 def play_channels(values, prev, nxt, static, times, rotation: bool) -> np.ndarray:
@@ -102,26 +133,66 @@ def _span(prev, nxt, j, f, t, f_count):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _sample(level, st, sr, prev_t, nxt_t, prev_r, nxt_r, t, vt, vq, static_t, static_r, tr, rr,
-            nlerp):
-    f_count = st.shape[1]
-    for r in range(len(level)):
-        j = level[r]
+def _replay(order, parents, first, keep_t, keep_r, new_t, new_r, dirty_t, dirty_r, prev_t,
+            nxt_t, prev_r, nxt_r, t, short, t0, q0, wq0, static_t, static_r, pos0, tt, vt, tq, vq,
+            codes, tr, rr, nlerp, mat, wq, wn, pos, unit, blender, spread, diff, err, moved,
+            turned):
+    f_count = keep_t.shape[1]
+    target_t, target_r = np.zeros(f_count, np.bool_), np.zeros(f_count, np.bool_)
+    changed_t, changed_r = np.zeros(f_count, np.bool_), np.zeros(f_count, np.bool_)
+    for j in order:
+        pj = parents[j]
+        root = pj < 0
+        # a child's translation targets follow its parent's world position and rotation, its
+        # rotation targets the parent's world rotation alone; new keys get theirs
         for f in range(f_count):
-            if st[r, f]:
-                p, n, a, fixed, last = _span(prev_t, nxt_t, j, f, t, f_count)
-                for k in range(3):
-                    if fixed:
-                        v = static_t[j, k]
-                    elif last:
-                        v = np.float64(vt[j, p, k])
-                    else:
-                        v0, v1 = np.float64(vt[j, p, k]), np.float64(vt[j, n, k])
-                        v = (v1 - v0) * a + v0
-                    tr[k, j, f] = np.float64(np.float32(v))
-            if sr[r, f]:
-                p, n, a, fixed, last = _span(prev_r, nxt_r, j, f, t, f_count)
-                _rotation(vq, static_r, j, f, p, n, a, fixed, last, rr, nlerp)
+            target_t[f] = ((first if root else moved[pj, f]) or new_t[j, f]) and keep_t[j, f]
+            target_r[f] = ((first if root else turned[pj, f]) or new_r[j, f]) and keep_r[j, f]
+        _keys_of(j, pj, target_t, target_r, short, t0, q0, wq0, pos0, pos, mat, wq, tt, vt, tq,
+                 vq, codes, changed_t, changed_r)
+        _samples_of(j, pj, first, dirty_t, dirty_r, changed_t, changed_r, prev_t, nxt_t, prev_r,
+                    nxt_r, t, vt, vq, static_t, static_r, tr, rr, nlerp, moved, turned)
+        _poses_of(j, pj, turned[j], moved[j], rr, nlerp, tr, mat, wq, wn, pos, unit, blender,
+                  pos0, spread, diff, err)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _samples_of(j, pj, first, dirty_t, dirty_r, changed_t, changed_r, prev_t, nxt_t, prev_r,
+                nxt_r, t, vt, vq, static_t, static_r, tr, rr, nlerp, moved, turned):
+    """The played local values of joint j at the frames whose segment changed (dirty_t,
+    dirty_r) or starts or ends on a key whose stored value changed (changed_t, changed_r (F,)),
+    and the frames whose world rotation (turned) and position (moved) are to be redone: those,
+    and those of the parent pj. (The spans are found here, not in the helpers: numba compiles
+    the helpers' own index arithmetic over the arrays many times slower.)"""
+    f_count = dirty_t.shape[1]
+    root = pj < 0
+    for f in range(f_count):
+        st = dirty_t[j, f] or changed_t[min(max(prev_t[j, f], 0), f_count - 1)] or \
+            changed_t[min(nxt_t[j, f], f_count - 1)]
+        sr = dirty_r[j, f] or changed_r[min(max(prev_r[j, f], 0), f_count - 1)] or \
+            changed_r[min(nxt_r[j, f], f_count - 1)]
+        if st:
+            p, n, a, fixed, last = _span(prev_t, nxt_t, j, f, t, f_count)
+            _lerp(vt, static_t, j, f, p, n, a, fixed, last, tr)
+        if sr:
+            p, n, a, fixed, last = _span(prev_r, nxt_r, j, f, t, f_count)
+            _rotation(vq, static_r, j, f, p, n, a, fixed, last, rr, nlerp)
+        turned[j, f] = sr or (first if root else turned[pj, f])
+        moved[j, f] = st or turned[j, f] or (first if root else moved[pj, f])
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _lerp(vt, static_t, j, f, p, n, a, fixed, last, tr):
+    """tr at (j, f): the lerp of the stored translation keys p, n at alpha a, as float32."""
+    for k in range(3):
+        if fixed:
+            v = static_t[j, k]
+        elif last:
+            v = np.float64(vt[j, p, k])
+        else:
+            v0, v1 = np.float64(vt[j, p, k]), np.float64(vt[j, n, k])
+            v = (v1 - v0) * a + v0
+        tr[j, f, k] = np.float64(np.float32(v))
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -142,10 +213,10 @@ def _rotation(vq, static_r, j, f, p, n, a, fixed, last, rr, nlerp):
         l0, l1 = (x1 - x0) * a + x0, (y1 - y0) * a + y0
         l2, l3 = (z1 - z0) * a + z0, (w1 - w0) * a + w0
         s0, s1, s2, s3 = _slerp(x0, y0, z0, w0, x1, y1, z1, w1, a)
-    rr[0, j, f], rr[1, j, f] = np.float64(np.float32(s0)), np.float64(np.float32(s1))
-    rr[2, j, f], rr[3, j, f] = np.float64(np.float32(s2)), np.float64(np.float32(s3))
+    rr[j, f, 0], rr[j, f, 1] = np.float64(np.float32(s0)), np.float64(np.float32(s1))
+    rr[j, f, 2], rr[j, f, 3] = np.float64(np.float32(s2)), np.float64(np.float32(s3))
     m = np.sqrt(l0 * l0 + l1 * l1 + l2 * l2 + l3 * l3)
-    nlerp[0, j, f], nlerp[1, j, f], nlerp[2, j, f], nlerp[3, j, f] = l0 / m, l1 / m, l2 / m, \
+    nlerp[j, f, 0], nlerp[j, f, 1], nlerp[j, f, 2], nlerp[j, f, 3] = l0 / m, l1 / m, l2 / m, \
         l3 / m
 
 
@@ -173,91 +244,91 @@ def _slerp(x0, y0, z0, w0, x1, y1, z1, w1, t):
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _qmul(a, b, ja, jb, fa, out, jo):
-    """out[:, jo, fa] = a[:, ja, fa] b[:, jb, fa] (reduce._qmul's terms, left to right)."""
-    a0, a1, a2, a3 = a[0, ja, fa], a[1, ja, fa], a[2, ja, fa], a[3, ja, fa]
-    b0, b1, b2, b3 = b[0, jb, fa], b[1, jb, fa], b[2, jb, fa], b[3, jb, fa]
-    out[0, jo, fa] = a3 * b0 + a0 * b3 + a1 * b2 - a2 * b1
-    out[1, jo, fa] = a3 * b1 - a0 * b2 + a1 * b3 + a2 * b0
-    out[2, jo, fa] = a3 * b2 + a0 * b1 - a1 * b0 + a2 * b3
-    out[3, jo, fa] = a3 * b3 - a0 * b0 - a1 * b1 - a2 * b2
+    """out[jo, fa] = a[ja, fa] b[jb, fa] (reduce._qmul's terms, left to right)."""
+    a0, a1, a2, a3 = a[ja, fa, 0], a[ja, fa, 1], a[ja, fa, 2], a[ja, fa, 3]
+    b0, b1, b2, b3 = b[jb, fa, 0], b[jb, fa, 1], b[jb, fa, 2], b[jb, fa, 3]
+    out[jo, fa, 0] = a3 * b0 + a0 * b3 + a1 * b2 - a2 * b1
+    out[jo, fa, 1] = a3 * b1 - a0 * b2 + a1 * b3 + a2 * b0
+    out[jo, fa, 2] = a3 * b2 + a0 * b1 - a1 * b0 + a2 * b3
+    out[jo, fa, 3] = a3 * b3 - a0 * b0 - a1 * b1 - a2 * b2
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _qrot(q, jq, f, v0, v1, v2):
-    """q[:, jq, f] rotating (v0, v1, v2) (reduce._qrot: v + w t + qv x t, t = 2 qv x v)."""
-    x, y, z, w = q[0, jq, f], q[1, jq, f], q[2, jq, f], q[3, jq, f]
+    """q[jq, f] rotating (v0, v1, v2) (reduce._qrot: v + w t + qv x t, t = 2 qv x v)."""
+    x, y, z, w = q[jq, f, 0], q[jq, f, 1], q[jq, f, 2], q[jq, f, 3]
     t0, t1, t2 = (y * v2 - z * v1) * 2.0, (z * v0 - x * v2) * 2.0, (x * v1 - y * v0) * 2.0
     return (t0 * w + v0 + (y * t2 - z * t1), t1 * w + v1 + (z * t0 - x * t2),
             t2 * w + v2 + (x * t1 - y * t0))
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _raw(x, y, z, w, m):
-    """m (3, 3) = reduce._raw_matrix of the stored quaternion (x, y, z, w)."""
+def _raw(x, y, z, w):
+    """reduce._raw_matrix of the stored quaternion (x, y, z, w): its rows (m00, m01, m02),
+    (m10, m11, m12), (m20, m21, m22), as scalars (the compiler keeps them in registers; a (3, 3)
+    scratch array it reloads after every store to the player's arrays)."""
     xx, yy, zz = x * x, y * y, z * z
-    m[0, 0], m[1, 1], m[2, 2] = 1 - (yy + zz) * 2, 1 - (xx + zz) * 2, 1 - (xx + yy) * 2
-    m[0, 1], m[1, 0] = (x * y - z * w) * 2, (x * y + z * w) * 2
-    m[0, 2], m[2, 0] = (x * z + y * w) * 2, (x * z - y * w) * 2
-    m[1, 2], m[2, 1] = (y * z - x * w) * 2, (y * z + x * w) * 2
+    m00, m11, m22 = 1 - (yy + zz) * 2, 1 - (xx + zz) * 2, 1 - (xx + yy) * 2
+    m01, m10 = (x * y - z * w) * 2, (x * y + z * w) * 2
+    m02, m20 = (x * z + y * w) * 2, (x * z - y * w) * 2
+    m12, m21 = (y * z - x * w) * 2, (y * z + x * w) * 2
+    return (m00, m01, m02), (m10, m11, m12), (m20, m21, m22)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _pose(level, parents, turned, moved, root, rr, nlerp, tr, mat, wq, wn, pos, unit, blender,
-          pos0, spread, diff, err):
-    f_count = turned.shape[1]
-    m = np.empty((3, 3))
-    for r in range(len(level)):
-        j = level[r]
-        pj = parents[j]
-        for f in range(f_count):
-            if turned[r, f]:
-                x, y, z, w = rr[0, j, f], rr[1, j, f], rr[2, j, f], rr[3, j, f]
-                _raw(x, y, z, w, m)
-                n = np.sqrt(x * x + y * y + z * z + w * w)
-                if root:
-                    for a in range(3):
-                        for b in range(3):
-                            mat[a, b, j, f] = m[a, b]
-                    for k in range(4):
-                        wq[k, j, f] = rr[k, j, f] / n
-                        wn[k, j, f] = nlerp[k, j, f]
-                else:
-                    for a in range(3):
-                        for b in range(3):
-                            mat[a, b, j, f] = (mat[a, 0, pj, f] * m[0, b]
-                                               + mat[a, 1, pj, f] * m[1, b]
-                                               + mat[a, 2, pj, f] * m[2, b])
-                    for k in range(4):              # the unit rotation, then the product
-                        wq[k, j, f] = rr[k, j, f] / n
-                    _qmul(wq, wq, pj, j, f, wq, j)
-                    _qmul(wn, nlerp, pj, j, f, wn, j)
-            if moved[r, f]:
-                _place(j, pj, f, root, tr, mat, wq, wn, pos, unit, blender, pos0, spread, diff,
-                       err)
+def _poses_of(j, pj, turned, moved, rr, nlerp, tr, mat, wq, wn, pos, unit, blender, pos0,
+              spread, diff, err):
+    """World poses of joint j as the three players pose them: rotations at the frames
+    `turned`, positions (and errors) at the frames `moved` (F,) bool (the matrix of the stored
+    quaternion (raw), the renormalized one, Blender's nlerp, under the parent pj's)."""
+    f_count = turned.shape[0]
+    root = pj < 0
+    for f in range(f_count):
+        if turned[f]:
+            x, y, z, w = rr[j, f, 0], rr[j, f, 1], rr[j, f, 2], rr[j, f, 3]
+            m0, m1, m2 = _raw(x, y, z, w)
+            n = np.sqrt(x * x + y * y + z * z + w * w)
+            if root:
+                for b in range(3):
+                    mat[j, f, 0, b], mat[j, f, 1, b], mat[j, f, 2, b] = m0[b], m1[b], m2[b]
+                for k in range(4):
+                    wq[j, f, k] = rr[j, f, k] / n
+                    wn[j, f, k] = nlerp[j, f, k]
+            else:
+                for a in range(3):
+                    p0, p1, p2 = mat[pj, f, a, 0], mat[pj, f, a, 1], mat[pj, f, a, 2]
+                    for b in range(3):
+                        mat[j, f, a, b] = p0 * m0[b] + p1 * m1[b] + p2 * m2[b]
+                for k in range(4):          # the unit rotation, then the product
+                    wq[j, f, k] = rr[j, f, k] / n
+                _qmul(wq, wq, pj, j, f, wq, j)
+                _qmul(wn, nlerp, pj, j, f, wn, j)
+        if moved[f]:
+            _place(j, pj, f, root, tr, mat, wq, wn, pos, unit, blender, pos0, spread, diff, err)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _place(j, pj, f, root, tr, mat, wq, wn, pos, unit, blender, pos0, spread, diff, err):
     """Positions of the pair (j, f) as the three players pose them, their spread and the
     worst one's error against the unreduced position."""
-    v0, v1, v2 = tr[0, j, f], tr[1, j, f], tr[2, j, f]
+    v0, v1, v2 = tr[j, f, 0], tr[j, f, 1], tr[j, f, 2]
     if root:
         p0, p1, p2 = v0, v1, v2
         u0, u1, u2 = v0, v1, v2
         b0, b1, b2 = v0, v1, v2
     else:
-        p0 = mat[0, 0, pj, f] * v0 + mat[0, 1, pj, f] * v1 + mat[0, 2, pj, f] * v2 + pos[0, pj, f]
-        p1 = mat[1, 0, pj, f] * v0 + mat[1, 1, pj, f] * v1 + mat[1, 2, pj, f] * v2 + pos[1, pj, f]
-        p2 = mat[2, 0, pj, f] * v0 + mat[2, 1, pj, f] * v1 + mat[2, 2, pj, f] * v2 + pos[2, pj, f]
+        p0 = mat[pj, f, 0, 0] * v0 + mat[pj, f, 0, 1] * v1 + mat[pj, f, 0, 2] * v2 + pos[pj, f, 0]
+        p1 = mat[pj, f, 1, 0] * v0 + mat[pj, f, 1, 1] * v1 + mat[pj, f, 1, 2] * v2 + pos[pj, f, 1]
+        p2 = mat[pj, f, 2, 0] * v0 + mat[pj, f, 2, 1] * v1 + mat[pj, f, 2, 2] * v2 + pos[pj, f, 2]
         u0, u1, u2 = _qrot(wq, pj, f, v0, v1, v2)
-        u0, u1, u2 = u0 + unit[0, pj, f], u1 + unit[1, pj, f], u2 + unit[2, pj, f]
+        u0, u1, u2 = u0 + unit[pj, f, 0], u1 + unit[pj, f, 1], u2 + unit[pj, f, 2]
         b0, b1, b2 = _qrot(wn, pj, f, v0, v1, v2)
-        b0, b1, b2 = b0 + blender[0, pj, f], b1 + blender[1, pj, f], b2 + blender[2, pj, f]
-    pos[0, j, f], pos[1, j, f], pos[2, j, f] = p0, p1, p2
-    unit[0, j, f], unit[1, j, f], unit[2, j, f] = u0, u1, u2
-    blender[0, j, f], blender[1, j, f], blender[2, j, f] = b0, b1, b2
+        b0, b1, b2 = b0 + blender[pj, f, 0], b1 + blender[pj, f, 1], b2 + blender[pj, f, 2]
+    pos[j, f, 0], pos[j, f, 1], pos[j, f, 2] = p0, p1, p2
+    unit[j, f, 0], unit[j, f, 1], unit[j, f, 2] = u0, u1, u2
+    blender[j, f, 0], blender[j, f, 1], blender[j, f, 2] = b0, b1, b2
     spread[j, f] = max(_len(u0 - p0, u1 - p1, u2 - p2), _len(b0 - p0, b1 - p1, b2 - p2))
-    q0, q1, q2 = pos0[0, j, f], pos0[1, j, f], pos0[2, j, f]
+    q0, q1, q2 = pos0[j, f, 0], pos0[j, f, 1], pos0[j, f, 2]
     d0, d1, d2 = p0 - q0, p1 - q1, p2 - q2
     e = _len(d0, d1, d2)
     for w0, w1, w2 in ((u0, u1, u2), (b0, b1, b2)):
@@ -265,7 +336,7 @@ def _place(j, pj, f, root, tr, mat, wq, wn, pos, unit, blender, pos0, spread, di
         ec = _len(c0, c1, c2)
         if ec > e:
             d0, d1, d2, e = c0, c1, c2, ec
-    diff[0, j, f], diff[1, j, f], diff[2, j, f] = d0, d1, d2
+    diff[j, f, 0], diff[j, f, 1], diff[j, f, 2] = d0, d1, d2
     err[j, f] = e
 
 
@@ -274,16 +345,16 @@ def _len(a, b, c):
     return np.sqrt(a * a + b * b + c * c)
 
 
-def targets_level(level, parents, target_t, target_r, root: bool, short: bool, x, p):
+def targets_level(level, parents, target_t, target_r, short: bool, x, p):
     """The key values of the joints `level` (reduce._Player._targets): translations at the
     frames target_t, rotations at the frames target_r (L, F) bool, into p.tt, p.vt and p.tq,
     p.vq (and p.codes when `short`: requantized only where tq changed). Returns ((L, F),
     (L, F)) bool: the frames whose stored value vt, vq changed (bit for bit)."""
     changed_t = np.zeros(target_t.shape, dtype=bool)
     changed_r = np.zeros(target_r.shape, dtype=bool)
-    compiled_call(_targets, level, parents, target_t, target_r, bool(root), bool(short),
-                    x.t0, x.q0, x.wq0, p.pos0, p.pos, p.mat, p.wq, p.tt, p.vt, p.tq, p.vq,
-                    p.codes, changed_t, changed_r)
+    compiled_call(_targets, level, parents, target_t, target_r, bool(short), x.t0, x.q0, x.wq0,
+                  p.pos0, p.pos, p.mat, p.wq, p.tt, p.vt, p.tq, p.vq, p.codes, changed_t,
+                  changed_r)
     return changed_t, changed_r
 
 
@@ -294,38 +365,49 @@ def _differ(a, b):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _targets(level, parents, target_t, target_r, root, short, t0, q0, wq0, pos0, pos, mat, wq,
-             tt, vt, tq, vq, codes, changed_t, changed_r):
-    f_count = target_t.shape[1]
-    q, c = np.empty(4), np.empty(4, np.int16)
+def _targets(level, parents, target_t, target_r, short, t0, q0, wq0, pos0, pos, mat, wq, tt, vt,
+             tq, vq, codes, changed_t, changed_r):
     for r in range(len(level)):
-        j = level[r]
-        pj = parents[j]
-        for f in range(f_count):
-            if target_t[r, f]:
-                x0, x1, x2 = _target_t(root, t0, pos0, pos, mat, j, pj, f)
-                tt[j, f, 0], tt[j, f, 1], tt[j, f, 2] = x0, x1, x2
-                for k, v in enumerate((np.float32(x0), np.float32(x1), np.float32(x2))):
-                    changed_t[r, f] |= _differ(vt[j, f, k], v)
-                    vt[j, f, k] = v
-            if target_r[r, f]:
-                _target_q(root, q0, wq0, wq, j, pj, f, q)
-                same = True
-                for k in range(4):
-                    same &= tq[j, f, k] == q[k]
-                    tq[j, f, k] = q[k]
-                if short and same:
-                    continue                    # the codes of this target are stored
+        _keys_of(level[r], parents[level[r]], target_t[r], target_r[r], short, t0, q0, wq0, pos0,
+                 pos, mat, wq, tt, vt, tq, vq, codes, changed_t[r], changed_r[r])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _keys_of(j, pj, target_t, target_r, short, t0, q0, wq0, pos0, pos, mat, wq, tt, vt, tq, vq,
+             codes, changed_t, changed_r):
+    """The key values of joint j (parent pj): translations at the frames target_t, rotations at
+    the frames target_r (F,) bool, into tt, vt and tq, vq (and codes when `short`: requantized
+    only where tq changed); changed_t, changed_r (F,): whether vt, vq changed there (bit for
+    bit), False elsewhere."""
+    f_count = target_t.shape[0]
+    root = pj < 0
+    q, c = np.empty(4), np.empty(4, np.int16)
+    for f in range(f_count):
+        changed_t[f] = changed_r[f] = False
+        if target_t[f]:
+            x0, x1, x2 = _target_t(root, t0, pos0, pos, mat, j, pj, f)
+            tt[j, f, 0], tt[j, f, 1], tt[j, f, 2] = x0, x1, x2
+            for k, v in enumerate((np.float32(x0), np.float32(x1), np.float32(x2))):
+                changed_t[f] |= _differ(vt[j, f, k], v)
+                vt[j, f, k] = v
+        if target_r[f]:
+            _target_q(root, q0, wq0, wq, j, pj, f, q)
+            same = True
+            for k in range(4):
+                same &= tq[j, f, k] == q[k]
+                tq[j, f, k] = q[k]
+            if short and same:
+                continue                    # the codes of this target are stored
+            if short:
+                _quantize(q, c)
+            for k in range(4):
                 if short:
-                    _quantize(q, c)
-                for k in range(4):
-                    if short:
-                        v = np.float32(max(np.float64(c[k]) / SHORT_MAX, -1.0))
-                        codes[j, f, k] = c[k]
-                    else:
-                        v = np.float32(q[k] / np.sqrt(dot4(q, q)))
-                    changed_r[r, f] |= _differ(vq[j, f, k], v)
-                    vq[j, f, k] = v
+                    v = np.float32(max(np.float64(c[k]) / SHORT_MAX, -1.0))
+                    codes[j, f, k] = c[k]
+                else:
+                    v = np.float32(q[k] / np.sqrt(dot4(q, q)))
+                changed_r[f] |= _differ(vq[j, f, k], v)
+                vq[j, f, k] = v
 
 
 def targets_at(i: np.ndarray, x, p) -> tuple[np.ndarray, np.ndarray]:
@@ -354,8 +436,8 @@ def _target_t(root, t0, pos0, pos, mat, j, pj, f):
     parent's played pose ; t0 at a root."""
     if root:
         return t0[j, f, 0], t0[j, f, 1], t0[j, f, 2]
-    return _solve3(mat, pj, f, pos0[0, j, f] - pos[0, pj, f], pos0[1, j, f] - pos[1, pj, f],
-                   pos0[2, j, f] - pos[2, pj, f])
+    return _solve3(mat, pj, f, pos0[j, f, 0] - pos[pj, f, 0], pos0[j, f, 1] - pos[pj, f, 1],
+                   pos0[j, f, 2] - pos[pj, f, 2])
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -366,11 +448,11 @@ def dot4(a, b):
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _solve3(mat, pj, f, v0, v1, v2):
-    """x with m x = v, m the matrix mat[:, :, pj, f], by Cramer's rule (the matrices are near
+    """x with m x = v, m the matrix mat[pj, f], by Cramer's rule (the matrices are near
     rotations, well conditioned)."""
-    m00, m01, m02 = mat[0, 0, pj, f], mat[0, 1, pj, f], mat[0, 2, pj, f]
-    m10, m11, m12 = mat[1, 0, pj, f], mat[1, 1, pj, f], mat[1, 2, pj, f]
-    m20, m21, m22 = mat[2, 0, pj, f], mat[2, 1, pj, f], mat[2, 2, pj, f]
+    m00, m01, m02 = mat[pj, f, 0, 0], mat[pj, f, 0, 1], mat[pj, f, 0, 2]
+    m10, m11, m12 = mat[pj, f, 1, 0], mat[pj, f, 1, 1], mat[pj, f, 1, 2]
+    m20, m21, m22 = mat[pj, f, 2, 0], mat[pj, f, 2, 1], mat[pj, f, 2, 2]
     # the rows of adj(m): the columns' cross products (reduce._cross's arithmetic)
     a0, a1, a2 = m11 * m22 - m21 * m12, m21 * m02 - m01 * m22, m01 * m12 - m11 * m02
     b0, b1, b2 = m12 * m20 - m22 * m10, m22 * m00 - m02 * m20, m02 * m10 - m12 * m00
@@ -388,7 +470,7 @@ def _target_q(root, q0, wq0, wq, j, pj, f, q):
         for k in range(4):
             q[k] = q0[j, f, k]
         return
-    a0, a1, a2, a3 = -wq[0, pj, f], -wq[1, pj, f], -wq[2, pj, f], wq[3, pj, f]
+    a0, a1, a2, a3 = -wq[pj, f, 0], -wq[pj, f, 1], -wq[pj, f, 2], wq[pj, f, 3]
     b0, b1, b2, b3 = wq0[j, f, 0], wq0[j, f, 1], wq0[j, f, 2], wq0[j, f, 3]
     q[0] = a3 * b0 + a0 * b3 + a1 * b2 - a2 * b1
     q[1] = a3 * b1 - a0 * b2 + a1 * b3 + a2 * b0
