@@ -174,6 +174,7 @@ class PreyConfig:
 @dataclass(frozen=True)
 class RigConfig:
     name: str = "scolopendra"
+    #: the rig file, as the outputs record it (source_label)
     source: str = ""
     body: BodyConfig = field(default_factory=BodyConfig)
     colors: ColorsConfig = field(default_factory=ColorsConfig)
@@ -364,8 +365,18 @@ def load_rig_config(path: Path | str) -> RigConfig:
         if name == "body":
             kw["length"] = length
         sections[name] = cls(**kw)
-    rig = RigConfig(name=table.name or path.stem, source=str(path), **sections)
+    rig = RigConfig(name=table.name or path.stem, source=source_label(path), **sections)
     return validate_rig(rig, str(path))
+
+
+def source_label(path: Path) -> str:
+    """A file's path as the outputs record it: relative to the project's folder when the file
+    lies in it (the bundled rigs), so that a bake's files are the same bytes wherever the
+    project is checked out (CI runners, a second clone); else as given."""
+    try:
+        return Path(path).resolve().relative_to(REPO_ROOT).as_posix()
+    except (ValueError, OSError):
+        return str(path)
 
 
 #: LegsConfig fields given in body lengths in rig files (metres in LegsConfig)

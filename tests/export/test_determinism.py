@@ -47,3 +47,21 @@ def test_outputs_identical_across_processes(tmp_path):
     b = _run(tmp_path / "b", "2")
     assert set(a) == {"c.glb", "c.usd", "c.usda"}
     assert a == b
+
+
+def test_bundled_rig_recorded_relative_to_the_project(tmp_path):
+    """The files record the bundled rig as rigs/scolopendra.toml, not where the project is
+    checked out: a bake gives the same bytes from any clone (CI runners' paths differ). A rig
+    outside the project keeps its path as given."""
+    import json
+    import shutil
+
+    from baker.config import DEFAULT_RIG, REPO_ROOT, load_rig_config
+    from baker.export.report import rig_summary
+
+    rig = load_rig_config(DEFAULT_RIG)
+    assert rig.source == "rigs/scolopendra.toml"
+    assert str(REPO_ROOT) not in json.dumps(rig_summary(rig))
+    mine = tmp_path / "mine.toml"
+    shutil.copy(DEFAULT_RIG, mine)
+    assert load_rig_config(mine).source == str(mine)
