@@ -104,6 +104,6 @@ def bone_frames(start: np.ndarray, end: np.ndarray, hinge: np.ndarray) -> np.nda
     """
     y = normalize(np.asarray(end, float) - np.asarray(start, float))
     x = np.asarray(hinge, float)
-    x = normalize(x - np.sum(x * y, axis=-1, keepdims=True) * y)
+    x = normalize(x - dot(x, y)[..., None] * y)
     z = cross(x, y)
     return frame_quats(np.stack([x, y, z], axis=-1))

@@ -210,7 +210,7 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     n = len(points)
     if n == 0:
         return points.copy()
-    lat = np.sum((points - hips) * inward, -1, keepdims=True)          # <= 0: distance outward
+    lat = dot(points - hips, inward)[..., None]                        # <= 0: distance outward
     along = normalize(cross(up, inward))
     edge = EDGE_CLEAR * reach
     cands_o, cands_d = [], []
@@ -228,11 +228,11 @@ def project_footholds(rays, points: np.ndarray, up: np.ndarray, inward: np.ndarr
     h = rays.first_hit(o, d, max_distance=4.0 * probe + reach)
     pts = h.points.reshape(k, n, 3)
     facing = _faces_up(h.normals.reshape(k, n, 3), up[None])
-    out_dist = -np.sum((pts - hips[None]) * inward[None], -1)
-    drop = -np.sum((pts - hips[None]) * up[None], -1)
+    out_dist = -dot(pts - hips[None], inward[None])
+    drop = -dot(pts - hips[None], up[None])
     ok = (h.hit.reshape(k, n) & facing & (out_dist >= np.broadcast_to(min_out, (n,))[None])
           & (drop <= MAX_DROP * out_dist)
-          & (np.linalg.norm(pts - hips[None], axis=-1) < reach))
+          & (length(pts - hips[None]) < reach))
     # of the candidates that pass, a foot takes the first that is usable and level (_usable),
     # else the first usable: each foot's first is checked alone, the rest only for the feet
     # whose first is not both
@@ -277,13 +277,27 @@ def _usable(rays, pts, up, inward, hips, reach: float, edge: float, kk, nn):
     i = np.nonzero(ok)[0]
     if len(i):
         v = pts[kk[i], nn[i]] - hips[nn[i]]
-        dist = np.linalg.norm(v, axis=1)
+        dist = length(v)
         lift = 0.02 * reach * up[nn[i]]            # aim just above the hold: it lies on a surface
-        ok[i[rays.first_hit(hips[nn[i]], v + lift, max_distance=dist).hit]] = False
+        ok[i[_hit(rays, hips[nn[i]], v + lift, max_distance=dist)]] = False
     i = np.nonzero(ok)[0]
     if len(i):
         level[i] = is_level(rays, pts[kk[i], nn[i]], up[nn[i]], inward[nn[i]], edge)
     return ok, level
+
+
+def _hit(rays, origins, directions, max_distance=np.inf) -> np.ndarray:
+    """(n,) bool: rays.first_hit(origins, directions, max_distance).hit (see _cast)."""
+    return _cast(rays, origins, directions, max_distance)[1] >= 0
+
+
+def _cast(rays, origins, directions, max_distance=np.inf) -> tuple[np.ndarray, np.ndarray]:
+    """(t (n,), prim (n,)) the cast rays.first_hit(origins, directions, max_distance) makes
+    (the directions normalized as it does: t is its distance, prim >= 0 its hit) without the
+    hits' points, normals and faces, which the callers here do not read."""
+    o = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
+    d = normalize(np.asarray(directions, dtype=np.float64).reshape(-1, 3))
+    return rays.cast(o, d, max_distance)
 
 
 def _faces_up(normals: np.ndarray, up: np.ndarray) -> np.ndarray:
@@ -292,7 +306,7 @@ def _faces_up(normals: np.ndarray, up: np.ndarray) -> np.ndarray:
     would face it). NaN normals (no hit) give False."""
     n = np.nan_to_num(normals)
     cos = np.cos(FOOT_SLOPE)
-    return (np.sum(n * up, -1) > cos) & (n @ UP > cos)
+    return (dot(n, up) > cos) & (n @ UP > cos)
 
 
 def is_level(rays, pts: np.ndarray, up: np.ndarray, inward: np.ndarray, edge: float) -> np.ndarray:
@@ -325,7 +339,7 @@ def spine_curvature(positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
     left (+X), from the turn between the neighbouring spine segments."""
     p = np.asarray(positions, float)
     d = np.diff(p, axis=1)                                   # (F, S-1, 3), tail -> head is -d
-    seg = np.linalg.norm(d, axis=-1)
+    seg = length(d)
     t = d / np.maximum(seg, 1e-12)[..., None]
     # turn angle between segment s-1 -> s and s -> s+1, seen along the joint's up axis
     up = quat_rotate(rotations, np.broadcast_to(UP, p.shape))
@@ -428,9 +442,9 @@ class _Frames:
         if sight:
             hp = hip[fw, ll[:, None]].reshape(-1, 3)
             v = np.broadcast_to(hold[:, None, :], fw.shape + (3,)).reshape(-1, 3) - hp
-            dist = np.linalg.norm(v, axis=1)
+            dist = length(v)
             aim = v + 0.02 * span * self.up[fw, ll[:, None]].reshape(-1, 3)
-            bad |= rays.first_hit(hp, aim, max_distance=dist).hit.reshape(fw.shape)
+            bad |= _hit(rays, hp, aim, max_distance=dist).reshape(fw.shape)
         return fw, bad
 
 
@@ -482,9 +496,9 @@ def _anchors(rays, lf: _Frames, bf: BodyFrames) -> np.ndarray:
         out_dir = np.cos(yaw) * left * lay.side[None, :, None] + np.sin(yaw) * fwd
         for h in (0.0, 0.5 * lay.l1):
             o = hip + h * lf.up
-            hw = rays.first_hit(o.reshape(-1, 3), out_dir.reshape(-1, 3),
-                                max_distance=lg.reach * 1.2)
-            free = np.minimum(free, np.where(hw.hit, hw.distance * np.cos(yaw), np.inf).reshape(F, L))
+            t, prim = _cast(rays, o.reshape(-1, 3), out_dir.reshape(-1, 3),
+                            max_distance=lg.reach * 1.2)
+            free = np.minimum(free, np.where(prim >= 0, t * np.cos(yaw), np.inf).reshape(F, L))
     free = -maximum_filter1d(-free, 9, axis=0, mode="nearest")
     free = np.where(np.isfinite(free), free, lg.reach * 2.0)
     free = gaussian_filter1d(free, 2.0, axis=0, mode="nearest")
@@ -768,9 +782,9 @@ def _above_surface(rays, lf: _Frames, cfg: RigConfig, target, sw, vert, inside, 
     # the hip->foot line meets a steep face (eased in and out; re-timed below)
     hp = hip[sw]
     v = sp - hp
-    dist = np.linalg.norm(v, axis=1)
+    dist = length(v)
     wall = rays.first_hit(hp, v + 0.02 * lf.span * up[sw], max_distance=dist)
-    steep = wall.hit & (np.abs(np.sum(wall.normals * up[sw], -1)) < 0.5)
+    steep = wall.hit & (np.abs(dot(wall.normals, up[sw])) < 0.5)
     if steep.any():
         keep = np.maximum(wall.distance[steep] - 0.25 * lg.lift, 0.6 * dist[steep])
         sp[steep] = hp[steep] + v[steep] / dist[steep, None] * keep[:, None]
@@ -789,14 +803,14 @@ def _step_over(rays, lf: _Frames, target, sw):
         prev = np.concatenate([target[:1], target[:-1]])[sw]
         cur = target[sw]
         v = cur - prev
-        dist = np.linalg.norm(v, axis=1)
+        dist = length(v)
         moving = dist > 1e-9
         blocked = np.zeros(len(cur), bool)
         moving &= ~wall_side
         eps = 0.1 * lg.lift * UP      # rays start just above feet resting on the surface
         if np.any(moving):
-            blocked[moving] = rays.first_hit(prev[moving] + eps, v[moving],
-                                             max_distance=dist[moving]).hit
+            blocked[moving] = _hit(rays, prev[moving] + eps, v[moving],
+                                   max_distance=dist[moving])
         top = 3.0 * lg.lift
         hb = rays.first_hit(cur + top * UP, np.tile(-UP, (len(cur), 1)),
                             max_distance=top - 0.1 * lg.lift)
@@ -821,9 +835,13 @@ def _retimed(rays, lf: _Frames, cfg: RigConfig, target, cidx, st: _Steps, sw):
     lay, lg = lf.lay, lf.lg
     target = _even_swings(target, lf.hip, lf.q, lf.q_inv, cidx, st.LOs, st.Ts, sw, EVEN_SWING)
     moved = np.zeros(sw.shape, bool)
+    step = m = None
     for _ in range(2):
-        target, m = _even_joint_swings(target, lf.hip, lf.q, lf.q_inv, lf.fwd, lf.left, lay,
-                                       lg.knee_out, cidx, st.LOs, st.Ts, sw, EVEN_JOINT)
+        # the second pass solves again only the legs the first re-timed (the others' steps
+        # are the same)
+        target, m, step = _even_joint_swings(target, lf.hip, lf.q, lf.q_inv, lf.fwd, lf.left,
+                                             lay, lg.knee_out, cidx, st.LOs, st.Ts, sw,
+                                             EVEN_JOINT, step, None if m is None else m.any(0))
         moved |= m
     if np.any(moved):
         sp = target[moved]
@@ -837,7 +855,7 @@ def _retimed(rays, lf: _Frames, cfg: RigConfig, target, cidx, st: _Steps, sw):
 def _over_neighbours(target, sw, up, gap):
     """A swinging foot that would pass too close to its neighbour's foot goes over it."""
     for _ in range(6):
-        d = np.linalg.norm(target[:, 2:] - target[:, :-2], axis=-1)
+        d = length(target[:, 2:] - target[:, :-2])
         conf = (d < gap) & (sw[:, 2:] | sw[:, :-2])
         if not conf.any():
             break
@@ -852,7 +870,7 @@ def _swing_targets(rays, lf: _Frames, cfg: RigConfig, st: _Steps, cidx, contact,
     obstacle-aware arc while it swings."""
     lg, lay = lf.lg, lf.lay
     sw = ~contact
-    step_len = np.linalg.norm(p1 - p0, axis=-1)
+    step_len = length(p1 - p0)
     lift = lg.lift * np.minimum(1.0, step_len / lg.stride_min)
     arch = np.sin(np.pi * u) ** 2                   # lifts and lands softly
     # every frame inside a swing keeps the foot at least SWING_CLEAR x the rig's lift off the
@@ -874,8 +892,7 @@ def _swing_targets(rays, lf: _Frames, cfg: RigConfig, st: _Steps, cidx, contact,
     # every swinging foot clear of the nearest surface, walls included (also the frames the
     # re-timing above moved off the old hold, liftoff frames included)
     eps = 1e-6 * lg.lift
-    moving = sw & (np.linalg.norm(target - p0, axis=-1) > eps) & (
-        np.linalg.norm(target - p1, axis=-1) > eps)
+    moving = sw & (length(target - p0) > eps) & (length(target - p1) > eps)
     target = _clear_swings(rays, target, inside | moving, clear, 0.25 * (lay.l1 + lay.l2))
     target = _over_neighbours(target, sw, lf.up, NEIGHBOUR_GAP * cfg.body.spacing)
     # a swinging foot whose leg would still reach through the environment (past a wall's
@@ -885,7 +902,7 @@ def _swing_targets(rays, lf: _Frames, cfg: RigConfig, st: _Steps, cidx, contact,
     # a swinging foot never comes close to its hip: there the leg's plane would swing round
     # with every millimetre the foot moves (a softly clamped minimum reach)
     rel = target - lf.hip
-    d = np.linalg.norm(rel, axis=-1)
+    d = length(rel)
     full = lay.l1 + lay.l2
     d_new = np.where(sw, soft_clamp(d, MIN_REACH * full, full), d)
     return lf.hip + rel * (d_new / np.maximum(d, 1e-12))[..., None]
@@ -1010,13 +1027,13 @@ def _clear_swings(rays, target: np.ndarray, inside: np.ndarray, clear: float, re
         # out the face's front, unless the foot is in the open behind it (under a one-sided
         # leaf): then away from it. A foot on the face itself (a hold, to rounding) reads as
         # buried under one-sided ground, and goes out the front
-        behind = np.sum((p - c) * n, -1) < -1e-3 * clear
+        behind = dot(p - c, n) < -1e-3 * clear
         n *= np.where(behind & ~buried, -1.0, 1.0)[:, None]
         # nearest to an edge or a corner (a stair's nosing): away from that point, not along
         # one face's normal (the riser's would push the foot down past the nosing)
         away = p - c
-        dist = np.linalg.norm(away, axis=1)
-        off_face = ~buried & (dist > 1e-3 * clear) & (np.sum(away * n, -1) < (1.0 - 1e-6) * dist)
+        dist = length(away)
+        off_face = ~buried & (dist > 1e-3 * clear) & (dot(away, n) < (1.0 - 1e-6) * dist)
         n[off_face] = away[off_face] / dist[off_face, None]
         target[f, l] = c + n * clear
     return target
@@ -1099,15 +1116,17 @@ def _frame_steps(a: np.ndarray, b: np.ndarray, hinge: np.ndarray) -> np.ndarray:
     return _step_degrees(tr)
 
 
-def _joint_steps(hip, target, q_inv, fwd, left, lay, knee_out):
+def _joint_steps(hip, target, q_inv, fwd, left, lay, knee_out, legs=slice(None)):
     """(F-1, L) degrees: the largest per-frame rotation of a leg's upper bone (relative to its
     segment, and in the world) or tip bone (relative to the upper bone, and in the world) that
     the IK gives for these targets (with rig.limbs.leg_pole's knee pole; compiled to the
     arccos: leg_kernels.leg_traces, legs in rows). The tip turns about the same hinge as the
-    upper bone: its step relative to the upper bone is the change of the knee angle."""
+    upper bone: its step relative to the upper bone is the change of the knee angle. legs:
+    only these legs' columns (each leg's the same bits as among all)."""
+    hip, target, q_inv, fwd, left = (a[:, legs] for a in (hip, target, q_inv, fwd, left))
     sw = (lambda a: np.swapaxes(a, 0, 1))
-    tr, knee = leg_traces(sw(hip), sw(target), sw(fwd), sw(left), sw(q_inv), lay.side, knee_out,
-                          lay.l1, lay.l2, sw(_clamped_reach(hip, target, lay)))
+    tr, knee = leg_traces(sw(hip), sw(target), sw(fwd), sw(left), sw(q_inv), lay.side[legs],
+                          knee_out, lay.l1, lay.l2, sw(_clamped_reach(hip, target, lay)))
     steps = _step_degrees(tr)                               # (F-1, bone, L)
     knee = np.arccos(np.clip(knee.T, -1.0, 1.0))
     world = np.maximum(steps[:, 0], steps[:, 1])
@@ -1115,17 +1134,24 @@ def _joint_steps(hip, target, q_inv, fwd, left, lay, knee_out):
 
 
 def _even_joint_swings(target, hip, q, q_inv, fwd, left, lay, knee_out, cidx, LOs, Ts, sw,
-                       limit_deg):
+                       limit_deg, step=None, changed=None):
     """Re-time swings in which a leg joint turns by more than `limit_deg` in one frame (from the
     last planted frame to touchdown): the same path (segment frame), walked so that the joint
-    rotation per frame is even. Both ends are unchanged. Returns (targets, (F, L) bool: the
-    frames re-timed)."""
+    rotation per frame is even. Both ends are unchanged. step, changed: a previous call's
+    steps (F-1, L) and the legs (L,) bool whose targets it changed since (only those are
+    solved again; each leg's steps are its own). Returns (targets, (F, L) bool: the frames
+    re-timed, the steps (F-1, L) of the targets given)."""
     F, L, _ = target.shape
     moved = np.zeros((F, L), bool)
-    step = _joint_steps(hip, target, q_inv, fwd, left, lay, knee_out)       # (F-1, L)
+    if step is None:
+        step = _joint_steps(hip, target, q_inv, fwd, left, lay, knee_out)   # (F-1, L)
+    elif changed.any():
+        legs = np.nonzero(changed)[0]
+        step = step.copy()
+        step[:, legs] = _joint_steps(hip, target, q_inv, fwd, left, lay, knee_out, legs)
     big = (step > limit_deg) & (sw[1:] | sw[:-1])
     if not big.any():
-        return target, moved
+        return target, moved, step
     rel = quat_rotate(q_inv, target - hip)
     f, l = np.nonzero(big)
     c = np.where(sw[f + 1, l], cidx[f + 1, l], cidx[f, l])     # the swing this step belongs to
@@ -1142,7 +1168,7 @@ def _even_joint_swings(target, hip, q, q_inv, fwd, left, lay, knee_out, cidx, LO
         t = np.clip((want - cum[j]) / np.maximum(cum[j + 1] - cum[j], 1e-12), 0.0, 1.0)
         pieces.append((a, b, ll, seg[j] + (seg[j + 1] - seg[j]) * t[:, None]))
         moved[a + 1:b, ll] = True
-    return _placed_pieces(target.copy(), hip, q, pieces), moved
+    return _placed_pieces(target.copy(), hip, q, pieces), moved, step
 
 
 def _pull_in_swings(rays, hip, target, sw, fwd, left, lay, knee_out, tol):
@@ -1192,8 +1218,8 @@ def _leg_blocked(rays, lay, legs, hip, target, fwd, left, knee_out, tol):
     pole = s * cross(fwd, u) + knee_out * s * left
     sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
     v = sol.end - hip
-    dist = np.linalg.norm(v, axis=1)
-    line = rays.first_hit(hip, v, max_distance=np.maximum(dist - tol, 0.0)).hit
+    dist = length(v)
+    line = _hit(rays, hip, v, max_distance=np.maximum(dist - tol, 0.0))
     return line | _bones_hit(rays, hip, sol.mid, sol.end, lay.l1, lay.l2, tol)
 
 
@@ -1203,10 +1229,10 @@ def _bones_hit(rays, hip, mid, end, l1, l2, tol):
     GRAZE x `tol` over a surface below it (the files' keyframe reduction moves a joint by a
     little, and a bone lying flat a hair over the floor would go into it)."""
     low = GRAZE * tol * UP                  # each bone cast as it is and that much lower
-    a = rays.first_hit(np.concatenate([hip, hip - low]), np.tile(mid - hip, (2, 1)),
-                       max_distance=l1 - tol).hit
-    b = rays.first_hit(np.concatenate([mid, mid - low]), np.tile(end - mid, (2, 1)),
-                       max_distance=l2 - tol).hit
+    a = _hit(rays, np.concatenate([hip, hip - low]), np.tile(mid - hip, (2, 1)),
+             max_distance=l1 - tol)
+    b = _hit(rays, np.concatenate([mid, mid - low]), np.tile(end - mid, (2, 1)),
+             max_distance=l2 - tol)
     return (a | b).reshape(2, -1).any(axis=0)
 
 
@@ -1379,7 +1405,7 @@ def _swivel(p, origin, axis, angle):
     v = p - origin
     c = np.cos(angle)[..., None] if np.ndim(angle) else np.cos(angle)
     s_ = np.sin(angle)[..., None] if np.ndim(angle) else np.sin(angle)
-    return origin + v * c + cross(axis, v) * s_ + axis * np.sum(axis * v, -1, keepdims=True) * (1 - c)
+    return origin + v * c + cross(axis, v) * s_ + axis * dot(axis, v)[..., None] * (1 - c)
 
 
 def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, contact: np.ndarray,
@@ -1398,20 +1424,28 @@ def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, cont
     """
     holds = holds.copy()
     F, L = cidx.shape
-    legs = np.arange(L)
+    # the frames and front legs where both neighbours are planted (fixed over the passes: only
+    # the holds move), in np.nonzero's order; only their feet are compared
+    f_all, k_all = np.nonzero(contact[:, 2:] & contact[:, :-2])
+    cf_all, cr_all = cidx[f_all, k_all], cidx[f_all, k_all + 2]
+    d_all = holds[cr_all, k_all + 2] - holds[cf_all, k_all]               # rear - front
+    dist_all = length(d_all)                              # np.linalg.norm's bits
     for it in range(iterations):
-        pos = holds[cidx, legs[None, :]]                                  # (F, L, 3)
-        d = pos[:, 2:] - pos[:, :-2]                                      # rear - front
-        dist = np.linalg.norm(d, axis=-1)
-        conf = contact[:, 2:] & contact[:, :-2] & (dist < gap)
-        if not conf.any():
+        if it > 0:          # only the pairs of the holds the last pass moved change
+            changed = np.any(holds.view(np.uint64) != before.view(np.uint64), axis=-1)
+            redo = np.nonzero(changed[cf_all, k_all] | changed[cr_all, k_all + 2])[0]
+            d_all[redo] = holds[cr_all[redo], k_all[redo] + 2] - holds[cf_all[redo], k_all[redo]]
+            dist_all[redo] = length(d_all[redo])
+        before = holds.copy()
+        conf = np.nonzero(dist_all < gap)[0]
+        if len(conf) == 0:
             break
-        f, k = np.nonzero(conf)
+        f, k, d, dist = f_all[conf], k_all[conf], d_all[conf], dist_all[conf]
         front, rear = k, k + 2
-        cf, cr = cidx[f, front], cidx[f, rear]
+        cf, cr = cf_all[conf], cr_all[conf]
         later_rear = Ts[cr, rear] >= Ts[cf, front]
-        unit = d[f, k] / np.maximum(dist[f, k], 1e-12)[:, None]
-        need = gap - dist[f, k]
+        unit = d / np.maximum(dist, 1e-12)[:, None]
+        need = gap - dist
         vec = np.where(later_rear[:, None], unit, -unit) * (need * 1.3 + 0.02 * gap)[:, None]
         late = (np.where(later_rear, cr, cf), np.where(later_rear, rear, front))
         early = (np.where(later_rear, cf, cr), np.where(later_rear, front, rear))
@@ -1443,8 +1477,8 @@ SIDESTEP_ANGLES = np.radians([90.0, -90.0, 45.0, -45.0, 135.0, -135.0])
 def _turned(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
     """(n, 3) vectors v turned by `angle` about the unit axes (n, 3) (Rodrigues)."""
     c, s = np.cos(angle), np.sin(angle)
-    dot = np.sum(v * axis, axis=-1, keepdims=True)
-    return v * c + cross(axis, v) * s + axis * dot * (1.0 - c)
+    along = dot(v, axis)[..., None]
+    return v * c + cross(axis, v) * s + axis * along * (1.0 - c)
 
 
 def _push(holds, hold, leg, vec, need, Ts, rays, up, probe, level) -> np.ndarray:
@@ -1467,7 +1501,7 @@ def _push(holds, hold, leg, vec, need, Ts, rays, up, probe, level) -> np.ndarray
     # pass the edge the foot stands on, so then along the world's up
     for axis in (u, np.broadcast_to(UP, u.shape)):
         h = rays.first_hit(new + probe * axis, -axis, max_distance=2.0 * probe)
-        good = (~ok & h.hit & (np.abs(np.sum((h.points - holds[moved]) * u, -1)) < 0.5 * probe)
+        good = (~ok & h.hit & (np.abs(dot(h.points - holds[moved], u)) < 0.5 * probe)
                 & _faces_up(h.normals, u))
         # a top surface in the open, not one inside another solid (a ray that starts inside a
         # branch where it dives into the ground finds the ground inside the branch)
@@ -1525,8 +1559,8 @@ def _chain_clear(rays, q, o, side, yaw1, yaw2, pitch, bend, lengths, back) -> np
     o_k = np.broadcast_to(o[:, None], (F, k, 3))
     ok = np.ones((F, k), bool)
     for start, d, ln in ((o_k, w1, l1), (o_k + w1 * l1, w2, l2)):
-        ok &= ~rays.first_hit(start.reshape(-1, 3), d.reshape(-1, 3),
-                              max_distance=ln * 1.05).hit.reshape(F, k)
+        ok &= ~_hit(rays, start.reshape(-1, 3), d.reshape(-1, 3),
+                    max_distance=ln * 1.05).reshape(F, k)
     return ok
 
 
@@ -1626,8 +1660,8 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
             knee = o + d1 * l1
             if it == 3:
                 break
-            bad = (rays.first_hit(o, d1, max_distance=l1 * 1.05).hit
-                   | rays.first_hit(knee, d2, max_distance=l2 * 1.05).hit)
+            bad = (_hit(rays, o, d1, max_distance=l1 * 1.05)
+                   | _hit(rays, knee, d2, max_distance=l2 * 1.05))
             if not bad.any():
                 break
             up = np.where(ok_all & (raise_steps > lift[:, None] + 1e-9), raise_steps, np.inf)
