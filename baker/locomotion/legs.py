@@ -1053,20 +1053,56 @@ def _even_swings(target, hip, q, q_inv, cidx, LOs, Ts, sw, limit):
     f, l = np.nonzero(big)
     c = cidx[f + 1, l]
     c = np.where(sw[f + 1, l], c, cidx[f, l])                  # the swing this step belongs to
-    pieces = []
+    spans = []
     for cc, ll in set(zip(c.tolist(), l.tolist())):
         a, b = int(LOs[cc, ll]), int(min(Ts[cc + 1, ll], F - 1))
-        if b - a < 2:
-            continue
-        seg = rel[a:b + 1, ll]
-        cum = np.concatenate([[0.0], np.cumsum(step[a:b, ll])])
-        if cum[-1] <= 0:
-            continue
-        want = cum[-1] * np.arange(b - a + 1) / (b - a)
-        j = np.clip(np.searchsorted(cum, want, side="right") - 1, 0, b - a - 1)
-        t = np.clip((want - cum[j]) / np.maximum(cum[j + 1] - cum[j], 1e-12), 0.0, 1.0)
-        pieces.append((a, b, ll, seg[j] + (seg[j + 1] - seg[j]) * t[:, None]))
+        if b - a >= 2:
+            spans.append((a, b, ll))
+    pieces = [(a, b, ll, new) for (a, b, ll), (total, new) in zip(spans,
+                                                                 _even_paced(rel, step, spans))
+              if not total <= 0]
     return _placed_pieces(target.copy(), hip, q, pieces)
+
+
+def _even_paced(rel, step, spans) -> list:
+    """[(cum, new)] for each span (a, b, leg) of `spans`: the path rel[a..b, leg] (F, L, 3)
+    walked at an even pace of its per-frame steps step[a..b-1, leg] (F-1, L): new (b-a+1, 3),
+    and cum, the steps' sum. All spans in one batch where every step is finite (each span's
+    running sum along its own row, the same bits as one at a time: _even_piece); else one at a
+    time."""
+    if not spans:
+        return []
+    a, b, lg = (np.array(x, dtype=np.int64) for x in zip(*spans))
+    m = b - a
+    n = int(m.max())
+    k = np.arange(n + 1)
+    at = np.minimum(a[:, None] + k[None, :], len(step) - 1)
+    st = step[at[:, :-1], lg[:, None]]
+    if not np.isfinite(st).all():
+        return [_even_piece(rel[x:y + 1, ll], step[x:y, ll]) for x, y, ll in spans]
+    cum = np.zeros((len(m), n + 1))
+    np.cumsum(np.where(k[None, :-1] < m[:, None], st, 0.0), axis=1, out=cum[:, 1:])
+    total = cum[np.arange(len(m)), m]
+    want = total[:, None] * k[None, :] / m[:, None]
+    # np.searchsorted(cum, want, "right") of each row (its first m + 1 entries, nondecreasing)
+    below = np.where(k[None, :] <= m[:, None], cum, np.inf)
+    j = np.clip((below[:, None, :] <= want[:, :, None]).sum(-1) - 1, 0, (m - 1)[:, None])
+    c0 = np.take_along_axis(cum, j, 1)
+    t = np.clip((want - c0) / np.maximum(np.take_along_axis(cum, j + 1, 1) - c0, 1e-12),
+                0.0, 1.0)
+    s0 = rel[np.minimum(a[:, None] + j, len(rel) - 1), lg[:, None]]
+    s1 = rel[np.minimum(a[:, None] + j + 1, len(rel) - 1), lg[:, None]]
+    new = s0 + (s1 - s0) * t[..., None]
+    return [(total[i], new[i, :m[i] + 1]) for i in range(len(m))]
+
+
+def _even_piece(seg, step) -> tuple:
+    """(cum, new) of _even_paced for one span: its path seg (n+1, 3), its steps (n,)."""
+    cum = np.concatenate([[0.0], np.cumsum(step)])
+    want = cum[-1] * np.arange(len(seg)) / (len(seg) - 1)
+    j = np.clip(np.searchsorted(cum, want, side="right") - 1, 0, len(seg) - 2)
+    t = np.clip((want - cum[j]) / np.maximum(cum[j + 1] - cum[j], 1e-12), 0.0, 1.0)
+    return cum[-1], seg[j] + (seg[j + 1] - seg[j]) * t[:, None]
 
 
 def _placed_pieces(out, hip, q, pieces):
@@ -1155,19 +1191,14 @@ def _even_joint_swings(target, hip, q, q_inv, fwd, left, lay, knee_out, cidx, LO
     rel = quat_rotate(q_inv, target - hip)
     f, l = np.nonzero(big)
     c = np.where(sw[f + 1, l], cidx[f + 1, l], cidx[f, l])     # the swing this step belongs to
-    pieces = []
+    spans = []
     for cc, ll in set(zip(c.tolist(), l.tolist())):
-        a, b = int(LOs[cc, ll]) - 1, int(min(Ts[cc + 1, ll], F - 1))
-        a = max(a, 0)
-        if b - a < 2:
-            continue
-        seg = rel[a:b + 1, ll]
-        cum = np.concatenate([[0.0], np.cumsum(step[a:b, ll] + 1e-3)])
-        want = cum[-1] * np.arange(b - a + 1) / (b - a)
-        j = np.clip(np.searchsorted(cum, want, side="right") - 1, 0, b - a - 1)
-        t = np.clip((want - cum[j]) / np.maximum(cum[j + 1] - cum[j], 1e-12), 0.0, 1.0)
-        pieces.append((a, b, ll, seg[j] + (seg[j + 1] - seg[j]) * t[:, None]))
-        moved[a + 1:b, ll] = True
+        a, b = max(int(LOs[cc, ll]) - 1, 0), int(min(Ts[cc + 1, ll], F - 1))
+        if b - a >= 2:
+            spans.append((a, b, ll))
+            moved[a + 1:b, ll] = True
+    pieces = [(a, b, ll, new) for (a, b, ll), (_, new) in zip(spans,
+                                                             _even_paced(rel, step + 1e-3, spans))]
     return _placed_pieces(target.copy(), hip, q, pieces), moved, step
 
 
