@@ -1462,12 +1462,6 @@ def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, cont
     d_all = holds[cr_all, k_all + 2] - holds[cf_all, k_all]               # rear - front
     dist_all = length(d_all)                              # np.linalg.norm's bits
     for it in range(iterations):
-        if it > 0:          # only the pairs of the holds the last pass moved change
-            changed = np.any(holds.view(np.uint64) != before.view(np.uint64), axis=-1)
-            redo = np.nonzero(changed[cf_all, k_all] | changed[cr_all, k_all + 2])[0]
-            d_all[redo] = holds[cr_all[redo], k_all[redo] + 2] - holds[cf_all[redo], k_all[redo]]
-            dist_all[redo] = length(d_all[redo])
-        before = holds.copy()
         conf = np.nonzero(dist_all < gap)[0]
         if len(conf) == 0:
             break
@@ -1489,6 +1483,7 @@ def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, cont
         moves = along + aside if it < iterations // 2 else aside + along
         keeps = (level, None) if level is not None else (None,)
         moved = np.zeros(len(f), bool)
+        before = holds.copy()
         for keep, ((h_all, l_all), angle) in ((k, m) for k in keeps for m in moves):
             left = ~moved
             if not left.any():
@@ -1497,6 +1492,11 @@ def _spread_neighbours(holds: np.ndarray, Ts: np.ndarray, cidx: np.ndarray, cont
             u = up[np.minimum(Ts[h, leg], F - 1), leg]
             moved[left] = _push(holds, h, leg, _turned(vec[left], u, angle), need[left], Ts,
                                 rays, up, probe, keep)
+        # only the pairs of the holds this pass moved (to the bit) change
+        changed = np.any(holds.view(np.uint64) != before.view(np.uint64), axis=-1)
+        redo = np.nonzero(changed[cf_all, k_all] | changed[cr_all, k_all + 2])[0]
+        d_all[redo] = holds[cr_all[redo], k_all[redo] + 2] - holds[cf_all[redo], k_all[redo]]
+        dist_all[redo] = length(d_all[redo])
     return holds
 
 
