@@ -90,6 +90,8 @@ class HeadSteer:
         # grid's): a look-ahead is tested at one point in each column it crosses; None: at
         # LOOK_SAMPLES even steps
         self.grid: tuple[float, float, float] | None = None
+        # (grid, grid_array(grid)) for the compiled step (none yet: False is never a grid)
+        self._grid_array: tuple = (False, None)
 
     def step(self, dt: float, agent_pos: np.ndarray, agent_speed: float,
              allowed: Callable[[float, float], bool] | None = None,
@@ -175,26 +177,29 @@ class HeadSteer:
     def _step_compiled(self, dt: float, agent_pos, agent_speed: float,
                        test: compiled.SurfaceTest, aim) -> None:
         """step() with a SurfaceTest, compiled (contain.head_step: the same bits)."""
-        (hx, _, hz), (sx, _, sz) = self.heading.tolist(), self.sway_dir.tolist()
-        st = np.array([*self.base.tolist(), hx, hz, self.phase, self.lateral_amp, sx, sz,
-                       self._u_side, self._creep, float(self.hold), float(self.held),
-                       self.speed, 0.0, 0.0, 0.0])
-        prm = np.array([self.lead, self.max_speed, self.speed_cap, self.tight_speed,
+        base, heading, sway = self.base, self.heading, self.sway_dir
+        st = np.array((base[0], base[1], base[2], heading[0], heading[2], self.phase,
+                       self.lateral_amp, sway[0], sway[2], self._u_side, self._creep,
+                       float(self.hold), float(self.held), self.speed, 0.0, 0.0, 0.0))
+        prm = np.array((self.lead, self.max_speed, self.speed_cap, self.tight_speed,
                         self.turn_radius, self.max_yaw_rate, self.min_radius, self.turn_rate,
-                        self.turn_rate_scale, self.amplitude, self.max_offset, CATCH_UP])
-        moved = compiled.head_step(*test.kernel_args(), st, prm,
+                        self.turn_rate_scale, self.amplitude, self.max_offset, CATCH_UP))
+        if self._grid_array[0] is not self.grid:       # grid_array(self.grid), once a grid
+            self._grid_array = (self.grid, grid_array(self.grid))
+        cols, positions, normals, near, p = test.kernel_args()
+        moved = compiled.head_step(cols, positions, normals, near, p, st, prm,
                                    np.asarray(agent_pos, dtype=np.float64),
                                    _NO_AIM if aim is None else np.asarray(aim, dtype=np.float64),
-                                   float(agent_speed), float(dt), grid_array(self.grid),
+                                   float(agent_speed), float(dt), self._grid_array[1],
                                    *_ARC_COS_SIN, _TIGHT_ARRAY, _DEFLECT)
-        v = st.tolist()
         if moved:
-            self.base = np.array(v[0:3])
-            self.heading = np.array([v[3], 0.0, v[4]])
-        self.phase, self.lateral_amp = v[5], v[6]
-        self.sway_dir = np.array([v[7], 0.0, v[8]])
-        self._u_side, self._creep, self.held, self.speed = v[9], v[10], bool(v[12]), v[13]
-        self.position = np.array(v[14:17])
+            self.base = st[0:3].copy()
+            self.heading = np.array((st[3], 0.0, st[4]))
+        self.phase, self.lateral_amp, sx, sz, self._u_side, self._creep, _, held, self.speed = \
+            st[5:14].tolist()
+        self.held = bool(held)
+        self.sway_dir = np.array((sx, 0.0, sz))
+        self.position = st[14:17].copy()
 
     def _u_turn(self, ang: float, allowed) -> float:
         """A target more than a right angle off the heading is a U-turn: it keeps to the side it

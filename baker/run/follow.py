@@ -60,6 +60,8 @@ REPLAN_AFTER = 1.5
 BEND_TURN = math.radians(20.0)
 #: [spacings] the trail under the body is kept at this spacing to measure its bends
 BEND_SAMPLE = 0.25
+#: [rows] the trail's bends are measured over pairs of chords this long (half a spacing)
+_BEND_CHORD = int(round(0.5 / BEND_SAMPLE))
 #: [spacings] the head's tightest turning radius, where the walkable surface leaves no room for
 #: its usual one (a dead end): a reversal is then a loop 1.5 spacings wide, which the spine's
 #: chord placement follows without a joint jumping across it (it jumps on a loop under one
@@ -125,15 +127,18 @@ class Follower:
         self._lever_rays = _lever_rays(*self._hip[:3])
         # (key, lever) measured ahead of the step for a crowd (measure_levers)
         self._lever_ready: tuple | None = None
-        # rows _trail[_lo:_hi] of one buffer, (walked, x, z, the legs' lever there), under the
-        # body: the straight start line behind the head first, so a turn back at the start is
-        # a bend under the body like any other
+        # rows _trail[_lo:_hi] of one buffer, (walked, x, z, the legs' lever there, the
+        # radius of the bend that ends there: _bend_at), under the body: the straight start
+        # line behind the head first, so a turn back at the start is a bend under the body
+        # like any other
         step = BEND_SAMPLE * body.spacing
         behind = step * np.arange(math.ceil((body.length + body.spacing) / step), -1, -1)
         rows = [(-d, float(start[0] - d * heading[0]), float(start[2] - d * heading[2]),
-                 math.inf) for d in behind]
+                 math.inf, math.inf) for d in behind]
         self._trail = np.array(rows * 2)
         self._lo, self._hi = 0, len(rows)
+        for i in range(len(rows)):
+            self._trail[i, 4] = self._bend_at(i)
         self._walked = 0.0          # horizontal metres the head has walked
         self._riser_at = -np.inf    # ... when it last went up or down a riser
         self._steps = 0
@@ -151,6 +156,8 @@ class Follower:
         # (distance, x, z) nearest first), or None
         self._sorted: tuple | None = None
         self.separation = 0.0
+        # _surface_test's test off a crowd: (height, grid_arrays, test), or None
+        self._lone_test: tuple | None = None
         self.held_for = 0.0         # [s] the head has held still, cornered by other bodies
         self.others_move = False    # the creatures whose bodies are near all walk
 
@@ -272,15 +279,18 @@ class Follower:
         elif self._measured:
             return            # the trail is as it was: so are its bend and lever
         self._measured = True
-        radius = bend_radius(self._trail[self._lo:self._hi, 1:3], int(round(0.5 / BEND_SAMPLE)))
+        # the bends whose chords lie under the body, each measured once, as its row was pushed
+        radii = self._trail[self._lo + 2 * _BEND_CHORD:self._hi, 4]
+        radius = float(radii.min()) if len(radii) else math.inf
         lever = float(self._trail[self._lo:self._hi, 3].min())
         if radius != self.bend or lever != self.lever:
             self.bend, self.lever = radius, lever
             self._apply_speed()
 
-    def _push(self, *row: float) -> None:
-        """Append a row (walked, x, z, lever) to the trail, moving its rows to the buffer's
-        start (or into one twice the size) when it is full."""
+    def _push(self, walked: float, x: float, z: float, lever: float) -> None:
+        """Append a row (walked, x, z, lever, the radius of the bend ending there) to the
+        trail, moving its rows to the buffer's start (or into one twice the size) when it is
+        full."""
         if self._hi == len(self._trail):
             rows = self._trail[self._lo:self._hi]
             if 2 * len(rows) > len(self._trail):
@@ -288,8 +298,19 @@ class Follower:
             else:
                 self._trail[:len(rows)] = rows.copy()
             self._lo, self._hi = 0, len(rows)
-        self._trail[self._hi] = row
+        self._trail[self._hi, :4] = (walked, x, z, lever)
         self._hi += 1
+        self._trail[self._hi - 1, 4] = self._bend_at(self._hi - 1)
+
+    def _bend_at(self, i: int) -> float:
+        """The radius of the trail's bend over the pair of chords _BEND_CHORD rows long that
+        ends at row i (bend_radius), inf where the trail under the body does not reach back
+        that far (then the pair never lies under it)."""
+        if i - 2 * _BEND_CHORD < self._lo:
+            return math.inf
+        (x0, z0), (x1, z1), (x2, z2) = self._trail[i - 2 * _BEND_CHORD:i + 1:_BEND_CHORD,
+                                                   1:3].tolist()
+        return bend_radius(x0, z0, x1, z1, x2, z2)
 
     def _leg_lever(self, p: np.ndarray, dx: float, dz: float) -> float:
         """[m] the legs' lever (folded_lever) where the hips pass the head's point p, the
@@ -370,7 +391,13 @@ class Follower:
         that of every point measured."""
         test = SurfaceTest if self._compiled else plain_test
         if self.others is None:
-            return test(self.nav, self.height, self.tol)
+            # the last step's test while the layer's height and the grid are as they were
+            # (on level ground, most steps)
+            key = (self.height, grid_arrays(self.nav) if self._compiled else None)
+            if self._lone_test is None or self._lone_test[0] != key[0] \
+                    or self._lone_test[1] is not key[1]:
+                self._lone_test = (*key, test(self.nav, self.height, self.tol))
+            return self._lone_test[2]
         others = self.others
         bx, _, bz = self.head.base.tolist()
         need = min(self.separation ** 2, nearest_sq(others, bx, bz))
@@ -447,11 +474,18 @@ class Follower:
         (the slither), the layer's height under the head's base (kept on the surface), then the
         floor found by rays near that height; else the previous height. (Rays at the side of a
         staircase can find the tread below; the base's column is on the flight.)"""
-        layer = (partial(compiled_layer_height, *grid_arrays(self.nav)) if self._compiled
-                 else self.nav.layer_height)
-        y = layer(float(p[0]), self.height, float(p[2]), self.tol)
-        if not math.isnan(y):
-            return y
+        if self._compiled:
+            cols, positions, normals, grid = grid_arrays(self.nav)
+            y = compiled_layer_height(cols, positions, normals, grid, float(p[0]), self.height,
+                                      float(p[2]), self.tol)
+            if y == y:      # not NaN
+                return y
+            layer = partial(compiled_layer_height, cols, positions, normals, grid)
+        else:
+            layer = self.nav.layer_height
+            y = layer(float(p[0]), self.height, float(p[2]), self.tol)
+            if not math.isnan(y):
+                return y
         b = self.head.base
         y = layer(float(b[0]), self.height, float(b[2]), self.tol)
         if not math.isnan(y):
@@ -491,19 +525,16 @@ def _lever_rays(hip_x: float, hip_y: float, l1: float) -> np.ndarray:
     return np.array(rows).T[..., None]
 
 
-def bend_radius(points: np.ndarray, k: int) -> float:
-    """The smallest radius of the bends of a polyline of evenly spaced points (n, 2): over
-    each pair of chords k points long, the chord length over the angle between them (inf for a
-    straight or too short line)."""
-    if len(points) < 2 * k + 1:
+def bend_radius(x0: float, z0: float, x1: float, z1: float, x2: float, z2: float) -> float:
+    """The radius of a polyline's bend over the pair of chords (x0, z0)-(x1, z1)-(x2, z2):
+    the chords' mean length over the angle between them (inf when a chord is shorter than
+    1e-9). In Python floats, the arithmetic of the bends of the whole trail in numpy that it
+    replaces (the same bits: the angle by np.arccos, whose bits math.acos does not give), so
+    the trail's bends are measured one pair at a time as its points are pushed."""
+    ax, az, bx, bz = x1 - x0, z1 - z0, x2 - x1, z2 - z1
+    la, lb = math.sqrt(ax * ax + az * az), math.sqrt(bx * bx + bz * bz)
+    if not (la > 1e-9 and lb > 1e-9):
         return math.inf
-    a = points[k:-k] - points[:-2 * k]
-    b = points[2 * k:] - points[k:-k]
-    la, lb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
-    ok = (la > 1e-9) & (lb > 1e-9)
-    if not ok.any():
-        return math.inf
-    cos = np.sum(a[ok] * b[ok], axis=1) / (la[ok] * lb[ok])
-    ang = np.arccos(np.clip(cos, -1.0, 1.0))
-    r = 0.5 * (la[ok] + lb[ok]) / np.maximum(ang, 1e-12)
-    return float(r.min())
+    cos = (ax * bx + az * bz) / (la * lb)
+    ang = float(np.arccos(np.array([min(max(cos, -1.0), 1.0)]))[0])
+    return 0.5 * (la + lb) / max(ang, 1e-12)
