@@ -41,13 +41,16 @@ def fit_channels(vals: np.ndarray, kept: np.ndarray, times: np.ndarray, rotation
 
 
 def tight_misses(vals: np.ndarray, kept: np.ndarray, times: np.ndarray, rotation: bool,
-                 tol: np.ndarray) -> np.ndarray:
-    """(C,) how many frames of each channel are off by more than tol (C,) even when played
-    between the stored values of the frames on either side. vals, kept (C, F, W)."""
+                 tol: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    """(R,) how many frames of each of the channels `rows` (R,) (default: all) are off by more
+    than tol (C,) even when played between the stored values of the frames on either side.
+    vals, kept (C, F, W) (the channels picked here, not copied out)."""
     t = np.asarray(times, dtype=np.float32).astype(np.float64)
+    rows = np.arange(len(vals)) if rows is None else rows
     return off_main_thread(_tight, np.ascontiguousarray(vals, dtype=np.float64),
                            np.ascontiguousarray(kept, dtype=np.float64), t, bool(rotation),
-                           np.ascontiguousarray(tol, dtype=np.float64))
+                           np.ascontiguousarray(tol, dtype=np.float64),
+                           np.ascontiguousarray(rows, dtype=np.int64))
 
 
 def reach(chains: np.ndarray, world: np.ndarray, out: np.ndarray) -> None:
@@ -164,13 +167,14 @@ def _fit(vals, kept, t, rotation, tol, rows, bound, keep):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _tight(vals, kept, t, rotation, tol):
-    c_count, f_count = vals.shape[0], vals.shape[1]
-    out = np.zeros(c_count, np.int64)
+def _tight(vals, kept, t, rotation, tol, rows):
+    f_count = vals.shape[1]
+    out = np.zeros(len(rows), np.int64)
     est = np.empty(4)
-    for c in range(c_count):
+    for r in range(len(rows)):
+        c = rows[r]
         cos_lo = np.cos(0.5 * tol[c]) + 1e-9
         for f in range(1, f_count - 1):
             if _worst(vals, kept, t, c, f - 1, f + 1, rotation, tol[c], cos_lo, est)[1] >= 0:
-                out[c] += 1
+                out[r] += 1
     return out

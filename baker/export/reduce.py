@@ -46,11 +46,11 @@ frames than `_promote`'s bound miss even between their neighbours; the refinemen
 key values (bit for bit: a recomputed key that quantizes to the same code changes nothing) or
 parent changed, world rotations and positions apart, and computes key values at key frames only
 (those of the other frames, which the files store but no player reads, once at the end). The
-player's per-pair arithmetic (key values, sampling, posing, errors) is compiled too
-(baker.export.replay), level by level over the pairs a mask selects, each pair computed on its
-own with the arithmetic of the numpy kernels here (sums over 3 or 4 components written out left
-to right), so a replay gives what a fresh playback gives, bit for bit (tests/export/test_reduce.py
-checks it).
+player's per-pair arithmetic (key values, sampling, posing, errors), the blame's and the
+unreduced clip's world poses are compiled too (baker.export.replay), level by level over the
+pairs a mask selects, each pair computed on its own with the arithmetic of the numpy kernels
+here (sums over 3 or 4 components written out left to right), so a replay gives what a fresh
+playback gives, bit for bit (tests/export/test_reduce.py checks it).
 
 Rigid bones: a joint whose unreduced local translation keeps one length while it turns (a spine
 joint, a spacing from the joint ahead) keeps it within `LENGTH_SHARE` of it when played. The
@@ -97,8 +97,6 @@ import numpy as np
 from baker.clip import Clip
 from baker.errors import ExportError
 from baker.export import keyfit, replay
-from baker.geometry.transforms import quat_conj
-from baker.rig.skeleton import forward_kinematics
 
 #: local pass: the share of the tolerance each channel gets on its own
 LOCAL_SHARE = 0.5
@@ -321,13 +319,8 @@ def sample(values: np.ndarray, keep: np.ndarray, static: np.ndarray, times: np.n
 def _segments(keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(prev, nxt), each (C, F) int64, of key frames keep (C, F): the last key at or before
     each frame (-1: none) and the first key after it (F: none). A frame's played value depends
-    on these two keys only."""
-    c_count, f_count = keep.shape
-    idx = np.arange(f_count)
-    prev = np.maximum.accumulate(np.where(keep, idx, -1), axis=1)             # (C, F)
-    nxt = np.minimum.accumulate(np.where(keep, idx, f_count)[:, ::-1], axis=1)[:, ::-1]
-    nxt = np.concatenate([nxt[:, 1:], np.full((c_count, 1), f_count)], axis=1)  # after f
-    return prev, nxt
+    on these two keys only. Compiled (replay.segments)."""
+    return replay.segments(keep)
 
 
 def _around(prev: np.ndarray, nxt: np.ndarray, frames: np.ndarray, times: np.ndarray,
@@ -362,41 +355,6 @@ def _sample_cf(values: np.ndarray, keep: np.ndarray, static: np.ndarray, times: 
     out = slerp(v0, v1, a) if rotation else v0 + a[..., None] * (v1 - v0)
     out = np.where(last[..., None], v0, out)
     return np.where(fixed[..., None], np.asarray(static, np.float64)[:, None, :], out)
-
-
-def _flat(a: np.ndarray) -> np.ndarray:
-    """(C * F, ...) view of a contiguous (C, F, ...) array: row c * F + f is (c, f)."""
-    return a.reshape((-1,) + a.shape[2:])
-
-
-def _take(a: np.ndarray, i: np.ndarray) -> np.ndarray:
-    """a[i], the rows i of a (np.take: the same copy, several times faster than fancy
-    indexing for rows of a few values)."""
-    return a.take(i, axis=0)
-
-
-def _put(a: np.ndarray, i: np.ndarray, v: np.ndarray) -> None:
-    """a[i] = v for the rows i of a contiguous array a, v cast to a's dtype as assignment casts
-    it; each row is copied as one item (np.put on a void view: faster than fancy assignment)."""
-    if not len(i):
-        return
-    v = np.ascontiguousarray(v, dtype=a.dtype)
-    if a.ndim > 1:
-        row = _ROWS.get(a.strides[0]) or _ROWS.setdefault(a.strides[0],
-                                                          np.dtype((np.void, a.strides[0])))
-        a, v = a.reshape(len(a), -1).view(row), v.reshape(len(v), -1).view(row)
-    np.put(a, i, v)
-
-
-#: void dtypes of rows by their size in bytes (`_put`)
-_ROWS: dict = {}
-
-
-def _pairs(a: np.ndarray, i: np.ndarray) -> np.ndarray:
-    """(W, ...) the pairs i (flat indices j * F + f, any shape) of a contiguous joints-first
-    (J, F, W) array, component first (a view of the gathered rows), for the component-first
-    kernels below."""
-    return _last_first(_take(_flat(a), i))
 
 
 def _inner(a: np.ndarray, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -585,11 +543,12 @@ def _local_keys(values: np.ndarray, stored: np.ndarray, times: np.ndarray, rotat
         static[ok] = value[ok]
         is_static[ok] = True
     keep = np.zeros((c_count, f_count), dtype=bool)
-    vals = np.swapaxes(values, 0, 1)                                       # (C, F, W)
-    kept = np.swapaxes(stored, 0, 1)
+    vals = np.ascontiguousarray(np.swapaxes(values, 0, 1), dtype=np.float64)   # (C, F, W)
+    kept = vals if stored is values else np.ascontiguousarray(np.swapaxes(stored, 0, 1),
+                                                              dtype=np.float64)
     bound = value_bytes * f_count / (value_bytes + TIME_BYTES)      # _promote's key count
     active = np.flatnonzero(~is_static)
-    dense = keyfit.tight_misses(vals[active], kept[active], times, rotation, tol[active]) > bound
+    dense = keyfit.tight_misses(vals, kept, times, rotation, tol, active) > bound
     keep[active[dense]] = True
     keyfit.fit_channels(vals, kept, times, rotation, tol, active[~dense], bound, keep)
     return keep, static
@@ -679,13 +638,13 @@ def _target(clip: Clip, parents, planted, tol: float, short: bool, tight=None) -
     parents = np.asarray(parents)
     depth = (ancestors(parents) >= 0).sum(axis=1)
     levels = tuple(np.flatnonzero(depth == d) for d in range(1, depth.max() + 1))
-    t0 = clip.translations.astype(np.float64)
-    q0 = clip.rotations.astype(np.float64)
-    pos0, wq0 = forward_kinematics(parents, t0, q0)
+    t0, q0, pos0, wq0 = replay.unreduced(np.concatenate(levels), parents, clip.translations,
+                                         clip.rotations)       # forward_kinematics' bits
     first = (lambda a: np.ascontiguousarray(np.swapaxes(a, 0, 1)))
-    return _Target(first(t0), first(q0), first(pos0), first(wq0), clip.times, parents, levels,
+    return _Target(t0, q0, pos0, wq0, clip.times, parents, levels,
                    None if planted is None else first(planted), tol, short,
-                   None if tight is None else first(tight), rigid_bones(t0, parents))
+                   None if tight is None else first(tight),
+                   rigid_bones(clip.translations.astype(np.float64), parents))
 
 
 def rigid_bones(t0: np.ndarray, parents: np.ndarray) -> tuple | None:
@@ -699,59 +658,6 @@ def rigid_bones(t0: np.ndarray, parents: np.ndarray) -> tuple | None:
     j = np.flatnonzero((parents >= 0) & (length > 0) & turns
                        & (np.ptp(n, axis=0) <= RIGID_SPREAD * length))
     return (j, length[j]) if len(j) else None
-
-
-# Component-first kernels: vectors (3, ...), xyzw quaternions (4, ...) and matrices (3, 3, ...),
-# each component an array over the pairs (best a contiguous block: the player's arrays are
-# stored component-first so that its gathers give one; a strided view of (N, ...) rows works but
-# is several times slower), so that each step is one flat numpy operation into a preallocated
-# output instead of small inner loops over 3 or 4 components. Operation for operation (so bit
-# for bit) the arithmetic of geometry.transforms and raw_matrix.
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(3, ...) a x b of (3, ...) vectors (np.cross's arithmetic, without its overhead)."""
-    out = np.empty((3,) + _pair_shape(a[0], b[0]))
-    tmp = np.empty(out.shape[1:])
-    for k, (p, q) in enumerate(((1, 2), (2, 0), (0, 1))):
-        np.multiply(a[p], b[q], out=out[k])
-        out[k] -= np.multiply(a[q], b[p], out=tmp)
-    return out
-
-
-def _pair_shape(a: np.ndarray, b: np.ndarray) -> tuple:
-    """The broadcast shape of a and b (mostly equal shapes: no np.broadcast_shapes call)."""
-    return a.shape if a.shape == b.shape else np.broadcast_shapes(a.shape, b.shape)
-
-
-def _qrot(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """geometry.transforms.quat_rotate (v (3, ...) rotated by the quaternions q (4, ...)):
-    v + w t + qv x t with t = 2 qv x v."""
-    t = _cross(q[:3], v)
-    t *= 2.0
-    out = t * q[3]
-    out += v
-    out += _cross(q[:3], t)
-    return out
-
-
-#: Hamilton product a b (xyzw): per output component, the (a, b) components of its terms, in
-#: order, the first added, the others with their signs
-_QMUL = (((3, 0), (0, 3, 1), (1, 2, 1), (2, 1, -1)),
-         ((3, 1), (0, 2, -1), (1, 3, 1), (2, 0, 1)),
-         ((3, 2), (0, 1, 1), (1, 0, -1), (2, 3, 1)),
-         ((3, 3), (0, 0, -1), (1, 1, -1), (2, 2, -1)))
-
-
-def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """geometry.transforms.quat_mul: the Hamilton product a b of (4, ...) xyzw quaternions."""
-    out = np.empty((4,) + _pair_shape(a[0], b[0]))
-    tmp = np.empty(out.shape[1:])
-    for o, ((i, j), *terms) in zip(out, _QMUL):
-        np.multiply(a[i], b[j], out=o)
-        for i, j, sign in terms:
-            (np.add if sign > 0 else np.subtract)(o, np.multiply(a[i], b[j], out=tmp), out=o)
-    return out
 
 
 def _unit(q: np.ndarray) -> np.ndarray:
@@ -775,11 +681,11 @@ class _Player:
     Stored key values vt (J, F, 3), vq (J, F, 4) float32 and codes (J, F, 4) int16 (SHORT
     rotations) and their targets tt, tq (float64; codes are requantized only where tq changed),
     at the key frames (the players read no others; `complete` fills in the rest). Joints first
-    too, (J, F, W) (a pair's components side by side for the compiled kernels; `_pairs`
-    gathers them component first for numpy): the played local tr (3), rr (4) (float32
-    values as float64) and Blender's nlerp (4); world positions pos (3), rotations wq (4) (the
-    matrices' rotation part) and matrices mat (J, F, 3, 3); the other players' poses (unit (3):
-    renormalized slerp; blender (3), wn (4): nlerp); error vectors diff (3). And (J, F): the
+    too, (J, F, W) (a pair's components side by side for the compiled kernels): the played
+    local tr (3), rr (4) (float32 values as float64) and Blender's nlerp (4); world positions
+    pos (3), rotations wq (4) (the matrices' rotation part) and matrices mat (J, F, 3, 3); the
+    other players' poses (unit (3): renormalized slerp; blender (3), wn (4): nlerp); error
+    vectors diff (3). And (J, F): the
     error lengths err [m], the worst of the three players; slide (J, F-1) [m]: the change
     of a planted joint's error between planted frames; spread (J, F) [m]: how far the other two
     players are from the first; viol (J, F) bool: over a bound."""
@@ -819,9 +725,8 @@ class _Player:
             dirty_t = dirty_r = np.ones((j_count, f_count), dtype=bool)
             new_t, new_r = keep_t, keep_r
         else:
-            new_t, new_r = keep_t & ~self.segments[0][1], keep_r & ~self.segments[1][1]
-            dirty_t = _resegment(*self.segments[0], keep_t)
-            dirty_r = _resegment(*self.segments[1], keep_r)
+            dirty_t, new_t = replay.resegment(*self.segments[0], keep_t)
+            dirty_r, new_r = replay.resegment(*self.segments[1], keep_r)
         moved = np.zeros((j_count, f_count), dtype=bool)       # world position changed
         turned = np.zeros((j_count, f_count), dtype=bool)      # world rotation changed
         # key values where the parent moved or the key is new, then the frames played from a
@@ -830,15 +735,10 @@ class _Player:
         replay.play_levels(x, self, keep_t, keep_r, new_t, new_r, dirty_t, dirty_r, first,
                            moved, turned)
         self._slide_at(moved)
-        viol = (self.err > x.tol) | (self.spread > PLAYER_SPREAD_M)
-        if x.tight is not None:
-            viol |= x.tight & (self.err > TIGHT_SHARE * x.tol)
-        if x.planted is not None and f_count > 1:
-            bad = self.slide > PLANTED_SLIDE * x.tol
-            viol[:, 1:] |= bad
-            viol[:, :-1] |= bad
-        self.viol = viol
-        return viol
+        self.viol = replay.violations(
+            self.err, self.spread, x.tight, self.slide if x.planted is not None else None,
+            (x.tol, PLAYER_SPREAD_M, TIGHT_SHARE * x.tol, PLANTED_SLIDE * x.tol))
+        return self.viol
 
     def stretched(self) -> np.ndarray:
         """(J, F) bool: the rigid bones (x.rigid) whose played length is off by more than
@@ -876,26 +776,13 @@ class _Player:
         replay.slide_at(*self.planted_pairs, moved, self)        # compiled
 
 
-def _resegment(segments: tuple, played: np.ndarray, keep: np.ndarray) -> np.ndarray:
-    """Bring `segments` (`_segments` of the keys `played`, (C, F)) and `played` up to `keep`,
-    in place, recomputing only the channels whose keys changed. Returns (C, F) bool: the frames
-    whose segment changed."""
-    rows = np.flatnonzero(np.any(keep != played, axis=1))
-    dirty = np.zeros(keep.shape, dtype=bool)
-    if len(rows):
-        prev, nxt = _segments(keep[rows])
-        dirty[rows] = (prev != segments[0][rows]) | (nxt != segments[1][rows])
-        segments[0][rows], segments[1][rows] = prev, nxt
-        played[rows] = keep[rows]
-    return dirty
-
-
 def _blame(x: _Target, chains: np.ndarray, p: _Player):
     """Which channels to key where (see the module docstring). Returns (candidates, scores) for
     the translation channels and for the rotation channels, each (J, F); scores in metres.
     The offending pairs are blamed in blocks of about BLAME_PAIRS (pair, ancestor) entries
-    (a long skeleton's chains times a clip's worth of pairs were gigabytes at once); each
-    block adds its candidates and raises the scores (a maximum), so blocks change nothing."""
+    (a long skeleton's chains times a clip's worth of pairs were gigabytes at once in numpy;
+    compiled, a block's distinct pairs are); each block adds its candidates and raises the
+    scores (a maximum), so blocks change nothing."""
     j_count, f_count = p.viol.shape
     ki, fi = np.nonzero(p.viol)
     out = [np.zeros((j_count, f_count), dtype=bool), np.zeros((j_count, f_count)),
@@ -912,47 +799,16 @@ BLAME_PAIRS = 1 << 20
 
 def _blame_block(x: _Target, chains: np.ndarray, p: _Player, ki, fi, out: list) -> None:
     """_blame for the offending pairs (ki, fi): into out = [translation candidates, scores,
-    rotation candidates, scores] (in place)."""
-    f_count = p.viol.shape[1]
-    e = _take(_flat(p.diff), ki * f_count + fi)                             # (V, 3)
-    e = e / np.maximum(_norm(e), 1e-300)[:, None]
-    chain = chains[ki]                                                     # (V, D)
-    a = np.maximum(chain, 0)
-    ft = np.broadcast_to(fi[:, None], a.shape)
-    c_t, omega = _channel_moves(x, p, a, ft)
-    ct = np.where(chain >= 0, np.einsum("vdk,vk->vd", c_t, e), -np.inf)
-    arm = _cross(_pairs(p.pos, ki * f_count + fi)[:, :, None] - _pairs(p.pos, a * f_count + ft),
-                 e.T[:, :, None])                                                # (3, V, D)
-    arm = np.ascontiguousarray(np.moveaxis(arm, 0, -1))
-    strict = (chain >= 0) & (np.arange(chain.shape[1]) > 0)[None, :]       # ancestors of k
-    cr = np.where(strict, np.einsum("vdk,vdk->vd", omega, arm), -np.inf)
-    top = np.maximum(ct.max(axis=1), cr.max(axis=1))[:, None]
-    for c, cand, score in ((ct, out[0], out[1]), (cr, out[2], out[3])):
-        v, d = np.nonzero((c > 0) & (c >= BLAME_SHARE * top))
-        cand[a[v, d], fi[v]] = True
-        np.maximum.at(score, (a[v, d], fi[v]), c[v, d])
-
-
-def _channel_moves(x: _Target, p: _Player, a: np.ndarray, ft: np.ndarray):
-    """The world offset of each translation channel's error (the played minus the target local
-    translation, in its parent's world frame) and the world rotation vector of each rotation
-    channel's error, at the pairs (a, ft) (V, D): ((V, D, 3), (V, D, 3)). Each distinct pair is
-    computed once."""
-    j_count, f_count = x.t0.shape[:2]
-    need = np.zeros(j_count * f_count, dtype=bool)
-    flat = a * f_count + ft
-    need[flat] = True
-    i = np.flatnonzero(need)
-    j, f = np.divmod(i, f_count)
-    parent = x.parents[j]
-    wp = np.where(parent >= 0, _pairs(p.wq, np.maximum(parent, 0) * f_count + f),
-                  np.array([0.0, 0.0, 0.0, 1.0])[:, None])
-    tt, tq = replay.targets_at(i, x, p)
-    c_t = _qrot(wp, _pairs(p.tr, i) - tt.T).T
-    err_q = _qmul(_pairs(p.rr, i), quat_conj(tq).T).T
-    omega = _qrot(wp, _rotvec(err_q).T).T
-    at = np.take(np.cumsum(need) - 1, flat)         # each pair's row in i
-    return _take(np.ascontiguousarray(c_t), at), _take(np.ascontiguousarray(omega), at)
+    rotation candidates, scores] (in place). The channels' moves (the world offset of each
+    translation channel's error, and each rotation channel's error as a world rotation vector)
+    are computed once per distinct (ancestor, frame) pair, each entry's share of the error and
+    the keys it asks for once per (pair, ancestor) entry: compiled (replay.blame_moves,
+    blame_pairs: geometry.transforms' quaternion arithmetic, np.einsum's sums), but for the
+    rotation vectors (`_rotvec`: numpy's arctan2 is not the compiled one, bit for bit)."""
+    slot, i = replay.blame_slots(ki, fi, chains, p.viol.shape)
+    c_t, err_q, wp = replay.blame_moves(i, x, p)
+    replay.blame_pairs(ki, fi, chains, slot, p.diff, p.pos, c_t, _rotvec(err_q), wp,
+                       BLAME_SHARE, out)
 
 
 def _refine(x: _Target, keep_t: np.ndarray, keep_r: np.ndarray, player: _Player) -> _Player:
@@ -1241,7 +1097,7 @@ def _short_fits(x: _Target) -> bool:
     sub = dataclasses.replace(x, t0=np.take(x.t0, some, axis=1), q0=np.take(x.q0, some, axis=1),
                               pos0=np.take(x.pos0, some, axis=1),
                               wq0=np.take(x.wq0, some, axis=1), times=x.times[some],
-                              planted=None, tight=None)     # contiguous: _flat gives views
+                              planted=None, tight=None)     # contiguous
     every = np.ones((j_count, len(some)), dtype=bool)
     p = _Player(sub, np.zeros((j_count, 3)), np.zeros((j_count, 4)))
     p.play(every, every)

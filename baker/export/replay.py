@@ -13,15 +13,18 @@ as much as the arithmetic did):
   stored quaternions; a renormalized slerp; Blender's nlerp) from the parents' poses, and the
   errors against the unreduced world positions.
 
-`targets_level` (the key values of the other frames, once at the end) and `targets_at` (any
-pairs, for the blame) share the targets' arithmetic.
+`targets_level` (the key values of the other frames, once at the end) and `blame_moves` (any
+pairs, for the blame) share the targets' arithmetic. The refinement's blame (`blame_slots`,
+`blame_moves`, `blame_pairs`: reduce._blame) and the unreduced clip's world poses
+(`unreduced`: rig.skeleton.forward_kinematics, joints first) are compiled here too.
 
 Each pair is computed on its own with the arithmetic of the numpy kernels it replaces
-(baker.export.reduce: `_raw_matrix`, `_qmul`, `_qrot`, `_slerp`, sums left to right),
-so a replay of some pairs gives what a fresh playback of all of them gives. The arrays are the
-player's, joints first ((J, F, W), matrices (J, F, 3, 3)): a pair's components share a cache
-line or two, where component-first arrays had the kernels read and write some forty streams at
-once (about twice as slow); the kernels write into them and return nothing, and run on the main
+(baker.export.reduce: `_raw_matrix`, `_slerp`; geometry.transforms: quat_mul, quat_rotate;
+sums left to right, or in np.einsum's order where it summed), so a replay of some pairs gives
+what a fresh playback of all of them gives. The arrays are the player's, joints first
+((J, F, W), matrices (J, F, 3, 3)): a pair's components share a cache line or two, where
+component-first arrays had the kernels read and write some forty streams at once (about twice
+as slow); the kernels write into them and return nothing, and run on the main
 thread once compiled (parallel.compiled_call: thousands of short calls a bake).
 """
 
@@ -30,6 +33,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from baker.geometry.fused import quat_mul1, quat_rotate1
 from baker.parallel import compiled_call
 
 #: a rotation segment whose keys' |dot| reaches this is lerped and normalized (three.js)
@@ -166,19 +170,40 @@ def _samples_of(j, pj, first, dirty_t, dirty_r, changed_t, changed_r, prev_t, nx
     the helpers' own index arithmetic over the arrays many times slower.)"""
     f_count = dirty_t.shape[1]
     root = pj < 0
+    seg = (-1, -1)                              # the rotation segment whose arc is `arc`
+    arc = (0.0, 0.0, 0.0, 0.0, False, False, 0.0, 0.0)
+    # most replays change no stored key of a joint: then the keys around a frame are not read
+    any_t, any_r = _any(changed_t), _any(changed_r)
     for f in range(f_count):
-        st = dirty_t[j, f] or changed_t[min(max(prev_t[j, f], 0), f_count - 1)] or \
-            changed_t[min(nxt_t[j, f], f_count - 1)]
-        sr = dirty_r[j, f] or changed_r[min(max(prev_r[j, f], 0), f_count - 1)] or \
-            changed_r[min(nxt_r[j, f], f_count - 1)]
+        st = dirty_t[j, f] or any_t and (
+            changed_t[min(max(prev_t[j, f], 0), f_count - 1)] or
+            changed_t[min(nxt_t[j, f], f_count - 1)])
+        sr = dirty_r[j, f] or any_r and (
+            changed_r[min(max(prev_r[j, f], 0), f_count - 1)] or
+            changed_r[min(nxt_r[j, f], f_count - 1)])
         if st:
             p, n, a, fixed, last = _span(prev_t, nxt_t, j, f, t, f_count)
             _lerp(vt, static_t, j, f, p, n, a, fixed, last, tr)
         if sr:
             p, n, a, fixed, last = _span(prev_r, nxt_r, j, f, t, f_count)
-            _rotation(vq, static_r, j, f, p, n, a, fixed, last, rr, nlerp)
+            if not (fixed or last) and (p, n) != seg:   # the frames of a segment share it
+                seg = (p, n)
+                arc = _arc(np.float64(vq[j, p, 0]), np.float64(vq[j, p, 1]),
+                           np.float64(vq[j, p, 2]), np.float64(vq[j, p, 3]),
+                           np.float64(vq[j, n, 0]), np.float64(vq[j, n, 1]),
+                           np.float64(vq[j, n, 2]), np.float64(vq[j, n, 3]))
+            _rotation(vq, static_r, j, f, p, n, a, fixed, last, rr, nlerp, arc)
         turned[j, f] = sr or (first if root else turned[pj, f])
         moved[j, f] = st or turned[j, f] or (first if root else moved[pj, f])
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _any(flags):
+    """Whether any of flags (F,) bool is set."""
+    for f in range(len(flags)):
+        if flags[f]:
+            return True
+    return False
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -196,9 +221,10 @@ def _lerp(vt, static_t, j, f, p, n, a, fixed, last, tr):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _rotation(vq, static_r, j, f, p, n, a, fixed, last, rr, nlerp):
+def _rotation(vq, static_r, j, f, p, n, a, fixed, last, rr, nlerp, arc):
     """rr, nlerp at (j, f): the slerp (as float32) and the normalized lerp of the stored keys
-    p, n at alpha a (three.js's slerp and Blender's component-wise lerp)."""
+    p, n at alpha a (three.js's slerp and Blender's component-wise lerp); arc: the slerp's
+    segment (`_arc` of the two keys)."""
     x0, y0, z0, w0 = (np.float64(vq[j, p, 0]), np.float64(vq[j, p, 1]),
                       np.float64(vq[j, p, 2]), np.float64(vq[j, p, 3]))
     if fixed:
@@ -212,7 +238,7 @@ def _rotation(vq, static_r, j, f, p, n, a, fixed, last, rr, nlerp):
                           np.float64(vq[j, n, 2]), np.float64(vq[j, n, 3]))
         l0, l1 = (x1 - x0) * a + x0, (y1 - y0) * a + y0
         l2, l3 = (z1 - z0) * a + z0, (w1 - w0) * a + w0
-        s0, s1, s2, s3 = _slerp(x0, y0, z0, w0, x1, y1, z1, w1, a)
+        s0, s1, s2, s3 = _arc_at(x0, y0, z0, w0, arc, a)
     rr[j, f, 0], rr[j, f, 1] = np.float64(np.float32(s0)), np.float64(np.float32(s1))
     rr[j, f, 2], rr[j, f, 3] = np.float64(np.float32(s2)), np.float64(np.float32(s3))
     m = np.sqrt(l0 * l0 + l1 * l1 + l2 * l2 + l3 * l3)
@@ -223,17 +249,36 @@ def _rotation(vq, static_r, j, f, p, n, a, fixed, last, rr, nlerp):
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _slerp(x0, y0, z0, w0, x1, y1, z1, w1, t):
     """reduce._slerp of one pair."""
+    return _arc_at(x0, y0, z0, w0, _arc(x0, y0, z0, w0, x1, y1, z1, w1), t)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _arc(x0, y0, z0, w0, x1, y1, z1, w1):
+    """What the slerp from (x0, y0, z0, w0) to (x1, y1, z1, w1) does at any alpha (one
+    segment's frames share it): the second key the short way round, whether it equals the
+    first (`same`: played as stored), whether it is near (lerped and normalized), else the
+    angle theta between them and its sine."""
     d = x0 * x1 + y0 * y1 + z0 * z1 + w0 * w1
     if d < 0.0:
         x1, y1, z1, w1, d = -x1, -y1, -z1, -w1, -d
-    if x0 == x1 and y0 == y1 and z0 == z1 and w0 == w1:
-        return x0, y0, z0, w0
+    same = x0 == x1 and y0 == y1 and z0 == z1 and w0 == w1
     near = d >= NEAR_DOT
+    theta = s = 0.0
+    if not (same or near):
+        theta = np.arccos(min(d, 1.0))
+        s = np.sin(theta)
+    return x1, y1, z1, w1, same, near, theta, s
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _arc_at(x0, y0, z0, w0, arc, t):
+    """The slerp at alpha t from (x0, y0, z0, w0) along `arc` (`_arc`)."""
+    x1, y1, z1, w1, same, near, theta, s = arc
+    if same:
+        return x0, y0, z0, w0
     if near:
         wa, wb = 1.0 - t, t
     else:
-        theta = np.arccos(min(d, 1.0))
-        s = np.sin(theta)
         wa, wb = np.sin((1.0 - t) * theta) / s, np.sin(t * theta) / s
     ox, oy, oz, ow = x0 * wa + x1 * wb, y0 * wa + y1 * wb, z0 * wa + z1 * wb, w0 * wa + w1 * wb
     if near:
@@ -244,7 +289,8 @@ def _slerp(x0, y0, z0, w0, x1, y1, z1, w1, t):
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _qmul(a, b, ja, jb, fa, out, jo):
-    """out[jo, fa] = a[ja, fa] b[jb, fa] (reduce._qmul's terms, left to right)."""
+    """out[jo, fa] = a[ja, fa] b[jb, fa] (geometry.transforms.quat_mul's terms, left to
+    right)."""
     a0, a1, a2, a3 = a[ja, fa, 0], a[ja, fa, 1], a[ja, fa, 2], a[ja, fa, 3]
     b0, b1, b2, b3 = b[jb, fa, 0], b[jb, fa, 1], b[jb, fa, 2], b[jb, fa, 3]
     out[jo, fa, 0] = a3 * b0 + a0 * b3 + a1 * b2 - a2 * b1
@@ -255,7 +301,8 @@ def _qmul(a, b, ja, jb, fa, out, jo):
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _qrot(q, jq, f, v0, v1, v2):
-    """q[jq, f] rotating (v0, v1, v2) (reduce._qrot: v + w t + qv x t, t = 2 qv x v)."""
+    """q[jq, f] rotating (v0, v1, v2) (geometry.transforms.quat_rotate: v + w t + qv x t,
+    t = 2 qv x v)."""
     x, y, z, w = q[jq, f, 0], q[jq, f, 1], q[jq, f, 2], q[jq, f, 3]
     t0, t1, t2 = (y * v2 - z * v1) * 2.0, (z * v0 - x * v2) * 2.0, (x * v1 - y * v0) * 2.0
     return (t0 * w + v0 + (y * t2 - z * t1), t1 * w + v1 + (z * t0 - x * t2),
@@ -410,26 +457,6 @@ def _keys_of(j, pj, target_t, target_r, short, t0, q0, wq0, pos0, pos, mat, wq, 
                 vq[j, f, k] = v
 
 
-def targets_at(i: np.ndarray, x, p) -> tuple[np.ndarray, np.ndarray]:
-    """((N, 3), (N, 4)) the translation and rotation targets of any pairs i (flat indices
-    j * F + f) from the player p's current poses: what `targets_level` gives there (p.tt, p.tq
-    hold them at key frames only)."""
-    tt, tq = np.empty((len(i), 3)), np.empty((len(i), 4))
-    compiled_call(_targets_at, np.ascontiguousarray(i, dtype=np.int64), x.parents, x.t0,
-                    x.q0, x.wq0, p.pos0, p.pos, p.mat, p.wq, tt, tq)
-    return tt, tq
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _targets_at(i, parents, t0, q0, wq0, pos0, pos, mat, wq, tt, tq):
-    f_count = t0.shape[1]
-    for n in range(len(i)):
-        j, f = i[n] // f_count, i[n] % f_count
-        pj = parents[j]
-        tt[n, 0], tt[n, 1], tt[n, 2] = _target_t(pj < 0, t0, pos0, pos, mat, j, pj, f)
-        _target_q(pj < 0, q0, wq0, wq, j, pj, f, tq[n])
-
-
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _target_t(root, t0, pos0, pos, mat, j, pj, f):
     """The local translation of (j, f) that puts it on its unreduced world position under its
@@ -518,3 +545,255 @@ def _quantize(q, out):
             best, at = cost, code
     for k in range(4):
         out[k] = np.int16(min(max(c[k] + (at >> k & 1), -SHORT_MAX), SHORT_MAX))
+
+
+def blame_slots(ki, fi, chains, shape) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct (ancestor, frame) pairs of the offending pairs (ki, fi) (reduce._blame):
+    (slot (J * F,) int64, each pair's row among them or -1; i (N,) int64, the pairs' flat
+    indices j * F + f, in the order of their rows)."""
+    j_count, f_count = shape
+    slot = np.full(j_count * f_count, -1, np.int64)
+    i = np.empty(min(j_count * f_count, len(ki) * chains.shape[1]), np.int64)
+    count = np.zeros(1, np.int64)
+    compiled_call(_slots, np.ascontiguousarray(ki, np.int64), np.ascontiguousarray(fi, np.int64),
+                  chains, f_count, slot, i, count)
+    return slot, i[:count[0]]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _slots(ki, fi, chains, f_count, slot, i, count):
+    n = 0
+    for v in range(len(ki)):
+        for d in range(chains.shape[1]):
+            a = chains[ki[v], d]
+            if a < 0:
+                break                       # past the root
+            at = a * f_count + fi[v]
+            if slot[at] < 0:
+                slot[at] = n
+                i[n] = at
+                n += 1
+    count[0] = n
+
+
+def blame_pairs(ki, fi, chains, slot, diff, pos, c_t, rv, wp, share: float, out: list) -> None:
+    """reduce._blame's shares, of the offending pairs (ki, fi): each channel on a pair's chain
+    (its translations' and its strict ancestors' rotations) projected on the pair's error
+    direction (diff); those with at least `share` of the pair's largest, and over 0, are
+    candidates at the pair's frame, their scores raised to it: into out = [translation
+    candidates, scores, rotation candidates, scores] (J, F). c_t (N, 3): the translation
+    channels' world moves at the rows `slot` gives (blame_slots); rv (N, 3) the rotation
+    channels' error as rotation vectors, turned into the world's by wp (N, 4) (blame_moves).
+    The projections are summed in np.einsum's order, (x0 y0 + x2 y2) + x1 y1 (its two
+    accumulators), as the numpy blame summed them."""
+    compiled_call(_blame, np.ascontiguousarray(ki, np.int64), np.ascontiguousarray(fi, np.int64),
+                  chains, slot, diff, pos, c_t, rv, wp, float(share), *out)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _blame(ki, fi, chains, slot, diff, pos, c_t, rv, wp, share, cand_t, score_t, cand_r,
+           score_r):
+    f_count = diff.shape[1]
+    depth = chains.shape[1]
+    ct, cr = np.empty(depth), np.empty(depth)
+    omega = np.empty(rv.shape)
+    for r in range(len(rv)):
+        omega[r, 0], omega[r, 1], omega[r, 2] = quat_rotate1(
+            wp[r, 0], wp[r, 1], wp[r, 2], wp[r, 3], rv[r, 0], rv[r, 1], rv[r, 2])
+    for v in range(len(ki)):
+        k, f = ki[v], fi[v]
+        e0, e1, e2 = diff[k, f, 0], diff[k, f, 1], diff[k, f, 2]
+        m = _len(e0, e1, e2)
+        if not (m >= 1e-300 or m != m):     # np.maximum's (a NaN wins)
+            m = 1e-300
+        e0, e1, e2 = e0 / m, e1 / m, e2 / m
+        top = -np.inf
+        n = depth
+        for d in range(depth):
+            a = chains[k, d]
+            if a < 0:
+                n = d
+                break                       # past the root
+            r = slot[a * f_count + f]
+            ct[d] = (c_t[r, 0] * e0 + c_t[r, 2] * e2) + c_t[r, 1] * e1      # np.einsum's order
+            cr[d] = -np.inf
+            if d > 0:                       # the arm from the ancestor a to k, across e
+                h0, h1, h2 = pos[k, f, 0] - pos[a, f, 0], pos[k, f, 1] - pos[a, f, 1], \
+                    pos[k, f, 2] - pos[a, f, 2]
+                r0, r1, r2 = h1 * e2 - h2 * e1, h2 * e0 - h0 * e2, h0 * e1 - h1 * e0
+                cr[d] = (omega[r, 0] * r0 + omega[r, 2] * r2) + omega[r, 1] * r1
+            top = _top(_top(top, ct[d]), cr[d])
+        bar = share * top
+        for d in range(n):
+            a = chains[k, d]
+            _candidate(ct[d], bar, a, f, cand_t, score_t)
+            _candidate(cr[d], bar, a, f, cand_r, score_r)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _top(top, c):
+    """The larger of top and c, np.max's (a NaN wins)."""
+    return c if c > top or c != c else top
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _candidate(c, bar, a, f, cand, score):
+    """A share c over 0 and at least bar makes (a, f) a candidate, its score raised to c."""
+    if c > 0 and c >= bar:
+        cand[a, f] = True
+        if c > score[a, f]:
+            score[a, f] = c
+
+
+def unreduced(order, parents, translations, rotations) -> tuple:
+    """The unreduced clip joints first, float64: local t0 (J, F, 3), q0 (J, F, 4) from the
+    clip's (F, J, 3) translations and (F, J, 4) rotations, and the world positions pos0 and
+    rotations wq0 that rig.skeleton.forward_kinematics gives (its arithmetic, pair by pair:
+    geometry.fused's quat_rotate1 and quat_mul1), in one pass over the joints `order` (parents
+    first) instead of its frames-first arrays and their transposing copies."""
+    f_count, j_count = translations.shape[:2]
+    out = (np.empty((j_count, f_count, 3)), np.empty((j_count, f_count, 4)),
+           np.empty((j_count, f_count, 3)), np.empty((j_count, f_count, 4)))
+    compiled_call(_unreduced, order, parents, translations, rotations, *out)
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _unreduced(order, parents, translations, rotations, t0, q0, pos0, wq0):
+    for j in order:
+        pj = parents[j]
+        for f in range(translations.shape[0]):
+            for k in range(3):
+                t0[j, f, k] = np.float64(translations[f, j, k])
+            for k in range(4):
+                q0[j, f, k] = np.float64(rotations[f, j, k])
+            if pj < 0:
+                for k in range(3):
+                    pos0[j, f, k] = t0[j, f, k]
+                for k in range(4):
+                    wq0[j, f, k] = q0[j, f, k]
+                continue
+            x, y, z, w = wq0[pj, f, 0], wq0[pj, f, 1], wq0[pj, f, 2], wq0[pj, f, 3]
+            r0, r1, r2 = quat_rotate1(x, y, z, w, t0[j, f, 0], t0[j, f, 1], t0[j, f, 2])
+            pos0[j, f, 0], pos0[j, f, 1] = pos0[pj, f, 0] + r0, pos0[pj, f, 1] + r1
+            pos0[j, f, 2] = pos0[pj, f, 2] + r2
+            wq0[j, f, 0], wq0[j, f, 1], wq0[j, f, 2], wq0[j, f, 3] = quat_mul1(
+                x, y, z, w, q0[j, f, 0], q0[j, f, 1], q0[j, f, 2], q0[j, f, 3])
+
+
+def blame_moves(i, x, p) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """At the pairs i (N,) (flat indices j * F + f), from the player p's current poses
+    (reduce._channel_moves): the world offset of each translation channel's error (the played
+    minus the target local translation, in its parent's world frame) c_t (N, 3), each rotation
+    channel's error err_q (N, 4) (the played local rotation times the target's conjugate) and
+    the parent's world rotation wp (N, 4) (identity at a root), which turns err_q's rotation
+    vector into the world's. The targets are those `targets_level` gives there."""
+    out = np.empty((len(i), 3)), np.empty((len(i), 4)), np.empty((len(i), 4))
+    compiled_call(_moves, np.ascontiguousarray(i, dtype=np.int64), x.parents, x.t0, x.q0,
+                  x.wq0, p.pos0, p.pos, p.mat, p.wq, p.tr, p.rr, *out)
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _moves(i, parents, t0, q0, wq0, pos0, pos, mat, wq, tr, rr, c_t, err_q, wp):
+    f_count = t0.shape[1]
+    q = np.empty(4)
+    for n in range(len(i)):
+        j, f = i[n] // f_count, i[n] % f_count
+        pj = parents[j]
+        root = pj < 0
+        x, y, z, w = (0.0, 0.0, 0.0, 1.0) if root else (wq[pj, f, 0], wq[pj, f, 1],
+                                                         wq[pj, f, 2], wq[pj, f, 3])
+        wp[n, 0], wp[n, 1], wp[n, 2], wp[n, 3] = x, y, z, w
+        a0, a1, a2 = _target_t(root, t0, pos0, pos, mat, j, pj, f)
+        c_t[n, 0], c_t[n, 1], c_t[n, 2] = quat_rotate1(
+            x, y, z, w, tr[j, f, 0] - a0, tr[j, f, 1] - a1, tr[j, f, 2] - a2)
+        _target_q(root, q0, wq0, wq, j, pj, f, q)
+        err_q[n, 0], err_q[n, 1], err_q[n, 2], err_q[n, 3] = quat_mul1(
+            rr[j, f, 0], rr[j, f, 1], rr[j, f, 2], rr[j, f, 3], -q[0], -q[1], -q[2], q[3])
+
+
+def segments(keep) -> tuple[np.ndarray, np.ndarray]:
+    """(prev, nxt), each (C, F) int64, of the key frames keep (C, F) bool (reduce._segments)."""
+    keep = np.asarray(keep, dtype=bool)
+    prev, nxt = np.empty(keep.shape, np.int64), np.empty(keep.shape, np.int64)
+    compiled_call(_segment_rows, keep, prev, nxt)
+    return prev, nxt
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _segment_rows(keep, prev, nxt):
+    scratch = np.empty(keep.shape[1], np.bool_)      # where they changed: not asked for
+    for c in range(keep.shape[0]):
+        _segment_row(keep, c, prev, nxt, scratch)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _segment_row(keep, c, prev, nxt, dirty):
+    """prev, nxt of row c of keep, in place; dirty (F,) set where either changed."""
+    f_count = keep.shape[1]
+    at = -1
+    for f in range(f_count):
+        if keep[c, f]:
+            at = f
+        if prev[c, f] != at:
+            dirty[f] = True
+            prev[c, f] = at
+    at = f_count
+    for f in range(f_count - 1, -1, -1):
+        if nxt[c, f] != at:
+            dirty[f] = True
+            nxt[c, f] = at
+        if keep[c, f]:
+            at = f
+
+
+def resegment(segments: tuple, played: np.ndarray, keep: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Bring `segments` (reduce._segments of the keys `played`, (C, F)) and `played` up to
+    `keep`, in place, redoing only the channels whose keys changed (reduce._resegment).
+    Returns ((C, F) bool the frames whose segment changed, (C, F) bool the new keys)."""
+    dirty, new = np.zeros(keep.shape, dtype=bool), np.zeros(keep.shape, dtype=bool)
+    compiled_call(_resegment, keep, played, segments[0], segments[1], dirty, new)
+    return dirty, new
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _resegment(keep, played, prev, nxt, dirty, new):
+    for c in range(keep.shape[0]):
+        same = True
+        for f in range(keep.shape[1]):
+            if keep[c, f] != played[c, f]:
+                same = False
+                break
+        if same:
+            continue
+        for f in range(keep.shape[1]):
+            new[c, f] = keep[c, f] and not played[c, f]
+            played[c, f] = keep[c, f]
+        _segment_row(keep, c, prev, nxt, dirty[c])
+
+
+def violations(err, spread, tight, slide, bounds: tuple) -> np.ndarray:
+    """(J, F) bool: the pairs over a bound (reduce._Player.play): err over bounds[0] or spread
+    over bounds[1]; where tight (J, F) bool (or None), err over bounds[2]; and both frames of
+    a planted pair whose slide (J, F - 1) (or None) is over bounds[3]."""
+    viol = np.empty(err.shape, dtype=bool)
+    none = np.zeros((0, 0), dtype=bool)
+    compiled_call(_violations, err, spread, none if tight is None else tight,
+                  np.zeros((0, 0)) if slide is None else slide, tight is not None,
+                  slide is not None, *(float(b) for b in bounds), viol)
+    return viol
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _violations(err, spread, tight, slide, has_tight, has_slide, tol, spread_max, tight_max,
+                slide_max, viol):
+    for j in range(err.shape[0]):
+        for f in range(err.shape[1]):
+            viol[j, f] = err[j, f] > tol or spread[j, f] > spread_max or \
+                (has_tight and tight[j, f] and err[j, f] > tight_max)
+        if has_slide:
+            for f in range(err.shape[1] - 1):
+                if slide[j, f] > slide_max:
+                    viol[j, f] = viol[j, f + 1] = True
