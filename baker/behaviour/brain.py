@@ -186,18 +186,18 @@ class Brain(IntentSource):
         self._now = t
         self.new_target = False
         self.halt = False
-        if self.perceives(t):
+        if t + 1e-9 >= self._next_perception:       # perceives(t)
             self._next_perception = t + 1.0 / self.b.perception_rate
             self._perceive(s)
-        decide = t + 1e-9 >= self._next_decision
-        getattr(self, "_" + (self.state or "start"))(s, decide)
+        _ACTS[self.state](self, s, t + 1e-9 >= self._next_decision)
+        state = self.state
         if self.cobra_mode == "always":
             self.cobra = 1.0
         elif self.cobra_mode == "never":
             self.cobra = 0.0
         else:
-            self.cobra = 1.0 if (self.state == "cobra" or t < self._scout_until) else 0.0
-        self.warning = 1.0 if self.state == "warning" else 0.0
+            self.cobra = 1.0 if (state == "cobra" or t < self._scout_until) else 0.0
+        self.warning = 1.0 if state == "warning" else 0.0
         return self.intent()
 
     def perceives(self, t: float) -> bool:
@@ -422,6 +422,10 @@ class Brain(IntentSource):
             # sated: it hunts no more for a while and digests in shade (its rolls go to shade)
             self._sated_until = s.t + self.b.sated_time
             self._roll(s)
+
+
+#: each state's step (Brain._<state>; the start's before the first state)
+_ACTS = {name: getattr(Brain, "_" + (name or "start")) for name in ("",) + STATES}
 
 
 def _r(p) -> list[float]:

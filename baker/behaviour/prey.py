@@ -45,8 +45,14 @@ class Prey:
             self.agent.speed = 0.0
             return
         c = self.cfg
-        away = self.position - threat if threat is not None else None
-        dist = math.hypot(away[0], away[2]) if away is not None else math.inf
+        if threat is not None:
+            # position - threat in Python floats (the same bits as the (3,) arrays'), the array
+            # built only when a flight is planned
+            (px, py, pz), (tx, ty, tz) = self.agent.position.tolist(), threat.tolist()
+            away = (px - tx, py - ty, pz - tz)
+            dist = math.hypot(away[0], away[2])
+        else:
+            away, dist = None, math.inf
         # flee when the centipede comes within the trigger (closer when under cover, where it
         # keeps still); keep running until well clear
         trigger = c.flee_trigger * (1.5 if self.fleeing else 1.0)
@@ -59,7 +65,7 @@ class Prey:
             self.agent.max_speed = c.flee_speed if self.stamina > 0 else c.tired_speed
             if t >= self._next_flee_plan:
                 self._next_flee_plan = t + 0.25
-                self._flee(away / max(dist, 1e-9))
+                self._flee(np.array(away) / max(dist, 1e-9))
         else:
             self.stamina = min(self.stamina + c.recovery * dt, c.stamina)
             self.agent.max_speed = c.wander_speed

@@ -96,15 +96,17 @@ class PathAgent:
         slack : 0..1, how much of the maximum speed the follower allows (1 = free, 0 = wait for
                 the head, which is still turning toward the path)
         """
+        end, s0, acc, speed = self._cum[-1], self._s, self.acceleration, self.speed
         vmax = self.max_speed * self.speed_scale * min(max(slack, 0.0), 1.0)
-        free = max(self.remaining - self.stopping_distance, 0.0)
-        target = min(vmax, math.sqrt(2.0 * self.acceleration * free))
-        dv = self.acceleration * dt
-        self.speed = min(max(target, self.speed - dv), self.speed + dv)
+        free = max(end - s0 - self.stopping_distance, 0.0)      # (remaining, less the stop)
+        target = min(vmax, math.sqrt(2.0 * acc * free))
+        dv = acc * dt
+        speed = min(max(target, speed - dv), speed + dv)
         if free <= 0.0:
-            self.speed = max(self.speed - dv, 0.0)
-        s = min(self._s + self.speed * dt, self._cum[-1])
-        if s == self._s and self.position is self._placed:
+            speed = max(speed - dv, 0.0)
+        self.speed = speed
+        s = min(s0 + speed * dt, end)
+        if s == s0 and self.position is self._placed:
             return        # standing still on the same path: the same point
         self._s = s
         self.position = self._placed = self._at(s)

@@ -711,39 +711,42 @@ def _edge_length(p, q) -> float:
     return math.sqrt((q[0] - p[0]) ** 2 + (q[1] - p[1]) ** 2 + (q[2] - p[2]) ** 2)
 
 
+#: _astar's cost of an expanded node (below any cost, so never improved on)
+_CLOSED = -math.inf
+
+
 def _astar(start: int, goal: int, edges, point) -> list[int] | None:
     """A* with Euclidean costs and heuristic.
 
     edges(u) -> iterable of (node id, edge length _edge_length); point(u) -> (x, y, z) floats.
     Returns the node path start..goal, or None when goal is unreachable.
     """
-    sqrt = math.sqrt
+    sqrt, push, pop, inf = math.sqrt, heapq.heappush, heapq.heappop, math.inf
     gx, gy, gz = point(goal)
+    # best cost so far per node; CLOSED once expanded (no new cost is below it: one look-up
+    # both skips a closed node and compares with an open one's)
     g = {start: 0.0}
+    g_of = g.get
     parent = {start: -1}
     ux, uy, uz = point(start)
     heap = [(sqrt((ux - gx) ** 2 + (uy - gy) ** 2 + (uz - gz) ** 2), 0.0, start)]
-    closed = set()
     while heap:
-        _, gu, u = heapq.heappop(heap)
+        _, gu, u = pop(heap)
         if u == goal:
             out = [u]
             while parent[out[-1]] >= 0:
                 out.append(parent[out[-1]])
             return out[::-1]
-        if u in closed:
+        if g[u] == _CLOSED:
             continue
-        closed.add(u)
+        g[u] = _CLOSED
         for v, w in edges(u):
-            if v in closed:
-                continue
             ng = gu + w
-            if ng < g.get(v, math.inf):
+            if ng < g_of(v, inf):
                 g[v] = ng
                 parent[v] = u
                 vx, vy, vz = point(v)
-                h = sqrt((vx - gx) ** 2 + (vy - gy) ** 2 + (vz - gz) ** 2)
-                heapq.heappush(heap, (ng + h, ng, v))
+                push(heap, (ng + sqrt((vx - gx) ** 2 + (vy - gy) ** 2 + (vz - gz) ** 2), ng, v))
     return None
 
 
@@ -766,7 +769,7 @@ def _fine_astar(s: NavSurface, a: int, b: int, allowed: set[int]) -> list[int] |
     pos, co, links = s.positions, s.coarse_of, s.links
 
     def point(u):
-        return tuple(float(x) for x in pos[u])
+        return tuple(pos[u].tolist())   # the same Python floats as float() of each element
 
     def edges(u):
         p = point(u)

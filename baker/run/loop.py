@@ -67,10 +67,11 @@ def run(cfg: BakeConfig, env, nav, streams: Streams, ctx: Context, intent=None) 
         # 2.-3. a new goal means a new path; the agent walks it and the head follows it
         follow.apply(want)
         follow.step(clock.dt)
-        heads[k] = follow.position
+        head = heads[k]
+        head[:] = follow.position
         # 4. prey react to the head
         for p in preys:
-            p.step(t, clock.dt, heads[k])
+            p.step(t, clock.dt, head)
         cobra += max(-ramp, min(ramp, want.cobra - cobra))
         if k % clock.per_frame == 0:
             rec.sample(k // clock.per_frame, want, preys, cobra, follow.head.phase)
