@@ -23,7 +23,8 @@ from baker.geometry.conventions import UP
 from baker.geometry.transforms import (frames_to_quat, limit_rotation, normalize, quat_angle,
                                        quat_rotate)
 from baker.locomotion.cobra import limit_lift
-from baker.locomotion.trail_kernels import gaussian_weights, interp_rows, trail_pass
+from baker.locomotion.trail_kernels import (gaussian_weights, interp_rows, linspace_to_zero,
+                                            trail_pass)
 from baker.locomotion.trail_kernels import place_chain as place_compiled
 from baker.parallel import compiled_call
 
@@ -257,52 +258,70 @@ def straight_ended_smooth(xy: np.ndarray, sigma: float, axis: int = 0,
 
 
 def trail_ends(paths: np.ndarray, cums: np.ndarray, ends: np.ndarray, extent: float,
-               spacing: float, resolution: float | None = None) -> np.ndarray:
+               spacing: float, resolution: float | None = None, rows: np.ndarray | None = None,
+               starts: np.ndarray | None = None) -> np.ndarray:
     """The last `extent` metres of several heads' trails, as build_trail makes them from the
     paths so far: each path resampled every `resolution` (default spacing / 8) of horizontal arc
     length, its kinks rounded and its heights smoothed as build_trail rounds and smooths them
     (a turn on the spot or a dithering head leaves a cusp the body's trail does not have), then
     sampled every `resolution` of the trail's own arc length, as place_chain walks it.
 
-    paths : (n, T, 3) float, head paths, oldest first (heights within the probe)
-    cums  : (n, T) float, their horizontal arc lengths (non-decreasing)
+    paths : (N, T, 3) float, head paths, oldest first (heights within the probe)
+    cums  : (N, T) float, their horizontal arc lengths (non-decreasing)
     ends  : (n,) int, the index of each path's last point (the head)
+    rows  : (n,) int, the paths taken (default all); starts : (n,) int, the index of each one's
+            first point (default 0: each path then taken to its last point, T - 1, its arc
+            lengths held at the head's after the head); with starts, each path is taken from
+            there to its head and its arc lengths measured from there (the paths are read
+            where they lie: a crowd's kept paths need no copy of their windows)
     returns (n, m, 3) float, oldest first, the head's point last; a trail shorter than
     `extent` is held at its first point before it
     """
     res = resolution or spacing / 8.0
     sigma = ROUND * spacing / res
     pad = int(4.0 * max(sigma, 2.0 * spacing / res) + 0.5)     # what smoothing a start reaches
-    n = len(paths)
-    rows = np.arange(n)
-    total = cums[rows, ends]
+    n = len(ends)
+    rows = np.arange(n) if rows is None else np.asarray(rows, dtype=np.intp)
+    ends = np.asarray(ends, dtype=np.intp)
+    # each row's knots: its arc lengths from its first point to its last (`stops`), less
+    # `base`, held at the head's after the head
+    if starts is None:
+        starts, stops, base = np.zeros(n, np.intp), np.full(n, cums.shape[1] - 1), np.zeros(n)
+    else:
+        starts, stops = np.asarray(starts, dtype=np.intp), ends
+        base = cums[rows, starts]
+    first, total = cums[rows, starts] - base, cums[rows, ends] - base
     span = np.full(n, 2.0 * extent + 2.0 * pad * res)
     m = max(int(np.ceil(extent / res)), 1) + 1
     out = np.empty((n, m, 3))
-    todo = rows
+    todo = np.arange(n)
     w_xz, w_y = gaussian_weights(sigma), gaussian_weights(2.0 * spacing / res)
     while len(todo):
         # a dithering head's raw arc length is longer than its trail's: look farther back
         w = int(np.ceil(span[todo[0]] / res)) + 1
-        s = total[todo, None] + np.linspace(-span[todo[0]], 0.0, w)[None, :]
-        xp = np.where(np.arange(cums.shape[1]) <= ends[todo, None], cums[todo], total[todo, None])
+        s = total[todo, None] + linspace_to_zero(float(-span[todo[0]]), w)[None, :]
         k = min(pad, w - 1)
         # resampled (_interp_rows), x and z smoothed with straight ends (straight_ended_smooth,
         # reach pad), y smoothed: compiled, the same bits (locomotion.trail_kernels)
         pts, arc = np.empty((len(todo), w, 3)), np.empty((len(todo), w))
-        trail_pass(np.maximum(s, 0.0), xp, paths[todo], _row_shifts(xp), w_xz, w_y, k, pts, arc)
+        shifts = _row_shifts(np.column_stack([first[todo], total[todo]]))
+        trail_pass(np.maximum(s, 0.0), cums, paths, rows[todo], starts[todo], ends[todo],
+                   stops[todo], base[todo], shifts, w_xz, w_y, k, pts, arc)
         short = (s[:, 0] > 0.0) & (arc[:, -1] - arc[:, k] < extent)
-        done = ~short
-        q = arc[done, -1:] + np.linspace(-extent, 0.0, m)[None, :]
-        out[todo[done]] = _interp_rows(q, arc[done], pts[done])
-        todo = todo[short]
+        done, again = todo, todo[:0]
+        if short.any():                  # (rare: no copies of the rows when every one is done)
+            done, again, arc, pts = todo[~short], todo[short], arc[~short], pts[~short]
+        q = arc[:, -1:] + linspace_to_zero(-float(extent), m)[None, :]
+        out[done] = _interp_rows(q, arc, pts)
+        todo = again
         span[todo] *= 2.0
     return out
 
 
 def _row_shifts(xp: np.ndarray) -> np.ndarray:
     """(n,) the offsets _interp_rows adds to each row of knots xp (n, b) (and its keys) so
-    that the rows follow one another, at least 1 apart."""
+    that the rows follow one another, at least 1 apart (read from each row's first and last
+    knots alone)."""
     width = float((xp[:, -1] - xp[:, 0]).max()) + 1.0
     return width * np.arange(len(xp)) - xp[:, 0]
 

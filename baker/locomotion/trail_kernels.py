@@ -7,7 +7,10 @@
   placed every few steps of the run for every creature near another): the rows' interpolation
   (np.interp on the shifted arc lengths body._interp_rows makes) and the smoothing
   (scipy.ndimage.gaussian_filter1d's correlation with mode "nearest", after
-  straight_ended_smooth's straight ends).
+  straight_ended_smooth's straight ends). trail_pass reads each row's window of the crowd's
+  kept paths where it lies (a copy of the windows, held at the head's point after it, gave
+  the same bits: a clamped key never reaches a knot after the head), and first_at_or_above
+  finds the windows' starts.
 
 - np.interp (numpy/_core/src/multiarray/compiled_base.c, arr_interp): the key's interval j is
   the last with xp[j] <= x; a key on a knot (or on the last one) takes that knot's value, else
@@ -47,13 +50,25 @@ def gaussian_weights(sigma: float) -> np.ndarray:
     return gaussian_filter1d(impulse, sigma, mode="constant")
 
 
-def trail_pass(s, xp, fp, shift, w_xz, w_y, k, pts, arc) -> None:
-    """One pass of trail_ends over rows: pts (n, w, 3) = the paths fp (n, T, 3) interpolated at
-    arc lengths s (n, w) on knots xp (n, T) (shifted by shift (n,), as body._interp_rows does),
-    then x and z smoothed with w_xz after k straight samples at either end, y with w_y; arc
-    (n, w) its arc lengths from the first point. All float64, C-contiguous; pts, arc written."""
-    compiled_call(_trail_pass, _c(s), _c(xp), _c(fp), _c(shift), _c(w_xz), _c(w_y), int(k),
-                  pts, arc)
+@functools.lru_cache(maxsize=64)
+def linspace_to_zero(start: float, count: int) -> np.ndarray:
+    """np.linspace(start, 0.0, count), kept per (start, count): trail_ends asks for the same
+    few every time it places a crowd's bodies. Not to be written to."""
+    out = np.linspace(start, 0.0, count)
+    out.flags.writeable = False
+    return out
+
+
+def trail_pass(s, cum, path, rows, starts, ends, stops, base, shift, w_xz, w_y, k, pts,
+               arc) -> None:
+    """One pass of trail_ends over rows: pts (n, w, 3) = the paths path[rows] (N, T, 3) from
+    starts to stops (n,) interpolated at arc lengths s (n, w) on knots cum[rows] less base (n,),
+    held at the head's (ends (n,)) after it, and shifted by shift (n,) as body._interp_rows
+    does; then x and z smoothed with w_xz after k straight samples at either end, y with w_y;
+    arc (n, w) its arc lengths from the first point. The paths are read where they lie (no
+    copy of each row's window). pts, arc written (float64, C-contiguous)."""
+    compiled_call(_trail_pass, _c(s), _c(cum), _c(path), _i(rows), _i(starts), _i(ends),
+                  _i(stops), _c(base), _c(shift), _c(w_xz), _c(w_y), int(k), pts, arc)
 
 
 def interp_rows(x, xp, fp, shift, out) -> None:
@@ -65,6 +80,10 @@ def interp_rows(x, xp, fp, shift, out) -> None:
 
 def _c(a) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def _i(a) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.int64)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -143,14 +162,21 @@ def _smooth(line, wts, k, buf, out):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _trail_pass(s, xp, fp, shift, w_xz, w_y, k, pts, arc):
+def _trail_pass(s, cum, path, rows, starts, ends, stops, base, shift, w_xz, w_y, k, pts, arc):
     n, w = s.shape
     raw = np.empty((w, 3))
     line = np.empty(w)
     sm = np.empty(w)
     buf = np.empty(w + 2 * k + len(w_xz) + len(w_y))
+    most = 1
     for r in range(n):
-        _interp_row(s[r], xp[r], fp[r], shift[r], raw)
+        most = max(most, stops[r] - starts[r] + 1)
+    xp = np.empty(most)                    # a row's knots, from its first point
+    for r in range(n):
+        p, a, e, b = rows[r], starts[r], ends[r], stops[r] - starts[r] + 1
+        for j in range(b):
+            xp[j] = cum[p, min(a + j, e)] - base[r]
+        _interp_row(s[r], xp[:b], path[p, a:a + b], shift[r], raw)
         for c in range(3):
             for i in range(w):
                 line[i] = raw[i, c]
@@ -197,6 +223,29 @@ def _at_or_below(xp, x):
         else:
             hi = mid
     return lo
+
+
+def first_at_or_above(cum, rows, ends, values) -> np.ndarray:
+    """(n,) int: for each of rows (n,), np.searchsorted(cum[row, :end + 1], value) (side
+    "left": how many of the row's arc lengths up to its end (ends (n,)) are below its value
+    (values (n,))); cum (N, T) non-decreasing up to each end, no NaN."""
+    out = np.empty(len(rows), np.int64)
+    compiled_call(_first_at_or_above, _c(cum), _i(rows), _i(ends), _c(values), out)
+    return out.astype(np.intp, copy=False)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _first_at_or_above(cum, rows, ends, values, out):
+    for r in range(len(rows)):
+        i, x = rows[r], values[r]
+        lo, hi = 0, ends[r] + 1
+        while lo < hi:
+            mid = (lo + hi) >> 1
+            if cum[i, mid] < x:
+                lo = mid + 1
+            else:
+                hi = mid
+        out[r] = lo
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

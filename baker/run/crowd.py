@@ -44,6 +44,7 @@ from baker.context import Context
 from baker.geometry.arrays import unique
 from baker.locomotion.body import ROUND, chain_on, trail_ends
 from baker.locomotion.cobra import lift_profile
+from baker.locomotion.trail_kernels import first_at_or_above
 from baker.navmesh.lazy import LazyNav
 from baker.run.follow import Follower
 from baker.run.group import Followers, States
@@ -152,20 +153,23 @@ class Bodies:
             self.path[i, :m] = line
             self.cum[i, 1:m] = np.cumsum(np.hypot(*np.diff(line[:, [0, 2]], axis=0).T))
         self.count = np.full(n, m - 1)     # index of each path's current (last) point
+        self._row = np.arange(n) * self.cum.shape[1]        # each path's first flat index
         self._key = np.full((n, 2), np.nan)          # (arc length, cobra) of the points kept
         self._points = np.zeros((n, self.size, 2))
 
     def advance(self, heads: np.ndarray) -> None:
         """The heads after a step (n, 3), for all creatures at once: each becomes its path's current
         point, after the one before it if that one is KEEP_EVERY resolutions on."""
-        rows = np.arange(len(heads))
+        # flat indices into the paths' rows (one index array a lookup, not two)
+        cum, path, row = self.cum.reshape(-1), self.path.reshape(-1, 3), self._row
         last = self.count
-        keep = self.cum[rows, last] - self.cum[rows, np.maximum(last - 1, 0)] >= (
+        keep = cum[row + last] - cum[row + np.maximum(last - 1, 0)] >= (
             self.KEEP_EVERY * self.res)
         at = last + keep
-        d = heads - self.path[rows, at - 1]
-        self.cum[rows, at] = self.cum[rows, at - 1] + np.hypot(d[:, 0], d[:, 2])
-        self.path[rows, at] = heads
+        flat = row + at
+        d = heads - path[flat - 1]
+        cum[flat] = cum[flat - 1] + np.hypot(d[:, 0], d[:, 2])
+        path[flat] = heads
         self.count = at
 
     def points(self, rows: np.ndarray, cobra: np.ndarray | None = None
@@ -186,15 +190,10 @@ class Bodies:
     def _place(self, rows: np.ndarray, amount: np.ndarray) -> np.ndarray:
         """(len(rows), size, 2) the body points of creatures `rows`."""
         ends = self.count[rows]
-        starts = np.array([np.searchsorted(self.cum[i, :j + 1], self.cum[i, j] - self.window)
-                           for i, j in zip(rows.tolist(), ends.tolist())], dtype=np.intp)
-        size = int((ends + 1 - starts).max())
-        # each path from its window's start, held at its head's point after it
-        at = np.minimum(starts[:, None] + np.arange(size), ends[:, None])
-        paths = self.path[rows[:, None], at]
-        cums = self.cum[rows[:, None], at] - self.cum[rows, starts][:, None]
-        trails = trail_ends(paths, cums, np.full(len(rows), size - 1), self.extent,
-                            self.spacing, self.res)
+        starts = first_at_or_above(self.cum, rows, ends, self.cum[rows, ends] - self.window)
+        # each path from its window's start to its head, read where it is kept
+        trails = trail_ends(self.path, self.cum, ends, self.extent, self.spacing, self.res,
+                            rows=rows, starts=starts)
         lift = np.zeros((len(rows), self.size))
         for r in np.flatnonzero(amount > 0.0):
             lift[r, :self.segments] = self.lift(float(amount[r]))

@@ -138,6 +138,41 @@ def test_trail_ends_gives_the_numpy_forms_bits(seed):
         np.testing.assert_array_equal(bits(got), bits(want))
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_trail_ends_read_in_place_give_the_copied_windows_bits(seed):
+    """trail_ends on rows of kept paths from their starts (rows, starts: the paths read where
+    they lie, run.crowd.Bodies) gives the bits of trail_ends on copies of those windows, their
+    arc lengths from the start and held at the head's after it (what the crowd copied before)."""
+    rng = np.random.default_rng(200 + seed)
+    N, T = int(rng.integers(2, 14)), int(rng.integers(40, 900))
+    paths, cums = np.zeros((N, T, 3)), np.zeros((N, T))
+    for i in range(N):
+        paths[i], cums[i] = head_path(rng, T, dither=bool(i % 2))
+    rows = rng.choice(N, int(rng.integers(1, N + 1)), replace=False)
+    ends = rng.integers(1, T, len(rows))
+    starts = (ends * rng.uniform(0.0, 1.0, len(rows))).astype(np.intp)
+    size = int((ends + 1 - starts).max())
+    at = np.minimum(starts[:, None] + np.arange(size), ends[:, None])
+    windows = paths[rows[:, None], at]
+    arcs = cums[rows[:, None], at] - cums[rows, starts][:, None]
+    extent = float(rng.uniform(5, 30)) * SPACING
+    for res in (0.25 * SPACING, SPACING / 8.0):
+        got = trail_ends(paths, cums, ends, extent, SPACING, res, rows=rows, starts=starts)
+        want = trail_ends(windows, arcs, np.full(len(rows), size - 1), extent, SPACING, res)
+        np.testing.assert_array_equal(bits(got), bits(want))
+
+
+def test_first_at_or_above_is_searchsorted():
+    rng = np.random.default_rng(3)
+    for _ in range(100):
+        N, T = 5, int(rng.integers(1, 50))
+        cum = np.sort(rng.integers(0, 20, (N, T)).astype(float), axis=1)
+        rows, ends = rng.integers(0, N, 7), rng.integers(0, T, 7)
+        values = rng.integers(-2, 22, 7).astype(float)
+        want = [np.searchsorted(cum[i, :j + 1], x) for i, j, x in zip(rows, ends, values)]
+        np.testing.assert_array_equal(tk.first_at_or_above(cum, rows, ends, values), want)
+
+
 def test_weights_are_scipys_kernel():
     from scipy.ndimage import correlate1d
 
