@@ -92,15 +92,24 @@ def _interp_row(x, xp, fp, s, out):
     the keys clipped to the knots' range first, then shifted by s."""
     b = len(xp)
     lo, hi = xp[0], xp[b - 1]
-    j = 0
+    j = -1
     for i in range(len(x)):
         v = x[i]
         v = lo if v < lo else v                  # np.clip(x, lo, hi)
         v = hi if v > hi else v
         v = v + s
-        # the last knot j with xp[j] + s <= v (the keys rise: search on from the last one)
-        if xp[j] + s > v:
-            j = 0
+        # the last knot j with xp[j] + s <= v (0 when none): bisected for the first key and
+        # a key below the last one's knot, else searched on from the last one (the keys rise);
+        # xp + s does not decrease, so either finds the knot a walk from the first would
+        if j < 0 or xp[j] + s > v:
+            left, right = 0, b
+            while left < right:
+                mid = (left + right) >> 1
+                if xp[mid] + s <= v:
+                    left = mid + 1
+                else:
+                    right = mid
+            j = max(left - 1, 0)
         while j + 1 < b and xp[j + 1] + s <= v:
             j += 1
         xj = xp[j] + s
