@@ -682,8 +682,8 @@ def _unreduced(order, parents, translations, rotations, t0, q0, pos0, wq0):
 
 
 def blame_moves(i, x, p) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """At the pairs i (N,) (flat indices j * F + f), from the player p's current poses
-    (reduce._channel_moves): the world offset of each translation channel's error (the played
+    """At the pairs i (N,) (flat indices j * F + f), from the player p's current poses (for
+    the blame, reduce._blame_block): the world offset of each translation channel's error (the played
     minus the target local translation, in its parent's world frame) c_t (N, 3), each rotation
     channel's error err_q (N, 4) (the played local rotation times the target's conjugate) and
     the parent's world rotation wp (N, 4) (identity at a root), which turns err_q's rotation
