@@ -300,6 +300,29 @@ def _gap(q, px, py, pz):
     return np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
 
 
+#: how many times the steps' reach _farther searches past them for a point a spacing back
+FARTHER = 4
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _farther(points, cum, rise, back, off, w, steps, spacing, px, py, pz, q, hi, lo):
+    """(hi, lo): the arcs to bisect between for a joint whose trail, over all of `steps` back
+    from the joint ahead, stays within a spacing of it (a body coiled tighter than its steps
+    reach: a crowd's cornered head turned on the spot): the same steps on, up to FARTHER times
+    as far back, to the first point a spacing away; (hi, lo) as given when there is none (the
+    trail's start), so the joint is as close as before."""
+    step = steps[1] - steps[0]
+    last = steps[len(steps) - 1]
+    for j in range(1, (FARTHER - 1) * (len(steps) - 1) + 1):
+        s = back - (last + j * step)
+        if s < cum[0]:
+            break
+        _at(points, cum, rise, s, off, w, q)
+        if _gap(q, px, py, pz) > spacing:
+            return s, back - (last + (j - 1) * step)
+    return hi, lo
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _place_chain(points, cum, rise, head_arc, offset, w, steps, spacing, raised, raised_rise,
                  pos, arc):
@@ -319,13 +342,18 @@ def _place_chain(points, cum, rise, head_arc, offset, w, steps, spacing, raised,
                 below = py - q[1] - raised_rise
                 offset[f, i] += below if below >= 0.0 or below != below else 0.0
             k = K - 1
+            found = False
             for j in range(K):
                 _at(points, cum, rise, back - steps[j], offset[f, i], w[f, i], q)
                 if _gap(q, px, py, pz) > spacing:
                     k = j
+                    found = True
                     break
             hi = back - steps[max(k, 1)]
             lo = back - steps[max(k - 1, 0)]
+            if not found:
+                hi, lo = _farther(points, cum, rise, back, offset[f, i], w[f, i], steps,
+                                  spacing, px, py, pz, q, hi, lo)
             for _ in range(16):
                 mid = 0.5 * (lo + hi)
                 _at(points, cum, rise, mid, offset[f, i], w[f, i], q)

@@ -16,6 +16,7 @@ from scipy.ndimage import gaussian_filter1d
 from baker.geometry import polyline
 from baker.geometry.transforms import length
 from baker.locomotion import trail_kernels as tk
+from baker.locomotion.trail_kernels import FARTHER
 from baker.locomotion.body import (RAISED_RISE, ROUND, Trail, _row_shifts, place_chain,
                                    straight_ended_smooth, trail_ends)
 
@@ -235,6 +236,17 @@ def numpy_place_chain(trail, head_arc, offset, spacing, raised=None):
         k = np.where(beyond.any(axis=1), np.argmax(beyond, axis=1), len(steps) - 1)
         hi = cand[rows, np.maximum(k, 1)]
         lo = cand[rows, np.maximum(k - 1, 0)]
+        # a joint whose trail stays within a spacing over all the steps (coiled): the same
+        # steps on, up to FARTHER times as far back, never before the trail's start
+        j = np.arange(1, (FARTHER - 1) * (len(steps) - 1) + 1)
+        far_cand = arc[:, i - 1:i] - (steps[-1] + j[None, :] * (steps[1] - steps[0]))
+        far_beyond = ((length(at(far_cand, i) - prev[:, None, :]) > spacing)
+                      & (far_cand >= trail.cum[0]))
+        far_beyond &= np.cumsum(far_cand < trail.cum[0], axis=1) == 0
+        take = ~beyond.any(axis=1) & far_beyond.any(axis=1)
+        m = np.argmax(far_beyond, axis=1)
+        hi = np.where(take, far_cand[rows, m], hi)
+        lo = np.where(take, arc[:, i - 1] - (steps[-1] + m * (steps[1] - steps[0])), lo)
         for _ in range(16):
             mid = 0.5 * (lo + hi)
             far = length(at(mid, i) - prev) > spacing
@@ -285,3 +297,26 @@ def test_place_chain_of_a_one_point_trail():
         want = numpy_place_chain(trail, np.array([-1.0, 0.0, 2.0]), offset, SPACING, raised)
         for g, w in zip(got, want):
             np.testing.assert_array_equal(bits(g), bits(w))
+
+
+def test_place_chain_reaches_past_a_coil():
+    """A trail coiled tighter than a spacing across for more than the steps' four spacings (a
+    cornered head that turned on the spot): every joint still lands exactly a spacing behind
+    the one ahead (the steps search on past the coil), as the numpy form does."""
+    r = 0.4 * SPACING
+    t = np.linspace(0.0, 4.0 * 2.0 * np.pi, 800)             # four loops, ~10 spacings
+    coil = np.column_stack([r * np.cos(t) + 3.0 * SPACING, np.zeros_like(t), r * np.sin(t)])
+    lead = np.column_stack([np.linspace(-6.0 * SPACING, 3.0 * SPACING + r, 200)[:-1],
+                            np.zeros(199), np.zeros(199)])
+    pts = np.concatenate([lead, coil])
+    trail = Trail(points=pts, normals=np.tile([0.0, 1.0, 0.0], (len(pts), 1)),
+                  ground=pts[:, 1], cum=polyline.arc_lengths(pts),
+                  cum_h=polyline.arc_lengths(pts[:, [0, 2]]), high=None)
+    head = np.array([trail.cum[-1], trail.cum[-1] - 0.3 * SPACING])
+    offset = np.zeros((2, 4))
+    got = place_chain(trail, head, offset, SPACING)
+    want = numpy_place_chain(trail, head, offset, SPACING)
+    for g, w in zip(got, want):
+        np.testing.assert_array_equal(bits(g), bits(w))
+    gaps = length(np.diff(got[0], axis=1))
+    np.testing.assert_allclose(gaps, SPACING, rtol=1e-4)
