@@ -279,22 +279,18 @@ def _usable(rays, pts, up, inward, hips, reach: float, edge: float, kk, nn):
         v = pts[kk[i], nn[i]] - hips[nn[i]]
         dist = length(v)
         lift = 0.02 * reach * up[nn[i]]            # aim just above the hold: it lies on a surface
-        ok[i[_hit(rays, hips[nn[i]], v + lift, max_distance=dist)]] = False
+        ok[i[rays.occluded(hips[nn[i]], v + lift, max_distance=dist)]] = False
     i = np.nonzero(ok)[0]
     if len(i):
         level[i] = is_level(rays, pts[kk[i], nn[i]], up[nn[i]], inward[nn[i]], edge)
     return ok, level
 
 
-def _hit(rays, origins, directions, max_distance=np.inf) -> np.ndarray:
-    """(n,) bool: rays.first_hit(origins, directions, max_distance).hit (see _cast)."""
-    return _cast(rays, origins, directions, max_distance)[1] >= 0
-
-
 def _cast(rays, origins, directions, max_distance=np.inf) -> tuple[np.ndarray, np.ndarray]:
     """(t (n,), prim (n,)) the cast rays.first_hit(origins, directions, max_distance) makes
     (the directions normalized as it does: t is its distance, prim >= 0 its hit) without the
-    hits' points, normals and faces, which the callers here do not read."""
+    hits' points, normals and faces, which the caller does not read (for the hits alone:
+    rays.occluded, the same cast)."""
     o = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
     d = normalize(np.asarray(directions, dtype=np.float64).reshape(-1, 3))
     return rays.cast(o, d, max_distance)
@@ -444,7 +440,7 @@ class _Frames:
             v = np.broadcast_to(hold[:, None, :], fw.shape + (3,)).reshape(-1, 3) - hp
             dist = length(v)
             aim = v + 0.02 * span * self.up[fw, ll[:, None]].reshape(-1, 3)
-            bad |= _hit(rays, hp, aim, max_distance=dist).reshape(fw.shape)
+            bad |= rays.occluded(hp, aim, max_distance=dist).reshape(fw.shape)
         return fw, bad
 
 
@@ -809,7 +805,7 @@ def _step_over(rays, lf: _Frames, target, sw):
         moving &= ~wall_side
         eps = 0.1 * lg.lift * UP      # rays start just above feet resting on the surface
         if np.any(moving):
-            blocked[moving] = _hit(rays, prev[moving] + eps, v[moving],
+            blocked[moving] = rays.occluded(prev[moving] + eps, v[moving],
                                    max_distance=dist[moving])
         top = 3.0 * lg.lift
         hb = rays.first_hit(cur + top * UP, np.tile(-UP, (len(cur), 1)),
@@ -1250,7 +1246,7 @@ def _leg_blocked(rays, lay, legs, hip, target, fwd, left, knee_out, tol):
     sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
     v = sol.end - hip
     dist = length(v)
-    line = _hit(rays, hip, v, max_distance=np.maximum(dist - tol, 0.0))
+    line = rays.occluded(hip, v, max_distance=np.maximum(dist - tol, 0.0))
     return line | _bones_hit(rays, hip, sol.mid, sol.end, lay.l1, lay.l2, tol)
 
 
@@ -1260,9 +1256,9 @@ def _bones_hit(rays, hip, mid, end, l1, l2, tol):
     GRAZE x `tol` over a surface below it (the files' keyframe reduction moves a joint by a
     little, and a bone lying flat a hair over the floor would go into it)."""
     low = GRAZE * tol * UP                  # each bone cast as it is and that much lower
-    a = _hit(rays, np.concatenate([hip, hip - low]), np.tile(mid - hip, (2, 1)),
+    a = rays.occluded(np.concatenate([hip, hip - low]), np.tile(mid - hip, (2, 1)),
              max_distance=l1 - tol)
-    b = _hit(rays, np.concatenate([mid, mid - low]), np.tile(end - mid, (2, 1)),
+    b = rays.occluded(np.concatenate([mid, mid - low]), np.tile(end - mid, (2, 1)),
              max_distance=l2 - tol)
     return (a | b).reshape(2, -1).any(axis=0)
 
@@ -1590,7 +1586,7 @@ def _chain_clear(rays, q, o, side, yaw1, yaw2, pitch, bend, lengths, back) -> np
     o_k = np.broadcast_to(o[:, None], (F, k, 3))
     ok = np.ones((F, k), bool)
     for start, d, ln in ((o_k, w1, l1), (o_k + w1 * l1, w2, l2)):
-        ok &= ~_hit(rays, start.reshape(-1, 3), d.reshape(-1, 3),
+        ok &= ~rays.occluded(start.reshape(-1, 3), d.reshape(-1, 3),
                     max_distance=ln * 1.05).reshape(F, k)
     return ok
 
@@ -1608,7 +1604,6 @@ def _warning_room(rays, q, o, side, yaws, pitch, bend, lengths, rise) -> np.ndar
     WARN_GIVE_RATE of the raise per frame. q, o : (F, 4), (F, 3) the segment's rotation and the
     chain's base; yaws: the upper and the tip bone's yaws (F,) each; bend: the tip bone's pitch
     over the upper one's."""
-    F = len(rise)
     full = np.where(np.abs(rise) > 1e-12, 1.0, 0.0)
     if not full.any():
         return full
@@ -1691,8 +1686,8 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
             knee = o + d1 * l1
             if it == 3:
                 break
-            bad = (_hit(rays, o, d1, max_distance=l1 * 1.05)
-                   | _hit(rays, knee, d2, max_distance=l2 * 1.05))
+            bad = (rays.occluded(o, d1, max_distance=l1 * 1.05)
+                   | rays.occluded(knee, d2, max_distance=l2 * 1.05))
             if not bad.any():
                 break
             up = np.where(ok_all & (raise_steps > lift[:, None] + 1e-9), raise_steps, np.inf)
