@@ -393,11 +393,12 @@ class Follower:
         if self.others is None:
             # the last step's test while the layer's height and the grid are as they were
             # (on level ground, most steps)
-            key = (self.height, grid_arrays(self.nav) if self._compiled else None)
-            if self._lone_test is None or self._lone_test[0] != key[0] \
-                    or self._lone_test[1] is not key[1]:
-                self._lone_test = (*key, test(self.nav, self.height, self.tol))
-            return self._lone_test[2]
+            grid = grid_arrays(self.nav) if self._compiled else None
+            last = self._lone_test
+            if last is None or last[0] != self.height or last[1] is not grid:
+                self._lone_test = last = (self.height, grid, test(self.nav, self.height,
+                                                                   self.tol))
+            return last[2]
         others = self.others
         bx, _, bz = self.head.base.tolist()
         need = min(self.separation ** 2, nearest_sq(others, bx, bz))
