@@ -128,9 +128,14 @@ def check_writable(folder: Path) -> None:
     _unlink(probe)
 
 
+#: extensions `--out` may end with (dropped: `--out scene.glb` writes scene.glb, scene.usd, ...)
+OUT_EXTENSIONS = (".glb", ".usd", ".usda", ".usdc", ".json")
+
+
 def resolve_out(out) -> Path:
     """`--out` as the output path without extension. A value ending in a path separator, or
-    naming an existing folder, means `<folder>/centipede`. ExportError for an empty value."""
+    naming an existing folder, means `<folder>/centipede`; one ending in an output's extension
+    (OUT_EXTENSIONS, any case) is the path without it. ExportError for an empty value."""
     text = os.fspath(out) if out is not None else ""
     if not str(text).strip():
         raise ExportError("--out is empty: give an output path without extension, "
@@ -138,7 +143,10 @@ def resolve_out(out) -> Path:
     text = str(text)
     if text.endswith(os.sep) or (os.altsep and text.endswith(os.altsep)) or _isdir(Path(text)):
         return Path(text) / DEFAULT_NAME
-    return Path(text)
+    path = Path(text)
+    if path.suffix.lower() in OUT_EXTENSIONS and path.stem:
+        return path.with_suffix("")
+    return path
 
 
 def _name_max(folder: Path) -> int:

@@ -93,8 +93,8 @@ def cli(verbose: int):
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
               default=_default_rig, show_default="rigs/scolopendra.toml", help="Rig definition (TOML).")
 @click.option("--out", type=click.Path(), default="outputs/centipede", show_default=True,
-              help="Output path without extension; a folder (or a path ending in /) writes "
-                   "<folder>/centipede.*.")
+              help="Output path without extension (a .glb, .usd or .json ending is dropped); "
+                   "a folder (or a path ending in /) writes <folder>/centipede.*.")
 @click.option("--format", "fmt", type=click.Choice(["glb", "usd", "both"]), default="both",
               show_default=True, help="Which animation files to write (the JSON report is always written).")
 @click.option("--usda", is_flag=True, help="Write the USD as ASCII (.usda) instead of crate (.usd).")

@@ -202,7 +202,8 @@ def test_commit_waits_for_a_reader(tmp_path):
 
 @pytest.mark.parametrize("text,expected", [
     ("out/c", "out/c"), ("out/", "out/centipede"), ("c", "c"), ("/", "/centipede"),
-    ("a/b/", "a/b/centipede")])
+    ("a/b/", "a/b/centipede"), ("out/c.glb", "out/c"), ("c.USDA", "c"), ("a/c.json", "a/c"),
+    ("a/c.usd", "a/c"), ("a/c.v2", "a/c.v2"), ("a/c.glb.bak", "a/c.glb.bak"), (".glb", ".glb")])
 def test_resolve_out(text, expected):
     assert resolve_out(text) == Path(expected)
 
