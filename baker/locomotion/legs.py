@@ -1119,14 +1119,17 @@ def _stance_turns(hip, hold, fwd, left, q_inv, lay, legs, knee_out) -> np.ndarra
     """(n, W-1) degrees the bones of legs `legs` (n,) with their feet planted at `hold` (n, 3)
     turn between consecutive frames of a window (hip, fwd, left: (n, W, 3); q_inv (n, W, 4) the
     segments' inverse rotations), in the world and the upper bone in its segment's own space
-    (a segment turning one way while the planted leg turns the other adds the two): the leg
-    solved as two_bone_ik solves it with the knee toward side * cross(fwd, u) + knee_out * side
-    * left, each bone's steps as _frame_steps measures them (compiled to the arccos:
+    (a segment turning one way while the planted leg turns the other adds the two), and the
+    tip bone in the upper bone's space (the change of the knee angle: a hip that comes a few
+    millimetres nearer a planted foot near a straight knee folds it fast): the leg solved as
+    two_bone_ik solves it with the knee toward side * cross(fwd, u) + knee_out * side * left,
+    each bone's steps as _frame_steps and _joint_steps measure them (compiled to the arccos:
     leg_kernels.leg_traces; the soft clamp's exp and the arccos stay in numpy)."""
     target = np.broadcast_to(hold[:, None, :], hip.shape)
-    tr, _ = leg_traces(hip, target, fwd, left, q_inv, lay.side[legs], knee_out, lay.l1,
-                       lay.l2, _clamped_reach(hip, target, lay))
-    return _step_degrees(tr).max(axis=1).T
+    tr, knee = leg_traces(hip, target, fwd, left, q_inv, lay.side[legs], knee_out, lay.l1,
+                          lay.l2, _clamped_reach(hip, target, lay))
+    fold = np.degrees(np.abs(np.diff(np.arccos(np.clip(knee, -1.0, 1.0)), axis=1)))
+    return np.maximum(_step_degrees(tr).max(axis=1).T, fold)
 
 
 def _clamped_reach(hip, target, lay) -> np.ndarray:
