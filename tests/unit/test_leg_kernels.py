@@ -198,7 +198,7 @@ def test_pose_rows_tell_poses_apart_by_their_bits(seed):
 
 def numpy_stance_turns(hip, hold, fwd, left, q_inv, lay, legs, knee_out):
     """legs._stance_turns' numpy form: two_bone_ik over the window, then _frame_steps of the
-    three bones."""
+    three bones and the knee angle's change."""
     from baker.geometry.ik import two_bone_ik
     from baker.geometry.transforms import cross, normalize
     from baker.locomotion.legs import _frame_steps
@@ -213,7 +213,9 @@ def numpy_stance_turns(hip, hold, fwd, left, q_inv, lay, legs, knee_out):
     steps = _frame_steps(np.stack([sw(hip), sw(sol.mid), np.zeros_like(sw(m))], axis=1),
                          np.stack([sw(sol.mid), sw(sol.end), sw(m)], axis=1),
                          np.stack([sw(sol.hinge), sw(sol.hinge), sw(hg)], axis=1))
-    return steps.max(axis=1).T
+    e = quat_rotate(q_inv, sol.end - hip)
+    knee = np.arccos(np.clip(dot(normalize(m), normalize(e - m)), -1.0, 1.0))
+    return np.maximum(steps.max(axis=1).T, np.degrees(np.abs(np.diff(knee, axis=1))))
 
 
 def stance_window(seed, n, W):
