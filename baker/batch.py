@@ -686,7 +686,7 @@ SUMMARY_METRICS = (
     (None, "frames"), (None, "distance_walked_m"), (None, "spacing_error_max"),
     (None, "max_joint_rotation_per_frame_deg"), (None, "frames_on_unwalkable_slope"),
     (None, "trunk_inside_geometry"), (None, "head_off_walkable_frames"),
-    (None, "clearance_violations"), ("legs", "skate_median_pct_bl"),
+    (None, "spine_jump_frames"), (None, "clearance_violations"), ("legs", "skate_median_pct_bl"),
     ("legs", "foot_penetration_max_pct_bl"), ("legs", "leg_bone_hits"),
     ("behaviour", "state_seconds"), ("behaviour", "captures"),
 )

@@ -26,7 +26,9 @@ def spine_metrics(traj: Trajectory, rays, *, spacing: float, clearance: float,
     - rotation: largest change of any joint's world orientation between frames;
     - NaN count over positions and rotations;
     - trunk inside geometry: (frame, trunk joint) pairs inside a solid (see inside_geometry),
-      and the frames with at least one.
+      and the frames with at least one;
+    - spine jumps: frames in which a spine joint moves more than JUMP spacings farther than
+      the head (spine_jumps), and the largest such excess in spacings.
     """
     pos = traj.spine_positions
     F, S, _ = pos.shape
@@ -53,6 +55,7 @@ def spine_metrics(traj: Trajectory, rays, *, spacing: float, clearance: float,
     inside = inside_geometry(pos[:, 1:].reshape(-1, 3), rays).reshape(F, S - 1)
 
     step = np.linalg.norm(np.diff(pos[:, 0], axis=0), axis=1)
+    jumps, excess = spine_jumps(pos, spacing)
     return {
         "frames": int(F),
         "distance_walked_m": float(step.sum()),
@@ -68,7 +71,25 @@ def spine_metrics(traj: Trajectory, rays, *, spacing: float, clearance: float,
         "nan_count": nan,
         "trunk_inside_geometry": int(np.count_nonzero(inside)),
         "trunk_inside_geometry_frames": int(np.count_nonzero(inside.any(axis=1))),
+        "spine_jump_frames": jumps,
+        "spine_jump_max_spacings": excess,
     }
+
+
+#: [spacings] a spine joint moving this much farther than the head in one frame jumps
+JUMP = 0.5
+
+
+def spine_jumps(pos: np.ndarray, spacing: float) -> tuple[int, float]:
+    """(frames, largest excess [spacings]) of spine positions pos (F, S, 3): the frames in
+    which some joint moves more than JUMP spacings farther than the head does. A body following
+    its head's trail moves with the head; one whose chord placement cannot pass a corner of
+    the trail sharper than a right angle (a head that turned on the spot) jumps along it."""
+    if len(pos) < 2:
+        return 0, 0.0
+    step = np.linalg.norm(np.diff(pos, axis=0), axis=2)              # (F-1, S)
+    excess = (step.max(axis=1) - step[:, 0]) / spacing
+    return int(np.count_nonzero(excess > JUMP)), float(max(excess.max(), 0.0))
 
 
 def inside_geometry(points: np.ndarray, rays) -> np.ndarray:

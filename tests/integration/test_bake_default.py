@@ -54,6 +54,8 @@ def test_motion_metrics_over_every_frame(baked):
     assert m["trunk_inside_geometry"] == 0  # no trunk joint inside a solid, any frame
     assert m["head_unsupported_frames"] == 0
     assert m["distance_walked_body_lengths"] > 10
+    # the body moves with its head: no joint jumps along the trail (metrics.spine_jumps)
+    assert m["spine_jump_frames"] == 0, m["spine_jump_max_spacings"]
 
 
 def test_metrics_agree_with_the_trajectory(baked):
