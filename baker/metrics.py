@@ -11,7 +11,6 @@ from baker.geometry.arrays import unique
 from baker.geometry.conventions import UP
 from baker.geometry.proximity import segment_distances
 from baker.geometry.transforms import quat_conj, quat_mul
-from baker.parallel import thread_count
 from baker.solve.trajectory import Trajectory
 
 

@@ -115,6 +115,9 @@ STANCE_TURN = np.radians(24.0)
 #: an ultimate leg or antenna raised clear of the environment rises and falls at most this much
 #: per frame [rad]
 CHAIN_RAISE_RATE = np.radians(4.0)
+#: rounds of easing an ultimate leg's or antenna's raises in which a frame that still touches
+#: something takes the next clearing raise (legs._eased_chain)
+CHAIN_ROUNDS = 8
 #: a swinging foot whose leg would pass through the environment is drawn toward its hip to
 #: the first of these fractions of its distance that clears
 PULL_IN = (0.85, 0.7, 0.55, 0.4)
@@ -1674,31 +1677,11 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
         pitch = base_pitch[:, None] + raise_steps[None, :]            # (F, k)
         ok_all = _chain_clear(rays, q, o, s, yaw1 + dyaw[:, None], yaw2 + dyaw[:, None], pitch,
                               pit2 - pit1, ch.lengths, back)
-        l1, l2 = ch.lengths
+        l1 = ch.lengths[0]
         # none clears: the chain as it is (raising it fully drove it into a ceiling)
         raw = raise_steps[np.where(ok_all.any(1), np.argmax(ok_all, 1), 0)]
-        # eased in and out (at most CHAIN_RAISE_RATE per frame), never less raised or dipped
-        # than what clears; a frame on the way up or down that touches something (a raise
-        # that clears below and above but not in between) takes the next clearing one beyond
-        for it in range(4):
-            lift = _ramp(np.maximum(raw, 0.0)[:, None], CHAIN_RAISE_RATE)[:, 0]
-            lift -= _ramp(np.maximum(-raw, 0.0)[:, None], CHAIN_RAISE_RATE)[:, 0]
-            pitch = base_pitch + lift
-            d1 = quat_rotate(q, _chain_dirs(s, yaw1 + dyaw, pitch, back))
-            d2 = quat_rotate(q, _chain_dirs(s, yaw2 + dyaw, pitch + (pit2 - pit1), back))
-            knee = o + d1 * l1
-            if it == 3:
-                break
-            bad = (rays.occluded(o, d1, max_distance=l1 * 1.05)
-                   | rays.occluded(knee, d2, max_distance=l2 * 1.05))
-            if not bad.any():
-                break
-            up = np.where(ok_all & (raise_steps > lift[:, None] + 1e-9), raise_steps, np.inf)
-            down = np.where(ok_all & (raise_steps < lift[:, None] - 1e-9), raise_steps, -np.inf)
-            nxt_up = np.where(np.isfinite(up.min(1)), up.min(1), raw)   # none: as it is
-            nxt_down = np.where(np.isfinite(down.max(1)), down.max(1), raw)
-            raw = np.where(bad, np.where(raw >= 0.0, np.maximum(raw, nxt_up),
-                                         np.minimum(raw, nxt_down)), raw)
+        d1, d2, knee = _eased_chain(rays, q, o, s, (yaw1 + dyaw, yaw2 + dyaw), base_pitch,
+                                    pit2 - pit1, ch.lengths, back, raise_steps, raw, ok_all)
         # the hinge is the yaw plane's normal, so it never flips however far the chain is
         # raised (a cross product with the segment's up degenerates at a vertical chain)
         yaw = yaw1 + dyaw
@@ -1711,6 +1694,48 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
         pos += [o, knee]
         rot += [r1, r2]
     return names, np.stack(pos, 1), np.stack(rot, 1)
+
+
+def _eased_chain(rays, q, o, s, yaws, base_pitch, bend, lengths, back, steps, raw, ok_all):
+    """(d1, d2 (F, 3) the two bones' directions, knee (F, 3)) of a chain raised (or dipped)
+    by `raw` (F,) rad, eased in and out (at most CHAIN_RAISE_RATE per frame), never less raised
+    or dipped than what clears: a frame on the way up or down that touches something (a raise
+    that clears below and above but not in between) takes the next clearing one of `steps`
+    beyond (ok_all (F, k): which clear), up to CHAIN_ROUNDS times; a frame that still touches
+    then takes its nearest clearing raise as it is (a step of a few degrees, not a bone in
+    the environment)."""
+    l1, l2 = lengths
+    for it in range(CHAIN_ROUNDS):
+        lift = _ramp(np.maximum(raw, 0.0)[:, None], CHAIN_RAISE_RATE)[:, 0]
+        lift -= _ramp(np.maximum(-raw, 0.0)[:, None], CHAIN_RAISE_RATE)[:, 0]
+        d1, d2, knee = _chain_pose(q, o, s, yaws, base_pitch + lift, bend, l1, back)
+        bad = (rays.occluded(o, d1, max_distance=l1 * 1.05)
+               | rays.occluded(knee, d2, max_distance=l2 * 1.05))
+        if not bad.any() or it == CHAIN_ROUNDS - 1:
+            break
+        up = np.where(ok_all & (steps > lift[:, None] + 1e-9), steps, np.inf)
+        down = np.where(ok_all & (steps < lift[:, None] - 1e-9), steps, -np.inf)
+        nxt_up = np.where(np.isfinite(up.min(1)), up.min(1), raw)   # none: as it is
+        nxt_down = np.where(np.isfinite(down.max(1)), down.max(1), raw)
+        raw = np.where(bad, np.where(raw >= 0.0, np.maximum(raw, nxt_up),
+                                     np.minimum(raw, nxt_down)), raw)
+    fix = bad & ok_all.any(1)
+    if fix.any():
+        near = np.argmin(np.where(ok_all[fix], np.abs(steps[None, :] - lift[fix, None]),
+                                  np.inf), axis=1)
+        f1, f2, fk = _chain_pose(q[fix], o[fix], s, tuple(y[fix] for y in yaws),
+                                 base_pitch[fix] + steps[near],
+                                 bend[fix] if np.ndim(bend) else bend, l1, back)
+        d1, d2, knee = d1.copy(), d2.copy(), knee.copy()
+        d1[fix], d2[fix], knee[fix] = f1, f2, fk
+    return d1, d2, knee
+
+
+def _chain_pose(q, o, s, yaws, pitch, bend, l1, back):
+    """(d1, d2, knee) of a chain at pitch (F,): its bones' world directions and its knee."""
+    d1 = quat_rotate(q, _chain_dirs(s, yaws[0], pitch, back))
+    d2 = quat_rotate(q, _chain_dirs(s, yaws[1], pitch + bend, back))
+    return d1, d2, o + d1 * l1
 
 
 def _turn_limited_antenna(q: np.ndarray, o: np.ndarray, r1: np.ndarray, r2: np.ndarray,
