@@ -32,6 +32,10 @@ LOOK_SAMPLES = 8
 #: _contain's result flags: the U-turn's side changed (out[2]); cornered, held still; turned
 #: on the spot (the head creeps away from the corner)
 SIDE, HELD, CREPT = 1, 2, 4
+#: [rad] among other bodies, a head turns at most this far on the spot before it has walked
+#: off the corner (2 min_radius): a corner of the trail sharper than a right angle is a cusp
+#: the body's chord placement jumps across (metrics.spine_jumps)
+SPIN = 0.5 * math.pi
 #: no other bodies' points (a SurfaceTest off a crowd)
 _NO_NEAR = np.empty((0, 3))
 
@@ -65,7 +69,8 @@ class SurfaceTest:
 def plain_test(nav, y: float, tol: float, near: np.ndarray | None = None,
                ref: tuple[float, float] = (0.0, 0.0), need: float = 0.0):
     """SurfaceTest's answers in Python, through nav.layer_height: for any Navigation (a
-    SurfaceTest reads a NavSurface's arrays)."""
+    SurfaceTest reads a NavSurface's arrays). With `near` points, the test's `bare` is the
+    surface's alone (else None)."""
     root = math.sqrt(max(need, 0.0))
     rows = [] if near is None else near.tolist()
     layer_height = nav.layer_height
@@ -81,6 +86,8 @@ def plain_test(nav, y: float, tol: float, near: np.ndarray | None = None,
         h = layer_height(x, y, z, tol)
         return h == h                                 # on the layer: not NaN
 
+    # the surface alone (HeadSteer._contain: turns on the spot among other bodies)
+    allowed.bare = plain_test(nav, y, tol) if rows else None
     return allowed
 
 
@@ -112,7 +119,7 @@ def _first_calls(cols, pos, nrm, grid) -> None:
     _allowed(*args, 0.0, 0.0)
     more_room(*args, 1.0, 0.0, 0.0, 0.0, 1.0, -1.0, 0.01, cos, sin)
     contain(*args, np.array([1.0, 0.0, 0.0, 0.0, 0.1, 0.2, 1e-3, 4e-3, 0.1, 0.01, 0.04, 1.0,
-                             0.0, 3.0]), none, cos, sin, cos, sin, np.empty(3))
+                             0.0, 3.0, 0.0]), none, cos, sin, cos, sin, np.empty(3))
     line_clear(cols, pos, nrm, grid, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0, none)
     head_step(*args, np.zeros(len(ST)), np.linspace(0.1, 1.0, len(PRM)), np.ones(3), none, 0.1,
               1e-3, none, cos, sin, cos, sin)
@@ -379,8 +386,9 @@ def _clamp(x, lo, hi):
 @njit(cache=True, nogil=True)
 def contain(cols, pos, nrm, near, p, h, grid, cos, sin, fracs, deflect, out):
     """HeadSteer._contain. h: (hx, hz, bx, bz, a, ang, step, dt, tight_speed, min_radius,
-    turn_radius, u_side, hold, max_yaw_rate). Writes (a, step, u_side) to out and returns the
-    flags (SIDE, HELD, CREPT) of what else changed."""
+    turn_radius, u_side, hold, max_yaw_rate, spun: the turn on the spot since the head last
+    walked off a corner). Writes (a, step, u_side) to out and returns the flags (SIDE, HELD,
+    CREPT) of what else changed."""
     hx, hz, bx, bz, a, ang, step, dt = h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7]
     min_radius, turn_radius = h[9], h[10]
     side = 1.0 if ang >= a else -1.0
@@ -433,13 +441,20 @@ def contain(cols, pos, nrm, near, p, h, grid, cos, sin, fracs, deflect, out):
                 break
         if found:
             break
-    out[0], out[1] = _clamp(want, -turn, turn), 0.0
+    t = _clamp(want, -turn, turn)
+    # among other bodies, no more than SPIN in turns on the spot before the head has walked
+    # off (held instead), where the surface alone would let it walk toward the agent
+    if near.shape[0] > 0 and h[14] + abs(t) > SPIN:
+        if _free(cols, pos, nrm, near[:0], p, hx, hz, bx, bz, ang, step, step, grid):
+            out[0], out[1] = 0.0, 0.0
+            return HELD
+    out[0], out[1] = t, 0.0
     return CREPT
 
 
 #: HeadSteer's state in head_step's `st` (read and written) and its settings in `prm`
 ST = ("bx", "by", "bz", "hx", "hz", "phase", "lateral_amp", "sx", "sz", "u_side", "creep",
-      "hold", "held", "speed", "px", "py", "pz")
+      "hold", "held", "speed", "px", "py", "pz", "spun")
 PRM = ("lead", "max_speed", "speed_cap", "tight_speed", "turn_radius", "max_yaw_rate",
        "min_radius", "turn_rate", "turn_rate_scale", "amplitude", "max_offset", "catch_up")
 
@@ -500,7 +515,7 @@ def head_step(cols, pos, nrm, near, p, st, prm, agent, aim, agent_speed, dt, gri
         a = _clamp(ang, -lim, lim)
         if _allowed(cols, pos, nrm, near, p, bx, bz):
             h = np.array([hx, hz, bx, bz, a, ang, step, dt, prm[3], prm[6], turn_radius, st[9],
-                          st[11], prm[5]])
+                          st[11], prm[5], st[17]])
             out = np.empty(3)
             flags = contain(cols, pos, nrm, near, p, h, grid, cos, sin, fracs, deflect, out)
             a, step = out[0], out[1]
@@ -510,8 +525,11 @@ def head_step(cols, pos, nrm, near, p, st, prm, agent, aim, agent_speed, dt, gri
                 st[12] = 1.0
             if flags & CREPT:
                 st[10] = 2.0 * prm[6]
+                st[17] += abs(a)
         creep = st[10] - step
         st[10] = creep if creep > 0.0 else 0.0
+        if st[10] == 0.0:
+            st[17] = 0.0
         c, sn = math.cos(a), math.sin(a)
         hx, hz = c * hx + sn * hz, -sn * hx + c * hz
         bx, by, bz = bx + hx * step, ay, bz + hz * step

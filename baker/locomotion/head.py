@@ -79,6 +79,7 @@ class HeadSteer:
         self.position = self.base.copy()
         self._u_side = 0.0   # the side a U-turn in progress turns to (+1 left, -1 right)
         self._creep = 0.0    # metres still to walk slowly after a turn on the spot
+        self._spun = 0.0     # radians turned on the spot since (contain.SPIN)
         # cornered, hold still instead of turning on the spot (set by the follower: other
         # creatures' bodies corner it, and they move on); held: it did this step
         self.hold = False
@@ -146,6 +147,8 @@ class HeadSteer:
             if allowed is not None and allowed(bx, bz):
                 a, step = self._contain(a, ang, step, dt, allowed)
             self._creep = max(0.0, self._creep - step)
+            if self._creep == 0.0:
+                self._spun = 0.0
             c, s = math.cos(a), math.sin(a)
             hx, hz = c * hx + s * hz, -s * hx + c * hz
             self.heading = np.array([hx, 0.0, hz])
@@ -180,7 +183,8 @@ class HeadSteer:
         base, heading, sway = self.base, self.heading, self.sway_dir
         st = np.array((base[0], base[1], base[2], heading[0], heading[2], self.phase,
                        self.lateral_amp, sway[0], sway[2], self._u_side, self._creep,
-                       float(self.hold), float(self.held), self.speed, 0.0, 0.0, 0.0))
+                       float(self.hold), float(self.held), self.speed, 0.0, 0.0, 0.0,
+                       self._spun))
         prm = np.array((self.lead, self.max_speed, self.speed_cap, self.tight_speed,
                         self.turn_radius, self.max_yaw_rate, self.min_radius, self.turn_rate,
                         self.turn_rate_scale, self.amplitude, self.max_offset, CATCH_UP))
@@ -200,6 +204,7 @@ class HeadSteer:
         self.held = bool(held)
         self.sway_dir = np.array((sx, 0.0, sz))
         self.position = st[14:17].copy()
+        self._spun = float(st[17])
 
     def _u_turn(self, ang: float, allowed) -> float:
         """A target more than a right angle off the heading is a U-turn: it keeps to the side it
@@ -332,8 +337,18 @@ class HeadSteer:
         turn = self.max_yaw_rate * dt
         want = next((t for t in (a + sd * d for d in _DEFLECT for sd in (side, -side))
                      if free(t, step, step)), ang)
+        t = max(-turn, min(turn, want))
+        # among other bodies, no more than SPIN in turns on the spot before the head has walked
+        # off (held instead), where the surface alone would let it walk toward the agent
+        bare = getattr(allowed, "bare", None)
+        if bare is not None and self._spun + abs(t) > compiled.SPIN:
+            c, sn = math.cos(ang), math.sin(ang)
+            if bare(bx + (c * hx + sn * hz) * step, bz + (-sn * hx + c * hz) * step):
+                self.held = True
+                return 0.0, 0.0
         self._creep = 2.0 * self.min_radius
-        return max(-turn, min(turn, want)), 0.0
+        self._spun += abs(t)
+        return t, 0.0
 
 
 def grid_array(grid: tuple[float, float, float] | None) -> np.ndarray:
