@@ -81,7 +81,8 @@ def compiled_contain(head: HeadSteer, a, ang, step, test) -> tuple[float, float]
     side effects on the head."""
     (hx, _, hz), (bx, _, bz) = head.heading.tolist(), head.base.tolist()
     h = np.array([hx, hz, bx, bz, a, ang, step, DT, head.tight_speed, head.min_radius,
-                  head.turn_radius, head._u_side, float(head.hold), head.max_yaw_rate])
+                  head.turn_radius, head._u_side, float(head.hold), head.max_yaw_rate,
+                  head._spun])
     out = np.empty(3)
     flags = contain.contain(*test.kernel_args(), h, grid_array(head.grid), *_ARC_COS_SIN,
                             _TIGHT_ARRAY, _DEFLECT, out)
@@ -91,6 +92,7 @@ def compiled_contain(head: HeadSteer, a, ang, step, test) -> tuple[float, float]
         head.held = True
     if flags & contain.CREPT:
         head._creep = 2.0 * head.min_radius
+        head._spun += abs(out[0])
     return tuple(out[:2].tolist())
 
 
@@ -121,6 +123,7 @@ def test_compiled_turns_are_the_python_turns(seed):
     nav = patchy_grid(seed)
     rng = np.random.default_rng(100 + seed)
     seen = set()
+    held_past_spin = 0
     for trial in range(400):
         grid = trial % 2 == 0
         one = a_head(rng, nav, grid)
@@ -132,18 +135,26 @@ def test_compiled_turns_are_the_python_turns(seed):
         for h in (one, two):
             h._u_side = float(rng.choice([0.0, 1.0, -1.0]))
             h.hold = trial % 4 == 0
-        two._u_side, two.hold = one._u_side, one.hold
+            # turned on the spot already: none, some, all but a sliver of contain.SPIN
+            h._spun = float(rng.choice([0.0, 0.5, contain.SPIN - 1e-3]))
+        two._u_side, two.hold, two._spun = one._u_side, one.hold, one._spun
+        spun = one._spun
         ang = float(rng.uniform(-math.pi, math.pi))
         a = float(np.clip(ang, -0.05, 0.05))
         step = float(rng.choice([0.2 * DT, 0.05 * DT, 0.25 * DT]))
         got = compiled_contain(one, a, ang, step, fast)
         want = two._contain(a, ang, step, DT, slow)
         assert got == want
-        assert (one._u_side, one.held, one._creep) == (two._u_side, two.held, two._creep)
+        assert ((one._u_side, one.held, one._creep, one._spun)
+                == (two._u_side, two.held, two._creep, two._spun))
+        if one.held and not one.hold:
+            held_past_spin += 1     # cornered among other bodies with its turn used up
+            assert near and spun > 0.0
         for side in (1.0, -1.0):
             assert compiled_more_room(one, side, -side, fast) == two._more_room(side, -side, slow)
         seen.add((got == (a, step), one.held, one._creep > 0.0))
     assert len(seen) >= 3          # the wanted turn, other turns, and holds or turns on the spot
+    assert held_past_spin > 0
 
 
 def test_compiled_heads_walk_the_python_heads_steps():
@@ -173,8 +184,10 @@ def test_compiled_heads_walk_the_python_heads_steps():
                 h.step(DT, agent, speed, allowed=test, aim=aim)
             for name in ("base", "heading", "position", "sway_dir"):
                 assert getattr(one, name).tobytes() == getattr(two, name).tobytes(), name
-            assert ((one.phase, one.lateral_amp, one.speed, one._u_side, one._creep, one.held)
-                    == (two.phase, two.lateral_amp, two.speed, two._u_side, two._creep, two.held))
+            assert ((one.phase, one.lateral_amp, one.speed, one._u_side, one._creep, one.held,
+                     one._spun)
+                    == (two.phase, two.lateral_amp, two.speed, two._u_side, two._creep, two.held,
+                        two._spun))
 
 
 def test_the_compiled_line_of_sight_is_the_python_walk():
@@ -267,3 +280,34 @@ def test_the_compiled_hypot_is_python_s_bit_for_bit():
                  (3.0, 4.0), (2.2250738585072014e-308, 1e-310)]:
         assert contain.hypot(x, y) == math.hypot(x, y)
     assert math.isnan(contain.hypot(math.nan, 1.0))
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_among_other_bodies_a_cornered_head_turns_at_most_spin_on_the_spot(compiled):
+    """A head walled in ahead and to both sides by other bodies' points, its agent straight
+    behind it on open floor: it turns on the spot toward the agent by at most contain.SPIN (a
+    right angle; a sharper corner is a cusp the body jumps across), then holds."""
+    nav = patchy_grid(11, n=60, holes=0.0)
+    x0, z0 = nav.origin[0] + 0.45, nav.origin[1] + 0.45
+    head = HeadSteer(np.array([x0, 0.0, z0]), np.array([0.0, 0.0, 1.0]), max_speed=0.2,
+                     turn_radius=0.0375, lead=0.0375, turn_rate=4.0,
+                     amplitude=math.radians(25.0), max_offset=0.008, min_radius=0.009375)
+    # a half ring of body points 1.5 cm ahead of the head, from one side round to the other
+    arc = np.linspace(-0.5 * math.pi, 0.5 * math.pi, 60)
+    pts = np.stack([x0 + 0.015 * np.sin(arc), z0 + 0.015 * np.cos(arc)], axis=1)
+    d2 = ((pts - [x0, z0]) ** 2).sum(axis=1)
+    order = np.argsort(d2, kind="stable")
+    near = np.stack([np.sqrt(d2[order]) - 1e-6, pts[order, 0], pts[order, 1]], axis=1)
+    need = min(0.08 ** 2, float(d2.min())) - 1e-12
+    agent = np.array([x0, 0.0, z0 - 0.2])
+    turned, held = 0.0, []
+    for _ in range(400):
+        make = contain.SurfaceTest if compiled else contain.plain_test
+        test = make(nav, 0.0, 0.05, near, (x0, z0), need)
+        h0 = head.heading.copy()
+        head.step(DT, agent, 0.2, allowed=test)
+        assert head.base[0] == x0 and head.base[2] == z0           # never walks into the ring
+        turned += math.acos(min(1.0, float(np.dot(h0, head.heading))))
+        held.append(head.held)
+    assert 0.5 * math.pi - 0.05 < turned <= contain.SPIN + 1e-9
+    assert all(held[-200:])                 # the turn used up: held since
