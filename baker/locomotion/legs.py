@@ -1585,16 +1585,26 @@ def _chain_clear(rays, q, o, side, yaw1, yaw2, pitch, bend, lengths, back) -> np
     bone at yaw1 and pitch (F, k), its tip bone at yaw2 and pitch + bend (yaws (F, 1) or
     (F, k)), keeps both bones (and 5 % past them) clear of the environment."""
     F, k = pitch.shape
-    qk = np.broadcast_to(q[:, None], (F, k, 4))
-    w1 = quat_rotate(qk, _chain_dirs(side, yaw1, pitch, back))
-    w2 = quat_rotate(qk, _chain_dirs(side, yaw2, pitch + bend, back))
-    l1, l2 = lengths
     o_k = np.broadcast_to(o[:, None], (F, k, 3))
-    ok = np.ones((F, k), bool)
-    for start, d, ln in ((o_k, w1, l1), (o_k + w1 * l1, w2, l2)):
-        ok &= ~rays.occluded(start.reshape(-1, 3), d.reshape(-1, 3),
-                    max_distance=ln * 1.05).reshape(F, k)
-    return ok
+    pose = _chain_pose(np.broadcast_to(q[:, None], (F, k, 4)), o_k, side, (yaw1, yaw2), pitch,
+                       bend, lengths[0], back)
+    return ~_chain_touches(rays, o_k, *pose, lengths)
+
+
+def _chain_pose(q, o, s, yaws, pitch, bend, l1, back):
+    """(d1, d2, knee) of a chain at pitch (...): its bones' world directions and its knee."""
+    d1 = quat_rotate(q, _chain_dirs(s, yaws[0], pitch, back))
+    d2 = quat_rotate(q, _chain_dirs(s, yaws[1], pitch + bend, back))
+    return d1, d2, o + d1 * l1
+
+
+def _chain_touches(rays, o, d1, d2, knee, lengths) -> np.ndarray:
+    """(...) bool: a chain's bones from o along d1 and from its knee along d2 (..., 3) reach
+    the environment within 5 % past their lengths."""
+    l1, l2 = lengths
+    return (rays.occluded(o.reshape(-1, 3), d1.reshape(-1, 3), max_distance=l1 * 1.05)
+            | rays.occluded(knee.reshape(-1, 3), d2.reshape(-1, 3),
+                            max_distance=l2 * 1.05)).reshape(o.shape[:-1])
 
 
 #: shares of the warning's raise tried under an overhang, highest first
@@ -1704,13 +1714,12 @@ def _eased_chain(rays, q, o, s, yaws, base_pitch, bend, lengths, back, steps, ra
     beyond (ok_all (F, k): which clear), up to CHAIN_ROUNDS times; a frame that still touches
     then takes its nearest clearing raise as it is (a step of a few degrees, not a bone in
     the environment)."""
-    l1, l2 = lengths
+    l1 = lengths[0]
     for it in range(CHAIN_ROUNDS):
         lift = _ramp(np.maximum(raw, 0.0)[:, None], CHAIN_RAISE_RATE)[:, 0]
         lift -= _ramp(np.maximum(-raw, 0.0)[:, None], CHAIN_RAISE_RATE)[:, 0]
         d1, d2, knee = _chain_pose(q, o, s, yaws, base_pitch + lift, bend, l1, back)
-        bad = (rays.occluded(o, d1, max_distance=l1 * 1.05)
-               | rays.occluded(knee, d2, max_distance=l2 * 1.05))
+        bad = _chain_touches(rays, o, d1, d2, knee, lengths)
         if not bad.any() or it == CHAIN_ROUNDS - 1:
             break
         up = np.where(ok_all & (steps > lift[:, None] + 1e-9), steps, np.inf)
@@ -1724,18 +1733,10 @@ def _eased_chain(rays, q, o, s, yaws, base_pitch, bend, lengths, back, steps, ra
         near = np.argmin(np.where(ok_all[fix], np.abs(steps[None, :] - lift[fix, None]),
                                   np.inf), axis=1)
         f1, f2, fk = _chain_pose(q[fix], o[fix], s, tuple(y[fix] for y in yaws),
-                                 base_pitch[fix] + steps[near],
-                                 bend[fix] if np.ndim(bend) else bend, l1, back)
+                                 base_pitch[fix] + steps[near], bend, l1, back)
         d1, d2, knee = d1.copy(), d2.copy(), knee.copy()
         d1[fix], d2[fix], knee[fix] = f1, f2, fk
     return d1, d2, knee
-
-
-def _chain_pose(q, o, s, yaws, pitch, bend, l1, back):
-    """(d1, d2, knee) of a chain at pitch (F,): its bones' world directions and its knee."""
-    d1 = quat_rotate(q, _chain_dirs(s, yaws[0], pitch, back))
-    d2 = quat_rotate(q, _chain_dirs(s, yaws[1], pitch + bend, back))
-    return d1, d2, o + d1 * l1
 
 
 def _turn_limited_antenna(q: np.ndarray, o: np.ndarray, r1: np.ndarray, r2: np.ndarray,
