@@ -135,7 +135,8 @@ OUT_EXTENSIONS = (".glb", ".usd", ".usda", ".usdc", ".json")
 def resolve_out(out) -> Path:
     """`--out` as the output path without extension. A value ending in a path separator, or
     naming an existing folder, means `<folder>/centipede`; one ending in an output's extension
-    (OUT_EXTENSIONS, any case) is the path without it. ExportError for an empty value."""
+    (OUT_EXTENSIONS, any case) is the path without it. ExportError for an empty value, or a
+    name that is only such an extension (`.glb`: a hidden file `.glb.glb` is no one's wish)."""
     text = os.fspath(out) if out is not None else ""
     if not str(text).strip():
         raise ExportError("--out is empty: give an output path without extension, "
@@ -144,6 +145,9 @@ def resolve_out(out) -> Path:
     if text.endswith(os.sep) or (os.altsep and text.endswith(os.altsep)) or _isdir(Path(text)):
         return Path(text) / DEFAULT_NAME
     path = Path(text)
+    if path.name.lower() in OUT_EXTENSIONS:
+        raise ExportError(f"--out {text!r} names only an extension: give a name, e.g. "
+                          f"{path.parent / DEFAULT_NAME}{path.name}")
     if path.suffix.lower() in OUT_EXTENSIONS and path.stem:
         return path.with_suffix("")
     return path

@@ -203,7 +203,7 @@ def test_commit_waits_for_a_reader(tmp_path):
 @pytest.mark.parametrize("text,expected", [
     ("out/c", "out/c"), ("out/", "out/centipede"), ("c", "c"), ("/", "/centipede"),
     ("a/b/", "a/b/centipede"), ("out/c.glb", "out/c"), ("c.USDA", "c"), ("a/c.json", "a/c"),
-    ("a/c.usd", "a/c"), ("a/c.v2", "a/c.v2"), ("a/c.glb.bak", "a/c.glb.bak"), (".glb", ".glb")])
+    ("a/c.usd", "a/c"), ("a/c.v2", "a/c.v2"), ("a/c.glb.bak", "a/c.glb.bak"), (".glbx", ".glbx"), ("a/.cfg", "a/.cfg")])
 def test_resolve_out(text, expected):
     assert resolve_out(text) == Path(expected)
 
@@ -213,8 +213,10 @@ def test_resolve_out_existing_folder(tmp_path):
     assert resolve_out(str(tmp_path / "..")) == tmp_path / ".." / "centipede"
 
 
-@pytest.mark.parametrize("text", ["", "  "])
+@pytest.mark.parametrize("text", ["", "  ", ".glb", "a/.USD", "out/.json"])
 def test_resolve_out_empty(text):
+    """An empty value, or a name that is only an output's extension (it would write the
+    hidden `.glb.glb`), is an error."""
     with pytest.raises(ExportError):
         resolve_out(text)
 
