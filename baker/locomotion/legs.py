@@ -56,6 +56,7 @@ from baker.locomotion.body import SPINE_FRAME_TURN, BodyFrames
 from baker.locomotion.gait import gait_clock
 from baker.locomotion.leg_kernels import leg_traces
 from baker.locomotion.swing import Limits, joint_space_swings
+from baker.locomotion.trellis import cheapest_path
 from baker.rig.limbs import LegLayout, chains, leg_layout, leg_pole
 
 #: the reachable fraction of the full leg length used for planning footholds
@@ -118,6 +119,16 @@ CHAIN_RAISE_RATE = np.radians(4.0)
 #: rounds of easing an ultimate leg's or antenna's raises in which a frame that still touches
 #: something takes the next clearing raise (legs._eased_chain)
 CHAIN_ROUNDS = 8
+#: a chain still touching after those rounds has its raises searched afresh (_chain_path) on a
+#: grid this fine [rad] ...
+CHAIN_GRID = np.radians(2.0)
+#: ... over its touching frames and this many frames either side, its raise changing by at
+#: most CHAIN_STEEP_RATE per frame [rad] (each radian beyond CHAIN_RAISE_RATE costs
+#: CHAIN_STEEP_COST; a bone in the environment costs CHAIN_HIT_COST)
+CHAIN_PATH_MARGIN = 24
+CHAIN_STEEP_RATE = np.radians(12.0)
+CHAIN_STEEP_COST = 10.0
+CHAIN_HIT_COST = 1e6
 #: a swinging foot whose leg would pass through the environment is drawn toward its hip to
 #: the first of these fractions of its distance that clears
 PULL_IN = (0.85, 0.7, 0.55, 0.4)
@@ -1711,9 +1722,10 @@ def _eased_chain(rays, q, o, s, yaws, base_pitch, bend, lengths, back, steps, ra
     by `raw` (F,) rad, eased in and out (at most CHAIN_RAISE_RATE per frame), never less raised
     or dipped than what clears: a frame on the way up or down that touches something (a raise
     that clears below and above but not in between) takes the next clearing one of `steps`
-    beyond (ok_all (F, k): which clear), up to CHAIN_ROUNDS times; a frame that still touches
-    then takes its nearest clearing raise as it is (a step of a few degrees, not a bone in
-    the environment)."""
+    beyond (ok_all (F, k): which clear), up to CHAIN_ROUNDS times; frames that still touch
+    (a raise eased down through an overhang's reach) have their raises searched afresh round
+    them (_chain_path), and a frame touching even then takes its nearest clearing raise as it
+    is (a step of a few degrees, not a bone in the environment)."""
     l1 = lengths[0]
     for it in range(CHAIN_ROUNDS):
         lift = _ramp(np.maximum(raw, 0.0)[:, None], CHAIN_RAISE_RATE)[:, 0]
@@ -1728,6 +1740,10 @@ def _eased_chain(rays, q, o, s, yaws, base_pitch, bend, lengths, back, steps, ra
         nxt_down = np.where(np.isfinite(down.max(1)), down.max(1), raw)
         raw = np.where(bad, np.where(raw >= 0.0, np.maximum(raw, nxt_up),
                                      np.minimum(raw, nxt_down)), raw)
+    if bad.any():
+        lift, bad = _chain_path(rays, q, o, s, yaws, base_pitch, bend, lengths, back, steps,
+                                lift, bad)
+        d1, d2, knee = _chain_pose(q, o, s, yaws, base_pitch + lift, bend, l1, back)
     fix = bad & ok_all.any(1)
     if fix.any():
         near = np.argmin(np.where(ok_all[fix], np.abs(steps[None, :] - lift[fix, None]),
@@ -1737,6 +1753,48 @@ def _eased_chain(rays, q, o, s, yaws, base_pitch, bend, lengths, back, steps, ra
         d1, d2, knee = d1.copy(), d2.copy(), knee.copy()
         d1[fix], d2[fix], knee[fix] = f1, f2, fk
     return d1, d2, knee
+
+
+def _chain_path(rays, q, o, s, yaws, base_pitch, bend, lengths, back, steps, lift, bad):
+    """(lift (F,), bad (F,)) a chain's raises `lift` (F,) rad re-chosen round each run of
+    frames that touch something (`bad`): over the run and CHAIN_PATH_MARGIN frames either side
+    (the frames just outside keep their raises), the raises on a CHAIN_GRID grid over `steps`'
+    range form a trellis whose cheapest path (trellis.cheapest_path) keeps both bones clear,
+    changes by at most CHAIN_RAISE_RATE a frame where it can (CHAIN_STEEP_RATE at most, at a
+    cost) and stays near the eased raises; bad: the frames that touch after it."""
+    F = len(lift)
+    grid = np.arange(steps.min(), steps.max() + 0.5 * CHAIN_GRID, CHAIN_GRID)
+    lift, bad = lift.copy(), bad.copy()
+    idx = np.nonzero(bad)[0]
+    runs = np.split(idx, np.nonzero(np.diff(idx) > 2 * CHAIN_PATH_MARGIN)[0] + 1)
+    for run in runs:
+        lo, hi = max(run[0] - CHAIN_PATH_MARGIN, 0), min(run[-1] + CHAIN_PATH_MARGIN, F - 1)
+        fr = np.arange(lo, hi + 1)
+        n, G = len(fr), len(grid)
+        pitch = base_pitch[fr, None] + grid[None, :]                     # (n, G)
+        o_k = np.broadcast_to(o[fr, None], (n, G, 3))
+        pose = _chain_pose(np.broadcast_to(q[fr, None], (n, G, 4)), o_k, s,
+                           (yaws[0][fr, None], yaws[1][fr, None]), pitch, bend, lengths[0], back)
+        touch = _chain_touches(rays, o_k, *pose, lengths)
+        cost = [CHAIN_HIT_COST * touch[i] + np.abs(grid - lift[f]) for i, f in enumerate(fr)]
+        # the frames just outside the window keep their raises: one node each
+        layers = ([np.zeros(1)] if lo > 0 else []) + cost + ([np.zeros(1)] if hi < F - 1 else [])
+        values = ([lift[lo - 1:lo]] if lo > 0 else []) + [grid] * n + (
+            [lift[hi + 1:hi + 2]] if hi < F - 1 else [])
+
+        def edge(k, values=values):
+            d = np.abs(values[k][:, None] - values[k + 1][None, :])
+            over = np.maximum(d - CHAIN_RAISE_RATE, 0.0)
+            return CHAIN_STEEP_COST * over + CHAIN_HIT_COST * (d > CHAIN_STEEP_RATE + 1e-9)
+
+        pick, _ = cheapest_path(layers, edge)
+        pick = pick[1:] if lo > 0 else pick
+        chosen = pick[:n]
+        hits = touch[np.arange(n), chosen]
+        if hits.sum() < bad[fr].sum():         # fewer frames touch: taken
+            lift[fr] = grid[chosen]
+            bad[fr] = hits
+    return lift, bad
 
 
 def _turn_limited_antenna(q: np.ndarray, o: np.ndarray, r1: np.ndarray, r2: np.ndarray,

@@ -279,3 +279,53 @@ def test_a_foot_lifted_early_waits_for_a_hold_it_can_keep(rig_config, flat_env, 
     monkeypatch.setattr(legs._Frames, "first_bad", first_bad)
     assert p.land_early(st, holds, c)
     assert st.Ts[c + 1, p.LEG] == np.searchsorted(t, t[p.LIFT] + 3 * settle - 1e-9)
+
+
+class _PitchBands:
+    """A stand-in environment for a chain whose base sits at x = frame (its bones are shorter
+    than half a metre): from frame `first` to `last`, a bone pitched between `lo` and `hi`
+    degrees meets something, for each (first, last, lo, hi) of `bands`."""
+
+    def __init__(self, bands):
+        self.bands = [(a, b, np.radians(lo), np.radians(hi)) for a, b, lo, hi in bands]
+
+    def blocked(self, frame, pitch):
+        return np.logical_or.reduce([(frame >= a) & (frame <= b) & (pitch > lo) & (pitch < hi)
+                                     for a, b, lo, hi in self.bands])
+
+    def occluded(self, origins, directions, max_distance=np.inf):
+        return self.blocked(np.rint(np.asarray(origins)[:, 0]),
+                            np.arcsin(np.clip(np.asarray(directions)[:, 1], -1.0, 1.0)))
+
+
+def test_a_chain_eased_down_through_an_overhangs_reach_is_searched_afresh_not_jumped():
+    """legs._eased_chain: an antenna raised 45 deg clear of a stone at frames 10-14 eases
+    back down at CHAIN_RAISE_RATE a frame, but from frame 17 on every raise between 12 and 62
+    deg meets an overhang, and from frame 21 on every raise above 12 deg (an antenna of
+    creature 17 of a crowd of 20 on Recast's undulating level, seed 117910). The easing's
+    rounds raised the chain into the closing gap above; the last resort then jumped it to
+    the nearest clearing raise, and the antenna's turn limit held it back into the overhang
+    (2 antenna bone hits). Now the raises round those frames are searched afresh
+    (_chain_path): every frame clears and no raise changes faster than CHAIN_STEEP_RATE a
+    frame."""
+    from baker.locomotion.legs import (CHAIN_STEEP_RATE, _chain_pose, _chain_touches,
+                                       _eased_chain)
+
+    F = 60
+    q = np.tile([0.0, 0.0, 0.0, 1.0], (F, 1))
+    o = np.column_stack([np.arange(F, dtype=float), np.zeros(F), np.zeros(F)])
+    rays = _PitchBands([(10, 14, -90.0, 40.0), (17, 99, 12.0, 62.0), (21, 99, 12.0, 90.0)])
+    steps = np.radians([0.0, 6.0, 12.0, 20.0, 30.0, 45.0, 60.0, 80.0, -8.0, -16.0])
+    base = np.zeros(F)
+    yaws, bend, lengths = (np.zeros(F), np.zeros(F)), 0.0, (0.2, 0.2)
+    raw = np.where((np.arange(F) >= 10) & (np.arange(F) <= 14), np.radians(45.0), 0.0)
+    ok_all = ~rays.blocked(np.arange(F)[:, None], steps[None, :])
+    d1, d2, knee = _eased_chain(rays, q, o, 1.0, yaws, base, bend, lengths, False, steps, raw,
+                                ok_all)
+    assert not _chain_touches(rays, o, d1, d2, knee, lengths).any()
+    pitch = np.arcsin(np.clip(d1[:, 1], -1.0, 1.0))
+    assert np.abs(np.diff(pitch)).max() <= CHAIN_STEEP_RATE + 1e-9
+    assert (pitch[10:15] >= np.radians(40.0)).all()       # raised over the stone
+    # the chain's bones are those of its pose at those pitches
+    p1, p2, pk = _chain_pose(q, o, 1.0, yaws, pitch, bend, lengths[0], False)
+    np.testing.assert_allclose(np.stack([d1, d2, knee]), np.stack([p1, p2, pk]), atol=1e-12)
