@@ -122,10 +122,10 @@ CHAIN_ROUNDS = 8
 #: a chain still touching after those rounds has its raises searched afresh (_chain_path) on a
 #: grid this fine [rad] ...
 CHAIN_GRID = np.radians(2.0)
-#: ... over its touching frames and this many frames either side, its raise changing by at
-#: most CHAIN_STEEP_RATE per frame [rad] (each radian beyond CHAIN_RAISE_RATE costs
-#: CHAIN_STEEP_COST; a bone in the environment costs CHAIN_HIT_COST)
-CHAIN_PATH_MARGIN = 24
+#: ... over its touching frames and the first of these many frames either side whose path is
+#: clear, its raise changing by at most CHAIN_STEEP_RATE per frame [rad] (each radian beyond
+#: CHAIN_RAISE_RATE costs CHAIN_STEEP_COST; a bone in the environment costs CHAIN_HIT_COST)
+CHAIN_PATH_MARGINS = (24, 48, 96)
 CHAIN_STEEP_RATE = np.radians(12.0)
 CHAIN_STEEP_COST = 10.0
 CHAIN_HIT_COST = 1e6
@@ -1757,44 +1757,64 @@ def _eased_chain(rays, q, o, s, yaws, base_pitch, bend, lengths, back, steps, ra
 
 def _chain_path(rays, q, o, s, yaws, base_pitch, bend, lengths, back, steps, lift, bad):
     """(lift (F,), bad (F,)) a chain's raises `lift` (F,) rad re-chosen round each run of
-    frames that touch something (`bad`): over the run and CHAIN_PATH_MARGIN frames either side
-    (the frames just outside keep their raises), the raises on a CHAIN_GRID grid over `steps`'
-    range form a trellis whose cheapest path (trellis.cheapest_path) keeps both bones clear,
-    changes by at most CHAIN_RAISE_RATE a frame where it can (CHAIN_STEEP_RATE at most, at a
-    cost) and stays near the eased raises; bad: the frames that touch after it."""
+    frames that touch something (`bad`): over the run and CHAIN_PATH_MARGINS[0] frames either
+    side (the frames just outside keep their raises), the cheapest path through the raises on
+    a CHAIN_GRID grid (_chain_trellis), and with each wider margin while that path still
+    touches or steps faster than CHAIN_STEEP_RATE (a band of raises that touch, to be crossed
+    where it opens). A path is taken when it has fewer such faults than the raises it
+    replaces; bad: the frames that touch after it."""
     F = len(lift)
     grid = np.arange(steps.min(), steps.max() + 0.5 * CHAIN_GRID, CHAIN_GRID)
     lift, bad = lift.copy(), bad.copy()
     idx = np.nonzero(bad)[0]
-    runs = np.split(idx, np.nonzero(np.diff(idx) > 2 * CHAIN_PATH_MARGIN)[0] + 1)
-    for run in runs:
-        lo, hi = max(run[0] - CHAIN_PATH_MARGIN, 0), min(run[-1] + CHAIN_PATH_MARGIN, F - 1)
-        fr = np.arange(lo, hi + 1)
-        n, G = len(fr), len(grid)
-        pitch = base_pitch[fr, None] + grid[None, :]                     # (n, G)
-        o_k = np.broadcast_to(o[fr, None], (n, G, 3))
-        pose = _chain_pose(np.broadcast_to(q[fr, None], (n, G, 4)), o_k, s,
-                           (yaws[0][fr, None], yaws[1][fr, None]), pitch, bend, lengths[0], back)
-        touch = _chain_touches(rays, o_k, *pose, lengths)
-        cost = [CHAIN_HIT_COST * touch[i] + np.abs(grid - lift[f]) for i, f in enumerate(fr)]
-        # the frames just outside the window keep their raises: one node each
-        layers = ([np.zeros(1)] if lo > 0 else []) + cost + ([np.zeros(1)] if hi < F - 1 else [])
-        values = ([lift[lo - 1:lo]] if lo > 0 else []) + [grid] * n + (
-            [lift[hi + 1:hi + 2]] if hi < F - 1 else [])
-
-        def edge(k, values=values):
-            d = np.abs(values[k][:, None] - values[k + 1][None, :])
-            over = np.maximum(d - CHAIN_RAISE_RATE, 0.0)
-            return CHAIN_STEEP_COST * over + CHAIN_HIT_COST * (d > CHAIN_STEEP_RATE + 1e-9)
-
-        pick, _ = cheapest_path(layers, edge)
-        pick = pick[1:] if lo > 0 else pick
-        chosen = pick[:n]
-        hits = touch[np.arange(n), chosen]
-        if hits.sum() < bad[fr].sum():         # fewer frames touch: taken
-            lift[fr] = grid[chosen]
-            bad[fr] = hits
+    for run in np.split(idx, np.nonzero(np.diff(idx) > 2 * CHAIN_PATH_MARGINS[0])[0] + 1):
+        for margin in CHAIN_PATH_MARGINS:
+            lo, hi = max(run[0] - margin, 0), min(run[-1] + margin, F - 1)
+            fr = np.arange(lo, hi + 1)
+            chosen, hits = _chain_trellis(rays, q, o, s, yaws, base_pitch, bend, lengths, back,
+                                          grid, lift, lo, hi)
+            faults = hits.sum() + _steep(lift, chosen, lo, hi)
+            if faults < bad[fr].sum() + _steep(lift, lift[fr], lo, hi):
+                lift[fr], bad[fr] = chosen, hits
+            if faults == 0 or (lo == 0 and hi == F - 1):
+                break
     return lift, bad
+
+
+def _steep(lift, chosen, lo, hi) -> int:
+    """Steps faster than CHAIN_STEEP_RATE of raises `chosen` for frames lo..hi, between the
+    raises `lift` of the frames just outside."""
+    path = np.concatenate([lift[max(lo - 1, 0):lo], chosen, lift[hi + 1:hi + 2]])
+    return int((np.abs(np.diff(path)) > CHAIN_STEEP_RATE + 1e-9).sum())
+
+
+def _chain_trellis(rays, q, o, s, yaws, base_pitch, bend, lengths, back, grid, lift, lo, hi):
+    """(raises (n,), touch (n,) bool) of frames lo..hi (n of them): the cheapest path
+    (trellis.cheapest_path) through the raises `grid` at each frame, from the raise of frame
+    lo - 1 to that of frame hi + 1 (`lift`, where they exist): a pose whose bones touch
+    something costs CHAIN_HIT_COST, a step beyond CHAIN_RAISE_RATE CHAIN_STEEP_COST a radian
+    (beyond CHAIN_STEEP_RATE, CHAIN_HIT_COST), a raise away from the eased one its distance."""
+    F = len(lift)
+    fr = np.arange(lo, hi + 1)
+    n, G = len(fr), len(grid)
+    pitch = base_pitch[fr, None] + grid[None, :]                     # (n, G)
+    o_k = np.broadcast_to(o[fr, None], (n, G, 3))
+    pose = _chain_pose(np.broadcast_to(q[fr, None], (n, G, 4)), o_k, s,
+                       (yaws[0][fr, None], yaws[1][fr, None]), pitch, bend, lengths[0], back)
+    touch = _chain_touches(rays, o_k, *pose, lengths)
+    cost = [CHAIN_HIT_COST * touch[i] + np.abs(grid - lift[f]) for i, f in enumerate(fr)]
+    # the frames just outside keep their raises: one node each
+    before, after = int(lo > 0), int(hi < F - 1)
+    layers = [np.zeros(1)] * before + cost + [np.zeros(1)] * after
+    values = [lift[lo - 1:lo]] * before + [grid] * n + [lift[hi + 1:hi + 2]] * after
+
+    def edge(k):
+        d = np.abs(values[k][:, None] - values[k + 1][None, :])
+        over = np.maximum(d - CHAIN_RAISE_RATE, 0.0)
+        return CHAIN_STEEP_COST * over + CHAIN_HIT_COST * (d > CHAIN_STEEP_RATE + 1e-9)
+
+    pick = cheapest_path(layers, edge)[0][before:before + n]
+    return grid[pick], touch[np.arange(n), pick]
 
 
 def _turn_limited_antenna(q: np.ndarray, o: np.ndarray, r1: np.ndarray, r2: np.ndarray,
