@@ -21,7 +21,7 @@ from __future__ import annotations
 import json
 import re
 import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -558,9 +558,42 @@ def judge_creatures(glb_path: str | Path, usd_path: str | Path | None = None,
     out = []
     for i in range(creature_count(g.doc)):
         scene = read_glb(glb_path, anim, glb=g, creature=i)
-        out.append(judge(scene, read_usd(usd_path, i) if usd_path is not None else None,
-                         sim=None if sims is None else sims[i]))
+        usd = read_usd(usd_path, i) if usd_path is not None else None
+        if "root_motion" in names and "root" in scene.names:
+            # an in-place bake is judged where it walked, the USD's creature moved the same
+            fix = root_motion_fix(scene, read_glb(glb_path, "root_motion", glb=g, creature=i))
+            scene = moved(scene, fix)
+            usd = moved(usd, fix) if usd is not None else None
+        out.append(judge(scene, usd, sim=None if sims is None else sims[i]))
     return out
+
+
+def _matrices(b: BakedScene) -> np.ndarray:
+    """(F, J, 4, 4) the joints' world transforms."""
+    m = np.zeros(b.positions.shape[:2] + (4, 4))
+    m[..., :3, :3] = Rotation.from_quat(b.rotations.reshape(-1, 4)).as_matrix().reshape(
+        b.positions.shape[:2] + (3, 3))
+    m[..., :3, 3] = b.positions
+    m[..., 3, 3] = 1.0
+    return m
+
+
+def root_motion_fix(baked: BakedScene, motion: BakedScene) -> np.ndarray:
+    """(n, 4, 4) the world transforms that put an in-place bake (`--root-motion in-place`)
+    back where it walked, frame by frame: the `root_motion` animation's root transform over
+    the held root's (n: the frames both have)."""
+    n = min(baked.n_frames, motion.n_frames)
+    r = baked.index("root")
+    return _matrices(motion)[:n, motion.index("root")] @ np.linalg.inv(_matrices(baked)[:n, r])
+
+
+def moved(baked: BakedScene, fix: np.ndarray) -> BakedScene:
+    """`baked` with every joint's world transform moved by `fix` (n, 4, 4) (root_motion_fix),
+    its first n frames."""
+    n = len(fix)
+    w = fix[:, None] @ _matrices(baked)[:n]
+    q = Rotation.from_matrix(w[..., :3, :3].reshape(-1, 3, 3)).as_quat().reshape(n, -1, 4)
+    return replace(baked, positions=w[..., :3, 3].copy(), rotations=q, local=baked.local[:n])
 
 
 def failures(metrics: dict) -> list[str]:

@@ -14,8 +14,8 @@ Modes (`--root-motion`):
 
 The body's centre is the mean of the spine joints; its heading is the horizontal direction from
 the mean of the rear half of the spine to the mean of the front half (defined when the creature
-stands still), averaged over time by a centred Gaussian (sigma 0.5 s) so the root does not sway
-with the slither. The ground height comes from `ground` and is smoothed
+stands still), averaged over time as an angle by a centred Gaussian (sigma 0.5 s, each frame
+weighted by the length of that direction) so the root does not sway with the slither. The ground height comes from `ground` and is smoothed
 over half a second, so a staircase gives the root a ramp, not steps. World joint positions are
 unchanged by construction (to float32 rounding).
 """
@@ -63,18 +63,29 @@ def with_root(rig: Rig) -> Rig:
     return Rig(config=rig.config, skeleton=rooted, mesh=mesh, spine=spine)
 
 
-def yaw_quaternions(forward: np.ndarray) -> np.ndarray:
+def yaw_quaternions(forward: np.ndarray, sigma: float = 0.0) -> np.ndarray:
     """(F, 4) xyzw rotations about +Y turning +Z to the horizontal part of forward (F, 3).
     Frames whose forward is (nearly) vertical hold the last defined heading (the first one
-    before any is defined)."""
+    before any is defined). sigma > 0: the headings (unwrapped angles) averaged over the
+    frames by a centred Gaussian of that many frames, each weighted by its forward's
+    horizontal length (a body coiled head to tail says little about its heading). Averaged as
+    angles, a turn of more than half a circle within the window keeps its way round; averaged
+    as vectors, their mean came near zero there and swung 60 degrees in a frame."""
     fx, fz = forward[:, 0], forward[:, 2]
-    ok = np.hypot(fx, fz) > 1e-9
+    w = np.hypot(fx, fz)
+    ok = w > 1e-9
     if not ok.any():
         fx, fz, ok = np.zeros(len(forward)), np.ones(len(forward)), np.ones(len(forward), bool)
+        w = ok.astype(float)
     idx = np.arange(len(forward))
     near = np.maximum.accumulate(np.where(ok, idx, -1))
     near[near < 0] = idx[ok][0]
-    yaw = np.arctan2(fx[near], fz[near])
+    yaw = np.unwrap(np.arctan2(fx[near], fz[near]))
+    if sigma > 0.0:
+        w = np.where(ok, w, 0.0)
+        total = gaussian_filter1d(w, sigma, mode="nearest")
+        mean = gaussian_filter1d(w * yaw, sigma, mode="nearest")
+        yaw = np.divide(mean, total, out=yaw.copy(), where=total > 1e-12 * max(w.max(), 1e-300))
     q = np.zeros((len(forward), 4))
     q[:, 1] = np.sin(0.5 * yaw)
     q[:, 3] = np.cos(0.5 * yaw)
@@ -91,11 +102,7 @@ def root_frames(spine_world: np.ndarray, fps: int, ground=None) -> tuple[np.ndar
     centre = spine_world.mean(axis=1)
     half = max(s // 2, 1)
     forward = spine_world[:, :half].mean(axis=1) - spine_world[:, s - half:].mean(axis=1)
-    forward[:, 1] = 0.0
-    norm = np.linalg.norm(forward, axis=1, keepdims=True)
-    forward = np.divide(forward, norm, out=np.zeros_like(forward), where=norm > 1e-9)
-    forward = gaussian_filter1d(forward, HEADING_SMOOTHING * fps, axis=0, mode="nearest")
-    rot = yaw_quaternions(forward)
+    rot = yaw_quaternions(forward, HEADING_SMOOTHING * fps)
     height = np.zeros(len(centre)) if ground is None else np.asarray(ground(centre), float)
     miss = ~np.isfinite(height)
     if miss.all():

@@ -11,7 +11,7 @@ so a preview shows what an engine would load, not the simulation's own bookkeepi
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from baker.export import vertex_normals
 from baker.inspect import (BakedScene, GlbFile, InspectError, environment_nodes, frame_times,
-                           read_glb, sample_track, static_world)
+                           moved, read_glb, root_motion_fix, sample_track, static_world)
 
 #: the debug layer of the walkable surface (`bake --debug-navmesh`): one quad per sample
 NAVMESH_NODE = "navmesh"
@@ -203,7 +203,7 @@ def _scene(glb: GlbFile, name: str, where: str) -> PreviewScene:
     names = [a.get("name") for a in doc["animations"]]
     baked = read_glb(where, "bake" if "bake" in names else 0, glb=glb)
     if "root_motion" in names and "root" in baked.names:
-        baked = _with_root_motion(baked, read_glb(where, "root_motion", glb=glb))
+        baked = moved(baked, root_motion_fix(baked, read_glb(where, "root_motion", glb=glb)))
     anim = doc["animations"][names.index("bake") if "bake" in names else 0]
     world = static_world(doc)
     times = frame_times(baked.n_frames, baked.fps)
@@ -219,27 +219,6 @@ def _scene(glb: GlbFile, name: str, where: str) -> PreviewScene:
         env=_environment(glb, world), navmesh=nav, navmesh_cell=nav_cell, skin=_skin(glb, baked),
         prey=_prey(glb, world, tracks, len(times)), sun=_sun(doc, world, tracks, len(times)),
         states=states, state=state, segments=segments, contacts=_contacts(baked, anim))
-
-
-def _matrices(b: BakedScene) -> np.ndarray:
-    m = np.zeros(b.positions.shape[:2] + (4, 4))
-    m[..., :3, :3] = Rotation.from_quat(b.rotations.reshape(-1, 4)).as_matrix().reshape(
-        b.positions.shape[:2] + (3, 3))
-    m[..., :3, 3] = b.positions
-    m[..., 3, 3] = 1.0
-    return m
-
-
-def _with_root_motion(baked: BakedScene, motion: BakedScene) -> BakedScene:
-    """An in-place bake (`--root-motion in-place`) put back where it walked: every joint moved
-    by the `root_motion` animation's root transform instead of the held root's."""
-    r = baked.index("root")
-    n = min(baked.n_frames, motion.n_frames)
-    m = _matrices(baked)[:n]
-    fix = _matrices(motion)[:n, motion.index("root")] @ np.linalg.inv(m[:, r])
-    w = fix[:, None] @ m
-    q = Rotation.from_matrix(w[..., :3, :3].reshape(-1, 3, 3)).as_quat().reshape(n, -1, 4)
-    return replace(baked, positions=w[..., :3, 3].copy(), rotations=q, local=baked.local[:n])
 
 
 def _tracks(glb: GlbFile, anim: dict, times: np.ndarray) -> dict:
