@@ -1,6 +1,8 @@
 """The top-down map of a bake (matplotlib, Agg): the walkable area, shade at the start and at
 the end, the head's trail coloured by behaviour, foot contacts, prey paths, the contact sheet's
-frames, and the behaviour timeline as a strip under the map.
+frames, and the behaviour timeline as a strip under the map. The level is seen cut a body
+length above the trail (section_heights): a roof, an upper storey or a canopy over the floor
+walked does not hide it, and the solids cut show as not walkable.
 
 Seen from above: x to the right, z down (+Y toward the viewer), in world metres.
 """
@@ -17,6 +19,8 @@ from baker.export.render import SHADOW_BIAS_BL
 
 #: map cells along the longer side of the window
 MAP_CELLS = 480
+#: the map shows the level cut this many body lengths above the head's nearest trail point
+SECTION_BL = 1.0
 #: trail colours of the brain's states (baker.behaviour.brain.STATES); others cycle OTHERS
 STATE_COLORS = {"wander": "#1f77b4", "seek_shade": "#17becf", "rest_in_shade": "#2ca02c",
                 "cobra": "#9467bd", "hunt": "#d62728", "strike": "#ff7f0e", "feed": "#8c564b",
@@ -62,10 +66,14 @@ def ground_grid(scene: PreviewScene, env: RayCaster, window) -> dict:
     nx, nz = max(int(np.ceil((x1 - x0) / cell)), 1), max(int(np.ceil((z1 - z0) / cell)), 1)
     gx, gz = np.meshgrid(x0 + (np.arange(nx) + 0.5) * cell, z0 + (np.arange(nz) + 0.5) * cell)
     top = float(scene.env.vertices[:, 1].max()) + 1.0
-    o = np.stack([gx.ravel(), np.full(gx.size, top), gz.ravel()], axis=1)
+    cut = np.minimum(section_heights(scene, gx.ravel(), gz.ravel()), top)
+    o = np.stack([gx.ravel(), cut, gz.ravel()], axis=1)
     d = np.tile([0.0, -1.0, 0.0], (len(o), 1))
     t, prim, uv = env.cast_uv(o, d)
     hit = prim >= 0
+    # a cut through a solid (a wall, a stone) meets its underside from within first: the
+    # solid's footprint, not ground
+    solid = hit & (cut < top) & (env.face_normals[np.maximum(prim, 0), 1] < 0.0)
     p = o + np.where(hit, t, 0.0)[:, None] * d
     f = env.faces[np.maximum(prim, 0)]
     bary = np.column_stack([1.0 - uv[:, 0] - uv[:, 1], uv])
@@ -74,7 +82,7 @@ def ground_grid(scene: PreviewScene, env: RayCaster, window) -> dict:
     n[n[:, 1] < 0] *= -1.0
     ng = env.face_normals[np.maximum(prim, 0)] * np.where(
         env.face_normals[np.maximum(prim, 0), 1:2] < 0, -1.0, 1.0)
-    walk = _walkable(scene, p, n, hit)
+    walk = _walkable(scene, p, n, hit) & ~solid
     eps = SHADOW_BIAS_BL * scene.body_length
     shade = []
     for sun in (scene.sun[0], scene.sun[-1]):
@@ -88,6 +96,17 @@ def ground_grid(scene: PreviewScene, env: RayCaster, window) -> dict:
     return {"hit": hit.reshape(shape), "walkable": walk.reshape(shape),
             "shade_start": shade[0].reshape(shape), "shade_end": shade[1].reshape(shape),
             "relief": relief.reshape(shape), "cell": cell}
+
+
+def section_heights(scene: PreviewScene, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """(n,) the height [m] the map cuts the level at over points (x, z) (n,) each: SECTION_BL
+    body lengths above the head's trail where it passed nearest, so a roof, an upper storey or
+    a canopy over the walked floor does not hide it."""
+    from scipy.spatial import cKDTree
+
+    head = scene.baked.positions[:, scene.baked.index("head")]
+    _, i = cKDTree(head[:, [0, 2]]).query(np.column_stack([x, z]))
+    return head[i, 1] + SECTION_BL * scene.body_length
 
 
 def _walkable(scene: PreviewScene, p, n, hit) -> np.ndarray:

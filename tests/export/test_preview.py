@@ -324,3 +324,40 @@ def test_readme_pictures_are_what_the_code_draws(tmp_path, capsys, nav_cache_dir
         same = np.all(old == new, axis=-1).mean()
         assert same > 0.995, (f"docs/preview_{key}.png differs from what the code draws "
                               f"({100 * same:.2f}% equal): run python docs/make_pictures.py")
+
+
+def test_the_map_shows_the_floor_walked_under_a_roof_and_cut_solids_as_not_walkable():
+    """preview_map.ground_grid sees the level cut a body length above the head's trail
+    (section_heights): the floor under a roof the creature walked beneath is drawn (in the
+    roof's shade), not the roof's top in the sun (Recast's dungeon level: the map showed an
+    upper storey's sunlit deck over the shaded floor the creature rested on); a stone the cut
+    passes through shows as not walkable; open ground as walkable in the sun."""
+    from types import SimpleNamespace
+
+    from baker.environment.rays import RayCaster
+    from baker.export.preview_map import ground_grid
+
+    ground = flat_ground(4.0, 8)
+    roof = box_mesh("roof", (-1.0, 1.0, 0.0), (1.0, 0.02, 2.0), (1, 1, 1, 1))   # over x < 0
+    stone = box_mesh("stone", (1.0, 0.25, 0.0), (0.25, 0.25, 0.25), (1, 1, 1, 1))
+    parts = (ground, roof, stone)
+    v = np.concatenate([p.vertices for p in parts]).astype(np.float64)
+    f = np.concatenate([p.faces.astype(np.int64) + o for p, o in
+                        zip(parts, np.cumsum([0] + [len(p.vertices) for p in parts[:-1]]))])
+    mesh = trimesh.Trimesh(v, f, process=False)
+    trail = np.column_stack([np.linspace(-1.8, 1.8, 50), np.full(50, 0.02), np.full(50, -1.0)])
+    baked = SimpleNamespace(positions=trail[:, None, :], index=lambda name: 0, extras={})
+    sun = np.array([[0.1, 0.99, 0.1]]) / np.linalg.norm([0.1, 0.99, 0.1])
+    scene = SimpleNamespace(env=SimpleNamespace(vertices=v, normals=mesh.vertex_normals),
+                            baked=baked, body_length=0.25, sun=np.repeat(sun, 2, axis=0),
+                            navmesh=None, navmesh_cell=0.0)
+    g = ground_grid(scene, RayCaster(mesh), (-1.9, 1.9, -1.9, 1.9))
+
+    def at(x, z):
+        cell = g["cell"]
+        return int((z + 1.9) / cell), int((x + 1.9) / cell)
+
+    under_roof, on_stone, open_ground = at(-1.0, 0.5), at(1.0, 0.0), at(1.0, 1.5)
+    assert g["walkable"][under_roof] and g["shade_start"][under_roof]
+    assert g["hit"][on_stone] and not g["walkable"][on_stone]
+    assert g["walkable"][open_ground] and not g["shade_start"][open_ground]
