@@ -11,6 +11,10 @@ other bundled scene (`floor`: environments/rainforest_floor.glb, 60 s, no prey).
 
     python benchmarks/quality_sweep.py                      # 50 default seeds, 10 per other scene
     python benchmarks/quality_sweep.py --scenes default --default-seeds 8 --seed-base 5000
+    python benchmarks/quality_sweep.py --scenes "" --level mylevel.glb@8 --other-seeds 4
+
+--level PATH[@SCALE] sweeps a level of your own too (repeatable: --other-seeds seeds each,
+--level-seconds long, --level-prey prey, the rig scaled by SCALE).
 
 --creatures N bakes crowds: every creature of a bake is judged on every limit (the bake's row
 holds each limit's worst creature), and the crowd's own checks count as two more limits:
@@ -71,6 +75,28 @@ def moved_glb(src: Path, dst: Path, offset) -> Path:
     out += struct.pack("<I4s", len(js), b"JSON") + js + rest
     dst.write_bytes(out)
     return dst
+
+
+def level_scene(spec: str, seconds: float, prey: int) -> tuple[str, dict]:
+    """(name, SCENES entry) of `--level PATH[@SCALE]`: any level file baker reads, with the rig
+    scaled by SCALE (none: as it is); named by the file's stem (and @SCALE)."""
+    path, at, scale = spec.rpartition("@")
+    if not at:
+        path, scale = spec, ""
+    try:
+        factor = float(scale) if scale else None
+    except ValueError:
+        raise SystemExit(f"--level {spec!r}: the scale after @ must be a number") from None
+    p = Path(path).resolve()
+    if not p.is_file():
+        raise SystemExit(f"--level {spec!r}: no such file")
+    name = p.stem + (f"@{scale}" if scale else "")
+    return name, dict(env=str(p), scale=factor, seconds=seconds, prey=prey)
+
+
+def register_scenes(extra: dict) -> None:
+    """Add `--level` scenes to SCENES (in this process, and in each worker as it starts)."""
+    SCENES.update(extra)
 
 
 def scene_environment(scene: str, work: Path) -> Path | None:
@@ -292,8 +318,16 @@ def main(argv=None) -> int:
     ap.add_argument("--top", type=int, default=3)
     ap.add_argument("--creatures", type=int, default=1, help="bake crowds of N (every creature "
                     "judged; see the module)")
+    ap.add_argument("--level", action="append", default=[], metavar="PATH[@SCALE]",
+                    help="also sweep this level (--other-seeds seeds), the rig scaled by SCALE; "
+                         "repeatable")
+    ap.add_argument("--level-seconds", type=float, default=60.0)
+    ap.add_argument("--level-prey", type=int, default=1)
     args = ap.parse_args(argv)
     args.scenes = [s for s in args.scenes.split(",") if s]
+    extra = dict(level_scene(spec, args.level_seconds, args.level_prey) for spec in args.level)
+    register_scenes(extra)
+    args.scenes += [name for name in extra if name not in args.scenes]
     work = args.work or Path(tempfile.mkdtemp(prefix="baker-sweep-"))
     work.mkdir(parents=True, exist_ok=True)
     missing = [s for s in args.scenes if scene_environment(s, work) is None]
@@ -308,7 +342,8 @@ def main(argv=None) -> int:
     jobs = jobs_for(args)
     rows = []
     ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=args.workers, mp_context=ctx) as pool:
+    with ProcessPoolExecutor(max_workers=args.workers, mp_context=ctx,
+                             initializer=register_scenes, initargs=(extra,)) as pool:
         futs = [pool.submit(bake_and_judge, s, seed, secs, str(work), args.keep, None,
                             args.creatures) for s, seed, secs in jobs]
         for i, f in enumerate(as_completed(futs), 1):
