@@ -20,6 +20,8 @@ other bundled scene (`floor`: environments/rainforest_floor.glb, 60 s, no prey).
 holds each limit's worst creature), and the crowd's own checks count as two more limits:
 `crowd_spines_apart` (no two creatures' spine joints closer than twice the body radius) and
 `crowd_leg_bones_in_other_bodies` (no walking or ultimate leg bone through another body).
+With fewer crowds than --workers, each crowd's bake runs on the cores left over (--workers of
+the bake: the same bytes).
 """
 
 from __future__ import annotations
@@ -112,13 +114,13 @@ def scene_environment(scene: str, work: Path) -> Path | None:
 
 
 def make_config(env: Path, scene: str, seed: int, seconds: float, out: Path, cache: Path,
-                creatures: int = 1):
+                creatures: int = 1, workers: int = 1):
     from baker.config import DEFAULT_RIG, BakeConfig, load_rig_config, override_rig
 
     rig = override_rig(load_rig_config(DEFAULT_RIG), scale=SCENES[scene]["scale"])
     return BakeConfig(environment=env, seconds=seconds, fps=30, seed=seed, rig=rig, out=out,
                       formats=("glb", "usd"), nav_cache_dir=cache,
-                      prey=SCENES[scene].get("prey", 0), creatures=creatures, workers=1)
+                      prey=SCENES[scene].get("prey", 0), creatures=creatures, workers=workers)
 
 
 def ensure_validator() -> bool:
@@ -198,9 +200,10 @@ def crowd_failures(report: dict) -> list[str]:
 
 
 def bake_and_judge(scene: str, seed: int, seconds: float, work: str, keep: bool = False,
-                   cache: str | None = None, creatures: int = 1) -> dict:
+                   cache: str | None = None, creatures: int = 1, workers: int = 1) -> dict:
     """One sweep job: bake, read both files back, judge (every creature), validate. Returns a
-    row. cache: navigation cache folder (default: WORK/navcache)."""
+    row. cache: navigation cache folder (default: WORK/navcache); workers: a crowd's
+    processes (the same bytes whatever their number)."""
     from baker.context import Context
     from baker.inspect import failures
     from baker.pipeline import bake
@@ -213,7 +216,7 @@ def bake_and_judge(scene: str, seed: int, seconds: float, work: str, keep: bool 
     row = {"scene": scene, "seed": seed, "seconds": seconds}
     try:
         res = bake(make_config(env, scene, seed, seconds, out,
-                               Path(cache) if cache else work / "navcache", creatures),
+                               Path(cache) if cache else work / "navcache", creatures, workers),
                    ctx=Context())
     except Exception as ex:  # noqa: BLE001 - a crashing bake is a result of the sweep
         row.update(error=f"{type(ex).__name__}: {ex}", failures=["bake"])
@@ -344,8 +347,10 @@ def main(argv=None) -> int:
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=args.workers, mp_context=ctx,
                              initializer=register_scenes, initargs=(extra,)) as pool:
+        # fewer crowds than workers: each crowd's bake shares out the cores left over
+        per = max(1, args.workers // max(len(jobs), 1)) if args.creatures > 1 else 1
         futs = [pool.submit(bake_and_judge, s, seed, secs, str(work), args.keep, None,
-                            args.creatures) for s, seed, secs in jobs]
+                            args.creatures, per) for s, seed, secs in jobs]
         for i, f in enumerate(as_completed(futs), 1):
             r = f.result()
             rows.append(r)
