@@ -314,19 +314,30 @@ def navmesh(environment, rig_path, png, path_from, path_to, cache_dir, no_cache,
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @click.option("--no-validate", is_flag=True,
               help="Skip the validator (Khronos glTF-Validator for a GLB, UsdValidation for a USD).")
-def inspect(file, as_json, no_validate):
+@click.option("--judge", is_flag=True,
+              help="Also judge a GLB's motion against the quality limits (skate, penetration, "
+                   "rotation, spacing, ...) from the files alone; exit 1 when one fails.")
+def inspect(file, as_json, no_validate, judge):
     """Summarize a file baker wrote: a GLB or USD (skeleton, clips with durations, key counts
     and loop flags, size breakdown, validator result, embedded metadata) or a bake's JSON report.
 
     The Khronos glTF-Validator runs when node and the gltf-validator npm package are installed
-    (npm install -g gltf-validator, or BAKER_GLTF_VALIDATOR=<its folder>)."""
+    (npm install -g gltf-validator, or BAKER_GLTF_VALIDATOR=<its folder>). --judge reads every
+    creature of a GLB (and the bake's USD beside it, compared joint by joint) and judges it as
+    benchmarks/quality_sweep.py does."""
     import json
 
-    from baker.inspect_file import format_report, inspect_file
+    from baker.inspect_file import format_judged, format_report, inspect_file, judge_file
 
     report = inspect_file(file, validate=not no_validate)
-    click.echo(json.dumps(report, indent=2, allow_nan=False, default=str) if as_json
-               else format_report(report))
+    judged = judge_file(file) if judge else None
+    if as_json:
+        if judged is not None:
+            report["judged"] = judged
+        click.echo(json.dumps(report, indent=2, allow_nan=False, default=str))
+    else:
+        click.echo(format_report(report) + ("\n" + format_judged(judged) if judged else ""))
+    return 1 if judged and any(j["failures"] for j in judged) else 0
 
 
 def with_progress(run, cfg):

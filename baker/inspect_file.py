@@ -69,6 +69,50 @@ def inspect_file(path: str | Path, validate: bool = True) -> dict:
     return readers[suffix](p, validate)
 
 
+def judge_file(path: str | Path) -> list[dict]:
+    """The quality limits (inspect.LIMITS) of a GLB baker wrote, judged from its files alone
+    (inspect.judge_creatures: the environment is the GLB's; the bake's USD beside it, same name,
+    is compared too when there): per creature {creature, failures, values: {limit: value},
+    worst: {limit: {value, joint, frame}}}. InspectError for a file that is not a GLB."""
+    from baker.inspect import LIMITS, failures, judge_creatures
+
+    p = Path(path)
+    if p.suffix.lower() not in GLB:
+        raise InspectError("--judge reads a GLB (the environment the creature walked is in it)",
+                           where=str(p))
+    inspect_file(p, validate=False)          # a file that cannot be read: one line, as inspect
+    usd = next((u for u in (p.with_suffix(".usd"), p.with_suffix(".usda")) if u.is_file()), None)
+    out = []
+    for i, r in enumerate(judge_creatures(p, usd)):
+        m = r["metrics"]
+        names = [n for n, _, _ in LIMITS if m.get(n) is not None]
+        out.append(dict(creature=i, failures=failures(m), values={n: m[n] for n in names},
+                        worst={n: r["worst"][n] for n in names if n in r["worst"]}))
+    return out
+
+
+def format_judged(judged: list[dict]) -> str:
+    """The text of judge_file's result: a line per limit (its worst creature when there are
+    several), then the verdict."""
+    from baker.inspect import LIMITS
+
+    lines = ["quality limits, judged from the files:"]
+    for name, op, bound in LIMITS:
+        rows = [(j["values"][name], j) for j in judged if name in j["values"]]
+        if not rows:
+            continue
+        value, j = (min if op == ">=" else max)(rows, key=lambda r: r[0])
+        w = j["worst"].get(name, {}) if value or op != "==" else {}   # none to point at
+        where = (f"  {w['joint']} @ frame {w['frame']}" if w.get("joint") else "") + (
+            f"  creature {j['creature']}" if len(judged) > 1 else "")
+        bad = "  FAILS" if any(name in x["failures"] for x in judged) else ""
+        lines.append(f"  {name} {op} {bound:g}: {value:.6g}{where}{bad}")
+    failing = [j["creature"] for j in judged if j["failures"]]
+    lines.append(f"{len(judged) - len(failing)}/{len(judged)} creature(s) within every limit"
+                 + (f"; failing: {', '.join(map(str, failing))}" if failing else ""))
+    return "\n".join(lines)
+
+
 # ---------------------------------------------------------------- skeleton
 
 

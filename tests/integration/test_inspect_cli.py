@@ -326,3 +326,47 @@ def test_unreadable_file_in_a_subprocess(case, bakes, tmp_path):
     assert r.returncode == 2
     assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr, r.stderr
     assert r.stdout == ""
+
+
+def _glb_with(path: Path, edit) -> bytes:
+    """The GLB at `path` with its JSON chunk edited by edit(doc) (the binary chunk as it was)."""
+    data = path.read_bytes()
+    n = struct.unpack_from("<I", data, 12)[0]
+    doc = json.loads(data[20:20 + n])
+    edit(doc)
+    js = json.dumps(doc, separators=(",", ":")).encode()
+    js += b" " * (-len(js) % 4)
+    rest = data[20 + n:]
+    return (struct.pack("<4sII", b"glTF", 2, 20 + len(js) + len(rest))
+            + struct.pack("<I4s", len(js), b"JSON") + js + rest)
+
+
+def test_judge_reads_the_motion_against_the_limits(bakes, capsys, tmp_path):
+    """`inspect --judge` judges every creature of a GLB from the files alone (the USD beside it
+    compared too) and exits 1 when a limit fails: here the same bake with its environment
+    lifted 3 cm, the feet then deep in the ground."""
+    code, out, err = run([bakes / "c.glb", "--judge", "--no-validate"], capsys)
+    assert code == 0, err
+    assert "1/1 creature(s) within every limit" in out and "glb_usd_max_m" in out
+    code, out, _ = run([bakes / "c.glb", "--judge", "--no-validate", "--json"], capsys)
+    (judged,) = json.loads(out)["judged"]
+    assert code == 0 and judged["failures"] == []
+    assert judged["values"]["rotation_max_deg"] < 30.0 and judged["values"]["glb_usd_max_m"] < 1e-4
+
+    def lift(doc):
+        env = next(n for n in doc["nodes"] if n.get("name") == "Environment")
+        t = env.get("translation", [0.0, 0.0, 0.0])
+        env["translation"] = [t[0], t[1] + 0.03, t[2]]
+
+    sunk = tmp_path / "sunk.glb"
+    sunk.write_bytes(_glb_with(bakes / "c.glb", lift))
+    code, out, _ = run([sunk, "--judge", "--no-validate"], capsys)
+    assert code == 1
+    assert "foot_penetration_max_pct_bl" in out and "FAILS" in out
+    assert "0/1 creature(s) within every limit; failing: 0" in out
+
+
+def test_judge_needs_a_glb(bakes, capsys):
+    code, out, err = run([bakes / "t.usda", "--judge"], capsys)
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
+    assert "--judge reads a GLB" in err
