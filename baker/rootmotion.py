@@ -15,9 +15,10 @@ Modes (`--root-motion`):
 The body's centre is the mean of the spine joints; its heading is the horizontal direction from
 the mean of the rear half of the spine to the mean of the front half (defined when the creature
 stands still), averaged over time as an angle by a centred Gaussian (sigma 0.5 s, each frame
-weighted by the length of that direction) so the root does not sway with the slither. The ground height comes from `ground` and is smoothed
-over half a second, so a staircase gives the root a ramp, not steps. World joint positions are
-unchanged by construction (to float32 rounding).
+weighted by the length of that direction) so the root does not sway with the slither. The
+ground height comes from `ground` and is smoothed over half a second, so a staircase gives the
+root a ramp, not steps. World joint positions are unchanged by construction (to float32
+rounding).
 """
 
 from __future__ import annotations
