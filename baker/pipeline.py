@@ -403,6 +403,9 @@ def reduce_clips(cfg: BakeConfig, rig, traj, clip, segments: tuple, env=None, wo
         feet = [skel.index(n) for n in leg_layout(cfg.rig).foot_names]
         planted[:, feet] = np.asarray(traj.foot_contacts, dtype=bool)
     tight = limbs_near(cfg, skel, traj, env, tol)
+    crowded = feet_crowded(cfg, skel, clip, tol)
+    if crowded is not None:
+        tight = crowded if tight is None else tight | crowded
     kw = dict(rest=(skel.rest_translations, skel.rest_rotations),
               short_rotations=cfg.rotations == "short")
     plan = reduce_plan(clip, skel.parents, tol, contacts=planted, tight=tight, split=split, **kw)
@@ -424,6 +427,33 @@ def reduce_clips(cfg: BakeConfig, rig, traj, clip, segments: tuple, env=None, wo
         animation["segment_clips"] = [{"name": a.name, **reduction_stats(b, a)}
                                       for b, a in zip(segments, out)]
     return (reduced, tuple(out), animation), value
+
+
+#: [segment spacings] neighbouring feet keep this far apart in the files (inspect.LIMITS)
+FEET_GAP = 0.2
+
+
+def feet_crowded(cfg: BakeConfig, skel, clip, tol: float):
+    """(F, J) bool or None: the frames at which a walking foot of the clip comes within
+    FEET_GAP spacings plus two tolerances of its neighbour's on its side (the next segment's),
+    marked on both foot end joints, so that the keyframe reduction holds them within its tight
+    share of the tolerance there: each foot may move by the tolerance, and two neighbours
+    simulated 0.21 spacing apart (swing HARD_GAP) came 0.195 apart in a reduced file."""
+    from baker.rig.limbs import leg_layout
+
+    if tol <= 0 or not cfg.rig.legs.enabled:
+        return None
+    feet = np.array([skel.index(n) for n in leg_layout(cfg.rig).foot_names], dtype=np.int64)
+    if len(feet) < 3:
+        return None
+    world, _ = clip.world(skel.parents)
+    p = world[:, feet]                                   # (F, L, 3): L_01, R_01, L_02, ...
+    near = (np.linalg.norm(p[:, 2:] - p[:, :-2], axis=2)
+            < FEET_GAP * cfg.rig.body.spacing + 2.0 * tol)       # leg l and l + 2: one side
+    out = np.zeros((clip.n_frames, skel.n_joints), dtype=bool)
+    out[:, feet[:-2]] |= near
+    out[:, feet[2:]] |= near
+    return out if out.any() else None
 
 
 def limbs_near(cfg: BakeConfig, skel, traj, env, tol: float):
