@@ -568,12 +568,33 @@ def judge_creatures(glb_path: str | Path, usd_path: str | Path | None = None,
     return out
 
 
-def _matrices(b: BakedScene) -> np.ndarray:
-    """(F, J, 4, 4) the joints' world transforms."""
-    m = np.zeros(b.positions.shape[:2] + (4, 4))
-    m[..., :3, :3] = Rotation.from_quat(b.rotations.reshape(-1, 4)).as_matrix().reshape(
-        b.positions.shape[:2] + (3, 3))
-    m[..., :3, 3] = b.positions
+def worst_over(results: list[dict]) -> tuple[dict, dict]:
+    """(metrics, worst) over judge() results of several creatures: each number the worst
+    creature's (the smallest for a `>=` limit, else the largest), its `worst` entry naming
+    the creature; one creature's as they are."""
+    if len(results) == 1:
+        return results[0]["metrics"], results[0]["worst"]
+    m, worst = dict(results[0]["metrics"]), {}
+    ops = {name: op for name, op, _ in LIMITS}
+    for name in list(m):
+        vals = [(r["metrics"].get(name), i) for i, r in enumerate(results)]
+        vals = [(v, i) for v, i in vals if isinstance(v, (int, float))]
+        if not vals:
+            continue
+        v, i = (min if ops.get(name) == ">=" else max)(vals)
+        m[name] = v
+        if name in results[i]["worst"]:
+            worst[name] = dict(results[i]["worst"][name], creature=i)
+    return m, worst
+
+
+def _matrices(b: BakedScene, joints=slice(None)) -> np.ndarray:
+    """(F, J, 4, 4) the world transforms of joints `joints` (all of them by default)."""
+    pos, rot = b.positions[:, joints], b.rotations[:, joints]
+    m = np.zeros(pos.shape[:-1] + (4, 4))
+    m[..., :3, :3] = Rotation.from_quat(rot.reshape(-1, 4)).as_matrix().reshape(
+        pos.shape[:-1] + (3, 3))
+    m[..., :3, 3] = pos
     m[..., 3, 3] = 1.0
     return m
 
@@ -583,8 +604,8 @@ def root_motion_fix(baked: BakedScene, motion: BakedScene) -> np.ndarray:
     back where it walked, frame by frame: the `root_motion` animation's root transform over
     the held root's (n: the frames both have)."""
     n = min(baked.n_frames, motion.n_frames)
-    r = baked.index("root")
-    return _matrices(motion)[:n, motion.index("root")] @ np.linalg.inv(_matrices(baked)[:n, r])
+    return (_matrices(motion, motion.index("root"))[:n]
+            @ np.linalg.inv(_matrices(baked, baked.index("root"))[:n]))
 
 
 def moved(baked: BakedScene, fix: np.ndarray) -> BakedScene:

@@ -94,17 +94,17 @@ def judge_file(path: str | Path) -> list[dict]:
 def format_judged(judged: list[dict]) -> str:
     """The text of judge_file's result: a line per limit (its worst creature when there are
     several), then the verdict."""
-    from baker.inspect import LIMITS
+    from baker.inspect import LIMITS, worst_over
 
+    values, worst = worst_over([{"metrics": j["values"], "worst": j["worst"]} for j in judged])
     lines = ["quality limits, judged from the files:"]
     for name, op, bound in LIMITS:
-        rows = [(j["values"][name], j) for j in judged if name in j["values"]]
-        if not rows:
+        if name not in values:
             continue
-        value, j = (min if op == ">=" else max)(rows, key=lambda r: r[0])
-        w = j["worst"].get(name, {}) if value or op != "==" else {}   # none to point at
+        value = values[name]
+        w = worst.get(name, {}) if value or op != "==" else {}     # none to point at
         where = (f"  {w['joint']} @ frame {w['frame']}" if w.get("joint") else "") + (
-            f"  creature {j['creature']}" if len(judged) > 1 else "")
+            f"  creature {w['creature']}" if "creature" in w else "")
         bad = "  FAILS" if any(name in x["failures"] for x in judged) else ""
         lines.append(f"  {name} {op} {bound:g}: {value:.6g}{where}{bad}")
     failing = [j["creature"] for j in judged if j["failures"]]

@@ -171,23 +171,10 @@ def sim_world_positions(result, creature: int = 0) -> dict[str, np.ndarray]:
 def judge_creatures(res, glb: Path, usd: Path, creatures: int) -> tuple[dict, dict]:
     """(metrics, worst) of a bake (inspect.judge_creatures): each limit's value is its worst
     creature's (a crowd's `worst` entries name the creature), diagnostics their largest."""
-    from baker.inspect import LIMITS, judge_creatures as judge_each
+    from baker.inspect import judge_creatures as judge_each, worst_over
 
-    results = judge_each(glb, usd, [sim_world_positions(res, i) for i in range(creatures)])
-    if creatures == 1:
-        return results[0]["metrics"], results[0]["worst"]
-    m, worst = dict(results[0]["metrics"]), {}
-    ops = {name: op for name, op, _ in LIMITS}
-    for name in list(m):
-        vals = [(r["metrics"].get(name), i) for i, r in enumerate(results)]
-        vals = [(v, i) for v, i in vals if isinstance(v, (int, float))]
-        if not vals:
-            continue
-        v, i = (min if ops.get(name) == ">=" else max)(vals)
-        m[name] = v
-        if name in results[i]["worst"]:
-            worst[name] = dict(results[i]["worst"][name], creature=i)
-    return m, worst
+    return worst_over(judge_each(glb, usd, [sim_world_positions(res, i)
+                                            for i in range(creatures)]))
 
 
 def crowd_failures(report: dict) -> list[str]:

@@ -1796,13 +1796,10 @@ def _chain_trellis(rays, q, o, s, yaws, base_pitch, bend, lengths, back, grid, l
     (beyond CHAIN_STEEP_RATE, CHAIN_HIT_COST), a raise away from the eased one its distance."""
     F = len(lift)
     fr = np.arange(lo, hi + 1)
-    n, G = len(fr), len(grid)
-    pitch = base_pitch[fr, None] + grid[None, :]                     # (n, G)
-    o_k = np.broadcast_to(o[fr, None], (n, G, 3))
-    pose = _chain_pose(np.broadcast_to(q[fr, None], (n, G, 4)), o_k, s,
-                       (yaws[0][fr, None], yaws[1][fr, None]), pitch, bend, lengths[0], back)
-    touch = _chain_touches(rays, o_k, *pose, lengths)
-    cost = [CHAIN_HIT_COST * touch[i] + np.abs(grid - lift[f]) for i, f in enumerate(fr)]
+    n = len(fr)
+    touch = ~_chain_clear(rays, q[fr], o[fr], s, yaws[0][fr, None], yaws[1][fr, None],
+                          base_pitch[fr, None] + grid[None, :], bend, lengths, back)   # (n, G)
+    cost = list(CHAIN_HIT_COST * touch + np.abs(grid[None, :] - lift[fr, None]))
     # the frames just outside keep their raises: one node each
     before, after = int(lo > 0), int(hi < F - 1)
     layers = [np.zeros(1)] * before + cost + [np.zeros(1)] * after
