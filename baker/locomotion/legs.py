@@ -55,6 +55,7 @@ from baker.geometry.transforms import cross, dot, length, limit_rotation, normal
 from baker.locomotion.body import SPINE_FRAME_TURN, BodyFrames
 from baker.locomotion.gait import gait_clock
 from baker.locomotion.leg_kernels import leg_traces
+from baker.locomotion.near import NearBodies
 from baker.locomotion.swing import Limits, joint_space_swings
 from baker.locomotion.trellis import cheapest_path
 from baker.rig.limbs import LegLayout, chains, leg_layout, leg_pole
@@ -1613,9 +1614,12 @@ def _chain_touches(rays, o, d1, d2, knee, lengths) -> np.ndarray:
     """(...) bool: a chain's bones from o along d1 and from its knee along d2 (..., 3) reach
     the environment within 5 % past their lengths."""
     l1, l2 = lengths
-    return (rays.occluded(o.reshape(-1, 3), d1.reshape(-1, 3), max_distance=l1 * 1.05)
-            | rays.occluded(knee.reshape(-1, 3), d2.reshape(-1, 3),
-                            max_distance=l2 * 1.05)).reshape(o.shape[:-1])
+    out = (rays.occluded(o.reshape(-1, 3), d1.reshape(-1, 3), max_distance=l1 * 1.05)
+           | rays.occluded(knee.reshape(-1, 3), d2.reshape(-1, 3),
+                           max_distance=l2 * 1.05)).reshape(o.shape[:-1])
+    if isinstance(rays, NearBodies):    # a crowd's: and other creatures' bodies
+        out |= rays.touches(o, o + d1 * (l1 * 1.05)) | rays.touches(knee, knee + d2 * (l2 * 1.05))
+    return out
 
 
 #: shares of the warning's raise tried under an overhang, highest first
@@ -1797,7 +1801,8 @@ def _chain_trellis(rays, q, o, s, yaws, base_pitch, bend, lengths, back, grid, l
     F = len(lift)
     fr = np.arange(lo, hi + 1)
     n = len(fr)
-    touch = ~_chain_clear(rays, q[fr], o[fr], s, yaws[0][fr, None], yaws[1][fr, None],
+    view = rays.at(fr) if isinstance(rays, NearBodies) else rays
+    touch = ~_chain_clear(view, q[fr], o[fr], s, yaws[0][fr, None], yaws[1][fr, None],
                           base_pitch[fr, None] + grid[None, :], bend, lengths, back)   # (n, G)
     cost = list(CHAIN_HIT_COST * touch + np.abs(grid[None, :] - lift[fr, None]))
     # the frames just outside keep their raises: one node each
@@ -1887,7 +1892,8 @@ def _planned_with_margins(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, ra
 
 
 def leg_frames(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: RigConfig,
-               warning: np.ndarray | None = None, chain_period: float | None = None) -> LegFrames:
+               warning: np.ndarray | None = None, chain_period: float | None = None,
+               near: NearBodies | None = None) -> LegFrames:
     """All limbs for all frames.
 
     bf      : the spine's BodyFrames (F frames)
@@ -1897,10 +1903,12 @@ def leg_frames(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: Ri
     rays    : the environment's RayCaster
     warning : (F,) float 0..1 or None, Posture 1 strength (raises the ultimate legs)
     chain_period : [s] or None, see posed_chains
+    near    : in a crowd, the other creatures' bodies the ultimate legs and antennae may reach
+              (locomotion.near; it answers for the environment too): they raise clear of them
     """
     w = _planned_with_margins(bf, np.asarray(arc, float), np.asarray(times, float), rays, cfg)
-    cn, cp, cq = posed_chains(bf, np.asarray(times, float), rays, cfg, warning=warning,
-                              chain_period=chain_period)
+    cn, cp, cq = posed_chains(bf, np.asarray(times, float), rays if near is None else near, cfg,
+                              warning=warning, chain_period=chain_period)
     return LegFrames(names=w["names"] + tuple(cn),
                      positions=np.concatenate([w["positions"], cp], axis=1),
                      rotations=np.concatenate([w["rotations"], cq], axis=1),

@@ -12,7 +12,7 @@ from baker.context import Context
 from baker.parallel import fork_map
 from baker.run.crowd import run_crowd
 from baker.run.loop import run
-from baker.solve.solve import prey_frames, solve
+from baker.solve.solve import prey_frames, solve, solve_body, solve_limbs
 from baker.solve.trajectory import Trajectory
 from baker.streams import Streams
 
@@ -34,12 +34,18 @@ def simulate_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
                    workers: int = 1) -> list[Trajectory]:
     """Run `n` creatures together (run.crowd.run_crowd: their own streams, separate starts,
     local avoidance, one creature per shade spot, one hunter per prey), then solve each (on
-    up to `workers` processes: baker.parallel.fork_map, the same bits as one).
+    up to `workers` processes: baker.parallel.fork_map, the same bits as one): every body,
+    then every creature's limbs beside the other bodies.
     The bake's prey ride on the first trajectory (each held at its hunter's head while fed
     on); the others have none. ctx.notes["path_replans"] lists every creature's replans."""
     recs, prey = run_crowd(cfg, env, nav, seed, n, ctx, workers=workers)
     ctx.notes["path_replans"] = [r.replans for r in recs]
-    trajs = fork_map(lambda i: solve(recs[i], env.rays, cfg.rig), n, workers)
+    # the bodies first, then the limbs, whose ultimate legs and antennae raise clear of the
+    # other bodies they reach (locomotion.near)
+    bodies = fork_map(lambda i: solve_body(recs[i], env.rays, cfg.rig), n, workers)
+    spines = np.stack([bf.positions for bf, _ in bodies])
+    trajs = fork_map(lambda i: solve_limbs(recs[i], *bodies[i], env.rays, cfg.rig, spines, i),
+                     n, workers)
     if prey["prey_names"]:
         holder = prey["prey_holder"]                        # (F, P) creature or -1
         heads_p = np.stack([t.spine_positions[:, 0] for t in trajs])    # (n, F, 3)

@@ -7,6 +7,8 @@ frame, in vectorized passes over frames, joints and rays.
 2. body  — every spine joint on the trail at the head's arc length minus its spacing, with the
            cobra lift (locomotion.body.body_frames, locomotion.cobra.lift_profile);
 3. legs  — legs, antennae and ultimate legs from the placed spine (locomotion.legs.leg_frames);
+           in a crowd, after every body is placed, the ultimate legs and antennae raised clear
+           of the other bodies they reach (locomotion.near.crowd_near);
 4. prey  — on the surface, held at the head while fed on, hidden once eaten.
 """
 
@@ -21,10 +23,11 @@ from baker.config import RigConfig
 from baker.geometry import polyline
 from baker.geometry.conventions import UP
 from baker.geometry.transforms import frames_to_quat, quat_mul, quat_rotate
-from baker.locomotion.body import (body_frames, build_trail, project_to_surface,
+from baker.locomotion.body import (BodyFrames, body_frames, build_trail, project_to_surface,
                                    raised_for_hips, step_over_lips)
 from baker.locomotion.cobra import lift_profile
 from baker.locomotion.legs import hip_extent, hip_layout, leg_frames
+from baker.locomotion.near import crowd_near
 from baker.run.record import RunRecord
 from baker.solve.trajectory import Trajectory
 
@@ -39,6 +42,12 @@ HIP_ROUNDS = 2
 
 def solve(rec: RunRecord, rays, rig: RigConfig) -> Trajectory:
     """The creature's world frames at the export fps from its run."""
+    return solve_limbs(rec, *solve_body(rec, rays, rig), rays, rig)
+
+
+def solve_body(rec: RunRecord, rays, rig: RigConfig) -> tuple[BodyFrames, np.ndarray]:
+    """(the spine's BodyFrames, the head's arc (F,) along its trail) of the creature's run at
+    the export fps: steps 1 and 2."""
     body, navc = rig.body, rig.navigation
     probe = 0.5 * navc.height
     path = np.vstack([rec.start_line, rec.heads])
@@ -47,7 +56,6 @@ def solve(rec: RunRecord, rays, rig: RigConfig) -> Trajectory:
     flat = path.copy()
     flat[:, 1] = 0.0
     cum_h = polyline.arc_lengths(flat)
-    times = rec.times
     lift = lift_profile(rec.cobra, rig.cobra.curve, rig.cobra.height, body.segments)
     hips, hip_joints = hip_layout(rig)
     for rounds in range(HIP_ROUNDS, -1, -1):
@@ -64,10 +72,20 @@ def solve(rec: RunRecord, rays, rig: RigConfig) -> Trajectory:
         if raised is None:
             break
         trail = raised
+    return bf, head_arc
+
+
+def solve_limbs(rec: RunRecord, bf: BodyFrames, head_arc: np.ndarray, rays, rig: RigConfig,
+                spines: np.ndarray | None = None, index: int = 0) -> Trajectory:
+    """The creature's Trajectory from its placed spine (solve_body): steps 3 and 4. In a crowd
+    whose placed spines are `spines` (n, F, S, 3), this one's `index`: its ultimate legs and
+    antennae raise clear of the other bodies they reach (locomotion.near.crowd_near)."""
+    times = rec.times
+    near = None if spines is None else crowd_near(rays, spines, index, rig)
     limbs = {}
     if rig.legs.enabled:
         lf = leg_frames(bf, head_arc, times, rays, rig, warning=rec.warning,
-                        chain_period=rec.chain_period)
+                        chain_period=rec.chain_period, near=near)
         limbs = dict(joint_names=lf.names, joint_positions=lf.positions,
                      joint_rotations=lf.rotations, foot_contacts=lf.contacts)
     prey_t = (prey_frames(rec.prey_names, rec.prey_positions, rec.prey_modes, bf.positions[:, 0],

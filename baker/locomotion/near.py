@@ -1,0 +1,102 @@
+"""Other creatures' bodies near a creature's chains (ultimate legs and antennae), frame by
+frame, for a crowd's solve: its chains raise clear of them as they raise clear of the
+environment.
+
+A crowd's heads keep two agent radii from other bodies, which covers a walking leg's reach; an
+ultimate leg trails 4.4 spacings behind the tail, and where a body passes a fold of its trail
+the tail swings round and sweeps it across a half disc that long: in a 100-creature minute one
+swept 1 mm into a resting neighbour's head (the crowd check: no leg bone within a body radius
+of another creature's spine). NearBodies stands in for the environment's rays in the chains'
+solve (legs.posed_chains): `occluded` is the environment's, and `touches` adds the other
+bodies' capsules.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from baker.config import RigConfig
+from baker.geometry.proximity import segment_distances
+from baker.rig.limbs import chains
+
+#: a chain's bone keeps this many body radii from another creature's spine segments (the
+#: crowd check's capsule is one body radius; the margin covers the keyframe reduction)
+CLEAR_RADII = 1.25
+#: frames searched for near segments at once
+CHUNK = 256
+
+
+class NearBodies:
+    """The environment's rays and, for each of F frames, up to M other creatures' spine
+    segments (a, b: (F, M, 3), NaN where none) that a creature's chains may reach; a bone
+    within `radius` of one of them touches it."""
+
+    def __init__(self, rays, a: np.ndarray, b: np.ndarray, radius: float):
+        self.rays, self.a, self.b, self.radius = rays, a, b, float(radius)
+
+    def occluded(self, origins, directions, max_distance):
+        return self.rays.occluded(origins, directions, max_distance=max_distance)
+
+    def at(self, frames: np.ndarray) -> NearBodies:
+        """The same for the given frames only (chains solved over a run of frames)."""
+        return NearBodies(self.rays, self.a[frames], self.b[frames], self.radius)
+
+    def touches(self, p: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """(F, ...) bool: bone segments p-q (F, ..., 3), frame by frame, within `radius` of
+        one of that frame's segments."""
+        rows = np.nonzero(np.isfinite(self.a[:, :, 0]).any(axis=1))[0]
+        out = np.zeros(p.shape[:-1], dtype=bool)
+        if not len(rows):
+            return out
+        pr, qr = p[rows].reshape(len(rows), -1, 3), q[rows].reshape(len(rows), -1, 3)
+        ar, br = self.a[rows], self.b[rows]
+        k, M = pr.shape[1], ar.shape[1]
+        shape = (len(rows), k, M, 3)
+        d = segment_distances(*(np.broadcast_to(x, shape).reshape(-1, 3) for x in
+                                (pr[:, :, None], qr[:, :, None], ar[:, None], br[:, None])))
+        hit = (np.nan_to_num(d, nan=np.inf) < self.radius).reshape(len(rows), k, M).any(axis=2)
+        out[rows] = hit.reshape((len(rows),) + p.shape[1:-1])
+        return out
+
+
+def near_bodies(rays, spines: np.ndarray, i: int, bases: np.ndarray, reach: float,
+                radius: float) -> NearBodies | None:
+    """Creature i's NearBodies: every frame's spine segments of the other creatures whose
+    midpoint is within `reach` of one of i's chain bases (None: no frame has one).
+
+    spines : (n, F, S, 3) every creature's spine joints; bases : (F, c, 3) creature i's
+    chain bases; reach : [m] a chain's length and a body radius and half a segment;
+    radius : [m] a body radius"""
+    n, F, S, _ = spines.shape
+    mids = 0.5 * (spines[:, :, :-1] + spines[:, :, 1:])                  # (n, F, S-1, 3)
+    others = np.delete(np.arange(n), i)
+    seg = S - 1
+    mask = np.zeros((F, len(others) * seg), dtype=bool)
+    for f0 in range(0, F, CHUNK):
+        f1 = min(f0 + CHUNK, F)
+        m = np.moveaxis(mids[others, f0:f1], 0, 1).reshape(f1 - f0, -1, 3)     # (fc, K, 3)
+        mask[f0:f1] = (np.linalg.norm(m[:, None] - bases[f0:f1, :, None], axis=-1)
+                       <= reach).any(axis=1)
+    rows, cols = np.nonzero(mask)
+    if not len(rows):
+        return None
+    counts = mask.sum(axis=1)
+    slot = np.arange(len(rows)) - np.repeat(np.cumsum(counts) - counts, counts)
+    a = np.full((F, int(counts.max()), 3), np.nan)
+    b = np.full_like(a, np.nan)
+    c, j = others[cols // seg], cols % seg
+    a[rows, slot] = spines[c, rows, j]
+    b[rows, slot] = spines[c, rows, j + 1]
+    return NearBodies(rays, a, b, CLEAR_RADII * radius)
+
+
+def crowd_near(rays, spines: np.ndarray, i: int, rig: RigConfig) -> NearBodies | None:
+    """Creature i's NearBodies in a crowd whose placed spines are `spines` (n, F, S, 3): the
+    other bodies' segments within reach of its chains' bases (a chain's length and a margin,
+    a body radius and a spacing)."""
+    radius = float(max(rig.body.width_profile))
+    own = [ch for ch in chains(rig) if ch.kind != "forcipule"]
+    reach = (max(float(np.sum(ch.lengths)) for ch in own) * 1.05 + CLEAR_RADII * radius
+             + rig.body.spacing)
+    parents = sorted({ch.parent for ch in own})
+    return near_bodies(rays, spines, i, spines[i][:, parents], reach, radius)
