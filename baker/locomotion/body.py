@@ -56,9 +56,6 @@ LIFT_TURN = 24.0
 #: of the trail over a stone's edge turns, pitches and rolls the tail at once); above LIFT_TURN
 #: so a cobra ramp that turns a joint too fast is still found and slowed
 SPINE_FRAME_TURN = 26.0
-#: [deg/s] the fastest a joint swings round the joint ahead where its chord placement would
-#: jump across a fold of the trail (20 degrees a frame at 30 fps)
-PIVOT_RATE = 600.0
 #: at most this many halvings of a ramp's rate
 LIFT_ROUNDS = 3
 
@@ -538,19 +535,13 @@ def limit_turn(dirs: np.ndarray, axes: np.ndarray, max_angle: float) -> np.ndarr
 
 
 def place_chain(trail: Trail, head_arc: np.ndarray, offset: np.ndarray, spacing: float,
-                raised: np.ndarray | None = None, turn: float = 0.0,
-                before: tuple | None = None):
+                raised: np.ndarray | None = None):
     """Follow-the-leader placement: the head at its arc length on the trail, every other joint
     on the trail exactly `spacing` (3D) behind the joint ahead, each raised by its offset.
 
     offset : (F, S) metres above the trail (clearance + any cobra lift)
     raised : (F, S) 0..1 or None: how much each joint rides on the trail's smooth `high`
              profile instead of its surface-following height (a raised joint's reference)
-    turn   : [rad] > 0: a joint that would jump across a fold of the trail swings round the
-             joint ahead instead, at most this much a frame (trail_kernels._kept)
-    before : with turn, (link (F,) bool, positions (F, S, 3), arcs (F, S)): each frame's
-             previous frame is the one before it where link is set, else the positions and
-             arcs given (NaN: none); default: the frames follow one another
     returns (positions (F, S, 3), arc lengths on the trail (F, S))
     On a smooth trail this is the joint's fixed arc length behind the head to within a
     fraction of a percent; where the trail bends over a crease or a small step, keeping the
@@ -571,8 +562,7 @@ def place_chain(trail: Trail, head_arc: np.ndarray, offset: np.ndarray, spacing:
     # dip, would otherwise hang straight down from it, short of the trail)
     place_compiled(trail.points, trail.cum, rise, head_arc, offset, w,
                    np.linspace(0.0, 4.0 * spacing, 33), spacing,
-                   None if raised is None else RAISED_RISE * spacing, pos, arc, turn,
-                   *(before[1:] + before[:1] if before is not None else ()))
+                   None if raised is None else RAISED_RISE * spacing, pos, arc)
     return pos, arc
 
 
@@ -672,7 +662,7 @@ def body_frames(trail: Trail, head_arc: np.ndarray, spacing: float, segments: in
         # the slowed frames are placed again on their own, and the joints' directions taken
         # over all frames (a joint's turn limit runs frame by frame)
         again = _points(trail, head_arc[slow], spacing, clearance, lift[slow],
-                        _raised(lift, ramp)[slow], fps, _before(bf, slow))
+                        _raised(lift, ramp)[slow])
         pos, normals, ground, arcs = (_spliced(a, b, slow) for a, b in
                                       zip((bf.positions, bf.normals, bf.ground, bf.arcs), again))
         bf = BodyFrames(positions=pos, rotations=_oriented(trail, head_arc, pos, normals,
@@ -691,19 +681,6 @@ def _turn_limited(bf: BodyFrames) -> BodyFrames:
     for j in range(rot.shape[1]):     # head to tail: each joint after the one ahead of it
         rot[:, j] = limit_rotation(rot[:, j], lim, parent=rot[:, j - 1] if j else None)
     return bf
-
-
-def _before(bf: BodyFrames, rows: np.ndarray) -> tuple:
-    """place_chain's `before` for the frames `rows` (F,) bool placed again: each follows the
-    one before it where that is placed again too, else the frame before it as placed in bf."""
-    idx = np.flatnonzero(rows)
-    link = np.zeros(len(idx), dtype=bool)
-    link[1:] = np.diff(idx) == 1
-    prev = np.full((len(idx),) + bf.positions.shape[1:], np.nan)
-    prev_arc = np.full((len(idx),) + bf.arcs.shape[1:], np.nan)
-    has = idx > 0
-    prev[has], prev_arc[has] = bf.positions[idx[has] - 1], bf.arcs[idx[has] - 1]
-    return link, prev, prev_arc
 
 
 def _spliced(a: np.ndarray, b: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -738,20 +715,17 @@ def _placed(trail: Trail, head_arc: np.ndarray, spacing: float, clearance: float
             lift: np.ndarray, raised: np.ndarray | None, fps: int) -> BodyFrames:
     """The spine at the given frames (every frame from the first: the joints' directions are
     limited frame by frame), each joint `clearance + lift` above the trail."""
-    pos, normals, ground, arcs = _points(trail, head_arc, spacing, clearance, lift, raised,
-                                         fps)
+    pos, normals, ground, arcs = _points(trail, head_arc, spacing, clearance, lift, raised)
     rot = _oriented(trail, head_arc, pos, normals, spacing, fps)
     return BodyFrames(positions=pos, rotations=rot, normals=normals, ground=ground, lift=lift,
                       arcs=arcs)
 
 
 def _points(trail: Trail, head_arc: np.ndarray, spacing: float, clearance: float,
-            lift: np.ndarray, raised: np.ndarray | None, fps: int, before: tuple | None = None):
+            lift: np.ndarray, raised: np.ndarray | None):
     """(positions (F, S, 3), normals (F, S, 3), ground heights (F, S), arc lengths (F, S)) of
-    the spine's joints at the given frames (consecutive, or as `before` links them: see
-    place_chain), a joint passing a fold of the trail swung round at PIVOT_RATE."""
-    pos, s = place_chain(trail, head_arc, clearance + lift, spacing, raised=raised,
-                         turn=math.radians(PIVOT_RATE) / fps, before=before)
+    the spine's joints at the given frames, each on its own."""
+    pos, s = place_chain(trail, head_arc, clearance + lift, spacing, raised=raised)
     normals = normalize(polyline.sample(trail.normals, trail.cum, s))
     return pos, normals, np.interp(s, trail.cum, trail.ground), s
 

@@ -207,30 +207,17 @@ def _trail_pass(s, cum, path, rows, starts, ends, stops, base, shift, w_xz, w_y,
 
 
 def place_chain(points, cum, rise, head_arc, offset, w, steps, spacing: float,
-                raised_rise: float | None, pos, arc, turn: float = 0.0, prev=None,
-                prev_arc=None, link=None) -> None:
+                raised_rise: float | None, pos, arc) -> None:
     """body.place_chain's placement, compiled with its arithmetic (the same bits): the head at
     head_arc (F,) on the trail (points (T, 3), cum (T,)), every other joint `spacing` behind
     the joint ahead, found by the first of the arc `steps` back (33,) past it and 16
     bisections; each joint's point raised by offset (F, S) + w (F, S) x the trail's rise
     (T,) over its surface heights there (np.interp on the unclipped arc). raised_rise: None, or
     how far below the joint ahead a joint may start ([m]: offset is raised in place, as
-    place_chain does with `raised`). Writes pos (F, S, 3) and arc (F, S).
-
-    turn > 0 [rad]: a joint whose point would jump (move more than PIVOT_JUMP spacings
-    farther than the joint ahead in a frame: a fold of the trail its chord passes) swings
-    round the joint ahead instead, at most `turn` a frame (_kept). Its previous frame is the
-    one before it where link[f] (F,) is set, else prev[f] (F, S, 3) and prev_arc[f] (F, S)
-    (NaN: none); default: each frame follows the one before it."""
-    F, S = offset.shape
-    if link is None:
-        link = np.arange(F) > 0
-    if prev is None:
-        prev, prev_arc = np.full((F, S, 3), np.nan), np.full((F, S), np.nan)
+    place_chain does with `raised`). Writes pos (F, S, 3) and arc (F, S)."""
     compiled_call(_place_chain, _c(points), _c(cum), _c(rise), _c(head_arc), offset, _c(w),
                     _c(steps), float(spacing), raised_rise is not None,
-                    0.0 if raised_rise is None else float(raised_rise), pos, arc,
-                    float(turn), _c(prev), _c(prev_arc), np.ascontiguousarray(link, np.bool_))
+                    0.0 if raised_rise is None else float(raised_rise), pos, arc)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -313,100 +300,6 @@ def _gap(q, px, py, pz):
     return np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
 
 
-#: [spacings] a joint moving this much farther than the joint ahead in a frame jumps (a fold of
-#: the trail: metrics.JUMP is 0.5)
-PIVOT_JUMP = 0.3
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _kept(points, cum, rise, off, w, pos, arc, last, last_arc, f, pf, i, spacing, turn,
-          swung_ahead, q):
-    """Joint i of frame f, placed at pos[f, i] (arc[f, i]) a spacing behind the joint ahead by
-    the first crossing back along the trail, kept near its previous point last[pf, i] (arc
-    last_arc[pf, i]) where that placement jumps (moves more than PIVOT_JUMP spacings farther
-    than the joint ahead in a frame) or, behind a joint swung off the trail (`swung_ahead`),
-    is not a spacing from it: a fold of the trail (a head that turned back on itself tighter
-    than a spacing) lets the first crossing leap across it. Behind a swung joint, the
-    crossing nearest its previous arc (within two spacings) is taken if it does not jump, so
-    the joints behind stay on their side of the fold until the joint ahead has passed it.
-    Else the joint swings round the joint ahead from its previous point toward its placed
-    one, at most `turn` [rad] (_swing), keeping the placed arc. Returns whether it swung."""
-    lx, ly, lz = last[pf, i, 0], last[pf, i, 1], last[pf, i, 2]
-    ahead = _gap(pos[f, i - 1], last[pf, i - 1, 0], last[pf, i - 1, 1], last[pf, i - 1, 2]) \
-        if last[pf, i - 1, 0] == last[pf, i - 1, 0] else 0.0
-    bound = ahead + PIVOT_JUMP * spacing
-    px, py, pz = pos[f, i - 1, 0], pos[f, i - 1, 1], pos[f, i - 1, 2]
-    exact = abs(_gap(pos[f, i], px, py, pz) - spacing) <= 1e-6 * spacing
-    if (exact or not swung_ahead) and _gap(pos[f, i], lx, ly, lz) <= bound:
-        return False
-    if swung_ahead:
-        # the crossing nearest the previous arc
-        a0 = last_arc[pf, i]
-        n = 32
-        best, best_d = np.nan, np.inf
-        s0, g0 = np.nan, np.nan
-        for j in range(n + 1):
-            s1 = a0 - 2.0 * spacing + 4.0 * spacing * j / n
-            _at(points, cum, rise, s1, off, w, q)
-            g1 = _gap(q, px, py, pz) - spacing
-            if j > 0 and (g1 > 0.0) != (g0 > 0.0):
-                lo, hi, glo = s0, s1, g0
-                for _ in range(30):
-                    mid = 0.5 * (lo + hi)
-                    _at(points, cum, rise, mid, off, w, q)
-                    gm = _gap(q, px, py, pz) - spacing
-                    if (gm > 0.0) == (glo > 0.0):
-                        lo, glo = mid, gm
-                    else:
-                        hi = mid
-                if abs(0.5 * (lo + hi) - a0) < best_d:
-                    best, best_d = 0.5 * (lo + hi), abs(0.5 * (lo + hi) - a0)
-            s0, g0 = s1, g1
-        if best == best:
-            _at(points, cum, rise, best, off, w, q)
-            if _gap(q, lx, ly, lz) <= bound:
-                pos[f, i, 0], pos[f, i, 1], pos[f, i, 2] = q[0], q[1], q[2]
-                arc[f, i] = best
-                return False
-    _swing(pos, f, i, lx, ly, lz, spacing, turn)
-    return True
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _swing(pos, f, i, lx, ly, lz, spacing, turn):
-    """pos[f, i] swung round the joint ahead (pos[f, i - 1]) from (lx, ly, lz) toward where it
-    is, at most `turn` [rad], the short way round (through a fold's inside, where the head
-    walked), a spacing from the joint ahead."""
-    px, py, pz = pos[f, i - 1, 0], pos[f, i - 1, 1], pos[f, i - 1, 2]
-    u0, u1, u2 = lx - px, ly - py, lz - pz
-    v0, v1, v2 = pos[f, i, 0] - px, pos[f, i, 1] - py, pos[f, i, 2] - pz
-    nu = np.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
-    nv = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-    if nu < 1e-12:
-        return
-    u0, u1, u2 = u0 / nu, u1 / nu, u2 / nu
-    if nv < 1e-12:
-        v0, v1, v2, nv = u0, u1, u2, 1.0
-    v0, v1, v2 = v0 / nv, v1 / nv, v2 / nv
-    c = u0 * v0 + u1 * v1 + u2 * v2
-    c = -1.0 if c < -1.0 else (1.0 if c > 1.0 else c)
-    ang = np.arccos(c)
-    t = turn if ang > turn else ang
-    # v's part across u (the plane of the swing); nearly opposite, round the vertical
-    w0, w1, w2 = v0 - c * u0, v1 - c * u1, v2 - c * u2
-    nw = np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-    if nw < 1e-6:
-        w0, w1, w2 = -u2, 0.0, u0
-        nw = np.sqrt(w0 * w0 + w2 * w2)
-        if nw < 1e-12:
-            w0, w1, w2, nw = 1.0, 0.0, 0.0, 1.0
-    w0, w1, w2 = w0 / nw, w1 / nw, w2 / nw
-    ct, st = np.cos(t), np.sin(t)
-    pos[f, i, 0] = px + spacing * (ct * u0 + st * w0)
-    pos[f, i, 1] = py + spacing * (ct * u1 + st * w1)
-    pos[f, i, 2] = pz + spacing * (ct * u2 + st * w2)
-
-
 #: how many times the steps' reach _farther searches past them for a point a spacing back
 FARTHER = 4
 
@@ -432,14 +325,11 @@ def _farther(points, cum, rise, back, off, w, steps, spacing, px, py, pz, q, hi,
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _place_chain(points, cum, rise, head_arc, offset, w, steps, spacing, raised, raised_rise,
-                 pos, arc, turn, prev, prev_arc, link):
+                 pos, arc):
     F, S = offset.shape
     q = np.empty(3)
     K = len(steps)
     for f in range(F):
-        pf = f - 1 if link[f] else f
-        last, last_arc = (pos, arc) if link[f] else (prev, prev_arc)
-        swung = False
         a = head_arc[f]
         arc[f, 0] = a
         _at(points, cum, rise, a, offset[f, 0], w[f, 0], q)
@@ -475,6 +365,3 @@ def _place_chain(points, cum, rise, head_arc, offset, w, steps, spacing, raised,
             arc[f, i] = a
             _at(points, cum, rise, a, offset[f, i], w[f, i], q)
             pos[f, i, 0], pos[f, i, 1], pos[f, i, 2] = q[0], q[1], q[2]
-            if turn > 0.0 and (f > 0 or not link[f]) and last[pf, i, 0] == last[pf, i, 0]:
-                swung = _kept(points, cum, rise, offset[f, i], w[f, i], pos, arc, last,
-                              last_arc, f, pf, i, spacing, turn, swung, q)

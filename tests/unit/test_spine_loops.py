@@ -72,9 +72,7 @@ def test_no_spine_joint_turns_over_the_limit_against_the_joint_ahead_through_a_k
     assert world.max() <= SPINE_FRAME_TURN + 1e-6, world.max()
     assert local.max() <= SPINE_FRAME_TURN + 1e-6, local.max()
     # each joint limited in the world alone turns up to twice the limit against its neighbour
-    # (where the joints jump across the knot: swung round it, they turn less)
     monkeypatch.setattr(body, "_turn_limited", lambda frames: frames)
-    monkeypatch.setattr(body, "PIVOT_RATE", 0.0)
     free = knot(0.01, degrees, 0.008).rotations
     assert np.array_equal(free[-1], bf.rotations[-1])
     _, alone = steps(np.stack([limit_rotation(free[:, j], LIMIT)
