@@ -65,8 +65,8 @@ def near_bodies(rays, spines: np.ndarray, i: int, bases: np.ndarray, reach: floa
     midpoint is within `reach` of one of i's chain bases (None: no frame has one).
 
     spines : (n, F, S, 3) every creature's spine joints; bases : (F, c, 3) creature i's
-    chain bases; reach : [m] a chain's length and a body radius and half a segment;
-    radius : [m] a body radius"""
+    chain bases; reach : [m] how far from a base a segment's midpoint may be and a chain still
+    come within the clearance of it; radius : [m] a body radius"""
     n, F, S, _ = spines.shape
     mids = 0.5 * (spines[:, :, :-1] + spines[:, :, 1:])                  # (n, F, S-1, 3)
     others = np.delete(np.arange(n), i)
@@ -92,11 +92,13 @@ def near_bodies(rays, spines: np.ndarray, i: int, bases: np.ndarray, reach: floa
 
 def crowd_near(rays, spines: np.ndarray, i: int, rig: RigConfig) -> NearBodies | None:
     """Creature i's NearBodies in a crowd whose placed spines are `spines` (n, F, S, 3): the
-    other bodies' segments within reach of its chains' bases (a chain's length and a margin,
-    a body radius and a spacing)."""
+    other bodies' segments a chain may come within CLEAR_RADII body radii of, found by their
+    midpoints' distance from the joints the chains hang from (the longest chain and 5 %, the
+    farthest chain base from its joint, the clearance and half a segment)."""
     radius = float(max(rig.body.width_profile))
     own = [ch for ch in chains(rig) if ch.kind != "forcipule"]
-    reach = (max(float(np.sum(ch.lengths)) for ch in own) * 1.05 + CLEAR_RADII * radius
-             + rig.body.spacing)
+    reach = (max(float(np.sum(ch.lengths)) for ch in own) * 1.05
+             + max(float(np.linalg.norm(ch.base)) for ch in own)
+             + CLEAR_RADII * radius + 0.5 * rig.body.spacing)
     parents = sorted({ch.parent for ch in own})
     return near_bodies(rays, spines, i, spines[i][:, parents], reach, radius)
