@@ -22,8 +22,8 @@ from baker.rig.limbs import chains
 #: a chain's bone keeps this many body radii from another creature's spine segments (the
 #: crowd check's capsule is one body radius; the margin covers the keyframe reduction)
 CLEAR_RADII = 1.25
-#: frames searched for near segments at once
-CHUNK = 256
+#: frames searched for near segments at once (the other creatures' boxes over them first)
+CHUNK = 32
 
 
 class NearBodies:
@@ -33,6 +33,7 @@ class NearBodies:
 
     def __init__(self, rays, a: np.ndarray, b: np.ndarray, radius: float):
         self.rays, self.a, self.b, self.radius = rays, a, b, float(radius)
+        self.rows = np.nonzero(np.isfinite(a[:, :, 0]).any(axis=1))[0]    # frames with some
 
     def occluded(self, origins, directions, max_distance):
         return self.rays.occluded(origins, directions, max_distance=max_distance)
@@ -44,7 +45,7 @@ class NearBodies:
     def touches(self, p: np.ndarray, q: np.ndarray) -> np.ndarray:
         """(F, ...) bool: bone segments p-q (F, ..., 3), frame by frame, within `radius` of
         one of that frame's segments."""
-        rows = np.nonzero(np.isfinite(self.a[:, :, 0]).any(axis=1))[0]
+        rows = self.rows
         out = np.zeros(p.shape[:-1], dtype=bool)
         if not len(rows):
             return out
@@ -59,24 +60,45 @@ class NearBodies:
         return out
 
 
-def near_bodies(rays, spines: np.ndarray, i: int, bases: np.ndarray, reach: float,
+class CrowdSpines:
+    """Every creature's placed spine joints (n, F, S, 3), with each creature's box over each
+    CHUNK of frames (lo, hi: (n, C, 3)), made once for the whole crowd: near_bodies' first
+    cut (a point farther than its reach from a box is farther from everything in it)."""
+
+    def __init__(self, spines: np.ndarray):
+        self.spines = spines
+        starts = np.arange(0, spines.shape[1], CHUNK)
+        self.lo = np.minimum.reduceat(spines.min(axis=2), starts, axis=1)
+        self.hi = np.maximum.reduceat(spines.max(axis=2), starts, axis=1)
+
+
+def near_bodies(rays, crowd: CrowdSpines, i: int, bases: np.ndarray, reach: float,
                 radius: float) -> NearBodies | None:
     """Creature i's NearBodies: every frame's spine segments of the other creatures whose
     midpoint is within `reach` of one of i's chain bases (None: no frame has one).
 
-    spines : (n, F, S, 3) every creature's spine joints; bases : (F, c, 3) creature i's
-    chain bases; reach : [m] how far from a base a segment's midpoint may be and a chain still
-    come within the clearance of it; radius : [m] a body radius"""
+    crowd : every creature's spine joints; bases : (F, c, 3) creature i's chain bases;
+    reach : [m] how far from a base a segment's midpoint may be and a chain still come within
+    the clearance of it; radius : [m] a body radius"""
+    spines = crowd.spines
     n, F, S, _ = spines.shape
-    mids = 0.5 * (spines[:, :, :-1] + spines[:, :, 1:])                  # (n, F, S-1, 3)
     others = np.delete(np.arange(n), i)
     seg = S - 1
-    mask = np.zeros((F, len(others) * seg), dtype=bool)
-    for f0 in range(0, F, CHUNK):
+    mask = np.zeros((F, len(others), seg), dtype=bool)
+    for c, f0 in enumerate(range(0, F, CHUNK)):
         f1 = min(f0 + CHUNK, F)
-        m = np.moveaxis(mids[others, f0:f1], 0, 1).reshape(f1 - f0, -1, 3)     # (fc, K, 3)
-        mask[f0:f1] = (np.linalg.norm(m[:, None] - bases[f0:f1, :, None], axis=-1)
-                       <= reach).any(axis=1)
+        # only the creatures whose box over these frames comes within reach of the bases' box
+        lo, hi = crowd.lo[others, c], crowd.hi[others, c]                    # (n-1, 3)
+        blo, bhi = bases[f0:f1].min(axis=(0, 1)), bases[f0:f1].max(axis=(0, 1))
+        gap = np.maximum(np.maximum(lo - bhi, blo - hi), 0.0)
+        near = np.nonzero(np.linalg.norm(gap, axis=1) <= reach)[0]
+        if not len(near):
+            continue
+        box = spines[others[near], f0:f1]
+        mids = 0.5 * (box[:, :, :-1] + box[:, :, 1:])                        # (k, fc, S-1, 3)
+        d = np.linalg.norm(mids[:, :, None] - bases[None, f0:f1, :, None], axis=-1)
+        mask[f0:f1, near] = np.moveaxis((d <= reach).any(axis=2), 0, 1)
+    mask = mask.reshape(F, -1)
     rows, cols = np.nonzero(mask)
     if not len(rows):
         return None
@@ -90,8 +112,8 @@ def near_bodies(rays, spines: np.ndarray, i: int, bases: np.ndarray, reach: floa
     return NearBodies(rays, a, b, CLEAR_RADII * radius)
 
 
-def crowd_near(rays, spines: np.ndarray, i: int, rig: RigConfig) -> NearBodies | None:
-    """Creature i's NearBodies in a crowd whose placed spines are `spines` (n, F, S, 3): the
+def crowd_near(rays, crowd: CrowdSpines, i: int, rig: RigConfig) -> NearBodies | None:
+    """Creature i's NearBodies in a crowd whose placed spines are `crowd`'s: the
     other bodies' segments a chain may come within CLEAR_RADII body radii of, found by their
     midpoints' distance from the joints the chains hang from (the longest chain and 5 %, the
     farthest chain base from its joint, the clearance and half a segment)."""
@@ -101,4 +123,4 @@ def crowd_near(rays, spines: np.ndarray, i: int, rig: RigConfig) -> NearBodies |
              + max(float(np.linalg.norm(ch.base)) for ch in own)
              + CLEAR_RADII * radius + 0.5 * rig.body.spacing)
     parents = sorted({ch.parent for ch in own})
-    return near_bodies(rays, spines, i, spines[i][:, parents], reach, radius)
+    return near_bodies(rays, crowd, i, crowd.spines[i][:, parents], reach, radius)

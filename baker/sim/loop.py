@@ -12,7 +12,7 @@ from baker.context import Context
 from baker.parallel import fork_map
 from baker.run.crowd import run_crowd
 from baker.run.loop import run
-from baker.solve.solve import prey_frames, solve, solve_body, solve_limbs
+from baker.solve.solve import CrowdSpines, prey_frames, solve, solve_body, solve_limbs
 from baker.solve.trajectory import Trajectory
 from baker.streams import Streams
 
@@ -43,8 +43,8 @@ def simulate_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
     # the bodies first, then the limbs, whose ultimate legs and antennae raise clear of the
     # other bodies they reach (locomotion.near)
     bodies = fork_map(lambda i: solve_body(recs[i], env.rays, cfg.rig), n, workers)
-    spines = np.stack([bf.positions for bf, _ in bodies])
-    trajs = fork_map(lambda i: solve_limbs(recs[i], *bodies[i], env.rays, cfg.rig, spines, i),
+    crowd = CrowdSpines(np.stack([bf.positions for bf, _ in bodies]))
+    trajs = fork_map(lambda i: solve_limbs(recs[i], *bodies[i], env.rays, cfg.rig, crowd, i),
                      n, workers)
     if prey["prey_names"]:
         holder = prey["prey_holder"]                        # (F, P) creature or -1

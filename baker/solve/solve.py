@@ -27,7 +27,7 @@ from baker.locomotion.body import (BodyFrames, body_frames, build_trail, project
                                    raised_for_hips, step_over_lips)
 from baker.locomotion.cobra import lift_profile
 from baker.locomotion.legs import hip_extent, hip_layout, leg_frames
-from baker.locomotion.near import crowd_near
+from baker.locomotion.near import CrowdSpines, crowd_near
 from baker.run.record import RunRecord
 from baker.solve.trajectory import Trajectory
 
@@ -76,14 +76,14 @@ def solve_body(rec: RunRecord, rays, rig: RigConfig) -> tuple[BodyFrames, np.nda
 
 
 def solve_limbs(rec: RunRecord, bf: BodyFrames, head_arc: np.ndarray, rays, rig: RigConfig,
-                spines: np.ndarray | None = None, index: int = 0) -> Trajectory:
+                crowd: CrowdSpines | None = None, index: int = 0) -> Trajectory:
     """The creature's Trajectory from its placed spine (solve_body): steps 3 and 4. In a crowd
-    whose placed spines are `spines` (n, F, S, 3), this one's `index`: its ultimate legs and
-    antennae raise clear of the other bodies they reach (locomotion.near.crowd_near)."""
+    whose placed spines are `crowd`'s, this one's `index`: its ultimate legs and antennae
+    raise clear of the other bodies they reach (locomotion.near.crowd_near)."""
     times = rec.times
-    near = None if spines is None else crowd_near(rays, spines, index, rig)
     limbs = {}
     if rig.legs.enabled:
+        near = None if crowd is None else crowd_near(rays, crowd, index, rig)
         lf = leg_frames(bf, head_arc, times, rays, rig, warning=rec.warning,
                         chain_period=rec.chain_period, near=near)
         limbs = dict(joint_names=lf.names, joint_positions=lf.positions,

@@ -14,7 +14,7 @@ from baker.config import DEFAULT_RIG, load_rig_config
 from baker.geometry.proximity import segment_distances
 from baker.locomotion.body import body_frames, build_trail
 from baker.locomotion.legs import leg_frames
-from baker.locomotion.near import NearBodies, crowd_near, near_bodies
+from baker.locomotion.near import CrowdSpines, NearBodies, crowd_near, near_bodies
 from baker.metrics import leg_bones
 from test_navmesh_scenes import env_of, quad
 
@@ -63,7 +63,7 @@ def test_ultimate_legs_rise_clear_of_a_body_lying_across_them():
                             (F, 21, 3))
     assert closest(a, b, other).min() < 0.5 * RADIUS          # alone, it lies through it
     spines = np.stack([bf.positions, other])
-    near = crowd_near(env.rays, spines, 0, RIG)
+    near = crowd_near(env.rays, CrowdSpines(spines), 0, RIG)
     assert isinstance(near, NearBodies)
     lf = leg_frames(bf, head_arc, times, env.rays, RIG, near=near)
     a, b = ultimate_bones(lf)
@@ -76,7 +76,7 @@ def test_ultimate_legs_rise_clear_of_a_body_lying_across_them():
 def test_far_bodies_are_not_near_and_change_nothing():
     env, bf, head_arc, times = walker()
     far = bf.positions + np.array([0.0, 0.0, 0.5])
-    assert crowd_near(env.rays, np.stack([bf.positions, far]), 0, RIG) is None
+    assert crowd_near(env.rays, CrowdSpines(np.stack([bf.positions, far])), 0, RIG) is None
 
 
 def test_near_bodies_keeps_each_frames_segments_within_reach():
@@ -85,7 +85,7 @@ def test_near_bodies_keeps_each_frames_segments_within_reach():
     spines[1, 0] = [[0.05, 0, 0], [0.06, 0, 0], [0.07, 0, 0]]
     spines[1, 1] = [[0.5, 0, 0], [0.51, 0, 0], [0.52, 0, 0]]
     bases = np.zeros((2, 1, 3))
-    near = near_bodies(None, spines, 0, bases, reach=0.1, radius=0.01)
+    near = near_bodies(None, CrowdSpines(spines), 0, bases, reach=0.1, radius=0.01)
     assert near.a.shape == (2, 2, 3)
     assert np.isfinite(near.a[0]).all() and np.isnan(near.a[1]).all()
     # a bone along x from the origin touches frame 0's segments only
