@@ -51,7 +51,8 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 from baker.config import LegsConfig, RigConfig
 from baker.geometry.conventions import FORWARD, LEFT, UP
 from baker.geometry.ik import bone_frames, reach_clamp, soft_clamp, two_bone_ik
-from baker.geometry.transforms import cross, dot, length, limit_rotation, normalize, quat_rotate
+from baker.geometry.transforms import (cross, dot, length, limit_rotation, normalize, quat_angle,
+                                       quat_conj, quat_mul, quat_rotate)
 from baker.locomotion.body import SPINE_FRAME_TURN, BodyFrames
 from baker.locomotion.gait import gait_clock
 from baker.locomotion.leg_kernels import leg_traces
@@ -943,9 +944,10 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
         mid, hinge = _clear_knees(rays, hip, sol.mid, sol.end, sol.hinge, lay.l1, lay.l2, tol)
         # a planted leg whose bones no knee swivel clears (a foot at the foot of a step, the
-        # knee over it) lifts before that frame, and the stances are planned again
-        if attempt == STUCK_ROUNDS - 1 or not _lift_stuck(rays, lay, st, cidx, contact, hip, mid,
-                                                          sol.end, tol):
+        # knee over it), or whose bones as solved turn too fast in a frame, lifts before that
+        # frame, and the stances are planned again
+        if attempt == STUCK_ROUNDS - 1 or not _lift_stuck(rays, lf, st, cidx, contact, mid,
+                                                          sol.end, hinge, tol):
             break
         holds, cidx, contact = _stances(rays, lf, cfg, st, holds, anchor, times)
     q_u = bone_frames(hip, mid, hinge)
@@ -967,12 +969,15 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
                 touchdowns=st.Ts, liftoffs=st.LOs, holds=holds)
 
 
-def _lift_stuck(rays, lay: LegLayout, st: _Steps, cidx, contact, hip, mid, end, tol) -> bool:
-    """Planted frames whose leg bones pass through something (_bones_hit) end their stance: the
-    foot lifts off the frame before the first of them (st.LOs, never before its touchdown).
-    True when a stance got shorter."""
+def _lift_stuck(rays, lf: _Frames, st: _Steps, cidx, contact, mid, end, hinge, tol) -> bool:
+    """Planted frames whose leg bones pass through something (_bones_hit), or turn more than
+    SWING_TURN since the frame before in the same stance (_solved_stance_turns), end their
+    stance: the foot lifts off the frame before the first of them (st.LOs, never before its
+    touchdown). True when a stance got shorter."""
+    lay, hip = lf.lay, lf.hip
     f, l = np.nonzero(contact)
     bad = _bones_hit(rays, hip[f, l], mid[f, l], end[f, l], lay.l1, lay.l2, tol)
+    bad |= _solved_stance_turns(lf.q, hip, mid, end, hinge, cidx, contact)[f, l] > SWING_TURN
     if not bad.any():
         return False
     f, l = f[bad], l[bad]
@@ -982,6 +987,23 @@ def _lift_stuck(rays, lay: LegLayout, st: _Steps, cidx, contact, hip, mid, end, 
     Ts = st.Ts[:len(before)]
     st.LOs[:] = np.maximum(st.LOs, np.minimum(Ts, before))
     return bool(np.any(st.LOs < before))
+
+
+def _solved_stance_turns(seg_q, hip, mid, end, hinge, cidx, contact) -> np.ndarray:
+    """(F, L) degrees the bones of the legs as solved (knees swivelled: _clear_knees) turn
+    since the frame before, where both frames are planted on the same hold (0 elsewhere): the
+    largest of each bone's turn in the world, the upper bone's in its segment's space and the
+    tip's in the upper bone's. The stance check (_stance_turns) measures the plain IK before
+    the knees swivel; a swivel easing in while the body jumps adds the two."""
+    q_u = bone_frames(hip, mid, hinge)
+    q_t = bone_frames(mid, end, hinge)
+    rel_u = quat_mul(quat_conj(seg_q), q_u)
+    rel_t = quat_mul(quat_conj(q_u), q_t)
+    step = np.max([quat_angle(q[1:], q[:-1]) for q in (q_u, q_t, rel_u, rel_t)], axis=0)
+    out = np.zeros(contact.shape)
+    same = contact[1:] & contact[:-1] & (cidx[1:] == cidx[:-1])
+    out[1:] = np.where(same, np.degrees(step), 0.0)
+    return out
 
 
 def _obstacle_lift(rays, hip: np.ndarray, base: np.ndarray, up: np.ndarray, u: np.ndarray,
