@@ -1648,6 +1648,13 @@ def _chain_touches(rays, o, d1, d2, knee, lengths) -> np.ndarray:
 WARN_SHARES = (1.0, 0.8, 0.6, 0.4, 0.2, 0.0)
 #: the warning's raise gives way to an overhang at most this share of it per frame
 WARN_GIVE_RATE = 0.1
+#: shares of an antenna's sweep (an ultimate leg's sway) tried where the full one clears only
+#: raised, widest first (negative: away from the sweep); the sweep gives way at most
+#: SWEEP_GIVE_RATE of itself per frame
+SWEEP_SHARES = (0.75, 0.5, 0.25, 0.0, -0.25, -0.5)
+SWEEP_GIVE_RATE = 0.08
+#: a narrower sweep is taken where it clears with a raise this much less than the wider one
+SWEEP_SLACK = np.radians(12.0)
 
 
 def _warning_room(rays, q, o, side, yaws, pitch, bend, lengths, rise) -> np.ndarray:
@@ -1724,6 +1731,13 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
         pitch = base_pitch[:, None] + raise_steps[None, :]            # (F, k)
         ok_all = _chain_clear(rays, q, o, s, yaw1 + dyaw[:, None], yaw2 + dyaw[:, None], pitch,
                               pit2 - pit1, ch.lengths, back)
+        if not ok_all[:, 0].all():     # beside a post: sweep less far, not rear over it
+            share = _sweep_share(rays, q, o, s, (yaw1, yaw2), dyaw, pitch, raise_steps,
+                                 pit2 - pit1, ch.lengths, back, ok_all)
+            if (share < 1.0).any():
+                dyaw = share * dyaw
+                ok_all = _chain_clear(rays, q, o, s, yaw1 + dyaw[:, None], yaw2 + dyaw[:, None],
+                                      pitch, pit2 - pit1, ch.lengths, back)
         l1 = ch.lengths[0]
         # none clears: the chain as it is (raising it fully drove it into a ceiling)
         raw = raise_steps[np.where(ok_all.any(1), np.argmax(ok_all, 1), 0)]
@@ -1741,6 +1755,34 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
         pos += [o, knee]
         rot += [r1, r2]
     return names, np.stack(pos, 1), np.stack(rot, 1)
+
+
+def _sweep_share(rays, q, o, s, rest_yaws, dyaw, pitch, steps, bend, lengths, back, ok_all):
+    """(F,) the share of its sway or sweep `dyaw` (F,) a chain takes (negative: away from its
+    sweep): where the full sweep clears only raised (ok_all (F, k): which raises `steps` of
+    `pitch` (F, k) clear it; an antenna sweeping into a post or a stem beside a resting head
+    must then rear up or jump between raises), the widest of SWEEP_SHARES whose least raise
+    that clears is within SWEEP_SLACK of the least of any share (the full sweep where none
+    clears, inside a hollow log), eased so the sweep gives way at most SWEEP_GIVE_RATE of
+    itself per frame. rest_yaws: the two bones' yaws at rest."""
+    least = (lambda ok: np.where(ok, np.abs(steps)[None, :], np.inf).min(1))
+    full = least(ok_all)
+    idx = np.nonzero(full > 0.0)[0]
+    room = np.ones(len(dyaw))
+    if len(idx) == 0:
+        return room
+    costs = [full[idx]]
+    view = rays.at(idx) if isinstance(rays, NearBodies) else rays
+    for share in SWEEP_SHARES:
+        y = (share * dyaw[idx])[:, None]
+        costs.append(least(_chain_clear(view, q[idx], o[idx], s, rest_yaws[0] + y,
+                                        rest_yaws[1] + y, pitch[idx], bend, lengths, back)))
+    costs = np.stack(costs, 1)                                        # (n, 1 + shares)
+    best = costs.min(1)
+    widest = np.argmax(costs <= best[:, None] + SWEEP_SLACK, axis=1)
+    room[idx] = np.where(np.isfinite(best), np.array((1.0,) + SWEEP_SHARES)[widest], 1.0)
+    give = _ramp((1.0 - room)[:, None], SWEEP_GIVE_RATE)[:, 0]
+    return 1.0 - give
 
 
 def _eased_chain(rays, q, o, s, yaws, base_pitch, bend, lengths, back, steps, raw, ok_all):

@@ -157,6 +157,41 @@ def test_antennae_dip_under_a_low_ceiling(rig_config):
     assert np.degrees(quat_angle(rot[1:, ant], rot[:-1, ant])).max() < 30.0
 
 
+def test_an_antenna_beside_a_post_sweeps_less_far_rather_than_through_it(rig_config, flat_env):
+    """A resting head with a thin post 2 cm ahead and 2 cm to its left, in the left antenna's
+    sweep: the full sweep clears the post only reared far up, and the raise eased to it, then
+    the antenna's turn limit, left the tip bone through the post (17 bone-frames in 4 s; a
+    100-creature minute, 2797015: 91 over 60 s beside a stem). Now that antenna sweeps less
+    far (legs._sweep_share) and clears it every frame; the right antenna, with nothing near
+    it, sweeps as on open ground."""
+    import trimesh
+
+    from baker.geometry.transforms import quat_angle
+    from baker.locomotion.legs import posed_chains
+    from baker.metrics import quat_rotate_y
+
+    bf, arc, t = _straight_body(rig_config, speed=0.0, seconds=4.0)
+    head = bf.positions[0, 0]
+    post = trimesh.creation.box(extents=(0.004, 0.3, 0.004))
+    post.apply_translation((0.02, 0.15, head[2] + 0.02))
+    env = Environment(meshes=(flat_ground(size=8.0, n=8), post), sun=flat_env.sun, source="",
+                      name="post")
+    names, pos, rot = posed_chains(bf, t, env.rays, rig_config)
+    ant = [i for i, n in enumerate(names) if n.startswith("antenna_")]
+    d = quat_rotate_y(rot[:, ant])
+    hit = env.rays.first_hit(pos[:, ant].reshape(-1, 3), d.reshape(-1, 3),
+                             max_distance=rig_config.legs.antenna_length).hit
+    assert not hit.any()
+    assert np.degrees(quat_angle(rot[1:, ant], rot[:-1, ant])).max() < 30.0
+    _, pos0, rot0 = posed_chains(bf, t, flat_env.rays, rig_config)
+    right = [i for i, n in enumerate(names) if n.startswith("antenna_R")]
+    left = [i for i, n in enumerate(names) if n.startswith("antenna_L")]
+    assert np.array_equal(rot[:, right], rot0[:, right])
+    # the left antenna still sweeps (less far): its tip moves sideways over a few centimetres
+    tip = pos[:, left[1]] + quat_rotate_y(rot[:, left[1]]) * rig_config.legs.antenna_length
+    assert np.ptp(tip[:, 0]) > 0.005
+
+
 def test_a_warning_under_a_low_overhang_raises_the_ultimate_legs_only_as_far_as_it_clears(
         rig_config):
     """Posture 1 under a ceiling 45 mm up (a rest under the showcase's bark sheet): the full
