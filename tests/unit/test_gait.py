@@ -139,9 +139,7 @@ def test_antennae_dip_under_a_low_ceiling(rig_config):
     (every second antenna bone through it in every frame: inside the showcase's hollow log)."""
     import trimesh
 
-    from baker.geometry.transforms import quat_angle
     from baker.locomotion.legs import posed_chains
-    from baker.metrics import quat_rotate_y
 
     v = np.array([[-1, 0.014, -3], [1, 0.014, -3], [1, 0.014, 3], [-1, 0.014, 3]], float)
     ceiling = trimesh.Trimesh(v, [[0, 1, 2], [0, 2, 3]], process=False)
@@ -149,10 +147,18 @@ def test_antennae_dip_under_a_low_ceiling(rig_config):
         np.array([0.3, 0.9, 0.2]))), source="", name="low ceiling")
     bf, arc, t = _straight_body(rig_config, speed=0.1, seconds=4.0)
     names, pos, rot = posed_chains(bf, t, env.rays, rig_config)
+    _assert_antennae_clear(env, rig_config, names, pos, rot)
+
+
+def _assert_antennae_clear(env, cfg, names, pos, rot):
+    """No antenna bone through the environment, none turning 30 deg or more in a frame."""
+    from baker.geometry.transforms import quat_angle
+    from baker.metrics import quat_rotate_y
+
     ant = [i for i, n in enumerate(names) if n.startswith("antenna_")]
     d = quat_rotate_y(rot[:, ant])
     hit = env.rays.first_hit(pos[:, ant].reshape(-1, 3), d.reshape(-1, 3),
-                             max_distance=rig_config.legs.antenna_length).hit
+                             max_distance=cfg.legs.antenna_length).hit
     assert not hit.any()
     assert np.degrees(quat_angle(rot[1:, ant], rot[:-1, ant])).max() < 30.0
 
@@ -166,7 +172,6 @@ def test_an_antenna_beside_a_post_sweeps_less_far_rather_than_through_it(rig_con
     it, sweeps as on open ground."""
     import trimesh
 
-    from baker.geometry.transforms import quat_angle
     from baker.locomotion.legs import posed_chains
     from baker.metrics import quat_rotate_y
 
@@ -177,12 +182,7 @@ def test_an_antenna_beside_a_post_sweeps_less_far_rather_than_through_it(rig_con
     env = Environment(meshes=(flat_ground(size=8.0, n=8), post), sun=flat_env.sun, source="",
                       name="post")
     names, pos, rot = posed_chains(bf, t, env.rays, rig_config)
-    ant = [i for i, n in enumerate(names) if n.startswith("antenna_")]
-    d = quat_rotate_y(rot[:, ant])
-    hit = env.rays.first_hit(pos[:, ant].reshape(-1, 3), d.reshape(-1, 3),
-                             max_distance=rig_config.legs.antenna_length).hit
-    assert not hit.any()
-    assert np.degrees(quat_angle(rot[1:, ant], rot[:-1, ant])).max() < 30.0
+    _assert_antennae_clear(env, rig_config, names, pos, rot)
     _, pos0, rot0 = posed_chains(bf, t, flat_env.rays, rig_config)
     right = [i for i, n in enumerate(names) if n.startswith("antenna_R")]
     left = [i for i, n in enumerate(names) if n.startswith("antenna_L")]
