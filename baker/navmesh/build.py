@@ -4,12 +4,14 @@ Steps (all vectorized over columns / samples; rays are cast in batched chunks):
 1. Column heightfield: cast a ray straight down through every column centre from above the
    scene, then again from just below each hit, until no column hits anything: every surface
    layer of every column is found (log top and the floor inside it, bridge and road).
-   Faces are two-sided, so a downward ray always sees a surface from above. A hit on a closed
-   (watertight) mesh component either enters the solid (its top) or leaves it (the inside of
-   its bottom shell, not a floor): told by the face's winding where the solid's faces agree
-   (outward or inward, found from its signed volume), so that a hit lost to a coincident face
-   (a slab resting on a lintel) can be restored; by counting hits down the column otherwise.
-   A file's winding convention never matters.
+   A downward ray sees a face from either side. A hit on a closed (watertight) mesh
+   component either enters the solid (its top) or leaves it (the inside of its bottom shell,
+   not a floor): told by the face's winding where the solid's faces agree (outward or
+   inward, found from its signed volume), so that a hit lost to a coincident face (a slab
+   resting on a lintel) can be restored; by counting hits down the column otherwise. A face
+   of an open component is a floor only seen from the side its normal points to (as in
+   Recast), unless the whole file is wound the other way round (_open_facing), or it is
+   modelled double-sided.
 2. Walkable samples: slope within max_slope and at least agent height of free space up to the
    next hit above.
 3. Links between 4-neighbour samples whose heights differ by at most the step height and whose
@@ -169,14 +171,60 @@ def _layer_eps(caster: _Caster, x0, z0, nx, nz, cell, ytop) -> float:
     return max(LAYER_EPS, 16.0 * float(np.finfo(np.float32).eps) * span)
 
 
+#: a file whose open surfaces' flat faces face down over more than this share of their area is
+#: taken as wound the other way round throughout (a terrain exported with flipped normals)
+FLIPPED_SHARE = 0.9
+
+
+def _solids(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray]:
+    """_solid_components of the mesh, _open_facing of its open components and which faces
+    are walked on from either side: a closed solid's (its inside is told from its winding,
+    _inside_solid) and a triangle modelled twice (a double-sided floor: the same corners,
+    welded as _solid_components welds them, either winding)."""
+    face_comp, closed, wind = _solid_components(mesh)
+    either = closed[face_comp] if len(face_comp) else np.zeros(0, dtype=bool)
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    if len(f) > 1:
+        v = np.asarray(mesh.vertices, dtype=np.float64)
+        lo = v.min(axis=0)
+        ext = float((v.max(axis=0) - lo).max()) or 1.0
+        _, vid = np.unique(np.round((v - lo) / (ext * 1e-6)), axis=0, return_inverse=True)
+        corners = np.sort(vid.reshape(-1)[f], axis=1)
+        _, inv, cnt = np.unique(corners, axis=0, return_inverse=True, return_counts=True)
+        either = either | (cnt[inv.reshape(-1)] > 1)
+    return face_comp, closed, wind, _open_facing(mesh, face_comp, closed), either
+
+
+def _open_facing(mesh, face_comp: np.ndarray, closed: np.ndarray) -> float:
+    """Which side of the faces of open (not closed) mesh components is walked on: +1.0 the
+    side their normals (as wound) point to, as engines walk them (Recast, Unity and Godot
+    build on up-facing triangles only), -1.0 the other, for a file wound the other way round
+    throughout (its flat open faces mostly face down: more than FLIPPED_SHARE of their area).
+    A level modelled as the inside of a shell (Recast's dungeon, a Quake-style arena) has
+    open faces both ways, floors up and ceilings down: seen from above, a ceiling's back is
+    the roof outside the level and the bottom's back the void under it, neither walkable."""
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    if len(f) == 0:
+        return 1.0
+    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    twice = np.sqrt(np.einsum("ij,ij->i", n, n))
+    ny = n[:, 1] / np.maximum(twice, 1e-300)
+    flat = ~closed[face_comp] & (np.abs(ny) >= 0.5)
+    up, down = (float(twice[flat & side].sum()) for side in (ny > 0, ny < 0))
+    return -1.0 if down > FLIPPED_SHARE * (up + down) else 1.0
+
+
 def _walkable_hits(caster, tri, eps, c0, c1, solids, cos_slope, height, timings):
     """Heightfield of columns c0..c1-1 reduced to its walkable layers:
     (col, y, ceiling y, triangle, number of layers). tri: raster.Triangles of the grid; eps:
-    _layer_eps of the grid; solids() gives _solid_components of the mesh."""
+    _layer_eps of the grid; solids() gives _solids of the mesh. A layer is walked on from
+    above only on the side _open_facing names of its open components' faces (any face of the
+    layer), a closed solid's faces and a double-sided triangle's either way (_solids)."""
     t = time.perf_counter()
     hcol, hy, hprim = tri.layers(c0, c1)
     timings["layers"] = timings.get("layers", 0.0) + time.perf_counter() - t
-    face_comp, comp_closed, comp_wind = solids()
+    face_comp, comp_closed, comp_wind, facing, either = solids()
     t = time.perf_counter()
     face_ny = caster.face_normals[:, 1]
     hcol, hy, hprim, head = raster.coincident(
@@ -188,6 +236,9 @@ def _walkable_hits(caster, tri, eps, c0, c1, solids, cos_slope, height, timings)
     # judged on every crossing of the column, coincident ones included
     inside = _inside_solid(hcol, hprim, first, face_comp, comp_closed, comp_wind,
                            face_ny)[head]
+    seen = either[hprim] | (face_ny[hprim] * facing > 0.0)
+    front = (np.logical_or.reduceat(seen, np.nonzero(head)[0]) if len(seen)
+             else np.zeros(0, dtype=bool))
     hcol, hy, hprim = hcol[head], hy[head], hprim[head]
     nh = len(hcol)
     first = np.ones(nh, dtype=bool)
@@ -195,8 +246,8 @@ def _walkable_hits(caster, tri, eps, c0, c1, solids, cos_slope, height, timings)
     hceil = np.empty(nh)
     hceil[first] = np.inf
     hceil[~first] = hy[:-1][~first[1:]]
-    hny = np.abs(face_ny[hprim])  # two-sided: every hit is seen from above
-    walk = (hny >= cos_slope) & (hceil - hy >= height) & ~inside
+    hny = np.abs(face_ny[hprim])  # every hit is seen from above
+    walk = (hny >= cos_slope) & (hceil - hy >= height) & ~inside & front
     out = (hcol[walk], hy[walk], hceil[walk], hprim[walk], nh)
     timings["samples"] = timings.get("samples", 0.0) + time.perf_counter() - t
     return out
@@ -387,7 +438,7 @@ def _build_data(env, agent, bounds, coarse_factor: int,
     # while the columns are cast: the closed solids (read after the first columns), the
     # columns a steep face can block a link in (read by the links) and the thin upright parts
     # (read by the erosion)
-    solids = in_background(_solid_components, mesh)
+    solids = in_background(_solids, mesh)
     blockers = in_background(_blocker_columns, caster, x0, z0, nx, nz, cell,
                              min(slope, math.atan2(h_off, cell)))
     posts = in_background(_thin_parts, caster, cell, slope)
@@ -485,7 +536,7 @@ class _Samples:
 def _samples(caster: _Caster, grid: _Grid, ytop, solids, slope, height, timings,
              where) -> _Samples:
     """1.-2. the column heightfield and its walkable samples, in bands of columns (bounded
-    memory). solids(): _solid_components of the mesh."""
+    memory). solids(): _solids of the mesh."""
     x0, z0, nx, nz, cell = grid.x0, grid.z0, grid.nx, grid.nz, grid.cell
     ncols = nx * nz
     cos_slope = math.cos(slope) - 1e-9
