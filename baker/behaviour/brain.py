@@ -118,6 +118,7 @@ class Brain(IntentSource):
         self._sated_until = -math.inf   # after a meal: no hunting, and it digests in shade
         self._out_of_range = math.inf   # when the hunted prey last went out of range
         self._gap, self._next_gap, self._gaining = math.inf, 0.0, False  # gaining on the prey
+        self._reachable, self._next_reach_check = True, 0.0   # the prey within reach (of late)
         self._now = 0.0
         # (senses, _sense's answer) measured ahead of the step for a crowd (sense_together)
         self._sensed: tuple | None = None
@@ -251,6 +252,7 @@ class Brain(IntentSource):
                 self._next_replan = s.t
                 self._out_of_range = math.inf
                 self._gap, self._next_gap, self._gaining = math.inf, s.t, False
+                self._reachable, self._next_reach_check = True, s.t + GAP_INTERVAL
 
     def _deep_shade(self, p: np.ndarray, sun: np.ndarray) -> bool:
         """The shade around p reaches SPOT_MARGIN every way: a spot worth walking to, not a
@@ -268,7 +270,19 @@ class Brain(IntentSource):
             return None
         d = [float(np.linalg.norm(p.position - head)) for p in free]
         i = int(np.argmin(d))
-        return free[i] if d[i] <= self.b.detection_range else None
+        if d[i] > self.b.detection_range or not self._within_reach(free[i], head):
+            return None
+        return free[i]
+
+    def _within_reach(self, prey: Prey, head: np.ndarray) -> bool:
+        """The hunter's walkable surface comes within striking distance of the prey, on the
+        head's own component: a prey seen on a ledge or a floor the hunter cannot walk to is
+        not hunted (the hunter used to run to the nearest point it could reach and hunt on
+        there for as long as the prey stayed in range)."""
+        reach = (self.b.strike_range + self.rig.body.spacing + self.rig.prey.radius
+                 + self.nav.agent_radius)
+        q = self.nav.nearest(prey.position, max_dist=reach)
+        return q is not None and self.nav.component_of(q) == self.nav.component_of(head)
 
     def _recheck_spots(self, t: float) -> None:
         """Drop remembered spots that are no longer shaded (the sun moved)."""
@@ -392,13 +406,18 @@ class Brain(IntentSource):
         # hunter is gaining on a prey that has tired)
         far = d > 1.2 * self.b.detection_range and not (
             self._gaining and d <= GAIN_RANGE * self.b.detection_range)
+        if s.t >= self._next_reach_check:
+            self._next_reach_check = s.t + GAP_INTERVAL
+            self._reachable = self._within_reach(prey, s.head)
+        far = far or not self._reachable
         self._out_of_range = min(self._out_of_range, s.t) if far else math.inf
         if far and s.t - self._out_of_range >= GIVE_UP_TIME:
-            self.events[-1]["details"]["outcome"] = "escaped"
+            gone = "escaped" if self._reachable else "out of reach"
+            self.events[-1]["details"]["outcome"] = gone
             self._ignore[prey.name] = s.t + 2.0 * self.b.decision_interval
             self.prey = None
             self._roll(s)        # gives up: back to the d10 (wander, or shade)
-            self.events[-1]["details"]["reason"] = "prey escaped"
+            self.events[-1]["details"]["reason"] = "prey " + gone
             return
         if d - self.rig.prey.radius <= self.b.strike_range + self.rig.body.spacing:
             self.events[-1]["details"]["outcome"] = "caught"
