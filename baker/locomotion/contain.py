@@ -40,23 +40,32 @@ SPIN = 0.5 * math.pi
 _NO_NEAR = np.empty((0, 3))
 
 
+#: no slope: the layer's height is compared as it is (SurfaceTest's `slope`)
+FLAT = (0.0, 0.0, 0.0, 0.0)
+
+
 class SurfaceTest:
     """allowed(x, z) -> bool: the column of (x, z) has a walkable sample within `tol` of height
-    `y` (NavSurface.layer_height is not NaN), and the point is at least sqrt(need) from every
-    point of `near` that can be that close. near: (k, 3) rows (distance from (rx, rz) less a
-    margin, x, z), nearest first: a point farther from (rx, rz) than the test point is by more
-    than sqrt(need) is never measured, nor those after it. params: the grid (x0, z0, cell,
-    nx, nz), the layer (y, tol), the reference point and reach (rx, rz, sqrt(need), need).
+    `y`, or within `tol` and the plane's rise over a cell of the plane through (sx, y, sz)
+    rising gx a metre along x and gz along z (`slope`: the head's layer there; a step on a ramp
+    is a step net of the ramp's rise over a cell, as the navigation links it between column
+    centres: navmesh.build._riser), and the point is at least sqrt(need) from
+    every point of `near` that can be that close. near: (k, 3) rows (distance from (rx, rz)
+    less a margin, x, z), nearest first: a point farther from (rx, rz) than the test point is
+    by more than sqrt(need) is never measured, nor those after it. params: the grid (x0, z0,
+    cell, nx, nz), the layer (y, tol), the reference point and reach (rx, rz, sqrt(need),
+    need), the slope (sx, sz, gx, gz).
     """
 
     __slots__ = ("cols", "positions", "normals", "near", "params")
 
     def __init__(self, nav, y: float, tol: float, near: np.ndarray | None = None,
-                 ref: tuple[float, float] = (0.0, 0.0), need: float = 0.0):
+                 ref: tuple[float, float] = (0.0, 0.0), need: float = 0.0,
+                 slope: tuple[float, float, float, float] = FLAT):
         self.cols, self.positions, self.normals, grid = grid_arrays(nav)
         self.near = _NO_NEAR if near is None else near
         self.params = np.array((*grid.tolist(), y, tol, ref[0], ref[1],
-                                math.sqrt(max(need, 0.0)), need))
+                                math.sqrt(max(need, 0.0)), need, *slope))
 
     def __call__(self, x: float, z: float) -> bool:
         return _allowed(self.cols, self.positions, self.normals, self.near, self.params,
@@ -67,13 +76,16 @@ class SurfaceTest:
 
 
 def plain_test(nav, y: float, tol: float, near: np.ndarray | None = None,
-               ref: tuple[float, float] = (0.0, 0.0), need: float = 0.0):
+               ref: tuple[float, float] = (0.0, 0.0), need: float = 0.0,
+               slope: tuple[float, float, float, float] = FLAT):
     """SurfaceTest's answers in Python, through nav.layer_height: for any Navigation (a
     SurfaceTest reads a NavSurface's arrays). With `near` points, the test's `bare` is the
     surface's alone (else None)."""
     root = math.sqrt(max(need, 0.0))
     rows = [] if near is None else near.tolist()
     layer_height = nav.layer_height
+    sx, sz, gx, gz = slope
+    cell = float(nav.cell_size)
 
     def allowed(x: float, z: float) -> bool:
         if rows:
@@ -84,10 +96,13 @@ def plain_test(nav, y: float, tol: float, near: np.ndarray | None = None,
                 if (px - x) * (px - x) + (pz - z) * (pz - z) < need:
                     return False
         h = layer_height(x, y, z, tol)
+        if h != h and (gx != 0.0 or gz != 0.0):
+            h = layer_height(x, y + gx * (x - sx) + gz * (z - sz), z,
+                             tol + math.hypot(gx, gz) * cell)
         return h == h                                 # on the layer: not NaN
 
     # the surface alone (HeadSteer._contain: turns on the spot among other bodies)
-    allowed.bare = plain_test(nav, y, tol) if rows else None
+    allowed.bare = plain_test(nav, y, tol, slope=slope) if rows else None
     return allowed
 
 
@@ -112,7 +127,7 @@ def _first_calls(cols, pos, nrm, grid) -> None:
     test = SurfaceTest.__new__(SurfaceTest)
     test.cols, test.positions, test.normals = cols, pos, nrm
     test.near = np.zeros((1, 3))
-    test.params = np.concatenate([grid, (0.0, 1.0, 0.0, 0.0, 0.01, 1e-4)])
+    test.params = np.concatenate([grid, (0.0, 1.0, 0.0, 0.0, 0.01, 1e-4), FLAT])
     args = test.kernel_args()
     cos = sin = np.linspace(0.0, 1.0, 3)
     none = np.zeros(3)
@@ -256,6 +271,9 @@ def _allowed(cols, pos, nrm, near, p, x, z):
             if dx * dx + dz * dz < p[10]:
                 return False
     h = _layer(cols, pos, nrm, p, x, p[5], z, p[6])
+    if h != h and (p[13] != 0.0 or p[14] != 0.0):
+        h = _layer(cols, pos, nrm, p, x, p[5] + p[13] * (x - p[11]) + p[14] * (z - p[12]), z,
+                   p[6] + hypot(p[13], p[14]) * p[2])
     return h == h
 
 

@@ -36,7 +36,7 @@ from baker.geometry import polyline
 from baker.geometry.transforms import normalize
 from baker.locomotion.agent import PathAgent
 from baker.locomotion.body import project_to_surface
-from baker.locomotion.contain import (SurfaceTest, grid_arrays, line_clear, nearest_sq,
+from baker.locomotion.contain import (FLAT, SurfaceTest, grid_arrays, line_clear, nearest_sq,
                                       plain_test)
 from baker.locomotion.contain import layer_height as compiled_layer_height
 from baker.locomotion.contain import ready as compiled_ready
@@ -73,6 +73,9 @@ WALL_YAWS = np.radians([0.0, 40.0, -40.0])
 #: [s] the longest a head cornered by other creatures' bodies holds still for them to move on,
 #: before it turns on the spot
 HOLD_MAX = 4.0
+#: [cells] the head's layer is measured this far either side of the head for its slope
+#: (Follower._slope): inside the head's own column most steps
+SLOPE_PROBE = 0.05
 #: straight down (the ray under the head in _leg_lever)
 _DOWN = np.array([[0.0, -1.0, 0.0]])
 
@@ -92,6 +95,7 @@ class Follower:
         self.max_speed = loco.max_speed
         self.turn_radius = max(navc.radius, 3.0 * body.spacing)
         self.tol = 0.5 * navc.height     # vertical reach of a layer lookup
+        self.max_grade = math.tan(navc.max_slope) + 1e-9    # the steepest walkable rise a metre
         self.probe = 0.5 * navc.height   # floor search above and below the head off the surface
         self.agent = PathAgent(start, loco.max_speed, loco.acceleration, loco.stopping_distance)
         # Pure pursuit: the head chases the agent one turning radius ahead on the path.
@@ -396,8 +400,8 @@ class Follower:
             grid = grid_arrays(self.nav) if self._compiled else None
             last = self._lone_test
             if last is None or last[0] != self.height or last[1] is not grid:
-                self._lone_test = last = (self.height, grid, test(self.nav, self.height,
-                                                                   self.tol))
+                self._lone_test = last = (self.height, grid, test(
+                    self.nav, self.height, self.tol, slope=self._slope()))
             return last[2]
         others = self.others
         bx, _, bz = self.head.base.tolist()
@@ -410,7 +414,26 @@ class Follower:
             self._sorted = (others, (bx, bz),
                             np.stack([np.sqrt(d2[order]) - 1e-6, ox[order], oz[order]], axis=1))
         _, ref, near = self._sorted
-        return test(self.nav, self.height, self.tol, near, ref, need)
+        return test(self.nav, self.height, self.tol, near, ref, need, self._slope())
+
+    def _slope(self) -> tuple[float, float, float, float]:
+        """(x, z, gx, gz): the head's layer as a plane through the head (its rise a metre
+        along x and z, from its heights SLOPE_PROBE cells either side), for the surface test's
+        steps net of a ramp's rise; FLAT where a height is missing or the plane is steeper
+        than the walkable slope (the probes straddle a step)."""
+        x, z = float(self.head.position[0]), float(self.head.position[2])
+        d = SLOPE_PROBE * self.nav.cell_size
+        if self._compiled:
+            layer = partial(compiled_layer_height, *grid_arrays(self.nav))
+        else:
+            layer = self.nav.layer_height
+        y, tol = self.height, self.tol
+        hx = layer(x + d, y, z, tol) - layer(x - d, y, z, tol)
+        hz = layer(x, y, z + d, tol) - layer(x, y, z - d, tol)
+        gx, gz = hx / (2.0 * d), hz / (2.0 * d)
+        if not (math.hypot(gx, gz) <= self.max_grade):     # NaN too
+            return FLAT
+        return x, z, gx, gz
 
     def _aim_back(self) -> float:
         """How far back along the agent's path the head should aim: 0 (at the agent) when it
