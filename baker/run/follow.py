@@ -162,6 +162,7 @@ class Follower:
         self.separation = 0.0
         # _surface_test's test off a crowd: (height, grid_arrays, test), or None
         self._lone_test: tuple | None = None
+        self.slope = FLAT    # the head's layer as a plane, as its surface test last took it
         self.held_for = 0.0         # [s] the head has held still, cornered by other bodies
         self.others_move = False    # the creatures whose bodies are near all walk
 
@@ -400,8 +401,9 @@ class Follower:
             grid = grid_arrays(self.nav) if self._compiled else None
             last = self._lone_test
             if last is None or last[0] != self.height or last[1] is not grid:
+                self.slope = self._slope()
                 self._lone_test = last = (self.height, grid, test(
-                    self.nav, self.height, self.tol, slope=self._slope()))
+                    self.nav, self.height, self.tol, slope=self.slope))
             return last[2]
         others = self.others
         bx, _, bz = self.head.base.tolist()
@@ -414,13 +416,15 @@ class Follower:
             self._sorted = (others, (bx, bz),
                             np.stack([np.sqrt(d2[order]) - 1e-6, ox[order], oz[order]], axis=1))
         _, ref, near = self._sorted
-        return test(self.nav, self.height, self.tol, near, ref, need, self._slope())
+        self.slope = self._slope()
+        return test(self.nav, self.height, self.tol, near, ref, need, self.slope)
 
     def _slope(self) -> tuple[float, float, float, float]:
         """(x, z, gx, gz): the head's layer as a plane through the head (its rise a metre
-        along x and z, from its heights SLOPE_PROBE cells either side), for the surface test's
-        steps net of a ramp's rise; FLAT where a height is missing or the plane is steeper
-        than the walkable slope (the probes straddle a step)."""
+        along x and z, from its heights SLOPE_PROBE cells either side, or one side and the
+        head's where a probe crosses into a step's column), for the surface test's steps net
+        of a ramp's rise; FLAT where both are missing or the plane is steeper than the
+        walkable slope."""
         x, z = float(self.head.position[0]), float(self.head.position[2])
         d = SLOPE_PROBE * self.nav.cell_size
         if self._compiled:
@@ -428,9 +432,8 @@ class Follower:
         else:
             layer = self.nav.layer_height
         y, tol = self.height, self.tol
-        hx = layer(x + d, y, z, tol) - layer(x - d, y, z, tol)
-        hz = layer(x, y, z + d, tol) - layer(x, y, z - d, tol)
-        gx, gz = hx / (2.0 * d), hz / (2.0 * d)
+        gx = _grade(layer(x + d, y, z, tol), y, layer(x - d, y, z, tol), d)
+        gz = _grade(layer(x, y, z + d, tol), y, layer(x, y, z - d, tol), d)
         if not (math.hypot(gx, gz) <= self.max_grade):     # NaN too
             return FLAT
         return x, z, gx, gz
@@ -494,8 +497,9 @@ class Follower:
     def _layer_height(self, p: np.ndarray) -> float:
         """Height of the surface under the head at p = (x, _, z), continuing its layer: the
         walkable layer in its column closest to the previous height (a step moves the head
-        millimetres, so this never jumps to a floor above or below); off the eroded surface
-        (the slither), the layer's height under the head's base (kept on the surface), then the
+        millimetres, so this never jumps to a floor above or below), or nearest the plane of
+        its layer (a step on a ramp, as the surface test takes it: `slope`); off the eroded
+        surface (the slither), the layer's height under the head's base (kept on the surface), then the
         floor found by rays near that height; else the previous height. (Rays at the side of a
         staircase can find the tread below; the base's column is on the flight.)"""
         if self._compiled:
@@ -510,12 +514,29 @@ class Follower:
             y = layer(float(p[0]), self.height, float(p[2]), self.tol)
             if not math.isnan(y):
                 return y
+        # up (or down) a step on a ramp, as the surface test took it: net of the ramp's rise
+        sx, sz, gx, gz = self.slope
+        if gx != 0.0 or gz != 0.0:
+            x, z = float(p[0]), float(p[2])
+            y = layer(x, self.height + gx * (x - sx) + gz * (z - sz), z,
+                      self.tol + math.hypot(gx, gz) * self.nav.cell_size)
+            if y == y:
+                return y
         b = self.head.base
         y = layer(float(b[0]), self.height, float(b[2]), self.tol)
         if not math.isnan(y):
             return y
         g, _, hit = project_to_surface(self.rays, np.array([[p[0], self.height, p[2]]]), self.probe)
         return float(g[0, 1]) if hit[0] else self.height
+
+
+def _grade(ahead: float, here: float, behind: float, d: float) -> float:
+    """The rise a metre of a layer whose heights are `ahead` and `behind` d either side of a
+    point at `here`: one-sided where one of them is missing (NaN: the probe crossed into a
+    step's column), NaN where both are."""
+    if ahead == ahead and behind == behind:
+        return (ahead - behind) / (2.0 * d)
+    return (ahead - here) / d if ahead == ahead else (here - behind) / d
 
 
 def measure_levers(follows) -> None:

@@ -56,3 +56,35 @@ def test_the_compiled_test_and_the_python_one_agree_with_a_slope():
         a, b = SurfaceTest(nav, y, TOL, slope=slope), plain_test(nav, y, TOL, slope=slope)
         for x, z in rng.uniform(0.0, 1.0, (10, 2)):
             assert a(x, z) == b(x, z)
+
+
+def test_the_head_walks_up_a_ramp_and_onto_its_step_on_the_layer():
+    """A Follower (the default rig: step 0.1 BL, half the agent height) sent from the foot of
+    a ramp onto a top a step above its upper end, linked: the head gets onto the top, its
+    height the top's (it used to stop at the step, or walk on at the ramp's height inside the
+    top)."""
+    from baker.config import DEFAULT_RIG, SIM_RATE_HZ, load_rig_config
+    from baker.run.follow import Follower
+
+    rig = load_rig_config(DEFAULT_RIG)
+    nv = rig.navigation
+    grade, run_z = 0.5, 0.4
+    # a step a little over the step height: linked, its riser net of the ramp's rise over a
+    # cell under it (as on the arena's ridge)
+    top = grade * run_z + nv.step_height + 0.4 * grade * nv.cell_size
+    env = env_of(quad((0, 0, 0), (0, grade * run_z, run_z), (1, grade * run_z, run_z), (1, 0, 0)),
+                 quad((0, grade * run_z, run_z), (0, top, run_z), (1, top, run_z),
+                      (1, grade * run_z, run_z)),
+                 quad((0, top, run_z), (0, top, 1.0), (1, top, 1.0), (1, top, run_z)))
+    nav = build(env, nv)
+    goal = nav.nearest([0.5, top, 0.8])
+    assert abs(goal[1] - top) < 1e-3
+    assert nav.find_path(nav.nearest([0.5, 0.0, 0.05]), goal).complete
+    f = Follower(nav, env.rays, nav.nearest([0.5, 0.0, 0.05]), np.array([0.0, 0.0, 1.0]), rig)
+    f.go(goal)
+    dt = 1.0 / SIM_RATE_HZ
+    for _ in range(int(15.0 / dt)):
+        f.step(dt)
+        ground = nav.layer_height(f.head.base[0], f.height, f.head.base[2], 1e-3)
+        assert ground == ground          # on a layer of the surface, never inside the top
+    assert f.head.base[2] > 0.6 and abs(f.height - top) < 1e-3
