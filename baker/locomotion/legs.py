@@ -56,7 +56,7 @@ from baker.geometry.transforms import (cross, dot, length, limit_rotation, norma
 from baker.locomotion.body import SPINE_FRAME_TURN, BodyFrames
 from baker.locomotion.gait import gait_clock
 from baker.locomotion.leg_kernels import leg_traces
-from baker.locomotion.near import NearBodies
+from baker.locomotion.near import NearBodies, frames_of
 from baker.locomotion.swing import Limits, joint_space_swings
 from baker.locomotion.trellis import cheapest_path
 from baker.rig.limbs import LegLayout, chains, leg_layout, leg_pole
@@ -943,15 +943,15 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
         pole = leg_pole(lay, hip, target, lf.fwd, lf.left, lg.knee_out)
         sol = two_bone_ik(hip, target, pole, lay.l1, lay.l2)
         mid, hinge = _clear_knees(rays, hip, sol.mid, sol.end, sol.hinge, lay.l1, lay.l2, tol)
+        q_u = bone_frames(hip, mid, hinge)
+        q_t = bone_frames(mid, sol.end, hinge)
         # a planted leg whose bones no knee swivel clears (a foot at the foot of a step, the
         # knee over it), or whose bones as solved turn too fast in a frame, lifts before that
         # frame, and the stances are planned again
         if attempt == STUCK_ROUNDS - 1 or not _lift_stuck(rays, lf, st, cidx, contact, mid,
-                                                          sol.end, hinge, tol):
+                                                          sol.end, q_u, q_t, tol):
             break
         holds, cidx, contact = _stances(rays, lf, cfg, st, holds, anchor, times)
-    q_u = bone_frames(hip, mid, hinge)
-    q_t = bone_frames(mid, sol.end, hinge)
     # swings that still break a limit (a joint turning too fast, a bone through something, a
     # moving foot on or in a surface) are redone in joint space (swing.py)
     lim = Limits(contact=0.8 * (SWING_CLEAR * lg.lift), slide=SLIDE * body.length,
@@ -969,15 +969,16 @@ def walking_legs(bf: BodyFrames, arc: np.ndarray, times: np.ndarray, rays, cfg: 
                 touchdowns=st.Ts, liftoffs=st.LOs, holds=holds)
 
 
-def _lift_stuck(rays, lf: _Frames, st: _Steps, cidx, contact, mid, end, hinge, tol) -> bool:
-    """Planted frames whose leg bones pass through something (_bones_hit), or turn more than
-    SWING_TURN since the frame before in the same stance (_solved_stance_turns), end their
-    stance: the foot lifts off the frame before the first of them (st.LOs, never before its
-    touchdown). True when a stance got shorter."""
+def _lift_stuck(rays, lf: _Frames, st: _Steps, cidx, contact, mid, end, q_u, q_t,
+                tol) -> bool:
+    """Planted frames whose leg bones (knees mid, feet end, rotations q_u, q_t) pass through
+    something (_bones_hit), or turn more than SWING_TURN since the frame before in the same
+    stance (_solved_stance_turns), end their stance: the foot lifts off the frame before the
+    first of them (st.LOs, never before its touchdown). True when a stance got shorter."""
     lay, hip = lf.lay, lf.hip
     f, l = np.nonzero(contact)
     bad = _bones_hit(rays, hip[f, l], mid[f, l], end[f, l], lay.l1, lay.l2, tol)
-    bad |= _solved_stance_turns(lf.q, hip, mid, end, hinge, cidx, contact)[f, l] > SWING_TURN
+    bad |= _solved_stance_turns(lf.q, q_u, q_t, cidx, contact)[f, l] > SWING_TURN
     if not bad.any():
         return False
     f, l = f[bad], l[bad]
@@ -989,14 +990,13 @@ def _lift_stuck(rays, lf: _Frames, st: _Steps, cidx, contact, mid, end, hinge, t
     return bool(np.any(st.LOs < before))
 
 
-def _solved_stance_turns(seg_q, hip, mid, end, hinge, cidx, contact) -> np.ndarray:
-    """(F, L) degrees the bones of the legs as solved (knees swivelled: _clear_knees) turn
-    since the frame before, where both frames are planted on the same hold (0 elsewhere): the
-    largest of each bone's turn in the world, the upper bone's in its segment's space and the
-    tip's in the upper bone's. The stance check (_stance_turns) measures the plain IK before
-    the knees swivel; a swivel easing in while the body jumps adds the two."""
-    q_u = bone_frames(hip, mid, hinge)
-    q_t = bone_frames(mid, end, hinge)
+def _solved_stance_turns(seg_q, q_u, q_t, cidx, contact) -> np.ndarray:
+    """(F, L) degrees the bones of the legs as solved (rotations q_u, q_t; knees swivelled:
+    _clear_knees) turn since the frame before, where both frames are planted on the same hold
+    (0 elsewhere): the largest of each bone's turn in the world, the upper bone's in its
+    segment's space (seg_q) and the tip's in the upper bone's. The stance check
+    (_stance_turns) measures the plain IK before the knees swivel; a swivel easing in while
+    the body jumps adds the two."""
     rel_u = quat_mul(quat_conj(seg_q), q_u)
     rel_t = quat_mul(quat_conj(q_u), q_t)
     step = np.max([quat_angle(q[1:], q[:-1]) for q in (q_u, q_t, rel_u, rel_t)], axis=0)
@@ -1772,7 +1772,7 @@ def _sweep_share(rays, q, o, s, rest_yaws, dyaw, pitch, steps, bend, lengths, ba
     if len(idx) == 0:
         return room
     costs = [full[idx]]
-    view = rays.at(idx) if isinstance(rays, NearBodies) else rays
+    view = frames_of(rays, idx)
     for share in SWEEP_SHARES:
         y = (share * dyaw[idx])[:, None]
         costs.append(least(_chain_clear(view, q[idx], o[idx], s, rest_yaws[0] + y,
@@ -1865,7 +1865,7 @@ def _chain_trellis(rays, q, o, s, yaws, base_pitch, bend, lengths, back, grid, l
     F = len(lift)
     fr = np.arange(lo, hi + 1)
     n = len(fr)
-    view = rays.at(fr) if isinstance(rays, NearBodies) else rays
+    view = frames_of(rays, fr)
     touch = ~_chain_clear(view, q[fr], o[fr], s, yaws[0][fr, None], yaws[1][fr, None],
                           base_pitch[fr, None] + grid[None, :], bend, lengths, back)   # (n, G)
     cost = list(CHAIN_HIT_COST * touch + np.abs(grid[None, :] - lift[fr, None]))

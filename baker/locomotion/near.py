@@ -72,6 +72,12 @@ class CrowdSpines:
         self.hi = np.maximum.reduceat(spines.max(axis=2), starts, axis=1)
 
 
+def frames_of(rays, frames: np.ndarray):
+    """The rays for a solve of these frames alone: a NearBodies' (at), the level's as they
+    are."""
+    return rays.at(frames) if isinstance(rays, NearBodies) else rays
+
+
 def near_bodies(rays, crowd: CrowdSpines, i: int, bases: np.ndarray, reach: float,
                 radius: float) -> NearBodies | None:
     """Creature i's NearBodies: every frame's spine segments of the other creatures whose

@@ -86,6 +86,15 @@ class _Caster:
         return self.rays.cast(origins, directions, max_distance)
 
 
+def _welded(v: np.ndarray) -> np.ndarray:
+    """(V,) int64: each vertex's id, vertices within 1e-6 of the mesh's extent welded."""
+    lo = v.min(axis=0)
+    ext = float((v.max(axis=0) - lo).max()) or 1.0
+    q = np.round((v - lo) / (ext * 1e-6)).astype(np.int64)
+    key = (q[:, 0] << 42) | (q[:, 1] << 21) | q[:, 2]
+    return np.unique(key, return_inverse=True)[1].reshape(-1)
+
+
 def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Closed mesh components and how they are wound.
 
@@ -101,10 +110,7 @@ def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.int8)
     lo, hi = v.min(axis=0), v.max(axis=0)
     ext = float((hi - lo).max()) or 1.0
-    q = np.round((v - lo) / (ext * 1e-6)).astype(np.int64)  # weld within 1e-6 of the extent
-    key = (q[:, 0] << 42) | (q[:, 1] << 21) | q[:, 2]
-    _, vid = np.unique(key, return_inverse=True)
-    vid = vid.reshape(-1)
+    vid = _welded(v)
     f0, f1, f2 = (np.ascontiguousarray(vid[f[:, k]]) for k in range(3))
     nv = int(vid.max()) + 1
     # the edges as wound (a -> b), without the collapsed ones, and each as (low, high)
@@ -185,11 +191,7 @@ def _solids(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray
     either = closed[face_comp] if len(face_comp) else np.zeros(0, dtype=bool)
     f = np.asarray(mesh.faces, dtype=np.int64)
     if len(f) > 1:
-        v = np.asarray(mesh.vertices, dtype=np.float64)
-        lo = v.min(axis=0)
-        ext = float((v.max(axis=0) - lo).max()) or 1.0
-        _, vid = np.unique(np.round((v - lo) / (ext * 1e-6)), axis=0, return_inverse=True)
-        corners = np.sort(vid.reshape(-1)[f], axis=1)
+        corners = np.sort(_welded(np.asarray(mesh.vertices, dtype=np.float64))[f], axis=1)
         _, inv, cnt = np.unique(corners, axis=0, return_inverse=True, return_counts=True)
         either = either | (cnt[inv.reshape(-1)] > 1)
     return face_comp, closed, wind, _open_facing(mesh, face_comp, closed), either

@@ -419,6 +419,12 @@ class Follower:
         self.slope = self._slope()
         return test(self.nav, self.height, self.tol, near, ref, need, self.slope)
 
+    def _layer_lookup(self):
+        """layer_height(x, y, z, tol) of the navigation: compiled on a NavSurface's arrays."""
+        if self._compiled:
+            return partial(compiled_layer_height, *grid_arrays(self.nav))
+        return self.nav.layer_height
+
     def _slope(self) -> tuple[float, float, float, float]:
         """(x, z, gx, gz): the head's layer as a plane through the head (its rise a metre
         along x and z, from its heights SLOPE_PROBE cells either side, or one side and the
@@ -427,10 +433,7 @@ class Follower:
         walkable slope."""
         x, z = float(self.head.position[0]), float(self.head.position[2])
         d = SLOPE_PROBE * self.nav.cell_size
-        if self._compiled:
-            layer = partial(compiled_layer_height, *grid_arrays(self.nav))
-        else:
-            layer = self.nav.layer_height
+        layer = self._layer_lookup()
         y, tol = self.height, self.tol
         gx = _grade(layer(x + d, y, z, tol), y, layer(x - d, y, z, tol), d)
         gz = _grade(layer(x, y, z + d, tol), y, layer(x, y, z - d, tol), d)
@@ -502,18 +505,10 @@ class Follower:
         surface (the slither), the layer's height under the head's base (kept on the surface), then the
         floor found by rays near that height; else the previous height. (Rays at the side of a
         staircase can find the tread below; the base's column is on the flight.)"""
-        if self._compiled:
-            cols, positions, normals, grid = grid_arrays(self.nav)
-            y = compiled_layer_height(cols, positions, normals, grid, float(p[0]), self.height,
-                                      float(p[2]), self.tol)
-            if y == y:      # not NaN
-                return y
-            layer = partial(compiled_layer_height, cols, positions, normals, grid)
-        else:
-            layer = self.nav.layer_height
-            y = layer(float(p[0]), self.height, float(p[2]), self.tol)
-            if not math.isnan(y):
-                return y
+        layer = self._layer_lookup()
+        y = layer(float(p[0]), self.height, float(p[2]), self.tol)
+        if y == y:      # not NaN
+            return y
         # up (or down) a step on a ramp, as the surface test took it: net of the ramp's rise
         sx, sz, gx, gz = self.slope
         if gx != 0.0 or gz != 0.0:

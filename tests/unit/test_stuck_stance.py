@@ -14,6 +14,7 @@ import numpy as np
 import trimesh
 
 from baker.environment.rays import RayCaster
+from baker.geometry.ik import bone_frames
 from baker.locomotion.legs import SWING_TURN, _cycles, _lift_stuck, _Steps
 
 L1 = L2 = 0.25
@@ -34,7 +35,8 @@ def _frames(hip):
 
 def _stuck(rays, st, cidx, contact, hip, mid, end):
     hinge = np.broadcast_to([0.0, 0.0, 1.0], hip.shape)
-    return _lift_stuck(rays, _frames(hip), st, cidx, contact, mid, end, hinge, TOL)
+    return _lift_stuck(rays, _frames(hip), st, cidx, contact, mid, end,
+                       bone_frames(hip, mid, hinge), bone_frames(mid, end, hinge), TOL)
 
 
 def _leg(bad_frames, F=25):
