@@ -95,7 +95,7 @@ def _welded(v: np.ndarray) -> np.ndarray:
     return np.unique(key, return_inverse=True)[1].reshape(-1)
 
 
-def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _solid_components(mesh, consistent: bool = False) -> tuple:
     """Closed mesh components and how they are wound.
 
     Returns (face_comp (F,) int64: connected component of each face, vertices welded by
@@ -139,11 +139,19 @@ def _solid_components(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     uniq_d = np.ones(ncomp, dtype=bool)
     fwd = (a < b)[o]
     two = first[cnt == 2]
-    uniq_d[vcomp[uk[cnt == 2][fwd[two] == fwd[two + 1]] // nv]] = False
+    same_way = fwd[two] == fwd[two + 1]
+    uniq_d[vcomp[uk[cnt == 2][same_way] // nv]] = False
+    if consistent:     # each component's share of its two-face edges whose faces disagree
+        # about the winding
+        ec = vcomp[uk[cnt == 2] // nv]
+        disagree = (np.bincount(ec, weights=same_way, minlength=ncomp)
+                    / np.maximum(np.bincount(ec, minlength=ncomp), 1))
     fc = vcomp[f0]
     vol = np.bincount(fc, _signed_volumes(v - (lo + 0.5 * (hi - lo)), f), minlength=ncomp)
     closed &= np.abs(vol) > 1e-15 * ext ** 3  # a flat closed sheet (a two-sided triangle)
     wind = np.where(closed & uniq_d, np.sign(vol), 0).astype(np.int8)
+    if consistent:
+        return fc, closed, wind, disagree
     return fc, closed, wind
 
 
@@ -180,25 +188,34 @@ def _layer_eps(caster: _Caster, x0, z0, nx, nz, cell, ytop) -> float:
 #: a file whose open surfaces' flat faces face down over more than this share of their area is
 #: taken as wound the other way round throughout (a terrain exported with flipped normals)
 FLIPPED_SHARE = 0.9
+#: an open component whose faces disagree about the winding along more than this share of
+#: their shared edges is walked on from either side (a shell level's joins disagree along
+#: 0.2 % of them, a mesh wound at random along half)
+MIXED_SHARE = 0.1
 
 
 def _solids(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray]:
     """_solid_components of the mesh, _open_facing of its open components and which faces
     are walked on from either side: a closed solid's (its inside is told from its winding,
-    _inside_solid) and a triangle modelled twice (a double-sided floor: the same corners,
-    welded as _solid_components welds them, either winding)."""
-    face_comp, closed, wind = _solid_components(mesh)
-    either = closed[face_comp] if len(face_comp) else np.zeros(0, dtype=bool)
+    _inside_solid), an open component's whose faces disagree about the winding along more
+    than MIXED_SHARE of their shared edges (a mesh wound at random: its winding says
+    nothing), and a triangle modelled twice (a double-sided floor: the same corners, welded
+    as _solid_components welds them, either winding)."""
+    face_comp, closed, wind, disagree = _solid_components(mesh, consistent=True)
+    if len(face_comp) == 0:
+        return face_comp, closed, wind, 1.0, np.zeros(0, dtype=bool)
+    either = (closed | (disagree > MIXED_SHARE))[face_comp]
     f = np.asarray(mesh.faces, dtype=np.int64)
     if len(f) > 1:
         corners = np.sort(_welded(np.asarray(mesh.vertices, dtype=np.float64))[f], axis=1)
         _, inv, cnt = np.unique(corners, axis=0, return_inverse=True, return_counts=True)
         either = either | (cnt[inv.reshape(-1)] > 1)
-    return face_comp, closed, wind, _open_facing(mesh, face_comp, closed), either
+    return face_comp, closed, wind, _open_facing(mesh, either), either
 
 
-def _open_facing(mesh, face_comp: np.ndarray, closed: np.ndarray) -> float:
-    """Which side of the faces of open (not closed) mesh components is walked on: +1.0 the
+def _open_facing(mesh, either: np.ndarray) -> float:
+    """Which side of the faces of open (not closed) mesh components is walked on (either:
+    (F,) the faces walked on from either side, which have no say): +1.0 the
     side their normals (as wound) point to, as engines walk them (Recast, Unity and Godot
     build on up-facing triangles only), -1.0 the other, for a file wound the other way round
     throughout (its flat open faces mostly face down: more than FLIPPED_SHARE of their area).
@@ -212,7 +229,7 @@ def _open_facing(mesh, face_comp: np.ndarray, closed: np.ndarray) -> float:
     n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
     twice = np.sqrt(np.einsum("ij,ij->i", n, n))
     ny = n[:, 1] / np.maximum(twice, 1e-300)
-    flat = ~closed[face_comp] & (np.abs(ny) >= 0.5)
+    flat = ~either & (np.abs(ny) >= 0.5)
     up, down = (float(twice[flat & side].sum()) for side in (ny > 0, ny < 0))
     return -1.0 if down > FLIPPED_SHARE * (up + down) else 1.0
 

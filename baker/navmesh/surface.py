@@ -28,7 +28,7 @@ DIRS = np.array([(1, 0), (0, 1), (-1, 0), (0, -1), (1, 1), (-1, 1), (-1, -1), (1
 #: OPPOSITE[d] is the direction that undoes DIRS[d].
 OPPOSITE = np.array([2, 3, 0, 1, 6, 7, 4, 5], dtype=np.int64)
 #: Format version of the arrays (bump when the layout or the build changes; part of cache keys).
-FORMAT_VERSION = 6
+FORMAT_VERSION = 7
 
 
 @dataclass(frozen=True, eq=False)
