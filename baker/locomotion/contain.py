@@ -10,6 +10,11 @@ builds it every step). Called, it answers as the Python test it replaces; given 
 the head's whole step runs in the compiled kernels below (head_step), with the same arithmetic
 in the same order as head.py's Python (the same bits: tests/unit/test_head_compiled.py).
 
+A turn's look-ahead (_walk) is walked as the agent's paths are: column by column from the head's
+base, each column's sample reached by the navigation's link from the one before (a step down
+onto a ramp is linked net of the ramp's fall; measured against the head's height, the ramp
+beyond lies lower by the step and by its fall as far as the head looks).
+
 These calls are made directly on the main thread, not through parallel.off_main_thread (its
 thread hop, 25-95 us, is more than these calls cost, and a 100-creature run makes a hundred
 thousand of them). That is safe because each kernel returns only a number or a bool and writes
@@ -25,9 +30,10 @@ import math
 import numpy as np
 from numba import njit, typeof
 
+from baker.navmesh.surface import DIRS
 from baker.parallel import off_main_thread
 
-#: points tested along a look-ahead without a grid (head.LOOK_SAMPLES)
+#: points tested along a look-ahead without a grid (HeadSteer.grid None)
 LOOK_SAMPLES = 8
 #: _contain's result flags: the U-turn's side changed (out[2]); cornered, held still; turned
 #: on the spot (the head creeps away from the corner)
@@ -38,6 +44,9 @@ SIDE, HELD, CREPT = 1, 2, 4
 SPIN = 0.5 * math.pi
 #: no other bodies' points (a SurfaceTest off a crowd)
 _NO_NEAR = np.empty((0, 3))
+#: the navigation's link direction of a column step (dx + 1, dz + 1) (navmesh.surface.DIRS)
+_DIR_OF = np.full((3, 3), -1, dtype=np.int64)
+_DIR_OF[DIRS[:, 0] + 1, DIRS[:, 1] + 1] = np.arange(len(DIRS))
 
 
 #: no slope: the layer's height is compared as it is (SurfaceTest's `slope`)
@@ -57,22 +66,30 @@ class SurfaceTest:
     need), the slope (sx, sz, gx, gz).
     """
 
-    __slots__ = ("cols", "positions", "normals", "near", "params")
+    __slots__ = ("cols", "positions", "normals", "links", "near", "params")
 
     def __init__(self, nav, y: float, tol: float, near: np.ndarray | None = None,
                  ref: tuple[float, float] = (0.0, 0.0), need: float = 0.0,
                  slope: tuple[float, float, float, float] = FLAT):
         self.cols, self.positions, self.normals, grid = grid_arrays(nav)
+        self.links = link_array(nav)
         self.near = _NO_NEAR if near is None else near
         self.params = np.array((*grid.tolist(), y, tol, ref[0], ref[1],
                                 math.sqrt(max(need, 0.0)), need, *slope))
 
     def __call__(self, x: float, z: float) -> bool:
-        return _allowed(self.cols, self.positions, self.normals, self.near, self.params,
+        return _allowed(self.cols, self.positions, self.normals, self.links, self.near, self.params,
                         float(x), float(z))
 
     def kernel_args(self) -> tuple:
-        return self.cols, self.positions, self.normals, self.near, self.params
+        return self.cols, self.positions, self.normals, self.links, self.near, self.params
+
+    def walk(self, bx: float, bz: float, dx: float, dz: float, s: float, reach: float,
+             grid: np.ndarray) -> bool:
+        """HeadSteer._contain's free(t, s, reach) along the unit (dx, dz) (_walk; grid: the
+        head's, head.grid_array)."""
+        return _walk(*self.kernel_args(), float(bx), float(bz), float(dx), float(dz), float(s),
+                     float(reach), grid)
 
 
 def plain_test(nav, y: float, tol: float, near: np.ndarray | None = None,
@@ -80,14 +97,15 @@ def plain_test(nav, y: float, tol: float, near: np.ndarray | None = None,
                slope: tuple[float, float, float, float] = FLAT):
     """SurfaceTest's answers in Python, through nav.layer_height: for any Navigation (a
     SurfaceTest reads a NavSurface's arrays). With `near` points, the test's `bare` is the
-    surface's alone (else None)."""
+    surface's alone (else None). Its `walk` is SurfaceTest.walk where the navigation has a
+    grid's arrays (None for a test double with only layer_height)."""
     root = math.sqrt(max(need, 0.0))
     rows = [] if near is None else near.tolist()
     layer_height = nav.layer_height
     sx, sz, gx, gz = slope
     cell = float(nav.cell_size)
 
-    def allowed(x: float, z: float) -> bool:
+    def clear_of(x: float, z: float) -> bool:
         if rows:
             reach = math.hypot(x - ref[0], z - ref[1]) + root
             for d, px, pz in rows:
@@ -95,6 +113,11 @@ def plain_test(nav, y: float, tol: float, near: np.ndarray | None = None,
                     break
                 if (px - x) * (px - x) + (pz - z) * (pz - z) < need:
                     return False
+        return True
+
+    def allowed(x: float, z: float) -> bool:
+        if not clear_of(x, z):
+            return False
         h = layer_height(x, y, z, tol)
         if h != h and (gx != 0.0 or gz != 0.0):
             h = layer_height(x, y + gx * (x - sx) + gz * (z - sz), z,
@@ -103,7 +126,114 @@ def plain_test(nav, y: float, tol: float, near: np.ndarray | None = None,
 
     # the surface alone (HeadSteer._contain: turns on the spot among other bodies)
     allowed.bare = plain_test(nav, y, tol, slope=slope) if rows else None
+    allowed.walk = _PyWalk(nav, clear_of, y, tol, slope) if hasattr(nav, "col_start") else None
     return allowed
+
+
+class _PyWalk:
+    """SurfaceTest.walk in Python (the kernels' arithmetic: _walk, _link_walk, _head_k), on the
+    navigation's grid arrays and links; `clear_of(x, z)` tests the other bodies."""
+
+    def __init__(self, nav, clear_of, y: float, tol: float, slope):
+        self.cols, self.pos, self.nrm, grid = grid_arrays(nav)
+        self.links = nav.links
+        self.grid = grid.tolist()
+        self.clear_of, self.y, self.tol, self.slope = clear_of, y, tol, slope
+
+    def layer_k(self, x: float, y: float, z: float, tol: float) -> int:
+        x0, z0, cell, nx, nz = self.grid
+        fx, fz = (x - x0) / cell, (z - z0) / cell
+        if not (fx >= 0.0 and fx < nx and fz >= 0.0 and fz < nz):
+            return -1
+        col = int(fx) * int(nz) + int(fz)
+        best, bestd = -1, tol
+        for k in range(int(self.cols[col]), int(self.cols[col + 1])):
+            (px, py, pz), (n0, n1, n2) = self.pos[k].tolist(), self.nrm[k].tolist()
+            d = abs(py - (n0 * (x - px) + n2 * (z - pz)) / n1 - y)
+            if d <= bestd:
+                best, bestd = k, d
+        return best
+
+    def head_k(self, x: float, z: float) -> int:
+        k = self.layer_k(x, self.y, z, self.tol)
+        sx, sz, gx, gz = self.slope
+        if k < 0 and (gx != 0.0 or gz != 0.0):
+            k = self.layer_k(x, self.y + gx * (x - sx) + gz * (z - sz), z,
+                             self.tol + math.hypot(gx, gz) * self.grid[2])
+        return k
+
+    def __call__(self, bx: float, bz: float, dx: float, dz: float, s: float, reach: float,
+                 grid: tuple[float, float, float] | None) -> bool:
+        way = way_points(bx, bz, dx, dz, s, reach, grid)
+        for t in [*way[-1:], s, *way[:-1]]:
+            if not self.clear_of(bx + dx * t, bz + dz * t):
+                return False
+        reach = reach if reach > s else s
+        k, start = self.head_k(bx, bz), 0.0
+        if k < 0:
+            k, start = self.head_k(bx + dx * s, bz + dz * s), s
+            if k < 0:
+                return False
+        x0, z0, cell = self.grid[:3]
+        x, z = bx + dx * start, bz + dz * start
+        ix, iz = math.floor((x - x0) / cell), math.floor((z - z0) / cell)
+        jx = math.floor((bx + dx * reach - x0) / cell)
+        jz = math.floor((bz + dz * reach - z0) / cell)
+        tx, ux, sx = _py_first_crossing(x, dx, ix, x0, cell)
+        tz, uz, sz = _py_first_crossing(z, dz, iz, z0, cell)
+        for _ in range(abs(jx - ix) + abs(jz - iz)):
+            if ix == jx and iz == jz:
+                break
+            ex = sx if ix != jx and (iz == jz or tx <= tz) else 0
+            ez = sz if iz != jz and (ix == jx or tz <= tx) else 0
+            if ex != 0:
+                ix, tx = ix + ex, tx + ux
+            if ez != 0:
+                iz, tz = iz + ez, tz + uz
+            k = int(self.links[k, int(_DIR_OF[ex + 1, ez + 1])])
+            if k < 0:
+                return False
+        return ix == jx and iz == jz
+
+
+def _py_first_crossing(x: float, dx: float, i: int, o: float, cell: float):
+    """_first_crossing in Python."""
+    if dx > 0.0:
+        return (o + (i + 1) * cell - x) / dx, cell / dx, 1
+    if dx < 0.0:
+        return (o + i * cell - x) / dx, -cell / dx, -1
+    return math.inf, math.inf, 1
+
+
+def way_end(s: float, reach: float, grid: tuple[float, float, float] | None) -> float | None:
+    """The last of way_points' distances, without the others (None when there are none)."""
+    if reach <= s:
+        return None
+    return reach if grid is not None else s + (reach - s) * LOOK_SAMPLES / LOOK_SAMPLES
+
+
+def way_points(x: float, z: float, dx: float, dz: float, s: float, reach: float,
+               grid: tuple[float, float, float] | None) -> list[float]:
+    """Distances along the unit direction (dx, dz) from (x, z) at which to test the way from
+    `s` to `reach` (the point at `s` is tested by the caller): one point inside each grid column
+    the way crosses after the first (the middle of its piece there, `reach` in the last), so a
+    way that clips a column's corner is seen; without a grid, LOOK_SAMPLES even steps."""
+    if reach <= s:
+        return []
+    if grid is None:
+        return [s + (reach - s) * i / LOOK_SAMPLES for i in range(1, LOOK_SAMPLES)] + [
+            way_end(s, reach, grid)]
+    ts = []
+    for o, p, d in ((grid[0], x, dx), (grid[1], z, dz)):
+        if d > 1e-12 or d < -1e-12:
+            a, b = (p + d * s - o) / grid[2], (p + d * reach - o) / grid[2]
+            if a > b:
+                a, b = b, a
+            ts.extend((o + i * grid[2] - p) / d for i in range(math.floor(a) + 1, math.ceil(b)))
+    if not ts:
+        return [reach]
+    ts.sort()
+    return [0.5 * (u + v) for u, v in zip(ts, ts[1:]) if v - u > 1e-12] + [reach]
 
 
 #: the grids' array types whose kernels are compiled (or loaded) in this process (ready)
@@ -126,6 +256,7 @@ def _first_calls(cols, pos, nrm, grid) -> None:
     """Every kernel called once on these arrays (ready)."""
     test = SurfaceTest.__new__(SurfaceTest)
     test.cols, test.positions, test.normals = cols, pos, nrm
+    test.links = np.full((max(len(pos), 1), 8), -1, dtype=np.int32)
     test.near = np.zeros((1, 3))
     test.params = np.concatenate([grid, (0.0, 1.0, 0.0, 0.0, 0.01, 1e-4), FLAT])
     args = test.kernel_args()
@@ -156,6 +287,17 @@ def grid_arrays(nav) -> tuple:
             np.ascontiguousarray(np.asarray(nav.normals)),
             np.array([nav.origin[0], nav.origin[1], nav.cell_size, nav.shape[0], nav.shape[1]],
                      dtype=np.float64))
+    return got
+
+
+def link_array(nav) -> np.ndarray:
+    """The navigation surface's links (navmesh.surface: (N, 8), the sample a step in each
+    direction reaches, or -1) as the kernels read them (kept in its query cache, as
+    grid_arrays)."""
+    cache = nav._cache
+    got = cache.get("kernel_links")
+    if got is None:
+        got = cache["kernel_links"] = np.ascontiguousarray(nav.links, dtype=np.int32)
     return got
 
 
@@ -241,27 +383,54 @@ def nearest_sq(points, x, z):
 
 
 @njit(cache=True, nogil=True)
-def _layer(cols, pos, nrm, p, x, y, z, tol):
-    """navmesh.query.layer_height: the height of the walkable layer in the column of (x, z)
-    closest to y, NaN when none is within tol (the same arithmetic)."""
+def _cell(p, x, z):
+    """The grid cell (ix, iz) of (x, z) (off the grid too)."""
+    return math.floor((x - p[0]) / p[2]), math.floor((z - p[1]) / p[2])
+
+
+@njit(cache=True, nogil=True)
+def _column(p, x, z):
+    """The grid column of (x, z), -1 off the grid."""
     fx = (x - p[0]) / p[2]
     fz = (z - p[1]) / p[2]
     if not (fx >= 0.0 and fx < p[3] and fz >= 0.0 and fz < p[4]):
-        return math.nan
-    col = int(fx) * int(p[4]) + int(fz)
-    best, bestd = math.nan, tol
+        return -1
+    return int(fx) * int(p[4]) + int(fz)
+
+
+@njit(cache=True, nogil=True)
+def _height(pos, nrm, k, x, z):
+    """The height at (x, z) of walkable sample k's plane."""
+    px, py, pz = float(pos[k, 0]), float(pos[k, 1]), float(pos[k, 2])
+    return py - (float(nrm[k, 0]) * (x - px) + float(nrm[k, 2]) * (z - pz)) / float(nrm[k, 1])
+
+
+@njit(cache=True, nogil=True)
+def _layer_k(cols, pos, nrm, p, x, y, z, tol):
+    """The walkable sample in the column of (x, z) whose plane there is closest to y, -1 when
+    none is within tol (navmesh.query.layer_height's choice)."""
+    col = _column(p, x, z)
+    if col < 0:
+        return -1
+    best, bestd = -1, tol
     for k in range(cols[col], cols[col + 1]):
-        px, py, pz = float(pos[k, 0]), float(pos[k, 1]), float(pos[k, 2])
-        h = py - (float(nrm[k, 0]) * (x - px) + float(nrm[k, 2]) * (z - pz)) / float(nrm[k, 1])
-        d = abs(h - y)
+        d = abs(_height(pos, nrm, k, x, z) - y)
         if d <= bestd:
-            best, bestd = h, d
+            best, bestd = k, d
     return best
 
 
 @njit(cache=True, nogil=True)
-def _allowed(cols, pos, nrm, near, p, x, z):
-    """SurfaceTest's answer for (x, z)."""
+def _layer(cols, pos, nrm, p, x, y, z, tol):
+    """navmesh.query.layer_height: the height of the walkable layer in the column of (x, z)
+    closest to y, NaN when none is within tol (the same arithmetic)."""
+    k = _layer_k(cols, pos, nrm, p, x, y, z, tol)
+    return math.nan if k < 0 else _height(pos, nrm, k, x, z)
+
+
+@njit(cache=True, nogil=True)
+def _clear_of(near, p, x, z):
+    """(x, z) is at least sqrt(need) from every point of `near` that can be that close."""
     if near.shape[0] > 0:
         reach = hypot(x - p[7], z - p[8]) + p[9]
         for i in range(near.shape[0]):
@@ -270,11 +439,93 @@ def _allowed(cols, pos, nrm, near, p, x, z):
             dx, dz = near[i, 1] - x, near[i, 2] - z
             if dx * dx + dz * dz < p[10]:
                 return False
-    h = _layer(cols, pos, nrm, p, x, p[5], z, p[6])
-    if h != h and (p[13] != 0.0 or p[14] != 0.0):
-        h = _layer(cols, pos, nrm, p, x, p[5] + p[13] * (x - p[11]) + p[14] * (z - p[12]), z,
-                   p[6] + hypot(p[13], p[14]) * p[2])
-    return h == h
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _head_k(cols, pos, nrm, p, x, z):
+    """The walkable sample of the head's layer at (x, z) (SurfaceTest's, without the other
+    bodies), -1 when there is none."""
+    k = _layer_k(cols, pos, nrm, p, x, p[5], z, p[6])
+    if k < 0 and (p[13] != 0.0 or p[14] != 0.0):
+        k = _layer_k(cols, pos, nrm, p, x, p[5] + p[13] * (x - p[11]) + p[14] * (z - p[12]), z,
+                     p[6] + hypot(p[13], p[14]) * p[2])
+    return k
+
+
+@njit(cache=True, nogil=True)
+def _allowed(cols, pos, nrm, lnk, near, p, x, z):
+    """SurfaceTest's answer for (x, z) (lnk: not read; the surface test's arrays, as every
+    kernel takes them)."""
+    if not _clear_of(near, p, x, z):
+        return False
+    return _head_k(cols, pos, nrm, p, x, z) >= 0
+
+
+@njit(cache=True, nogil=True)
+def _walk(cols, pos, nrm, lnk, near, p, bx, bz, dx, dz, s, reach, grid):
+    """HeadSteer._contain's free(t, s, reach) along the unit (dx, dz): the step's point at s and
+    the way on from it to `reach` (head.way_points on `grid`) clear of the other bodies (the
+    far end first: where a way is blocked, it mostly is there), and every column of the
+    navigation's grid from the base (bx, bz) to `reach` on the head's layer, walked by the
+    navigation's links from the base's sample (_link_walk)."""
+    way = np.empty(crossings_bound(s, reach, grid))
+    k = way_points_into(bx, bz, dx, dz, s, reach, grid, way)
+    if near.shape[0] > 0:
+        if k > 0 and not _clear_of(near, p, bx + dx * way[k - 1], bz + dz * way[k - 1]):
+            return False
+        if not _clear_of(near, p, bx + dx * s, bz + dz * s):
+            return False
+        for i in range(k - 1):
+            if not _clear_of(near, p, bx + dx * way[i], bz + dz * way[i]):
+                return False
+    return _link_walk(cols, pos, nrm, lnk, p, bx, bz, dx, dz, s, reach if reach > s else s)
+
+
+@njit(cache=True, nogil=True)
+def _link_walk(cols, pos, nrm, lnk, p, bx, bz, dx, dz, s, reach):
+    """Every column from (bx, bz) to `reach` along (dx, dz) holds a sample of the head's layer,
+    each reached from the one before by the navigation's link (a step down onto a ramp, linked
+    net of the ramp's fall, lies below the head's height by the step and by the ramp's fall as
+    far as the way goes), starting at the head's sample at the base; where the base is off the
+    head's layer (the slither's edge), at the step's point's."""
+    k = _head_k(cols, pos, nrm, p, bx, bz)
+    start = 0.0
+    if k < 0:
+        start = s
+        k = _head_k(cols, pos, nrm, p, bx + dx * s, bz + dz * s)
+        if k < 0:
+            return False
+    x, z = bx + dx * start, bz + dz * start
+    ix, iz = _cell(p, x, z)
+    jx, jz = _cell(p, bx + dx * reach, bz + dz * reach)
+    tx, ux, sx = _first_crossing(x, dx, ix, p[0], p[2])
+    tz, uz, sz = _first_crossing(z, dz, iz, p[1], p[2])
+    # the columns the way crosses, in order (a DDA), each step nearer the last column
+    for _ in range(abs(jx - ix) + abs(jz - iz)):
+        if ix == jx and iz == jz:
+            break
+        ex = sx if ix != jx and (iz == jz or tx <= tz) else 0
+        ez = sz if iz != jz and (ix == jx or tz <= tx) else 0
+        if ex != 0:
+            ix, tx = ix + ex, tx + ux
+        if ez != 0:
+            iz, tz = iz + ez, tz + uz
+        k = lnk[k, _DIR_OF[ex + 1, ez + 1]]
+        if k < 0:
+            return False
+    return ix == jx and iz == jz
+
+
+@njit(cache=True, nogil=True)
+def _first_crossing(x, dx, i, o, cell):
+    """Along one axis of a way from x with direction dx in cell i of a grid from o: the distance
+    to the first cell border, the distance between borders, and the cell step (+1 or -1)."""
+    if dx > 0.0:
+        return (o + (i + 1) * cell - x) / dx, cell / dx, 1
+    if dx < 0.0:
+        return (o + i * cell - x) / dx, -cell / dx, -1
+    return math.inf, math.inf, 1
 
 
 @njit(cache=True, nogil=True)
@@ -284,7 +535,7 @@ def layer_height(cols, pos, nrm, p, x, y, z, tol):
 
 
 @njit(cache=True, nogil=True)
-def circle_room(cols, pos, nrm, near, p, hx, hz, px, pz, side, r, beat, cos, sin):
+def circle_room(cols, pos, nrm, lnk, near, p, hx, hz, px, pz, side, r, beat, cos, sin):
     """HeadSteer._circle_room: how many points round the first half of the circle of radius r
     on `side` the head reaches walking it from (px, pz), heading (hx, hz); beat < 0: no beat."""
     steps = cos.shape[0] - 1
@@ -300,7 +551,7 @@ def circle_room(cols, pos, nrm, near, p, hx, hz, px, pz, side, r, beat, cos, sin
         m = max(1, math.ceil(hypot(qx - px, qz - pz) / d - 1e-9))
         reached = True
         for i in range(1, m + 1):
-            if not _allowed(cols, pos, nrm, near, p, px + (qx - px) * i / m,
+            if not _allowed(cols, pos, nrm, lnk, near, p, px + (qx - px) * i / m,
                             pz + (qz - pz) * i / m):
                 reached = False
                 break
@@ -311,11 +562,11 @@ def circle_room(cols, pos, nrm, near, p, hx, hz, px, pz, side, r, beat, cos, sin
 
 
 @njit(cache=True, nogil=True)
-def more_room(cols, pos, nrm, near, p, hx, hz, px, pz, first, second, r, cos, sin):
+def more_room(cols, pos, nrm, lnk, near, p, hx, hz, px, pz, first, second, r, cos, sin):
     """HeadSteer._more_room: more points reached round the circle on `second` than on
     `first`."""
-    room = circle_room(cols, pos, nrm, near, p, hx, hz, px, pz, first, r, -1, cos, sin)
-    return circle_room(cols, pos, nrm, near, p, hx, hz, px, pz, second, r, room, cos,
+    room = circle_room(cols, pos, nrm, lnk, near, p, hx, hz, px, pz, first, r, -1, cos, sin)
+    return circle_room(cols, pos, nrm, lnk, near, p, hx, hz, px, pz, second, r, room, cos,
                        sin) > room
 
 
@@ -334,8 +585,8 @@ def _crossings(x, dx, s, reach, o, cell, ts, n):
 
 
 @njit(cache=True, nogil=True)
-def way_points(x, z, dx, dz, s, reach, grid, out):
-    """head.way_points into out (grid: (x0, z0, cell), or a cell <= 0 for none); returns how
+def way_points_into(x, z, dx, dz, s, reach, grid, out):
+    """way_points into out (grid: (x0, z0, cell), or a cell <= 0 for none); returns how
     many. out must hold the way's column crossings plus one (crossings_bound)."""
     if reach <= s:
         return 0
@@ -374,24 +625,12 @@ def crossings_bound(s, reach, grid):
 
 
 @njit(cache=True, nogil=True)
-def _free(cols, pos, nrm, near, p, hx, hz, bx, bz, t, s, reach, grid):
+def _free(cols, pos, nrm, lnk, near, p, hx, hz, bx, bz, t, s, reach, grid):
     """HeadSteer._contain's free(t, s, reach): the step of length s turned by t, and the
-    straight way on from it to `reach`, on the surface (the way's far end first)."""
+    straight way on from it to `reach`, on the surface (_walk)."""
     c, sn = math.cos(t), math.sin(t)
-    dx, dz = c * hx + sn * hz, -sn * hx + c * hz
-    if reach > s:
-        end = reach if grid[2] > 0.0 else s + (reach - s) * LOOK_SAMPLES / LOOK_SAMPLES
-        if not _allowed(cols, pos, nrm, near, p, bx + dx * end, bz + dz * end):
-            return False
-    if not _allowed(cols, pos, nrm, near, p, bx + dx * s, bz + dz * s):
-        return False
-    if reach > s:
-        way = np.empty(crossings_bound(s, reach, grid))
-        k = way_points(bx, bz, dx, dz, s, reach, grid, way)
-        for i in range(k - 1):
-            if not _allowed(cols, pos, nrm, near, p, bx + dx * way[i], bz + dz * way[i]):
-                return False
-    return True
+    return _walk(cols, pos, nrm, lnk, near, p, bx, bz, c * hx + sn * hz, -sn * hx + c * hz, s,
+                 reach, grid)
 
 
 @njit(cache=True, nogil=True)
@@ -402,7 +641,7 @@ def _clamp(x, lo, hi):
 
 
 @njit(cache=True, nogil=True)
-def contain(cols, pos, nrm, near, p, h, grid, cos, sin, fracs, deflect, out):
+def contain(cols, pos, nrm, lnk, near, p, h, grid, cos, sin, fracs, deflect, out):
     """HeadSteer._contain. h: (hx, hz, bx, bz, a, ang, step, dt, tight_speed, min_radius,
     turn_radius, u_side, hold, max_yaw_rate, spun: the turn on the spot since the head last
     walked off a corner). Writes (a, step, u_side) to out and returns the flags (SIDE, HELD,
@@ -417,20 +656,20 @@ def contain(cols, pos, nrm, near, p, h, grid, cos, sin, fracs, deflect, out):
     reach = 2.0 * min_radius if 2.0 * min_radius > reach else reach
     reach = step if step > reach else reach
     out[0], out[1], out[2] = a, step, h[11]
-    if _free(cols, pos, nrm, near, p, hx, hz, bx, bz, a, step, reach, grid):
+    if _free(cols, pos, nrm, lnk, near, p, hx, hz, bx, bz, a, step, reach, grid):
         return 0
     tighter = np.empty(2 * fracs.shape[0])
     for i in range(fracs.shape[0]):
         tighter[2 * i] = _clamp(a + side * fracs[i] * tight, -tight, tight)
         tighter[2 * i + 1] = _clamp(a + -side * fracs[i] * tight, -tight, tight)
     for t in tighter:
-        if _free(cols, pos, nrm, near, p, hx, hz, bx, bz, t, slow, reach, grid):
+        if _free(cols, pos, nrm, lnk, near, p, hx, hz, bx, bz, t, slow, reach, grid):
             out[0], out[1] = t, slow
             return 0
-    clear0 = _free(cols, pos, nrm, near, p, hx, hz, bx, bz, side * tight, slow, slow, grid)
-    clear1 = _free(cols, pos, nrm, near, p, hx, hz, bx, bz, -side * tight, slow, slow, grid)
+    clear0 = _free(cols, pos, nrm, lnk, near, p, hx, hz, bx, bz, side * tight, slow, slow, grid)
+    clear1 = _free(cols, pos, nrm, lnk, near, p, hx, hz, bx, bz, -side * tight, slow, slow, grid)
     if clear0 or clear1:
-        k = more_room(cols, pos, nrm, near, p, hx, hz, bx, bz, side, -side, min_radius, cos,
+        k = more_room(cols, pos, nrm, lnk, near, p, hx, hz, bx, bz, side, -side, min_radius, cos,
                       sin)
         if (clear1 if k else clear0):
             sd = -side if k else side
@@ -439,10 +678,10 @@ def contain(cols, pos, nrm, near, p, h, grid, cos, sin, fracs, deflect, out):
                 out[2] = sd
                 return SIDE
             return 0
-    if _free(cols, pos, nrm, near, p, hx, hz, bx, bz, a, step, step, grid):
+    if _free(cols, pos, nrm, lnk, near, p, hx, hz, bx, bz, a, step, step, grid):
         return 0
     for t in tighter:
-        if _free(cols, pos, nrm, near, p, hx, hz, bx, bz, t, slow, slow, grid):
+        if _free(cols, pos, nrm, lnk, near, p, hx, hz, bx, bz, t, slow, slow, grid):
             out[0], out[1] = t, slow
             return 0
     if h[12] != 0.0:
@@ -454,7 +693,7 @@ def contain(cols, pos, nrm, near, p, h, grid, cos, sin, fracs, deflect, out):
     for d in deflect:
         for sd in (side, -side):
             t = a + sd * d
-            if _free(cols, pos, nrm, near, p, hx, hz, bx, bz, t, step, step, grid):
+            if _free(cols, pos, nrm, lnk, near, p, hx, hz, bx, bz, t, step, step, grid):
                 want, found = t, True
                 break
         if found:
@@ -463,7 +702,7 @@ def contain(cols, pos, nrm, near, p, h, grid, cos, sin, fracs, deflect, out):
     # among other bodies, no more than SPIN in turns on the spot before the head has walked
     # off (held instead), where the surface alone would let it walk toward the agent
     if near.shape[0] > 0 and h[14] + abs(t) > SPIN:
-        if _free(cols, pos, nrm, near[:0], p, hx, hz, bx, bz, ang, step, step, grid):
+        if _free(cols, pos, nrm, lnk, near[:0], p, hx, hz, bx, bz, ang, step, step, grid):
             out[0], out[1] = 0.0, 0.0
             return HELD
     out[0], out[1] = t, 0.0
@@ -478,7 +717,7 @@ PRM = ("lead", "max_speed", "speed_cap", "tight_speed", "turn_radius", "max_yaw_
 
 
 @njit(cache=True, nogil=True)
-def head_step(cols, pos, nrm, near, p, st, prm, agent, aim, agent_speed, dt, grid, cos, sin,
+def head_step(cols, pos, nrm, lnk, near, p, st, prm, agent, aim, agent_speed, dt, grid, cos, sin,
               fracs, deflect):
     """HeadSteer.step with a SurfaceTest, the same arithmetic in the same order: st (ST) is
     updated in place; agent (3,), aim (3,) or NaN (none). Returns 1 when the base moved (the
@@ -519,7 +758,7 @@ def head_step(cols, pos, nrm, near, p, st, prm, agent, aim, agent_speed, dt, gri
         else:
             if st[9] == 0.0:
                 side = 1.0 if ang >= 0.0 else -1.0
-                if more_room(cols, pos, nrm, near, p, hx, hz, bx, bz, side, -side, turn_radius,
+                if more_room(cols, pos, nrm, lnk, near, p, hx, hz, bx, bz, side, -side, turn_radius,
                              cos, sin):
                     side = -side
                 st[9] = side
@@ -531,11 +770,11 @@ def head_step(cols, pos, nrm, near, p, st, prm, agent, aim, agent_speed, dt, gri
             step = quick if quick < step else step
             lim = step / turn_radius
         a = _clamp(ang, -lim, lim)
-        if _allowed(cols, pos, nrm, near, p, bx, bz):
+        if _allowed(cols, pos, nrm, lnk, near, p, bx, bz):
             h = np.array([hx, hz, bx, bz, a, ang, step, dt, prm[3], prm[6], turn_radius, st[9],
                           st[11], prm[5], st[17]])
             out = np.empty(3)
-            flags = contain(cols, pos, nrm, near, p, h, grid, cos, sin, fracs, deflect, out)
+            flags = contain(cols, pos, nrm, lnk, near, p, h, grid, cos, sin, fracs, deflect, out)
             a, step = out[0], out[1]
             if flags & SIDE:
                 st[9] = out[2]
@@ -585,7 +824,7 @@ def line_clear(cols, pos, nrm, p, bx, bz, dx, dz, n, y, tol, grid):
     """Follower._clear's walk: the straight line from (bx, bz) along (dx, dz) (n long) stays on
     the layer, continued from height y point by point (head.way_points' points)."""
     way = np.empty(crossings_bound(0.0, n, grid))
-    k = way_points(bx, bz, dx / n, dz / n, 0.0, n, grid, way)
+    k = way_points_into(bx, bz, dx / n, dz / n, 0.0, n, grid, way)
     for i in range(k):
         r = way[i]
         y = _layer(cols, pos, nrm, p, bx + r * dx / n, y, bz + r * dz / n, tol)

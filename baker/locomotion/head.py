@@ -15,6 +15,7 @@ from collections.abc import Callable
 import numpy as np
 
 from baker.locomotion import contain as compiled
+from baker.locomotion.contain import way_end, way_points
 
 #: The head walks up to this multiple of its top speed to close the gap to the agent
 CATCH_UP = 1.25
@@ -38,9 +39,6 @@ _NO_AIM = np.full(3, np.nan)
 #: such a turn's largest yaw rate, in multiples of the head's yaw-rate limit (about the rate of
 #: its usual turning circle at full speed)
 CONTAIN_YAW = 2.0
-#: points tested along a turn's look-ahead, from the step to the look-ahead point, without a
-#: grid (HeadSteer.grid)
-LOOK_SAMPLES = compiled.LOOK_SAMPLES
 
 
 class HeadSteer:
@@ -190,8 +188,7 @@ class HeadSteer:
                         self.turn_rate_scale, self.amplitude, self.max_offset, CATCH_UP))
         if self._grid_array[0] is not self.grid:       # grid_array(self.grid), once a grid
             self._grid_array = (self.grid, grid_array(self.grid))
-        cols, positions, normals, near, p = test.kernel_args()
-        moved = compiled.head_step(cols, positions, normals, near, p, st, prm,
+        moved = compiled.head_step(*test.kernel_args(), st, prm,
                                    np.asarray(agent_pos, dtype=np.float64),
                                    _NO_AIM if aim is None else np.asarray(aim, dtype=np.float64),
                                    float(agent_speed), float(dt), self._grid_array[1],
@@ -286,12 +283,16 @@ class HeadSteer:
         slow = min(step, self.tight_speed * dt)
         tight = slow / self.min_radius
 
+        walk = getattr(allowed, "walk", None)
+
         def free(t: float, s: float, reach: float) -> bool:
             """The step, and the straight way on from it to `reach`, on the surface: a
             look-ahead point alone would see past the corner of an obstacle the way runs
             into."""
             c, sn = math.cos(t), math.sin(t)
             dx, dz = c * hx + sn * hz, -sn * hx + c * hz
+            if walk is not None:        # walked by the navigation's links
+                return walk(bx, bz, dx, dz, s, reach, self.grid)
             # the look-ahead's end first: where a turn is blocked, it mostly is there
             end = way_end(s, reach, self.grid)
             if end is not None and not allowed(bx + dx * end, bz + dz * end):
@@ -354,34 +355,3 @@ class HeadSteer:
 def grid_array(grid: tuple[float, float, float] | None) -> np.ndarray:
     """HeadSteer.grid as the compiled kernels take it: (x0, z0, cell), a zero cell for none."""
     return np.array(grid if grid is not None else (0.0, 0.0, 0.0), dtype=np.float64)
-
-
-def way_end(s: float, reach: float, grid: tuple[float, float, float] | None) -> float | None:
-    """The last of way_points' distances, without the others (None when there are none)."""
-    if reach <= s:
-        return None
-    return reach if grid is not None else s + (reach - s) * LOOK_SAMPLES / LOOK_SAMPLES
-
-
-def way_points(x: float, z: float, dx: float, dz: float, s: float, reach: float,
-               grid: tuple[float, float, float] | None) -> list[float]:
-    """Distances along the unit direction (dx, dz) from (x, z) at which to test the way from
-    `s` to `reach` (the point at `s` is tested by the caller): one point inside each grid column
-    the way crosses after the first (the middle of its piece there, `reach` in the last), so a
-    way that clips a column's corner is seen; without a grid, LOOK_SAMPLES even steps."""
-    if reach <= s:
-        return []
-    if grid is None:
-        return [s + (reach - s) * i / LOOK_SAMPLES for i in range(1, LOOK_SAMPLES)] + [
-            way_end(s, reach, grid)]
-    ts = []
-    for o, p, d in ((grid[0], x, dx), (grid[1], z, dz)):
-        if d > 1e-12 or d < -1e-12:
-            a, b = (p + d * s - o) / grid[2], (p + d * reach - o) / grid[2]
-            if a > b:
-                a, b = b, a
-            ts.extend((o + i * grid[2] - p) / d for i in range(math.floor(a) + 1, math.ceil(b)))
-    if not ts:
-        return [reach]
-    ts.sort()
-    return [0.5 * (u + v) for u, v in zip(ts, ts[1:]) if v - u > 1e-12] + [reach]

@@ -45,12 +45,16 @@ def run(f: Follower, seconds: float) -> np.ndarray:
 
 
 class Unbounded:
-    """A navigation surface whose every column is walkable at height 0 (no containment)."""
+    """A navigation surface whose every column is walkable at height 0 (no containment): its
+    layer_height says so, and it has no grid arrays or links for the head's look-ahead to walk
+    (contain.plain_test then tests each point with layer_height)."""
 
     def __init__(self, nav):
         self._nav = nav
 
     def __getattr__(self, name):
+        if name in ("col_start", "links"):
+            raise AttributeError(name)
         return getattr(self._nav, name)
 
     def layer_height(self, x, y, z, tol):

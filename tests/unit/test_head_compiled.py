@@ -21,6 +21,7 @@ from baker.locomotion import contain
 from baker.locomotion.head import (_ARC_COS_SIN, _DEFLECT, _TIGHT_ARRAY, HeadSteer, grid_array,
                                    way_points)
 from baker.navmesh.query import layer_height
+from baker.navmesh.surface import DIRS
 
 DT = 1.0 / SIM_RATE_HZ
 CELL = 0.015
@@ -50,8 +51,29 @@ def patchy_grid(seed: int, n: int = 40, holes: float = 0.25):
                           col_start=np.array(starts, dtype=np.int64),
                           positions=np.array(pos, dtype=np.float32).reshape(-1, 3),
                           normals=nrm.astype(np.float32), _cache={})
+    nav.links = links_of(nav, 0.05)
     nav.layer_height = lambda x, y, z, tol: layer_height(nav, x, y, z, tol)
     return nav
+
+
+def links_of(nav, step: float) -> np.ndarray:
+    """(N, 8) links of the grid's samples: in each direction (navmesh.surface.DIRS), the sample
+    of the neighbouring column nearest in height within `step`, else -1 (symmetric)."""
+    n = nav.shape[1]
+    cols, ys = nav.col_start, nav.positions[:, 1]
+    links = np.full((len(ys), 8), -1, dtype=np.int32)
+    for col in range(len(cols) - 1):
+        ix, iz = divmod(col, n)
+        for d, (ex, ez) in enumerate(DIRS.tolist()):
+            jx, jz = ix + ex, iz + ez
+            if not (0 <= jx < nav.shape[0] and 0 <= jz < n):
+                continue
+            other = range(cols[jx * n + jz], cols[jx * n + jz + 1])
+            for k in range(cols[col], cols[col + 1]):
+                dy = [abs(float(ys[j] - ys[k])) for j in other]
+                if dy and min(dy) <= step:
+                    links[k, d] = other[int(np.argmin(dy))]
+    return links
 
 
 def crowded(nav, rng, centre):
@@ -217,7 +239,7 @@ def test_the_compiled_line_of_sight_is_the_python_walk():
         s = float(rng.uniform(0.0, 0.5 * n))
         py = way_points(bx, bz, dx / n, dz / n, s, n, grid)
         out = np.empty(contain.crossings_bound(s, n, grid_array(grid)))
-        k = contain.way_points(bx, bz, dx / n, dz / n, s, n, grid_array(grid), out)
+        k = contain.way_points_into(bx, bz, dx / n, dz / n, s, n, grid_array(grid), out)
         assert out[:k].tolist() == py
     assert outcomes == {True, False}
 

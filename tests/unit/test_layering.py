@@ -25,7 +25,9 @@ ALLOWED = {
     "context": {"signals"},
     "environment": {"parallel"},        # large ray batches cast on every CPU
     "navmesh": {"environment", "config", "atomic", "parallel"},   # the build's tiles on threads
-    "locomotion": {"environment", "config", "rig", "parallel"},   # the crowd's compiled chain
+    "locomotion": {"environment", "navmesh", "config", "rig",
+                   "parallel"},         # the crowd's compiled chain; the head's look-ahead walks
+                                        # the navigation's links (navmesh.surface.DIRS)
     "behaviour": {"environment", "navmesh", "locomotion", "config"},
     "rig": {"config"},
     "run": {"environment", "navmesh", "behaviour", "locomotion", "config", "context", "streams",
