@@ -98,7 +98,8 @@ def plain_test(nav, y: float, tol: float, near: np.ndarray | None = None,
     """SurfaceTest's answers in Python, through nav.layer_height: for any Navigation (a
     SurfaceTest reads a NavSurface's arrays). With `near` points, the test's `bare` is the
     surface's alone (else None). Its `walk` is SurfaceTest.walk where the navigation has a
-    grid's arrays (None for a test double with only layer_height)."""
+    grid's arrays and links (None for a test double with only layer_height: each point is then
+    tested alone)."""
     root = math.sqrt(max(need, 0.0))
     rows = [] if near is None else near.tolist()
     layer_height = nav.layer_height
@@ -126,83 +127,27 @@ def plain_test(nav, y: float, tol: float, near: np.ndarray | None = None,
 
     # the surface alone (HeadSteer._contain: turns on the spot among other bodies)
     allowed.bare = plain_test(nav, y, tol, slope=slope) if rows else None
-    allowed.walk = _PyWalk(nav, clear_of, y, tol, slope) if hasattr(nav, "col_start") else None
+    allowed.walk = _plain_walk(nav, clear_of, y, tol, slope) if hasattr(nav, "col_start") else None
     return allowed
 
 
-class _PyWalk:
-    """SurfaceTest.walk in Python (the kernels' arithmetic: _walk, _link_walk, _head_k), on the
-    navigation's grid arrays and links; `clear_of(x, z)` tests the other bodies."""
+def _plain_walk(nav, clear_of, y: float, tol: float, slope):
+    """SurfaceTest.walk for plain_test: the other bodies tested by `clear_of(x, z)` at the
+    points SurfaceTest tests them, the columns walked by the compiled _link_walk on the
+    navigation's grid arrays and links."""
+    cols, pos, nrm, grid = grid_arrays(nav)
+    lnk = link_array(nav)
+    p = np.array((*grid.tolist(), y, tol, 0.0, 0.0, 0.0, 0.0, *slope))
 
-    def __init__(self, nav, clear_of, y: float, tol: float, slope):
-        self.cols, self.pos, self.nrm, grid = grid_arrays(nav)
-        self.links = nav.links
-        self.grid = grid.tolist()
-        self.clear_of, self.y, self.tol, self.slope = clear_of, y, tol, slope
-
-    def layer_k(self, x: float, y: float, z: float, tol: float) -> int:
-        x0, z0, cell, nx, nz = self.grid
-        fx, fz = (x - x0) / cell, (z - z0) / cell
-        if not (fx >= 0.0 and fx < nx and fz >= 0.0 and fz < nz):
-            return -1
-        col = int(fx) * int(nz) + int(fz)
-        best, bestd = -1, tol
-        for k in range(int(self.cols[col]), int(self.cols[col + 1])):
-            (px, py, pz), (n0, n1, n2) = self.pos[k].tolist(), self.nrm[k].tolist()
-            d = abs(py - (n0 * (x - px) + n2 * (z - pz)) / n1 - y)
-            if d <= bestd:
-                best, bestd = k, d
-        return best
-
-    def head_k(self, x: float, z: float) -> int:
-        k = self.layer_k(x, self.y, z, self.tol)
-        sx, sz, gx, gz = self.slope
-        if k < 0 and (gx != 0.0 or gz != 0.0):
-            k = self.layer_k(x, self.y + gx * (x - sx) + gz * (z - sz), z,
-                             self.tol + math.hypot(gx, gz) * self.grid[2])
-        return k
-
-    def __call__(self, bx: float, bz: float, dx: float, dz: float, s: float, reach: float,
-                 grid: tuple[float, float, float] | None) -> bool:
+    def walk(bx: float, bz: float, dx: float, dz: float, s: float, reach: float,
+             grid: tuple[float, float, float] | None) -> bool:
         way = way_points(bx, bz, dx, dz, s, reach, grid)
-        for t in [*way[-1:], s, *way[:-1]]:
-            if not self.clear_of(bx + dx * t, bz + dz * t):
-                return False
-        reach = reach if reach > s else s
-        k, start = self.head_k(bx, bz), 0.0
-        if k < 0:
-            k, start = self.head_k(bx + dx * s, bz + dz * s), s
-            if k < 0:
-                return False
-        x0, z0, cell = self.grid[:3]
-        x, z = bx + dx * start, bz + dz * start
-        ix, iz = math.floor((x - x0) / cell), math.floor((z - z0) / cell)
-        jx = math.floor((bx + dx * reach - x0) / cell)
-        jz = math.floor((bz + dz * reach - z0) / cell)
-        tx, ux, sx = _py_first_crossing(x, dx, ix, x0, cell)
-        tz, uz, sz = _py_first_crossing(z, dz, iz, z0, cell)
-        for _ in range(abs(jx - ix) + abs(jz - iz)):
-            if ix == jx and iz == jz:
-                break
-            ex = sx if ix != jx and (iz == jz or tx <= tz) else 0
-            ez = sz if iz != jz and (ix == jx or tz <= tx) else 0
-            if ex != 0:
-                ix, tx = ix + ex, tx + ux
-            if ez != 0:
-                iz, tz = iz + ez, tz + uz
-            k = int(self.links[k, int(_DIR_OF[ex + 1, ez + 1])])
-            if k < 0:
-                return False
-        return ix == jx and iz == jz
+        if not all(clear_of(bx + dx * t, bz + dz * t) for t in (*way[-1:], s, *way[:-1])):
+            return False
+        return _link_walk(cols, pos, nrm, lnk, p, float(bx), float(bz), float(dx), float(dz),
+                          float(s), float(reach if reach > s else s))
 
-
-def _py_first_crossing(x: float, dx: float, i: int, o: float, cell: float):
-    """_first_crossing in Python."""
-    if dx > 0.0:
-        return (o + (i + 1) * cell - x) / dx, cell / dx, 1
-    if dx < 0.0:
-        return (o + i * cell - x) / dx, -cell / dx, -1
-    return math.inf, math.inf, 1
+    return walk
 
 
 def way_end(s: float, reach: float, grid: tuple[float, float, float] | None) -> float | None:

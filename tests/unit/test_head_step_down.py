@@ -121,3 +121,62 @@ def test_the_head_walks_down_a_step_onto_a_ramp():
         assert ground == ground          # on a layer of the surface
     # well down the ramp (the agent arrives within its stopping distance of the goal)
     assert f.head.base[2] > 0.75 and f.height < 0.5 * top
+
+
+def test_the_walk_crosses_exactly_the_columns_the_way_crosses():
+    """On a grid of linked columns with one column missing, a way is walked exactly when the
+    straight segment from the base to the look-ahead's end misses that column's square (the
+    DDA visits every column the segment crosses, corners included, and no other)."""
+    from types import SimpleNamespace
+
+    from test_head_compiled import links_of
+
+    n, cell, hole = 12, 0.1, (5, 6)
+    pos, starts = [], [0]
+    for ix in range(n):
+        for iz in range(n):
+            if (ix, iz) != hole:
+                pos.append(((ix + 0.5) * cell, 0.0, (iz + 0.5) * cell))
+            starts.append(len(pos))
+    nav = SimpleNamespace(origin=(0.0, 0.0), cell_size=cell, shape=(n, n),
+                          col_start=np.array(starts, dtype=np.int64),
+                          positions=np.array(pos, dtype=np.float32),
+                          normals=np.tile(np.float32([0.0, 1.0, 0.0]), (len(pos), 1)),
+                          _cache={})
+    nav.links = links_of(nav, 0.05)
+    test = SurfaceTest(nav, 0.0, 0.01)
+    box = np.array([hole[0] * cell, hole[1] * cell, (hole[0] + 1) * cell, (hole[1] + 1) * cell])
+
+    def meets(b, e, grow):
+        """The segment b-e meets the hole's square grown by `grow` (Liang-Barsky)."""
+        t0, t1 = 0.0, 1.0
+        for k in range(2):
+            d = e[k] - b[k]
+            lo, hi = box[k] - grow, box[k + 2] + grow
+            if abs(d) < 1e-15:
+                if not lo <= b[k] <= hi:
+                    return False
+                continue
+            a, c = sorted(((lo - b[k]) / d, (hi - b[k]) / d))
+            t0, t1 = max(t0, a), min(t1, c)
+        return t0 <= t1
+
+    rng = np.random.default_rng(11)
+    seen = {True: 0, False: 0}
+    for _ in range(3000):
+        b = rng.uniform(0.01, n * cell - 0.01, 2)
+        ang = rng.uniform(-math.pi, math.pi)
+        if rng.random() < 0.2:                     # along the grid's axes and diagonals
+            ang = rng.integers(8) * math.pi / 4
+        d = np.array([math.cos(ang), math.sin(ang)])
+        reach = rng.uniform(0.0, 0.6)
+        e = b + d * reach
+        if not ((e > 0.001).all() and (e < n * cell - 0.001).all()):
+            continue
+        inside, outside = meets(b, e, 1e-9), meets(b, e, -1e-9)
+        if inside != outside:                      # grazes the square: either answer
+            continue
+        got = test.walk(b[0], b[1], d[0], d[1], 0.0, reach, grid_array((0.0, 0.0, cell)))
+        assert got == (not inside), (b, d, reach)
+        seen[got] += 1
+    assert seen[True] > 500 and seen[False] > 100
