@@ -1648,13 +1648,16 @@ def _chain_touches(rays, o, d1, d2, knee, lengths) -> np.ndarray:
 WARN_SHARES = (1.0, 0.8, 0.6, 0.4, 0.2, 0.0)
 #: the warning's raise gives way to an overhang at most this share of it per frame
 WARN_GIVE_RATE = 0.1
-#: shares of an antenna's sweep (an ultimate leg's sway) tried where the full one clears only
-#: raised, widest first (negative: away from the sweep); the sweep gives way at most
-#: SWEEP_GIVE_RATE of itself per frame
-SWEEP_SHARES = (0.75, 0.5, 0.25, 0.0, -0.25, -0.5)
-SWEEP_GIVE_RATE = 0.08
-#: a narrower sweep is taken where it clears with a raise this much less than the wider one
-SWEEP_SLACK = np.radians(12.0)
+#: shares of an antenna's sweep (an ultimate leg's sway) a chain may take where the full one
+#: clears only raised, widest first (negative: away from the sweep)
+SWEEP_SHARES = (1.0, 0.75, 0.5, 0.25, 0.0, -0.25, -0.5)
+#: [frames] the sweep gives way and comes back within this many frames round those
+SWEEP_MARGIN = 12
+#: a narrower sweep costs this much raise per share it gives up (a quarter of the sweep: 12 deg)
+SWEEP_WIDTH_COST = 4.0 * np.radians(12.0)
+#: [rad] a frame's turn of the chain's yaw beyond the full sweep's own turn that costs nothing;
+#: beyond it, CHAIN_STEEP_COST a radian
+SWEEP_GIVE = np.radians(2.0)
 
 
 def _warning_room(rays, q, o, side, yaws, pitch, bend, lengths, rise) -> np.ndarray:
@@ -1759,30 +1762,57 @@ def posed_chains(bf: BodyFrames, times: np.ndarray, rays, cfg: RigConfig,
 
 def _sweep_share(rays, q, o, s, rest_yaws, dyaw, pitch, steps, bend, lengths, back, ok_all):
     """(F,) the share of its sway or sweep `dyaw` (F,) a chain takes (negative: away from its
-    sweep): where the full sweep clears only raised (ok_all (F, k): which raises `steps` of
+    sweep). Where the full sweep clears only raised (ok_all (F, k): which raises `steps` of
     `pitch` (F, k) clear it; an antenna sweeping into a post or a stem beside a resting head
-    must then rear up or jump between raises), the widest of SWEEP_SHARES whose least raise
-    that clears is within SWEEP_SLACK of the least of any share (the full sweep where none
-    clears, inside a hollow log), eased so the sweep gives way at most SWEEP_GIVE_RATE of
-    itself per frame. rest_yaws: the two bones' yaws at rest."""
+    must then rear up or jump between raises), and SWEEP_MARGIN frames round, the cheapest
+    path (trellis.cheapest_path) through SWEEP_SHARES: a frame's share costs its least raise
+    that clears (CHAIN_HIT_COST where none does) and SWEEP_WIDTH_COST for each share of the
+    sweep it gives up; a step between frames costs CHAIN_STEEP_COST a radian of the yaw's
+    turn beyond the full sweep's own turn and SWEEP_GIVE; the frames outside take the full
+    sweep. (A share eased frame by frame crossed, where the sweep turns back, shares that
+    clear at no raise: a share away from the sweep clears it going one way and drives the
+    chain into the post coming back.) rest_yaws: the two bones' yaws at rest."""
     least = (lambda ok: np.where(ok, np.abs(steps)[None, :], np.inf).min(1))
+    F = len(dyaw)
     full = least(ok_all)
-    idx = np.nonzero(full > 0.0)[0]
-    room = np.ones(len(dyaw))
-    if len(idx) == 0:
+    room = np.ones(F)
+    need = full > 0.0
+    if not need.any():
         return room
-    costs = [full[idx]]
+    near = maximum_filter1d(need, 2 * SWEEP_MARGIN + 1, mode="constant")
+    idx = np.nonzero(near)[0]
+    shares = np.asarray(SWEEP_SHARES)
     view = frames_of(rays, idx)
-    for share in SWEEP_SHARES:
+    cost = [full[idx]]
+    for share in shares[1:]:
         y = (share * dyaw[idx])[:, None]
-        costs.append(least(_chain_clear(view, q[idx], o[idx], s, rest_yaws[0] + y,
-                                        rest_yaws[1] + y, pitch[idx], bend, lengths, back)))
-    costs = np.stack(costs, 1)                                        # (n, 1 + shares)
-    best = costs.min(1)
-    widest = np.argmax(costs <= best[:, None] + SWEEP_SLACK, axis=1)
-    room[idx] = np.where(np.isfinite(best), np.array((1.0,) + SWEEP_SHARES)[widest], 1.0)
-    give = _ramp((1.0 - room)[:, None], SWEEP_GIVE_RATE)[:, 0]
-    return 1.0 - give
+        cost.append(least(_chain_clear(view, q[idx], o[idx], s, rest_yaws[0] + y,
+                                       rest_yaws[1] + y, pitch[idx], bend, lengths, back)))
+    cost = np.where(np.isfinite(cost), cost, CHAIN_HIT_COST).T + SWEEP_WIDTH_COST * (1.0 - shares)
+    at = np.zeros(F, dtype=np.int64)
+    at[idx] = np.arange(len(idx))
+    for run in np.split(idx, np.nonzero(np.diff(idx) > 1)[0] + 1):
+        room[run] = shares[_share_path(dyaw, shares, cost[at[run]], run[0], run[-1])]
+    return room
+
+
+def _share_path(dyaw, shares, cost, lo, hi) -> np.ndarray:
+    """(n,) indices into `shares` of frames lo..hi: the cheapest path (_sweep_share) from the
+    full sweep at frame lo - 1 to the full sweep at frame hi + 1 (where they exist)."""
+    F = len(dyaw)
+    before, after = int(lo > 0), int(hi < F - 1)
+    fr = np.arange(lo - before, hi + after + 1)
+    first = np.zeros(len(shares))
+    first[1:] = np.inf
+    layers = [first] * before + list(cost) + [first] * after
+    y = shares[None, :] * dyaw[fr, None]                                    # (m, S)
+
+    def edge(k):
+        turn = np.abs(y[k][:, None] - y[k + 1][None, :])
+        own = abs(dyaw[fr[k + 1]] - dyaw[fr[k]])
+        return CHAIN_STEEP_COST * np.maximum(turn - own - SWEEP_GIVE, 0.0)
+
+    return cheapest_path(layers, edge)[0][before:len(fr) - after]
 
 
 def _eased_chain(rays, q, o, s, yaws, base_pitch, bend, lengths, back, steps, raw, ok_all):

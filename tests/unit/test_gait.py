@@ -192,6 +192,29 @@ def test_an_antenna_beside_a_post_sweeps_less_far_rather_than_through_it(rig_con
     assert np.ptp(tip[:, 0]) > 0.005
 
 
+@pytest.mark.parametrize("x, dz, width", [(0.02, 0.025, 0.004), (0.02, 0.03, 0.01),
+                                           (0.015, 0.03, 0.01), (0.01, 0.03, 0.01)])
+def test_an_antenna_beside_a_post_on_its_sweeps_way_back_clears_it(rig_config, x, dz, width):
+    """Posts beside a resting head where the share of the sweep that clears changes sign over
+    the sweep's cycle: away from the sweep clears the post going one way and meets it coming
+    back (a 100-creature minute, 9032774: one resting creature's antenna tip through a post in
+    163 bone-frames). The share eased frame by frame crossed the shares that meet the post
+    (15, 10, 3 and 2 bone-frames in these 4 s); the cheapest path through the shares
+    (legs._sweep_share) clears it every frame."""
+    import trimesh
+
+    from baker.locomotion.legs import posed_chains
+
+    bf, arc, t = _straight_body(rig_config, speed=0.0, seconds=4.0)
+    head = bf.positions[0, 0]
+    post = trimesh.creation.box(extents=(width, 0.3, width))
+    post.apply_translation((x, 0.15, head[2] + dz))
+    env = Environment(meshes=(flat_ground(size=8.0, n=8), post), sun=Sun(direction=normalize(
+        np.array([0.3, 0.9, 0.2]))), source="", name="post")
+    names, pos, rot = posed_chains(bf, t, env.rays, rig_config)
+    _assert_antennae_clear(env, rig_config, names, pos, rot)
+
+
 def test_a_warning_under_a_low_overhang_raises_the_ultimate_legs_only_as_far_as_it_clears(
         rig_config):
     """Posture 1 under a ceiling 45 mm up (a rest under the showcase's bark sheet): the full
