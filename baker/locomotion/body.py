@@ -195,7 +195,8 @@ def _trail(points: np.ndarray, normals: np.ndarray, ground: np.ndarray, cum_h: n
 def raised_for_hips(trail: Trail, bf: BodyFrames, rays, hips: np.ndarray, segment: np.ndarray,
                     clearance: float, spacing: float) -> Trail | None:
     """The trail raised where a placed joint's hip comes within half of HIP_CLEAR clearances
-    of an up-facing surface under it, by what takes it back to HIP_CLEAR (None: no hip does).
+    of an up-facing surface under it, or is inside a solid whose top is within two spacings
+    above it, by what takes it back to HIP_CLEAR above (None: no hip does).
 
     build_trail keeps the hips clear on either side of the path; a joint's hips lie across its
     own facing, the chord to the joint ahead, which in a tight turn or over a fold of the path
@@ -225,6 +226,16 @@ def raised_for_hips(trail: Trail, bf: BodyFrames, rays, hips: np.ndarray, segmen
         t, _ = rays.cast(above, np.tile(UP, (len(i), 1)),
                          np.maximum(o[i, 1] - above[:, 1], 1e-6))
         bad[i] = ~np.isfinite(t) & ~rays.inside(above)
+    # a hip already inside a solid (a body crossing a step's edge askew: its joint over the
+    # ramp below the top, the hip over the top's corner) is not seen from the joint's height,
+    # a ray started inside the step: its way out straight up, within two spacings, is the top
+    hp = hip.reshape(-1, 3)
+    t, _ = rays.cast(hp, np.broadcast_to(UP, hp.shape), 2.0 * spacing)
+    i = np.flatnonzero(np.isfinite(t) & ~bad)
+    if len(i):
+        i = i[rays.inside(hp[i])]
+        deficit[i] = t[i] + want
+        bad[i] = True
     if not bad.any():
         return None
     arcs = bf.arcs[:, segment].ravel()[bad]

@@ -128,3 +128,33 @@ def test_a_shelf_level_with_the_joints_raises_nothing():
     trail = trail_of(env)
     assert raised_for_hips(trail, frames(trail, 40.0), env.rays, HIPS, JOINTS, BODY.clearance,
                            BODY.spacing) is None
+
+
+def test_hips_inside_a_step_whose_top_is_over_the_joints_are_raised_out():
+    """A step beside the path whose top is above the joints (a body crossing a step's edge
+    askew, its joints over the ramp below, a hip over the top's corner): the ray down from a
+    joint's height starts inside the step and missed it, the hips stayed inside it, and the
+    legs from them passed through it (Godot's zdm2 arena, the 2 m rig, a crowd of 20, 9127422:
+    one creature's hips inside a ridge's edge for 57 frames, 53 leg-bone hits, a leg turning
+    179.6 deg in a frame). A hip inside a solid whose top is within two spacings above it now
+    raises the trail; a raise or two takes every hip out of the step."""
+    top = 1.4 * BODY.clearance
+    env = env_of(floor(-0.2, 1.0, -0.3, 0.3),
+                 box((0.30, 0.0, 0.45 * OFFSET), (0.34, top, 0.9 * OFFSET)))
+    trail = trail_of(env)
+    bf = frames(trail, 40.0)
+
+    def inside():
+        q = bf.rotations[:, JOINTS]
+        hip = bf.positions[:, JOINTS] + quat_rotate(q, np.broadcast_to(HIPS, q.shape[:-1] + (3,)))
+        return env.rays.inside(hip.reshape(-1, 3)).sum()
+
+    assert (bf.positions[..., 1] < top).all()              # every joint under the step's top
+    assert inside() > 0
+    for _ in range(2):      # as solve does: at most two raises
+        raised = raised_for_hips(trail, bf, env.rays, HIPS, JOINTS, BODY.clearance, BODY.spacing)
+        if raised is None:
+            break
+        trail = raised
+        bf = frames(trail, 40.0)
+    assert inside() == 0
