@@ -320,6 +320,16 @@ def main(argv=None) -> int:
     args.scenes += [name for name in extra if name not in args.scenes]
     work = args.work or Path(tempfile.mkdtemp(prefix="baker-sweep-"))
     work.mkdir(parents=True, exist_ok=True)
+    try:
+        return sweep(args, extra, work)
+    finally:
+        # a temp work folder goes (its navigation caches and bakes: up to a gigabyte a sweep)
+        if args.work is None and not args.keep:
+            shutil.rmtree(work, ignore_errors=True)
+
+
+def sweep(args, extra: dict, work: Path) -> int:
+    """main's sweep in the work folder `work`: bake, judge, print; the exit code."""
     missing = [s for s in args.scenes if scene_environment(s, work) is None]
     for s in missing:
         print(f"scene {s}: environment not found, skipped")
