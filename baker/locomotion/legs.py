@@ -1293,14 +1293,15 @@ def _leg_blocked(rays, lay, legs, hip, target, fwd, left, knee_out, tol):
 def _bones_hit(rays, hip, mid, end, l1, l2, tol):
     """(n,) bool: either bone of each leg passes through the environment (the last `tol` of the
     tip bone is not tested, so a foot resting on the surface does not count), or within
-    GRAZE x `tol` over a surface below it (the files' keyframe reduction moves a joint by a
-    little, and a bone lying flat a hair over the floor would go into it)."""
-    low = GRAZE * tol * UP                  # each bone cast as it is and that much lower
-    a = rays.occluded(np.concatenate([hip, hip - low]), np.tile(mid - hip, (2, 1)),
-             max_distance=l1 - tol)
-    b = rays.occluded(np.concatenate([mid, mid - low]), np.tile(end - mid, (2, 1)),
-             max_distance=l2 - tol)
-    return (a | b).reshape(2, -1).any(axis=0)
+    GRAZE x `tol` of a surface below or above it (the files' keyframe reduction and rotation
+    rounding move a joint by a little: a bone lying flat a hair over the floor would go into
+    it, and one passing a hair under an edge near its foot would clip the edge)."""
+    low = GRAZE * tol * UP                  # each bone cast as it is, that much lower and higher
+    a = rays.occluded(np.concatenate([hip, hip - low, hip + low]), np.tile(mid - hip, (3, 1)),
+                      max_distance=l1 - tol)
+    b = rays.occluded(np.concatenate([mid, mid - low, mid + low]), np.tile(end - mid, (3, 1)),
+                      max_distance=l2 - tol)
+    return (a | b).reshape(3, -1).any(axis=0)
 
 
 def _clear_knees(rays, hip, mid, end, hinge, l1, l2, tol):
