@@ -410,13 +410,13 @@ def _allowed(cols, pos, nrm, lnk, near, p, x, z):
 @njit(cache=True, nogil=True)
 def _walk(cols, pos, nrm, lnk, near, p, bx, bz, dx, dz, s, reach, grid):
     """HeadSteer._contain's free(t, s, reach) along the unit (dx, dz): the step's point at s and
-    the way on from it to `reach` (head.way_points on `grid`) clear of the other bodies (the
+    the way on from it to `reach` (way_points on `grid`) clear of the other bodies (the
     far end first: where a way is blocked, it mostly is there), and every column of the
     navigation's grid from the base (bx, bz) to `reach` on the head's layer, walked by the
     navigation's links from the base's sample (_link_walk)."""
-    way = np.empty(crossings_bound(s, reach, grid))
-    k = way_points_into(bx, bz, dx, dz, s, reach, grid, way)
     if near.shape[0] > 0:
+        way = np.empty(crossings_bound(s, reach, grid))
+        k = way_points_into(bx, bz, dx, dz, s, reach, grid, way)
         if k > 0 and not _clear_of(near, p, bx + dx * way[k - 1], bz + dz * way[k - 1]):
             return False
         if not _clear_of(near, p, bx + dx * s, bz + dz * s):

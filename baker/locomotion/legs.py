@@ -1790,10 +1790,9 @@ def _sweep_share(rays, q, o, s, rest_yaws, dyaw, pitch, steps, bend, lengths, ba
         cost.append(least(_chain_clear(view, q[idx], o[idx], s, rest_yaws[0] + y,
                                        rest_yaws[1] + y, pitch[idx], bend, lengths, back)))
     cost = np.where(np.isfinite(cost), cost, CHAIN_HIT_COST).T + SWEEP_WIDTH_COST * (1.0 - shares)
-    at = np.zeros(F, dtype=np.int64)
-    at[idx] = np.arange(len(idx))
-    for run in np.split(idx, np.nonzero(np.diff(idx) > 1)[0] + 1):
-        room[run] = shares[_share_path(dyaw, shares, cost[at[run]], run[0], run[-1])]
+    for at in np.split(np.arange(len(idx)), np.nonzero(np.diff(idx) > 1)[0] + 1):
+        run = idx[at]
+        room[run] = shares[_share_path(dyaw, shares, cost[at], run[0], run[-1])]
     return room
 
 
