@@ -13,10 +13,13 @@ bodies' capsules.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 from baker.config import RigConfig
-from baker.geometry.proximity import segment_distances
+from baker.parallel import compiled_call
 from baker.rig.limbs import chains
 
 #: a chain's bone keeps this many body radii from another creature's spine segments (the
@@ -49,13 +52,10 @@ class NearBodies:
         out = np.zeros(p.shape[:-1], dtype=bool)
         if not len(rows):
             return out
-        pr, qr = p[rows].reshape(len(rows), -1, 3), q[rows].reshape(len(rows), -1, 3)
-        ar, br = self.a[rows], self.b[rows]
-        k, M = pr.shape[1], ar.shape[1]
-        shape = (len(rows), k, M, 3)
-        d = segment_distances(*(np.broadcast_to(x, shape).reshape(-1, 3) for x in
-                                (pr[:, :, None], qr[:, :, None], ar[:, None], br[:, None])))
-        hit = (np.nan_to_num(d, nan=np.inf) < self.radius).reshape(len(rows), k, M).any(axis=2)
+        pr = np.ascontiguousarray(p[rows], dtype=np.float64).reshape(len(rows), -1, 3)
+        qr = np.ascontiguousarray(q[rows], dtype=np.float64).reshape(len(rows), -1, 3)
+        hit = np.zeros(pr.shape[:2], dtype=np.bool_)
+        compiled_call(_capsules_touch, pr, qr, self.a[rows], self.b[rows], self.radius, hit)
         out[rows] = hit.reshape((len(rows),) + p.shape[1:-1])
         return out
 
@@ -130,3 +130,58 @@ def crowd_near(rays, crowd: CrowdSpines, i: int, rig: RigConfig) -> NearBodies |
              + CLEAR_RADII * radius + 0.5 * rig.body.spacing)
     parents = sorted({ch.parent for ch in own})
     return near_bodies(rays, crowd, i, crowd.spines[i][:, parents], reach, radius)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _capsules_touch(p, q, a, b, radius, out):
+    """out[r, k] = whether segment p[r, k]-q[r, k] comes within `radius` of one of the
+    segments a[r, m]-b[r, m] (NaN: none): geometry.proximity.segment_distances' arithmetic
+    (Ericson 5.1.9) pair by pair, stopping at a bone's first touch. p, q (R, K, 3); a, b
+    (R, M, 3); out (R, K) bool."""
+    eps = 1e-18
+    for r in range(p.shape[0]):
+        for k in range(p.shape[1]):
+            p1, q1 = p[r, k], q[r, k]
+            d1 = (q1[0] - p1[0], q1[1] - p1[1], q1[2] - p1[2])
+            aa = d1[0] * d1[0] + d1[1] * d1[1] + d1[2] * d1[2]
+            for m in range(a.shape[1]):
+                p2, q2 = a[r, m], b[r, m]
+                if math.isnan(p2[0]):
+                    continue
+                d2 = (q2[0] - p2[0], q2[1] - p2[1], q2[2] - p2[2])
+                w = (p1[0] - p2[0], p1[1] - p2[1], p1[2] - p2[2])
+                e = d2[0] * d2[0] + d2[1] * d2[1] + d2[2] * d2[2]
+                bb = d1[0] * d2[0] + d1[1] * d2[1] + d1[2] * d2[2]
+                c = d1[0] * w[0] + d1[1] * w[1] + d1[2] * w[2]
+                f = d2[0] * w[0] + d2[1] * w[1] + d2[2] * w[2]
+                s, t = _closest_params(aa, bb, c, e, f, eps)
+                dx = p1[0] + d1[0] * s - p2[0] - d2[0] * t
+                dy = p1[1] + d1[1] * s - p2[1] - d2[1] * t
+                dz = p1[2] + d1[2] * s - p2[2] - d2[2] * t
+                if math.sqrt(dx * dx + dy * dy + dz * dz) < radius:
+                    out[r, k] = True
+                    break
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _closest_params(a, b, c, e, f, eps):
+    """(s, t): the closest points' parameters on two segments (segment_distances' choices):
+    a, e their squared lengths, b the dot of their directions, c and f those directions' dots
+    with the first's start less the second's."""
+    a_ok, e_ok = a > eps, e > eps
+    a_ = a if a_ok else 1.0
+    e_ = e if e_ok else 1.0
+    denom = a * e - b * b
+    s = min(max((b * f - c * e) / denom, 0.0), 1.0) if denom > eps else 0.0
+    if not e_ok:
+        s = min(max(-c / a_, 0.0), 1.0)
+    t = (b * s + f) / e_ if e_ok else 0.0
+    if t < 0.0:
+        s = min(max(-c / a_, 0.0), 1.0)
+    elif t > 1.0:
+        s = min(max((b - c) / a_, 0.0), 1.0)
+    t = min(max(t, 0.0), 1.0)
+    if not a_ok:
+        s = 0.0
+        t = min(max(f / e_, 0.0), 1.0) * (1.0 if e_ok else 0.0)
+    return s, t

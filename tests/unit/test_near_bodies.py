@@ -93,3 +93,29 @@ def test_near_bodies_keeps_each_frames_segments_within_reach():
     q = np.array([[0.1, 0.0, 0.0], [0.1, 0.0, 0.0]])
     assert near.touches(p, q).tolist() == [True, False]
     assert near.at(np.array([1])).touches(p[:1], q[:1]).tolist() == [False]
+
+
+def test_touches_is_the_numpy_distance_test_pair_by_pair():
+    """NearBodies.touches (compiled, stopping at a bone's first touch) answers what the
+    numpy segment distances say: random bones against random segments, with zero-length
+    bones and segments, parallel pairs, and NaN slots (no segment there) among them."""
+    rng = np.random.default_rng(11)
+    R, K, M, radius = 40, 7, 9, 0.05
+    p = rng.uniform(-0.2, 0.2, (R, K, 3))
+    q = p + rng.uniform(-0.15, 0.15, (R, K, 3))
+    a = rng.uniform(-0.2, 0.2, (R, M, 3))
+    b = a + rng.uniform(-0.15, 0.15, (R, M, 3))
+    q[:, 0] = p[:, 0]                                   # zero-length bones
+    b[:, 1] = a[:, 1]                                   # zero-length segments
+    b[:, 2] = a[:, 2] + (q[:, 1] - p[:, 1])             # parallel to bone 1
+    a[::3, 5:], b[::3, 5:] = np.nan, np.nan             # rows with fewer segments
+    a[7], b[7] = np.nan, np.nan                         # a row with none
+    near = NearBodies(None, a, b, radius)
+    got = near.touches(p, q)
+    shape = (R, K, M, 3)
+    d = segment_distances(*(np.broadcast_to(x, shape).reshape(-1, 3) for x in
+                            (p[:, :, None], q[:, :, None], a[:, None], b[:, None])))
+    want = (np.nan_to_num(d, nan=np.inf) < radius).reshape(R, K, M).any(axis=2)
+    assert got.shape == (R, K) and 0.2 < want.mean() < 0.8
+    assert np.array_equal(got, want)
+    assert not got[7].any()
