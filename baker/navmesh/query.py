@@ -338,6 +338,8 @@ def _locate(s: NavSurface, points: np.ndarray, tol: float, _retry: bool = True):
 
 #: _walk remembers up to this many walks per surface (then starts afresh)
 _WALKS_KEPT = 1 << 16
+#: _coarse_candidates remembers up to this many (point, radius) draws per surface
+_CANDIDATES_KEPT = 256
 #: _locate takes a batch of at most this many points one at a time, in Python floats (the
 #: per-step queries, of one point or a ring of a few dozen): cheaper than the array passes
 _FEW = 32
@@ -525,6 +527,48 @@ def random_point_near(s: NavSurface, p, radius: float,
 
 
 def _random_point_coarse(s: NavSurface, p, radius, comp, rng, tries: int = 64):
+    cand = _coarse_candidates(s, p, radius, comp)
+    if cand is None:
+        return None
+    nodes, cw = cand
+    morder, mptr = _members(s)
+    for _ in range(tries):
+        u = nodes[min(int(np.searchsorted(cw, rng.random() * cw[-1], side="right")),
+                      len(nodes) - 1)]
+        mem, mw = _member_weights(s, int(u), morder, mptr)
+        kk = mem[min(int(np.searchsorted(mw, rng.random() * mw[-1], side="right")), len(mem) - 1)]
+        q = _jitter(s, int(kk), p, radius, rng)
+        if q is not None:
+            return q
+    return None  # mostly outside the sphere: let the fine path decide
+
+
+def _coarse_candidates(s: NavSurface, p, radius, comp):
+    """(nodes, their cumulative area weights) of _random_point_coarse: the coarse nodes of
+    component `comp` that may hold a point within `radius` of p, or None. Remembered per
+    surface (a crowd's starts draw round the same point at the same radii again and again)."""
+    key = (float(p[0]), float(p[1]), float(p[2]), float(radius), int(comp))
+    kept = s._cache.get("coarse_candidates")
+    if kept is None or len(kept) >= _CANDIDATES_KEPT:
+        kept = s._cache["coarse_candidates"] = {}
+    if key not in kept:
+        kept[key] = _coarse_candidates_of(s, p, radius, comp)
+    return kept[key]
+
+
+def _member_weights(s: NavSurface, u: int, morder, mptr):
+    """(samples, cumulative 1 / normal_y) of coarse node u's members, remembered per surface."""
+    kept = s._cache.get("member_weights")
+    if kept is None:
+        kept = s._cache["member_weights"] = {}
+    out = kept.get(u)
+    if out is None:
+        mem = morder[mptr[u]:mptr[u + 1]]
+        out = kept[u] = (mem, np.cumsum(1.0 / s.normals[mem, 1].astype(np.float64)))
+    return out
+
+
+def _coarse_candidates_of(s: NavSurface, p, radius, comp):
     order, bstart, w, ext, (bx, bz) = _coarse_index(s)
     k, c = s.coarse_factor, s.cell_size
     bc = k * c
@@ -550,18 +594,7 @@ def _random_point_coarse(s: NavSurface, p, radius, comp, rng, tries: int = 64):
     nodes = nodes[dr <= radius + ext[nodes]]
     if len(nodes) == 0:
         return None
-    cw = np.cumsum(w[nodes])
-    morder, mptr = _members(s)
-    for _ in range(tries):
-        u = nodes[min(int(np.searchsorted(cw, rng.random() * cw[-1], side="right")),
-                      len(nodes) - 1)]
-        mem = morder[mptr[u]:mptr[u + 1]]
-        mw = np.cumsum(1.0 / s.normals[mem, 1].astype(np.float64))
-        kk = mem[min(int(np.searchsorted(mw, rng.random() * mw[-1], side="right")), len(mem) - 1)]
-        q = _jitter(s, int(kk), p, radius, rng)
-        if q is not None:
-            return q
-    return None  # mostly outside the sphere: let the fine path decide
+    return nodes, np.cumsum(w[nodes])
 
 
 def _walk(s: NavSurface, s0: int, a: np.ndarray, b: np.ndarray, s1: int = -1):

@@ -78,13 +78,12 @@ def crowd_starts(nav, env, rig, streams: list[Streams], separation: float, at=No
     returns [(start (3,), heading (3,))]"""
     length = rig.body.length
     back = np.linspace(length * 1.05, 0, 22)
-    taken = np.zeros((0, 2))
+    taken = _Taken()
     out = []
     anchor = middle_anchor(nav, env)
     close = []                      # (creature, gap) of the starts nearer than `separation`
     for st in streams:
         rng = st.get("start")
-        tree = cKDTree(taken) if len(taken) else None
         best, best_gap = None, -1.0
         for attempt in range(START_TRIES):
             first = not out and attempt == 0
@@ -94,7 +93,7 @@ def crowd_starts(nav, env, rig, streams: list[Streams], separation: float, at=No
                                        extent_frac=0.2 + 0.3 * attempt / START_TRIES,
                                        anchor=anchor)
             line = (start[None, :] - head[None, :] * back[:, None])[:, [0, 2]]
-            gap = np.inf if tree is None else float(tree.query(line)[0].min())
+            gap = taken.gap(line)
             if gap > best_gap:
                 best, best_gap = (start, head, line), gap
             if gap >= separation:
@@ -102,12 +101,37 @@ def crowd_starts(nav, env, rig, streams: list[Streams], separation: float, at=No
         if best_gap < separation:
             close.append((len(out), best_gap))
         out.append(best[:2])
-        taken = np.vstack([taken, best[2]])
+        taken.add(best[2])
     if close:                       # one line, however many (a big crowd on a small level)
         log.warning("%d of %d creatures start nearer another than %.3f m (creature %d first; "
                     "the nearest %.3f m): the level has little room for them", len(close),
                     len(out), separation, close[0][0], min(g for _, g in close))
     return out
+
+
+class _Taken:
+    """The start lines of the creatures placed so far (crowd_starts): a tree over most of
+    them, rebuilt as RECENT more points gather, and the newest measured one by one."""
+
+    RECENT = 512
+
+    def __init__(self):
+        self.points = np.zeros((0, 2))
+        self.tree, self.in_tree = None, 0
+
+    def add(self, line: np.ndarray) -> None:
+        self.points = np.vstack([self.points, line])
+        if len(self.points) - self.in_tree > self.RECENT:
+            self.tree, self.in_tree = cKDTree(self.points), len(self.points)
+
+    def gap(self, line: np.ndarray) -> float:
+        """The least distance from a point of `line` (k, 2) to a point taken (inf: none)."""
+        gap = np.inf if self.tree is None else float(self.tree.query(line)[0].min())
+        recent = self.points[self.in_tree:]
+        if len(recent):
+            d = line[:, None, :] - recent[None, :, :]
+            gap = min(gap, float(np.sqrt((d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]).min())))
+        return gap
 
 
 def tail_points(rig) -> int:

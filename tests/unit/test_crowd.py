@@ -18,7 +18,7 @@ from baker.environment.model import Sun
 from baker.navmesh import build
 from baker import parallel
 from baker.run import group
-from baker.run.crowd import crowd_separation, crowd_starts, run_crowd
+from baker.run.crowd import _Taken, crowd_separation, crowd_starts, run_crowd
 from baker.locomotion.legs import folded_lever
 from baker.run.follow import HOLD_MAX, Follower, measure_levers
 from baker.sim.loop import simulate_crowd
@@ -333,3 +333,24 @@ def test_the_avoidance_test_is_every_point_measured_while_the_base_moves_on():
                 assert allowed(x, z) == (every and on_layer)
                 outcomes.add(every)
     assert outcomes == {True, False}
+
+
+def test_the_start_gap_is_the_nearest_taken_point_over_every_line_taken():
+    """crowd_starts measures a candidate start line against the lines already taken in a tree
+    rebuilt every _Taken.RECENT points and the newest one by one: the gap is the least
+    distance to any point taken, bit for bit, as the tree over all of them gives it."""
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(4)
+    taken = _Taken()
+    points = np.zeros((0, 2))
+    for k in range(120):
+        line = rng.uniform(0.0, 3.0, (23, 2))
+        if k:
+            want = float(cKDTree(points).query(line)[0].min())
+            assert taken.gap(line) == want
+        else:
+            assert taken.gap(line) == np.inf
+        taken.add(line)
+        points = np.vstack([points, line])
+    assert taken.tree is not None and 0 < taken.in_tree < len(points)

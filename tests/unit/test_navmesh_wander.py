@@ -111,3 +111,28 @@ def test_a_steep_slope_counts_its_true_area():
     tol = 4.0 * math.sqrt(true_share * (1 - true_share) / n)
     assert abs(frac - true_share) <= tol
     assert abs(true_share - flat_share) > 3 * tol  # the test tells the two apart
+
+
+def test_remembered_coarse_draws_are_the_fresh_ones():
+    """The coarse draw's candidate nodes and member weights are remembered per surface
+    (a crowd's starts draw round one point at a few radii, again and again): draws on a
+    surface that remembers them are the draws of one that computes them afresh each time."""
+    s = two_floors()
+    p = s.nearest((4 + RUN / 2, TOP / 2, 3.0))
+    radii = [3.0, 4.5, 100.0, 3.0, 6.0]
+
+    def draws(forget: bool) -> np.ndarray:
+        rng = np.random.default_rng(5)
+        out = []
+        for k in range(200):
+            if forget:
+                s._cache.pop("coarse_candidates", None)
+                s._cache.pop("member_weights", None)
+            out.append(s.random_point_near(p, radii[k % len(radii)], rng))
+        return np.array(out)
+
+    fresh = draws(forget=True)
+    s._cache.pop("coarse_candidates", None)
+    s._cache.pop("member_weights", None)
+    assert np.array_equal(draws(forget=False), fresh)
+    assert len(s._cache["coarse_candidates"]) == len(set(radii))
