@@ -215,6 +215,7 @@ def _first_calls(cols, pos, nrm, grid) -> None:
     head_step(*args, np.zeros(len(ST)), np.linspace(0.1, 1.0, len(PRM)), np.ones(3), none, 0.1,
               1e-3, none, cos, sin, cos, sin)
     layer_height(cols, pos, nrm, grid, 0.0, 0.0, 0.0, 1.0)
+    slope_grades(cols, pos, nrm, grid, 0.0, 0.0, 0.1, 0.0, 1.0)
     nearest_sq(np.zeros((1, 2)), 0.0, 0.0)
     largest_jump(np.zeros((2, 3)), 0, 2)
 
@@ -477,6 +478,27 @@ def _first_crossing(x, dx, i, o, cell):
 def layer_height(cols, pos, nrm, p, x, y, z, tol):
     """NavSurface.layer_height on grid_arrays' arrays (the same bits)."""
     return _layer(cols, pos, nrm, p, x, y, z, tol)
+
+
+@njit(cache=True, nogil=True)
+def slope_grades(cols, pos, nrm, p, x, z, d, y, tol):
+    """(gx, gz) of Follower._slope on grid_arrays' arrays (the same bits): the layer's rise a
+    metre along x and z at (x, z), from its heights d either side (follow._grade's one-sided
+    rise where one is missing, NaN where both are)."""
+    gx = _grade(_layer(cols, pos, nrm, p, x + d, y, z, tol), y,
+                _layer(cols, pos, nrm, p, x - d, y, z, tol), d)
+    gz = _grade(_layer(cols, pos, nrm, p, x, y, z + d, tol), y,
+                _layer(cols, pos, nrm, p, x, y, z - d, tol), d)
+    return gx, gz
+
+
+@njit(cache=True, nogil=True)
+def _grade(ahead, here, behind, d):
+    """follow._grade compiled: the rise a metre from heights ahead and behind d either side of
+    here (one-sided where one is NaN, NaN where both are)."""
+    if ahead == ahead and behind == behind:
+        return (ahead - behind) / (2.0 * d)
+    return (ahead - here) / d if ahead == ahead else (here - behind) / d
 
 
 @njit(cache=True, nogil=True)

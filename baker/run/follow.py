@@ -39,6 +39,7 @@ from baker.locomotion.body import project_to_surface
 from baker.locomotion.contain import (FLAT, SurfaceTest, grid_arrays, line_clear, nearest_sq,
                                       plain_test)
 from baker.locomotion.contain import layer_height as compiled_layer_height
+from baker.locomotion.contain import slope_grades as compiled_slope
 from baker.locomotion.contain import ready as compiled_ready
 from baker.locomotion.head import HeadSteer, grid_array, way_points
 from baker.locomotion.legs import STANCE_TURN, folded_lever, hip_line
@@ -112,6 +113,7 @@ class Follower:
                                                     LazyNav.layer_height)
         if self._compiled:
             compiled_ready(nav)
+        self._lookup = (None, None)      # (grid_arrays, its compiled layer_height): _layer_lookup
         self.height = float(start[1])
         self.body_length = body.length
         self.rough_speed = loco.rough_speed
@@ -420,9 +422,13 @@ class Follower:
         return test(self.nav, self.height, self.tol, near, ref, need, self.slope)
 
     def _layer_lookup(self):
-        """layer_height(x, y, z, tol) of the navigation: compiled on a NavSurface's arrays."""
+        """layer_height(x, y, z, tol) of the navigation: compiled on a NavSurface's arrays
+        (kept while they are the grid's)."""
         if self._compiled:
-            return partial(compiled_layer_height, *grid_arrays(self.nav))
+            grid = grid_arrays(self.nav)
+            if self._lookup[0] is not grid:
+                self._lookup = (grid, partial(compiled_layer_height, *grid))
+            return self._lookup[1]
         return self.nav.layer_height
 
     def _slope(self) -> tuple[float, float, float, float]:
@@ -433,10 +439,13 @@ class Follower:
         walkable slope."""
         x, z = float(self.head.position[0]), float(self.head.position[2])
         d = SLOPE_PROBE * self.nav.cell_size
-        layer = self._layer_lookup()
         y, tol = self.height, self.tol
-        gx = _grade(layer(x + d, y, z, tol), y, layer(x - d, y, z, tol), d)
-        gz = _grade(layer(x, y, z + d, tol), y, layer(x, y, z - d, tol), d)
+        if self._compiled:
+            gx, gz = compiled_slope(*grid_arrays(self.nav), x, z, d, y, tol)
+        else:
+            layer = self.nav.layer_height
+            gx = _grade(layer(x + d, y, z, tol), y, layer(x - d, y, z, tol), d)
+            gz = _grade(layer(x, y, z + d, tol), y, layer(x, y, z - d, tol), d)
         if not (math.hypot(gx, gz) <= self.max_grade):     # NaN too
             return FLAT
         return x, z, gx, gz

@@ -138,6 +138,31 @@ def test_the_compiled_layer_height_is_the_query_s():
             assert (math.isnan(want) and math.isnan(got)) or want == got
 
 
+def test_the_compiled_slope_is_the_follower_s_python_slope():
+    """contain.slope_grades (Follower._slope's rises, compiled) gives follow._grade's bits from
+    the query's layer heights, missing probes (holes, other layers) and one-sided rises
+    included."""
+    from baker.run.follow import _grade
+
+    kinds = set()
+    for seed in range(3):
+        nav = patchy_grid(seed)
+        arrays = contain.grid_arrays(nav)
+        rng = np.random.default_rng(10 + seed)
+        lo = np.array(nav.origin)
+        d = 2.0 * nav.cell_size
+        for x, z in rng.uniform(lo - 0.05, lo + 0.65, (2000, 2)):
+            y, tol = float(rng.choice([0.0, 0.2, 0.1])), float(rng.choice([0.01, 0.15]))
+            hx = [layer_height(nav, x + s * d, y, z, tol) for s in (1, -1)]
+            hz = [layer_height(nav, x, y, z + s * d, tol) for s in (1, -1)]
+            want = (_grade(hx[0], y, hx[1], d), _grade(hz[0], y, hz[1], d))
+            got = contain.slope_grades(*arrays, x, z, d, y, tol)
+            for w, g in zip(want, got):
+                assert (math.isnan(w) and math.isnan(g)) or w == g
+            kinds.add(sum(h == h for h in hx))
+    assert kinds == {0, 1, 2}           # both probes, one, none
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_compiled_turns_are_the_python_turns(seed):
     """HeadSteer._contain and _more_room compiled (the kernels head_step calls) and in Python
@@ -281,7 +306,7 @@ def test_ready_compiles_every_direct_kernel_for_the_grid_s_array_types():
         contain.ready(nav)
         types = tuple(typeof(a) for a in contain.grid_arrays(nav)[:3])
         for kernel in (contain._allowed, contain.contain, contain.more_room, contain.line_clear,
-                       contain.layer_height, contain.head_step):
+                       contain.layer_height, contain.head_step, contain.slope_grades):
             assert any(tuple(sig[:3]) == types for sig in kernel.signatures), kernel
 
 
