@@ -10,6 +10,8 @@ it, and the limit is smoothed along the body and over time.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 from scipy.ndimage import minimum_filter1d, uniform_filter1d
@@ -30,10 +32,22 @@ def lift_profile(amount: np.ndarray, keys, height: float, segments: int) -> np.n
 
     amount : (F,) 0..1, how far the cobra pose has risen (ramped by the simulation)
     """
-    x = 1.0 - np.arange(segments) / (segments - 1)
     a = np.clip(amount, 0.0, 1.0)
     ease = a * a * (3.0 - 2.0 * a)
-    return height * ease[:, None] * curve_values(keys, x)[None, :]
+    return height * ease[:, None] * _joint_curve(_hashable(keys), segments)[None, :]
+
+
+def _hashable(keys) -> tuple:
+    return tuple(tuple(float(v) for v in k) for k in np.asarray(keys, dtype=np.float64))
+
+
+@functools.lru_cache(maxsize=16)
+def _joint_curve(keys: tuple, segments: int) -> np.ndarray:
+    """curve_values of keys at 1 - i/n for each of the segments (read only, kept: a crowd's
+    run asks for the profile of each new cobra amount of its bodies)."""
+    out = curve_values(keys, 1.0 - np.arange(segments) / (segments - 1))
+    out.flags.writeable = False
+    return out
 
 
 def limit_lift(positions: np.ndarray, lift: np.ndarray, spacing: float, rays, margin: float,

@@ -87,3 +87,25 @@ def test_slowed_ramps_keep_every_joint_facing_the_joint_ahead():
     turn = np.degrees(quat_angle(bf.rotations[:-1], bf.rotations[1:]))
     assert turn.max() < 30.0, turn.max()
 
+
+
+def test_the_kept_joint_curve_gives_the_profile_computed_afresh():
+    """lift_profile keeps the curve's values at the joints per (curve, segments): its lifts
+    are height * ease * curve_values at 1 - i/n bit for bit, for any amount and curve, and
+    the kept values cannot be written to."""
+    from baker.locomotion import cobra
+
+    rng = np.random.default_rng(2)
+    curves = [((0.0, 0.0), (0.6667, 0.0), (0.85, 0.35), (1.0, 1.0)), ((0.0, 0.2), (1.0, 0.9)),
+              [[0.0, 0.0], [0.5, 0.7], [1.0, 1.0]]]
+    for curve in curves:
+        for segments in (5, 21):
+            a = np.r_[0.0, 1.0, rng.uniform(-0.2, 1.2, 30)]
+            got = cobra.lift_profile(a, curve, 0.04, segments)
+            c = np.clip(a, 0.0, 1.0)
+            want = (0.04 * (c * c * (3.0 - 2.0 * c))[:, None]
+                    * cobra.curve_values(curve, 1.0 - np.arange(segments) / (segments - 1))[None, :])
+            assert got.tobytes() == want.tobytes()
+    kept = cobra._joint_curve(cobra._hashable(curves[0]), 21)
+    with pytest.raises(ValueError):
+        kept[0] = 1.0
