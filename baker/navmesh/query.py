@@ -4,7 +4,7 @@ NavSurface is the query object over one NavData (surface.py, the plain arrays th
 the cache stores), as Detour's dtNavMeshQuery is over a dtNavMesh; it satisfies the Navigation
 protocol (protocol.py). All functions here take a NavSurface first; its methods call them.
 Expected failures (nothing near, unreachable goal) are results (None, complete=False), never
-exceptions. Heavier lookup structures (KD-tree, coarse-graph lists) are built lazily on first use
+exceptions. Heavier lookup structures (KD-tree, coarse-graph arrays) are built lazily on first use
 and kept in the NavSurface's private cache, never in the data.
 """
 
@@ -77,9 +77,9 @@ class NavSurface:
         return _link_csr(self)[1]
 
     def prepare(self) -> "NavSurface":
-        """Build the lazy query tables now (coarse-graph lists, members, block index) instead
+        """Build the lazy query tables now (coarse-graph arrays, members, block index) instead
         of on the first query (about 0.1-0.3 s on a few million samples). Returns self."""
-        _coarse_lists(self)
+        _coarse_arrays(self)
         _members(self)
         _coarse_index(self)
         return self
@@ -784,7 +784,27 @@ def _astar(start: int, goal: int, edges, point) -> list[int] | None:
 
 
 def _coarse_astar(s: NavSurface, u0: int, u1: int) -> list[int] | None:
-    """A* over the coarse graph (plain lists: the hot path of long queries)."""
+    """A* over the coarse graph: _astar's path, compiled (navmesh.astar: node for node)."""
+    from baker.navmesh.astar import coarse_astar
+
+    return coarse_astar(*_coarse_arrays(s), u0, u1)
+
+
+def _coarse_arrays(s: NavSurface) -> tuple:
+    """The coarse graph as navmesh.astar reads it: CSR indptr, indices (int64) and the
+    representatives' positions (N, 3) float64, built once."""
+    c = s._cache.get("coarse_arrays")
+    if c is None:
+        c = s._cache["coarse_arrays"] = (
+            np.ascontiguousarray(s.coarse_indptr, dtype=np.int64),
+            np.ascontiguousarray(s.coarse_indices, dtype=np.int64),
+            np.ascontiguousarray(s.positions[s.coarse_rep], dtype=np.float64))
+    return c
+
+
+def _coarse_astar_python(s: NavSurface, u0: int, u1: int) -> list[int] | None:
+    """_coarse_astar in Python, through _astar (plain lists): the reference the compiled
+    search is tested against."""
     indptr, indices, pos, adj = _coarse_lists(s)
 
     def edges(u):

@@ -75,3 +75,44 @@ def test_astar_reports_an_unreachable_goal_and_a_start_at_the_goal():
     assert _astar(0, 2, adj.__getitem__, pts.__getitem__) is None
     assert _astar(1, 1, adj.__getitem__, pts.__getitem__) == [1]
     assert _astar(0, 1, adj.__getitem__, pts.__getitem__) == [0, 1]
+
+
+def _csr(pts, adj):
+    """(indptr, indices, pos) of a graph given as _grid_graph's adjacency."""
+    indptr = np.zeros(len(pts) + 1, dtype=np.int64)
+    indptr[1:] = np.cumsum([len(adj[u]) for u in range(len(pts))])
+    indices = np.array([v for u in range(len(pts)) for v, _ in adj[u]], dtype=np.int64)
+    return indptr, indices, np.array(pts, dtype=np.float64)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_the_compiled_coarse_astar_finds_the_python_node_paths(seed):
+    """navmesh.astar.coarse_astar (compiled, its own heap) gives _astar's node paths on
+    grids full of equal costs (ties broken as Python's tuples compare), unreachable goals and
+    a start at the goal included."""
+    from baker.navmesh.astar import coarse_astar
+
+    rng = np.random.default_rng(seed)
+    pts, adj = _grid_graph(rng, 12, 0.2)
+    graph = _csr(pts, adj)
+    unreachable = 0
+    for _ in range(60):
+        a, b = (int(x) for x in rng.integers(0, len(pts), 2))
+        want = _astar(a, b, adj.__getitem__, pts.__getitem__)
+        assert coarse_astar(*graph, a, b) == want
+        unreachable += want is None
+    assert unreachable > 0
+    assert coarse_astar(*graph, 5, 5) == [5]
+
+
+def test_find_path_s_coarse_search_is_the_python_one_on_a_level():
+    """On a built surface (the two-floor level with its ramp), query._coarse_astar (compiled)
+    and the Python search over the coarse graph's lists find the same node paths."""
+    from baker.navmesh import query
+    from test_navmesh_wander import two_floors
+
+    s = two_floors()
+    rng = np.random.default_rng(3)
+    n = len(s.coarse_rep)
+    for u, v in rng.integers(0, n, (200, 2)).tolist():
+        assert query._coarse_astar(s, u, v) == query._coarse_astar_python(s, u, v)
