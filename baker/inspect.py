@@ -540,9 +540,9 @@ def _judge_bones(scene: BakedScene, rays, bl: float, m: dict, worst: dict) -> No
         vec = np.stack([b[1] for b in bones], axis=1)                  # (F, B, 3)
         length = np.linalg.norm(vec, axis=2)
         o = scene.positions[:, j].reshape(-1, 3)
-        hit = rays.first_hit(o, vec.reshape(-1, 3),
-                             max_distance=np.maximum(length.reshape(-1) - 0.005 * bl, 0.0))
-        hits = hit.hit.reshape(len(scene.positions), len(bones))
+        reach = np.maximum(length.reshape(-1) - 0.005 * bl, 0.0)
+        hits = rays.occluded(o, vec.reshape(-1, 3), reach).reshape(len(scene.positions),
+                                                                    len(bones))
         m[key] = int(hits.sum())
         worst[key] = _worst(hits.astype(float), [scene.names[i] for i in j])
 

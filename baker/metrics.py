@@ -236,8 +236,7 @@ def leg_metrics(traj: Trajectory, rays, legs_cfg, *, spacing: float, body_length
         p = traj.joint_positions[:, idx].reshape(-1, 3)
         d = quat_rotate_y(traj.joint_rotations[:, idx].reshape(-1, 4))
         ln = np.tile(np.asarray(lengths, float), F)
-        r = rays.first_hit(p, d, max_distance=np.maximum(ln - 0.005 * bl, 0.0))
-        return r.hit.reshape(F, len(idx))
+        return rays.occluded(p, d, np.maximum(ln - 0.005 * bl, 0.0)).reshape(F, len(idx))
 
     up_names = [n for n in names if n.startswith("leg_") and n.endswith("_upper")]
     tip_names = [n for n in names if n.startswith("leg_") and n.endswith("_tip")]

@@ -97,7 +97,6 @@ import numpy as np
 from baker.clip import Clip
 from baker.errors import ExportError
 from baker.export import keyfit, replay
-from baker.geometry.transforms import normalize
 
 #: local pass: the share of the tolerance each channel gets on its own
 LOCAL_SHARE = 0.5
@@ -1199,9 +1198,8 @@ def bones_near(starts: np.ndarray, ends: np.ndarray, rays, margin: float, end_ga
     hit = np.zeros(length.shape, dtype=bool)
     if hit.size == 0:
         return hit
-    unit = normalize(d.reshape(-1, 3))          # the directions first_hit would cast
     for off in (np.zeros_like(side), side, -side, other, -other):
-        # hit or not: the raw casts (first_hit's answer without its points and normals)
-        prim = rays.cast((starts + margin * off).reshape(-1, 3), unit, reach)[1]
-        hit |= (prim >= 0).reshape(length.shape)
+        # first_hit's hits, without the points and normals it would build
+        hit |= rays.occluded((starts + margin * off).reshape(-1, 3), d.reshape(-1, 3),
+                             reach).reshape(length.shape)
     return hit
