@@ -338,8 +338,12 @@ def _locate(s: NavSurface, points: np.ndarray, tol: float, _retry: bool = True):
 
 #: _walk remembers up to this many walks per surface (then starts afresh)
 _WALKS_KEPT = 1 << 16
-#: _coarse_candidates remembers up to this many (point, radius) draws per surface
-_CANDIDATES_KEPT = 256
+#: _coarse_candidates remembers up to this many (point, radius) draws per surface, those
+#: asked for twice (of the last _SEEN_KEPT asked for)
+_CANDIDATES_KEPT = 64
+_SEEN_KEPT = 4096
+#: _member_weights remembers up to this many coarse nodes' weights per surface
+_MEMBERS_KEPT = 4096
 #: _locate takes a batch of at most this many points one at a time, in Python floats (the
 #: per-step queries, of one point or a ring of a few dozen): cheaper than the array passes
 _FEW = 32
@@ -546,20 +550,30 @@ def _random_point_coarse(s: NavSurface, p, radius, comp, rng, tries: int = 64):
 def _coarse_candidates(s: NavSurface, p, radius, comp):
     """(nodes, their cumulative area weights) of _random_point_coarse: the coarse nodes of
     component `comp` that may hold a point within `radius` of p, or None. Remembered per
-    surface (a crowd's starts draw round the same point at the same radii again and again)."""
+    surface from a draw's second time round the same point at the same radius (a crowd's
+    starts draw round one point at a few radii again and again; a wander target's point is
+    new each time, and a level-wide radius's candidates are large)."""
     key = (float(p[0]), float(p[1]), float(p[2]), float(radius), int(comp))
     kept = s._cache.get("coarse_candidates")
     if kept is None or len(kept) >= _CANDIDATES_KEPT:
         kept = s._cache["coarse_candidates"] = {}
-    if key not in kept:
-        kept[key] = _coarse_candidates_of(s, p, radius, comp)
-    return kept[key]
+    if key in kept:
+        return kept[key]
+    out = _coarse_candidates_of(s, p, radius, comp)
+    seen = s._cache.get("coarse_draws_seen")
+    if seen is None or len(seen) >= _SEEN_KEPT:
+        seen = s._cache["coarse_draws_seen"] = set()
+    if key in seen:
+        kept[key] = out
+    else:
+        seen.add(key)
+    return out
 
 
 def _member_weights(s: NavSurface, u: int, morder, mptr):
     """(samples, cumulative 1 / normal_y) of coarse node u's members, remembered per surface."""
     kept = s._cache.get("member_weights")
-    if kept is None:
+    if kept is None or len(kept) >= _MEMBERS_KEPT:
         kept = s._cache["member_weights"] = {}
     out = kept.get(u)
     if out is None:

@@ -126,13 +126,19 @@ def test_remembered_coarse_draws_are_the_fresh_ones():
         out = []
         for k in range(200):
             if forget:
-                s._cache.pop("coarse_candidates", None)
-                s._cache.pop("member_weights", None)
+                for key in ("coarse_candidates", "coarse_draws_seen", "member_weights"):
+                    s._cache.pop(key, None)
             out.append(s.random_point_near(p, radii[k % len(radii)], rng))
         return np.array(out)
 
     fresh = draws(forget=True)
-    s._cache.pop("coarse_candidates", None)
-    s._cache.pop("member_weights", None)
+    for k in ("coarse_candidates", "coarse_draws_seen", "member_weights"):
+        s._cache.pop(k, None)
     assert np.array_equal(draws(forget=False), fresh)
+    # kept from a draw's second time: each of the radii here comes round again
+    assert len(s._cache["coarse_candidates"]) == len(set(radii))
+    # a draw round a new point each time (a wander target's) is never kept
+    rng = np.random.default_rng(6)
+    for q in s.positions[rng.integers(0, len(s.positions), 20)].astype(np.float64):
+        s.random_point_near(q, 4.5, rng)
     assert len(s._cache["coarse_candidates"]) == len(set(radii))
