@@ -45,6 +45,14 @@ def _less(f, g, node, i, j):
 
 
 @njit(cache=True, nogil=True)
+def _swap(f, g, node, i, j):
+    """Exchange heap entries i and j."""
+    f[i], f[j] = f[j], f[i]
+    g[i], g[j] = g[j], g[i]
+    node[i], node[j] = node[j], node[i]
+
+
+@njit(cache=True, nogil=True)
 def _push(f, g, node, size, fv, gv, nv):
     """Add (fv, gv, nv) to the heap of `size` entries; returns the new size."""
     i = size
@@ -53,9 +61,7 @@ def _push(f, g, node, size, fv, gv, nv):
         p = (i - 1) // 2
         if not _less(f, g, node, i, p):
             break
-        f[i], f[p] = f[p], f[i]
-        g[i], g[p] = g[p], g[i]
-        node[i], node[p] = node[p], node[i]
+        _swap(f, g, node, i, p)
         i = p
     return size + 1
 
@@ -64,9 +70,7 @@ def _push(f, g, node, size, fv, gv, nv):
 def _pop(f, g, node, size):
     """Move the least entry to index size - 1 (then read it there); returns the new size."""
     last = size - 1
-    f[0], f[last] = f[last], f[0]
-    g[0], g[last] = g[last], g[0]
-    node[0], node[last] = node[last], node[0]
+    _swap(f, g, node, 0, last)
     i = 0
     while True:
         c = 2 * i + 1
@@ -76,9 +80,7 @@ def _pop(f, g, node, size):
             c += 1
         if not _less(f, g, node, c, i):
             break
-        f[i], f[c] = f[c], f[i]
-        g[i], g[c] = g[c], g[i]
-        node[i], node[c] = node[c], node[i]
+        _swap(f, g, node, i, c)
         i = c
     return last
 

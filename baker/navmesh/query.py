@@ -344,6 +344,15 @@ _CANDIDATES_KEPT = 64
 _SEEN_KEPT = 4096
 #: _member_weights remembers up to this many coarse nodes' weights per surface
 _MEMBERS_KEPT = 4096
+
+
+def _kept(s: NavSurface, name: str, limit: int, kind):
+    """The surface's remembered table `name` (a dict or set, `kind`), started afresh when it
+    holds `limit` entries (per-query memories: their keys never repeat for some callers)."""
+    table = s._cache.get(name)
+    if table is None or len(table) >= limit:
+        table = s._cache[name] = kind()
+    return table
 #: _locate takes a batch of at most this many points one at a time, in Python floats (the
 #: per-step queries, of one point or a ring of a few dozen): cheaper than the array passes
 _FEW = 32
@@ -554,15 +563,11 @@ def _coarse_candidates(s: NavSurface, p, radius, comp):
     starts draw round one point at a few radii again and again; a wander target's point is
     new each time, and a level-wide radius's candidates are large)."""
     key = (float(p[0]), float(p[1]), float(p[2]), float(radius), int(comp))
-    kept = s._cache.get("coarse_candidates")
-    if kept is None or len(kept) >= _CANDIDATES_KEPT:
-        kept = s._cache["coarse_candidates"] = {}
+    kept = _kept(s, "coarse_candidates", _CANDIDATES_KEPT, dict)
     if key in kept:
         return kept[key]
     out = _coarse_candidates_of(s, p, radius, comp)
-    seen = s._cache.get("coarse_draws_seen")
-    if seen is None or len(seen) >= _SEEN_KEPT:
-        seen = s._cache["coarse_draws_seen"] = set()
+    seen = _kept(s, "coarse_draws_seen", _SEEN_KEPT, set)
     if key in seen:
         kept[key] = out
     else:
@@ -572,9 +577,7 @@ def _coarse_candidates(s: NavSurface, p, radius, comp):
 
 def _member_weights(s: NavSurface, u: int, morder, mptr):
     """(samples, cumulative 1 / normal_y) of coarse node u's members, remembered per surface."""
-    kept = s._cache.get("member_weights")
-    if kept is None or len(kept) >= _MEMBERS_KEPT:
-        kept = s._cache["member_weights"] = {}
+    kept = _kept(s, "member_weights", _MEMBERS_KEPT, dict)
     out = kept.get(u)
     if out is None:
         mem = morder[mptr[u]:mptr[u + 1]]
@@ -617,9 +620,7 @@ def _walk(s: NavSurface, s0: int, a: np.ndarray, b: np.ndarray, s1: int = -1):
     sample on this layer (or the end is not s1 when s1 >= 0). Remembered per surface (paths
     planned again and again walk the same chains between the same points)."""
     key = (int(s0), float(a[0]), float(a[2]), float(b[0]), float(b[2]), int(s1))
-    walks = s._cache.get("walks")
-    if walks is None or len(walks) >= _WALKS_KEPT:
-        walks = s._cache["walks"] = {}
+    walks = _kept(s, "walks", _WALKS_KEPT, dict)
     out = walks.get(key)
     if out is None:
         out = walks[key] = _walk_links(s, s0, a, b, s1)
