@@ -30,6 +30,7 @@ import math
 import numpy as np
 from numba import njit, typeof
 
+from baker.navmesh.query import grid_arrays
 from baker.navmesh.surface import DIRS
 from baker.parallel import off_main_thread
 
@@ -218,22 +219,6 @@ def _first_calls(cols, pos, nrm, grid) -> None:
     slope_grades(cols, pos, nrm, grid, 0.0, 0.0, 0.1, 0.0, 1.0)
     nearest_sq(np.zeros((1, 2)), 0.0, 0.0)
     largest_jump(np.zeros((2, 3)), 0, 2)
-
-
-def grid_arrays(nav) -> tuple:
-    """(col_start, positions, normals, [x0, z0, cell, nx, nz]) of the navigation surface's
-    current grid, as the kernels read them (kept in its query cache: a lazy surface's grid is
-    that of its current window)."""
-    cache = nav._cache
-    got = cache.get("kernel_grid")
-    if got is None:
-        got = cache["kernel_grid"] = (
-            np.ascontiguousarray(np.asarray(nav.col_start)),
-            np.ascontiguousarray(np.asarray(nav.positions)),
-            np.ascontiguousarray(np.asarray(nav.normals)),
-            np.array([nav.origin[0], nav.origin[1], nav.cell_size, nav.shape[0], nav.shape[1]],
-                     dtype=np.float64))
-    return got
 
 
 def link_array(nav) -> np.ndarray:

@@ -286,54 +286,34 @@ def component_of(s: NavSurface, p) -> int:
     return -1 if k < 0 else int(s.component[k])
 
 
-def _locate(s: NavSurface, points: np.ndarray, tol: float, _retry: bool = True):
-    """Per point: the sample of its column whose plane height is closest, and that height;
-    (-1, NaN) when none is within tol vertically."""
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    n = len(pts)
-    if 0 < n <= _FEW and s.n_samples > 0:
-        return _locate_few(s, pts, tol, _retry)
-    best = np.full(n, -1, dtype=np.int64)
-    besth = np.full(n, np.nan)
-    bestd = np.full(n, np.inf)
-    if n == 0 or s.n_samples == 0:
-        return best, besth
-    nx, nz = s.shape
-    ix, iz = _columns(s, pts[:, 0], pts[:, 2])
-    ok = (ix >= 0) & (ix < nx) & (iz >= 0) & (iz < nz)
-    sel = np.nonzero(ok)[0]
-    col = ix[sel] * nz + iz[sel]
-    a = s.col_start[col]
-    cnt = s.col_start[col + 1] - a
-    k = 0
-    while True:
-        m = cnt > k
-        if not m.any():
-            break
-        j = sel[m]
-        cand = a[m] + k
-        h = _plane_y(s, cand, pts[j, 0], pts[j, 2])
-        d = np.abs(h - pts[j, 1])
-        better = (d < bestd[j]) & (d <= tol)
-        best[j[better]] = cand[better]
-        besth[j[better]] = h[better]
-        bestd[j[better]] = d[better]
-        k += 1
-    if _retry and (best < 0).any():
-        # points on a cell border (path corners often are): try the neighbouring columns, all
-        # eight nudges in one batch; each point takes the first of them (in this order) to hit
-        miss = np.nonzero(best < 0)[0]
-        eps = 1e-6 * s.cell_size
-        nudge = np.array([(ex * eps, 0.0, ez * eps) for ex, ez in _NUDGES])
-        q = (pts[miss][None, :, :] + nudge[:, None, :]).reshape(-1, 3)
-        b2, h2 = _locate(s, q, tol, _retry=False)
-        b2, h2 = b2.reshape(len(nudge), len(miss)), h2.reshape(len(nudge), len(miss))
-        got = b2 >= 0
-        first = np.argmax(got, axis=0)
-        some = np.nonzero(got.any(axis=0))[0]
-        best[miss[some]] = b2[first[some], some]
-        besth[miss[some]] = h2[first[some], some]
-    return best, besth
+def _locate(s: NavSurface, points: np.ndarray, tol: float):
+    """Per point: the sample of its column whose plane height is closest (the first of
+    equals), and that height; (-1, NaN) when none is within tol vertically. A point on a cell
+    border (path corners often are) found in no column tries the neighbouring columns, each
+    point taking the first of _NUDGES to find one. Compiled (navmesh.locate): the same bits as
+    _locate_few's Python."""
+    from baker.navmesh.locate import locate
+
+    pts = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+    if len(pts) == 0 or s.n_samples == 0:
+        return np.full(len(pts), -1, dtype=np.int64), np.full(len(pts), np.nan)
+    return locate(*grid_arrays(s), pts, tol, True, _NUDGE_ARRAY)
+
+
+def grid_arrays(s) -> tuple:
+    """(col_start, positions, normals, [x0, z0, cell, nx, nz]) of the navigation surface's
+    current grid, as the compiled kernels read them (navmesh.locate, locomotion.contain), kept
+    in its query cache (a lazy surface's grid is that of its current window)."""
+    cache = s._cache
+    got = cache.get("kernel_grid")
+    if got is None:
+        got = cache["kernel_grid"] = (
+            np.ascontiguousarray(np.asarray(s.col_start)),
+            np.ascontiguousarray(np.asarray(s.positions)),
+            np.ascontiguousarray(np.asarray(s.normals)),
+            np.array([s.origin[0], s.origin[1], s.cell_size, s.shape[0], s.shape[1]],
+                     dtype=np.float64))
+    return got
 
 
 #: _walk remembers up to this many walks per surface (then starts afresh)
@@ -353,17 +333,15 @@ def _kept(s: NavSurface, name: str, limit: int, kind):
     if table is None or len(table) >= limit:
         table = s._cache[name] = kind()
     return table
-#: _locate takes a batch of at most this many points one at a time, in Python floats (the
-#: per-step queries, of one point or a ring of a few dozen): cheaper than the array passes
-_FEW = 32
 #: the nudges _locate tries, in order, for a point on a cell border (times 1e-6 cells)
 _NUDGES = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0), (1.0, 1.0), (-1.0, -1.0),
            (1.0, -1.0), (-1.0, 1.0))
+_NUDGE_ARRAY = np.array(_NUDGES)
 
 
-def _locate_few(s: NavSurface, pts: np.ndarray, tol: float, retry: bool):
-    """_locate for a few points, one at a time in Python floats: the same samples tried in the
-    same order with the same arithmetic (_plane_y's), so the same results."""
+def _locate_few(s: NavSurface, pts: np.ndarray, tol: float, retry: bool = True):
+    """_locate in Python floats, one point at a time: the reference the compiled _locate is
+    tested against (the same samples tried in the same order with _plane_y's arithmetic)."""
     best, besth = [], []
     eps = 1e-6 * s.cell_size
     for x, y, z in pts.tolist():
