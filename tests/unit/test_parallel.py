@@ -367,3 +367,42 @@ def test_compiled_call_runs_the_first_call_of_each_argument_kind_off_the_main_th
     parallel.compiled_call(kernel, a, 1)
     parallel.compiled_call(kernel, a, 3.0)
     assert seen == [False, True, False, True, False, False, False, True]
+
+
+@forks
+def test_in_child_runs_the_call_on_a_child_from_the_start_and_ends_it():
+    box = {"here": 0}
+
+    def work():
+        box["here"] += 1                    # the child's copy
+        return os.getpid(), box["here"]
+
+    with parallel.in_child(work, 2) as early:
+        assert len(multiprocessing.active_children()) == 1      # started before the wait
+        pid, here = early()
+    assert pid != os.getpid() and here == 1 and box["here"] == 0
+    assert multiprocessing.active_children() == []
+
+
+@forks
+def test_in_child_raises_the_call_s_error_and_ends_a_child_left_unwaited(capfd):
+    def fail():
+        raise BakerError("no room", where="--max-memory")
+
+    with parallel.in_child(fail, 2) as early:
+        with pytest.raises(BakerError) as e:
+            early()
+    assert e.value.where == "--max-memory"
+    with pytest.raises(KeyError):
+        with parallel.in_child(lambda: __import__("time").sleep(600), 2):
+            raise KeyError("an error here before the wait")
+    assert multiprocessing.active_children() == []
+    assert "Traceback" not in capfd.readouterr().err
+
+
+def test_in_child_forks_nothing_for_one_worker_or_where_it_may_not(monkeypatch):
+    with parallel.in_child(lambda: 1, 1) as early:
+        assert early is None
+    monkeypatch.setattr(parallel, "can_fork", lambda: False)
+    with parallel.in_child(lambda: 1, 4) as early:
+        assert early is None
