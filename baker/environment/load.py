@@ -109,6 +109,11 @@ def load_environment(path: str | Path, sun_override=None) -> Environment:
             _check_geometry(v, f, name)
         except EnvironmentLoadError as e:
             raise EnvironmentLoadError(e.what, where=str(path)) from None
+        shading = [float(c) for c in color] + [float(rough), float(metal)]
+        if not all(math.isfinite(x) for x in shading):
+            raise EnvironmentLoadError(f"mesh {name!r}: its material's colour, roughness and "
+                                       f"metallic must be finite numbers (got {shading})",
+                                       where=str(path))
         cleaned = _clean(v, f, n)
         if cleaned is None:
             log.info("environment %s: dropping mesh %r, it has no usable faces", path, name)
@@ -393,14 +398,20 @@ class _Doc:
                       f"({n} entries)")
         return v
 
-    def numbers(self, obj: dict, key: str, where: str, n: int):
+    def numbers(self, obj: dict, key: str, where: str, n: int, lo: float = -math.inf,
+                hi: float = math.inf):
+        """obj[key], n finite numbers from lo to hi (n = 0: one number), or None when absent."""
         if key not in obj:
             return None
         v = obj[key]
-        if (not isinstance(v, list) or len(v) != n
-                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
-                or not all(math.isfinite(x) for x in v)):
-            self.fail(f"{where}.{key} must be {n} finite numbers")
+        vs = [v] if n == 0 else v
+        if ((n and (not isinstance(v, list) or len(v) != n))
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in vs)
+                or not all(math.isfinite(x) and lo <= x <= hi for x in vs)):
+            what = "a finite number" if n == 0 else f"{n} finite numbers"
+            bounds = "" if lo == -math.inf else f" from {lo:g} to {hi:g}" if hi < math.inf \
+                else f" of at least {lo:g}"
+            self.fail(f"{where}.{key} must be {what}{bounds} (got {str(v)[:40]})")
         return v
 
 
@@ -583,12 +594,17 @@ class _GltfReader:
             pbr = mat.get("pbrMetallicRoughness", {})
             if not isinstance(pbr, dict):
                 d.fail(f"materials[{mi}].pbrMetallicRoughness must be an object")
-            d.numbers(pbr, "baseColorFactor", f"materials[{mi}].pbrMetallicRoughness", 4)
+            for key, n in (("baseColorFactor", 4), ("roughnessFactor", 0), ("metallicFactor", 0)):
+                d.numbers(pbr, key, f"materials[{mi}].pbrMetallicRoughness", n)
         lights = self.doc.get("extensions", {})
         lights = lights.get("KHR_lights_punctual", {}) if isinstance(lights, dict) else {}
         lights = lights.get("lights", []) if isinstance(lights, dict) else []
         if not isinstance(lights, list) or not all(isinstance(x, dict) for x in lights):
             d.fail("KHR_lights_punctual.lights must be an array of objects")
+        for li, light in enumerate(lights):
+            # KHR_lights_punctual's ranges: the writers store the sun's as read
+            d.numbers(light, "color", f"KHR_lights_punctual.lights[{li}]", 3, lo=0.0, hi=1.0)
+            d.numbers(light, "intensity", f"KHR_lights_punctual.lights[{li}]", 0, lo=0.0)
         for ni, node in enumerate(d.array("nodes")):
             w = f"nodes[{ni}]"
             d.index(node, "mesh", w, "meshes")
@@ -1001,6 +1017,23 @@ def _usd_matrix(gf_matrix) -> np.ndarray:
     return np.array(gf_matrix, dtype=np.float64).reshape(4, 4).T
 
 
+def _usd_light(light, time, path) -> tuple[float, tuple[float, float, float]]:
+    """(intensity x 2^exposure, linear RGB colour) of a UsdLux light: a finite intensity of at
+    least 0 and colour components from 0 to 1 (the ranges the glTF writer stores; a brighter
+    colour is clamped to 1), else a one-line error naming the light."""
+    inten = light.GetIntensityAttr().Get(time)
+    expo = light.GetExposureAttr().Get(time) or 0.0
+    col = light.GetColorAttr().Get(time)
+    inten = float(inten if inten is not None else 1.0) * 2.0 ** float(expo)
+    color = tuple(float(c) for c in col) if col is not None else (1.0, 1.0, 1.0)
+    if not (math.isfinite(inten) and inten >= 0.0) or not all(
+            math.isfinite(c) and c >= 0.0 for c in color):
+        raise EnvironmentLoadError(
+            f"light {light.GetPath()}: intensity {inten:g} and colour {color} must be finite, "
+            "at least 0", where=str(path))
+    return inten, tuple(min(c, 1.0) for c in color)
+
+
 def _usd_color(prim, mesh, time):
     from pxr import UsdShade
 
@@ -1163,13 +1196,8 @@ def _read_usd_trapped(path: Path, trap):
             world = fix @ _usd_matrix(cache.GetLocalToWorldTransform(prim))
             d = world[:3, :3] @ np.array([0.0, 0.0, 1.0])
             if np.linalg.norm(d) > 1e-12:
-                inten = light.GetIntensityAttr().Get(time)
-                expo = light.GetExposureAttr().Get(time) or 0.0
-                col = light.GetColorAttr().Get(time)
-                suns.append(Sun(
-                    direction=d / np.linalg.norm(d),
-                    intensity=float(inten if inten is not None else 1.0) * 2.0 ** float(expo),
-                    color=tuple(float(c) for c in col) if col is not None else (1.0, 1.0, 1.0)))
+                inten, color = _usd_light(light, time, path)
+                suns.append(Sun(direction=d / np.linalg.norm(d), intensity=inten, color=color))
             continue
         if not prim.IsA(UsdGeom.Mesh):
             continue

@@ -488,3 +488,68 @@ def test_sanitize_name(raw):
     s = sanitize_name(raw)
     assert is_valid_name(s)
     assert not s[0].isdigit()
+
+
+@pytest.mark.parametrize("light, material, message", [
+    ({"color": ["nan", 1, 1]}, None, r"lights\[0\]\.color must be 3 finite numbers from 0 to 1"),
+    ({"color": [1, 1]}, None, r"lights\[0\]\.color must be 3 finite numbers"),
+    ({"color": [-5, 2, 1]}, None, r"lights\[0\]\.color must be 3 finite numbers from 0 to 1"),
+    ({"intensity": -3}, None, r"lights\[0\]\.intensity must be a finite number of at least 0"),
+    ({"intensity": float("inf")}, None, r"lights\[0\]\.intensity must be a finite number"),
+    ({"intensity": [1]}, None, r"lights\[0\]\.intensity must be a finite number"),
+    ({}, {"pbrMetallicRoughness": {"roughnessFactor": "nan"}}, r"roughnessFactor must be a finite"),
+    ({}, {"pbrMetallicRoughness": {"metallicFactor": True}}, r"metallicFactor must be a finite"),
+])
+def test_out_of_range_light_and_material_values_are_one_error(tmp_path, light, material,
+                                                              message):
+    """A light or material value outside glTF's ranges (which the writers would store, or which
+    the report's JSON cannot hold) is a one-line error naming it, not a traceback later."""
+    nodes = [{"name": "ground", "mesh": 0, "_root": True},
+             {"name": "sun", "_root": True, "extensions": {"KHR_lights_punctual": {"light": 0}}}]
+    p = tmp_path / "bad.glb"
+    p.write_bytes(_triangle_glb(nodes, QUAD, QUAD_IDX, material=material,
+                                lights=[dict({"type": "directional"}, **light)]))
+    with pytest.raises(EnvironmentLoadError, match=message):
+        load_environment(p)
+
+
+USD_SUN = """#usda 1.0
+(
+    upAxis = "Y"
+    metersPerUnit = 1
+)
+
+def Mesh "floor"
+{
+    int[] faceVertexCounts = [4]
+    int[] faceVertexIndices = [0, 3, 2, 1]
+    point3f[] points = [(-3, 0, -3), (3, 0, -3), (3, 0, 3), (-3, 0, 3)]
+    color3f[] primvars:displayColor = [(%s, 0.5, 0.5)]
+}
+
+def DistantLight "sun"
+{
+    float inputs:intensity = %s
+    color3f inputs:color = (%s, 1, 1)
+    float xformOp:rotateX = -60
+    uniform token[] xformOpOrder = ["xformOp:rotateX"]
+}
+"""
+
+
+@pytest.mark.parametrize("grey, intensity, red, message", [
+    ("0.5", "nan", "1", "intensity nan"), ("0.5", "-2", "1", "at least 0"),
+    ("0.5", "1", "-1", "at least 0"), ("nan", "1", "1", "must be finite numbers")])
+def test_usd_light_and_material_values_outside_their_ranges_are_one_error(
+        tmp_path, grey, intensity, red, message):
+    p = tmp_path / "bad.usda"
+    p.write_text(USD_SUN % (grey, intensity, red))
+    with pytest.raises(EnvironmentLoadError, match=message):
+        load_environment(p)
+
+
+def test_a_usd_sun_brighter_than_white_is_clamped(tmp_path):
+    p = tmp_path / "hdr.usda"
+    p.write_text(USD_SUN % ("0.5", "3", "2"))
+    env = load_environment(p)
+    assert env.sun.color == (1.0, 1.0, 1.0) and env.sun.intensity == pytest.approx(3.0)
