@@ -77,9 +77,10 @@ def _child_start(workers: int) -> None:
 
 
 def _child_signals() -> None:
-    """A child leaves Ctrl-C to its parent (which stops the pool) and dies at SIGTERM (the
-    pool's terminate), instead of raising baker.signals.Interrupted in a task."""
+    """A child leaves Ctrl-C and a hang-up to its parent (which stops the pool) and dies at
+    SIGTERM (the pool's terminate), instead of raising baker.signals.Interrupted in a task."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGHUP, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     try:
         signal.set_wakeup_fd(-1)

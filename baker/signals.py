@@ -1,4 +1,4 @@
-"""SIGINT and SIGTERM: a clean stop with exit codes 130 and 143.
+"""SIGINT, SIGTERM and SIGHUP: a clean stop with exit codes 130, 143 and 129.
 
 `install()` (called by the console entry point, baker/entry.py, before any heavy import) makes
 both signals raise `Interrupted` in the main thread. `Interrupted` is a BaseException but not a
@@ -36,7 +36,8 @@ import sys
 import time
 from contextlib import contextmanager
 
-HANDLED = (signal.SIGINT, signal.SIGTERM)
+#: SIGHUP too: a terminal that closes (or an ssh session that drops) hangs up its jobs
+HANDLED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 class Interrupted(BaseException):
@@ -151,7 +152,8 @@ def stopping() -> int:
 
 
 def install() -> None:
-    """Make SIGINT and SIGTERM raise Interrupted (main thread only; a no-op elsewhere)."""
+    """Make SIGINT, SIGTERM and SIGHUP raise Interrupted (main thread only; a no-op
+    elsewhere)."""
     import threading
 
     if threading.current_thread() is not threading.main_thread():

@@ -1,5 +1,5 @@
-"""SIGINT and SIGTERM at several points of a real bake: exit 130 / 143, one line on stderr, no
-traceback, no temporary files, the previous outputs byte-identical.
+"""SIGINT, SIGTERM and SIGHUP at several points of a real bake: exit 130 / 143 / 129, one line on
+stderr, no traceback, no temporary files, the previous outputs byte-identical.
 
 The phases are hit with the test hook in baker/signals.py: BAKER_TEST_PAUSE_AT=<phase> holds
 the bake at that checkpoint (so the signal lands there for sure), BAKER_TEST_MARKS=1 only
@@ -17,8 +17,8 @@ import pytest
 from bakeproc import Bake, snapshot
 
 PEAK_MB = 2048
-LINE = re.compile(r"^Error: interrupted by (SIGINT|SIGTERM) \(during [a-z:]+\)$")
-CODES = {signal.SIGINT: 130, signal.SIGTERM: 143}
+LINE = re.compile(r"^Error: interrupted by (SIGINT|SIGTERM|SIGHUP) \(during [a-z:]+\)$")
+CODES = {signal.SIGINT: 130, signal.SIGTERM: 143, signal.SIGHUP: 129}
 
 #: (id, how, phase, extra bake args, seconds to wait after the marker)
 #: how = "pause": held at the checkpoint; "mark": the signal follows the announcement.
@@ -30,7 +30,8 @@ POINTS = [
     ("write-usd", "pause", "write:usd", (), 0.0),        # the GLB's temporary exists
     ("commit", "pause", "commit", (), 0.0),              # every temporary exists
 ]
-CASES = [(p, s) for p in POINTS for s in (signal.SIGINT, signal.SIGTERM)]
+CASES = [(p, s) for p in POINTS for s in (signal.SIGINT, signal.SIGTERM)] + [
+    (p, signal.SIGHUP) for p in POINTS if p[0] in ("simulate", "write-usd", "commit")]
 
 
 @pytest.fixture(scope="module")
