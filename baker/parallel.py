@@ -14,9 +14,7 @@ interpreters, which would have to load the level again), and inside a daemonic p
 
 Peer(fn) is one forked child that answers requests in turn (send, then receive fn(request)),
 keeping its own state between them: a crowd's run steps some of its followers on each of a
-few while this process steps the rest (run.group). in_child(fn) is one call of fn on such a
-child, started at once and waited for later: a lone creature's metrics beside its keyframe
-reduction's planning.
+few while this process steps the rest (run.group).
 
 thread_map(fn, items) is the same map on threads of this process, for calls that spend their
 time in numpy or Embree with the GIL released.
@@ -26,7 +24,6 @@ Only the standard library is imported here.
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import multiprocessing
 import os
@@ -349,25 +346,6 @@ def in_background(fn, *args):
     if thread_count() <= 1:
         return functools.cache(lambda: fn(*args))
     return _on_thread(fn, args)
-
-
-@contextlib.contextmanager
-def in_child(fn, workers: int):
-    """A context whose value is a callable that waits for fn()'s value (raising its error),
-    fn having started on a forked child (a Peer) as the context began; the child ends with the
-    context. None where fork_map would not fork (one worker, not Linux, a daemonic process):
-    the caller runs fn itself. For work that does not release the GIL (numpy passes over many
-    small arrays) beside this process's; the child sees what this process held when it
-    forked."""
-    if int(workers) <= 1 or not can_fork():
-        yield None
-        return
-    peer = Peer(lambda _: fn(), share=int(workers))
-    try:
-        peer.send(0)
-        yield peer.receive
-    finally:
-        peer.close()
 
 
 def off_main_thread(fn, *args):

@@ -8,7 +8,7 @@
     Step 5  pose                           clip.build_clip   -> Clip (one per creature)
     Step 6  measure                        metrics.spine_metrics, surface_metrics, leg_metrics
                                            (a crowd: metrics.crowd_metrics; a lone creature:
-                                           parallel.in_child, beside steps 5 and 7)
+                                           beside step 7)
     Step 7  reduce keys                    export.reduce.reduce_clip (world-space tolerance;
                                            a lone creature: reduce_plan, its 30 s pieces on
                                            parallel.fork_map_beside, ReducePlan.finish)
@@ -33,7 +33,7 @@ import numpy as np
 from baker import memory
 from baker.config import BakeConfig, validate_bake
 from baker.context import Context
-from baker.parallel import available_cpus, fork_map, fork_map_beside, in_child
+from baker.parallel import available_cpus, fork_map, fork_map_beside
 from baker.streams import Streams
 
 log = logging.getLogger(__name__)
@@ -165,10 +165,36 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
         trajs = simulate_creatures(run_cfg, env, nav, ctx, workers)
     traj = trajs[0]
 
-    # Steps 5-7: each creature's clip, its metrics and its keyframe reduction.
-    clip, rig, root_motion, segments, animation, rest, motions, crowd = _clips_and_metrics(
-        cfg, ctx, env, nav, trajs, base_rig, workers)
+    # Step 5: joint-local transforms at the export fps, relative to a placement near the path,
+    # on a skeleton with a `root` joint when root motion is asked for; one clip per creature
+    # (a crowd's others are posed where they are reduced, step 7, on the worker processes).
+    with ctx.stage("pose"):
+        clip, rig, root_motion = posed_clip(cfg, traj, base_rig, env)
+
+    # Step 6: motion-quality metrics (independent ray casts against the environment), per
+    # creature, and how a crowd's creatures keep apart: a crowd's now, a lone creature's
+    # beside step 7 (in the reduce stage's time: in this process while the pieces of its clip
+    # are reduced on others, or on a thread beside its reduction).
+    def measured():
+        return measure_creatures(cfg, trajs, env, nav, workers)
+
+    if len(trajs) > 1:
+        with ctx.stage("metrics"):
+            motions, crowd = measured()
+
+    # Step 7: keyframe reduction: each channel keeps the keys that hold every joint within
+    # cfg.tolerance body lengths of its unreduced world position (planted feet do not slide).
+    # Per-behaviour clips (--clips) are creature 0's.
+    events = events_of(cfg, traj, env.origin)
+    clip = replace(clip, events=events(0, clip.n_frames))
+    segments = behaviour_clips(clip, traj.events, cfg.fps, events) if cfg.clips else ()
+    with ctx.stage("reduce"):
+        ((clip, segments, animation, _), *rest), beside = reduce_creatures(
+            cfg, (base_rig, rig), env, trajs, clip, segments, workers,
+            beside=measured if len(trajs) == 1 else None)
     others = [(c, a) for c, _, a, _ in rest]
+    if len(trajs) == 1:
+        motions, crowd = beside
     motion = motions[0]
 
     # Step 8: files, all or nothing: each is written to a temporary beside its target and
@@ -210,49 +236,6 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
         out.commit()
     return BakeResult(outputs=written, report=rep, trajectory=traj, clip=clip, origin=env.origin,
                       trajectories=tuple(trajs), clips=(clip,) + tuple(c for c, _ in others))
-
-
-def _clips_and_metrics(cfg: BakeConfig, ctx: Context, env, nav, trajs, base_rig,
-                       workers: int) -> tuple:
-    """Steps 5-7 of the bake: (creature 0's reduced clip, its posed rig, its root motion, its
-    per-behaviour clips, its `animation` report section, the rest of reduce_creatures' rows,
-    every creature's metrics, the crowd's report)."""
-    traj = trajs[0]
-
-    # Step 6 (first, for a lone creature): motion-quality metrics (independent ray casts
-    # against the environment), per creature, and how a crowd's creatures keep apart. A lone
-    # creature's are measured on a forked child from now (parallel.in_child), beside its pose
-    # and the planning of its reduction; where none is forked, in this process while the
-    # pieces of its clip are reduced on others, or on a thread beside its reduction. A
-    # crowd's are measured once its clips are posed.
-    def measured():
-        return measure_creatures(cfg, trajs, env, nav, workers)
-
-    with in_child(measured, workers if len(trajs) == 1 else 1) as early:
-        # Step 5: joint-local transforms at the export fps, relative to a placement near the
-        # path, on a skeleton with a `root` joint when root motion is asked for; one clip per
-        # creature (a crowd's others are posed where they are reduced, step 7, on the worker
-        # processes).
-        with ctx.stage("pose"):
-            clip, rig, root_motion = posed_clip(cfg, traj, base_rig, env)
-        if len(trajs) > 1:
-            with ctx.stage("metrics"):
-                motions, crowd = measured()
-
-        # Step 7: keyframe reduction: each channel keeps the keys that hold every joint within
-        # cfg.tolerance body lengths of its unreduced world position (planted feet do not
-        # slide). Per-behaviour clips (--clips) are creature 0's.
-        events = events_of(cfg, traj, env.origin)
-        clip = replace(clip, events=events(0, clip.n_frames))
-        segments = behaviour_clips(clip, traj.events, cfg.fps, events) if cfg.clips else ()
-        lone_here = len(trajs) == 1 and early is None
-        with ctx.stage("reduce"):
-            ((clip, segments, animation, _), *rest), beside = reduce_creatures(
-                cfg, (base_rig, rig), env, trajs, clip, segments, workers,
-                beside=measured if lone_here else None)
-        if len(trajs) == 1:
-            motions, crowd = beside if early is None else early()
-    return clip, rig, root_motion, segments, animation, rest, motions, crowd
 
 
 def simulate_creatures(cfg: BakeConfig, env, nav, ctx: Context,
