@@ -19,7 +19,7 @@ few while this process steps the rest (run.group).
 thread_map(fn, items) is the same map on threads of this process, for calls that spend their
 time in numpy or Embree with the GIL released.
 
-Only the standard library is imported here.
+Only the standard library (and baker.signals, which imports only it) is imported here.
 """
 
 from __future__ import annotations
@@ -31,6 +31,8 @@ import signal
 import sys
 import threading
 import warnings
+
+from baker.signals import HANDLED
 
 #: the function the forked children call (set just before the pool forks them)
 _TASK = None
@@ -74,10 +76,11 @@ def _child_start(workers: int) -> None:
 
 
 def _child_signals() -> None:
-    """A child leaves Ctrl-C and a hang-up to its parent (which stops the pool) and dies at
-    SIGTERM (the pool's terminate), instead of raising baker.signals.Interrupted in a task."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    """A child leaves Ctrl-C, a hang-up and the other stopping signals (sent to the terminal's
+    whole process group) to its parent, which stops the pool, and dies at SIGTERM (the pool's
+    terminate), instead of raising baker.signals.Interrupted in a task."""
+    for s in HANDLED:
+        signal.signal(s, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     try:
         signal.set_wakeup_fd(-1)

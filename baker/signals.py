@@ -1,4 +1,6 @@
-"""SIGINT, SIGTERM and SIGHUP: a clean stop with exit codes 130, 143 and 129.
+"""SIGINT, SIGTERM, SIGHUP and the other signals that end a process by default: a clean stop with
+exit code 128 + the signal number (130, 143, 129; SIGQUIT 131, SIGALRM 142, SIGUSR2 140,
+SIGXCPU 152).
 
 `install()` (called by the console entry point, baker/entry.py, before any heavy import) makes
 both signals raise `Interrupted` in the main thread. `Interrupted` is a BaseException but not a
@@ -36,12 +38,16 @@ import sys
 import time
 from contextlib import contextmanager
 
-#: SIGHUP too: a terminal that closes (or an ssh session that drops) hangs up its jobs
-HANDLED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+#: SIGHUP too: a terminal that closes (or an ssh session that drops) hangs up its jobs; SIGQUIT
+#: (Ctrl-\\), SIGALRM (`timeout -s ALRM`), SIGUSR2 and SIGXCPU (a CPU-time limit, `ulimit -t`,
+#: sends it before SIGKILL) would otherwise end the process where it stands, temporaries left.
+#: SIGUSR1 is left alone: the test hook below resumes a paused bake with it.
+HANDLED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT, signal.SIGALRM,
+           signal.SIGUSR2, signal.SIGXCPU)
 
 
 class Interrupted(BaseException):
-    """Raised in the main thread by SIGINT or SIGTERM once `install()` has run."""
+    """Raised in the main thread by a HANDLED signal once `install()` has run."""
 
     def __init__(self, signum: int, phase: str = ""):
         self.signum = int(signum)
@@ -152,8 +158,7 @@ def stopping() -> int:
 
 
 def install() -> None:
-    """Make SIGINT, SIGTERM and SIGHUP raise Interrupted (main thread only; a no-op
-    elsewhere)."""
+    """Make the HANDLED signals raise Interrupted (main thread only; a no-op elsewhere)."""
     import threading
 
     if threading.current_thread() is not threading.main_thread():

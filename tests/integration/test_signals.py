@@ -1,4 +1,5 @@
-"""SIGINT, SIGTERM and SIGHUP at several points of a real bake: exit 130 / 143 / 129, one line on
+"""SIGINT, SIGTERM and SIGHUP at several points of a real bake, SIGQUIT, SIGALRM, SIGUSR2 and
+SIGXCPU at some: exit 128 + the signal number (130 / 143 / 129 ...), one line on
 stderr, no traceback, no temporary files, the previous outputs byte-identical.
 
 The phases are hit with the test hook in baker/signals.py: BAKER_TEST_PAUSE_AT=<phase> holds
@@ -17,8 +18,12 @@ import pytest
 from bakeproc import Bake, snapshot
 
 PEAK_MB = 2048
-LINE = re.compile(r"^Error: interrupted by (SIGINT|SIGTERM|SIGHUP) \(during [a-z:]+\)$")
-CODES = {signal.SIGINT: 130, signal.SIGTERM: 143, signal.SIGHUP: 129}
+LINE = re.compile(r"^Error: interrupted by (SIGINT|SIGTERM|SIGHUP|SIGQUIT|SIGALRM|SIGUSR2|SIGXCPU)"
+                  r" \(during [a-z:]+\)$")
+CODES = {signal.SIGINT: 130, signal.SIGTERM: 143, signal.SIGHUP: 129, signal.SIGQUIT: 131,
+         signal.SIGALRM: 142, signal.SIGUSR2: 140, signal.SIGXCPU: 152}
+#: signals whose default action ends the process where it stands (temporaries left)
+OTHERS = (signal.SIGQUIT, signal.SIGALRM, signal.SIGUSR2, signal.SIGXCPU)
 
 #: (id, how, phase, extra bake args, seconds to wait after the marker)
 #: how = "pause": held at the checkpoint; "mark": the signal follows the announcement.
@@ -31,7 +36,9 @@ POINTS = [
     ("commit", "pause", "commit", (), 0.0),              # every temporary exists
 ]
 CASES = [(p, s) for p in POINTS for s in (signal.SIGINT, signal.SIGTERM)] + [
-    (p, signal.SIGHUP) for p in POINTS if p[0] in ("simulate", "write-usd", "commit")]
+    (p, signal.SIGHUP) for p in POINTS if p[0] in ("simulate", "write-usd", "commit")] + [
+    (p, s) for p in POINTS if p[0] == "write-usd" for s in OTHERS] + [
+    (p, signal.SIGQUIT) for p in POINTS if p[0] == "simulate"]
 
 
 @pytest.fixture(scope="module")
