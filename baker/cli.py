@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import logging
 import os
 import sys
@@ -460,6 +461,16 @@ class _HeldLog(logging.Handler):
 _HELD = _HeldLog()
 
 
+def _too_long(e: OSError) -> ConfigError:
+    """The user error for a path the file system refuses as too long (ENAMETOOLONG: one name
+    over NAME_MAX, or the whole path over PATH_MAX), from whichever command met it."""
+    name = os.fsdecode(e.filename) if e.filename is not None else ""
+    worst = max(name.split(os.sep), key=lambda part: len(os.fsencode(part)), default="")
+    shown = name if len(name) <= 60 else f"{name[:28]}...{name[-28:]}"
+    return ConfigError(f"path is too long for the file system ({len(os.fsencode(name))} bytes, "
+                       f"its longest name {len(os.fsencode(worst))}): {shown}", where="path")
+
+
 def run_command(argv=None) -> int:
     """Run the click command; user errors become one line `Error: <what> (<where>)` on stderr
     and EXIT_USAGE. Logs and warnings of a run are held and printed only if it succeeds."""
@@ -484,6 +495,10 @@ def run_command(argv=None) -> int:
                 error = format_error(ConfigError(e.format_message(), where="command line"))
             except BakerError as e:
                 error = format_error(e)
+            except OSError as e:
+                if e.errno != errno.ENAMETOOLONG:
+                    raise
+                error = format_error(_too_long(e))
             except MemoryError as e:    # the input asks for more than the machine gives
                 error = format_error(ConfigError(
                     f"out of memory ({str(e) or 'an allocation failed'}): this level, rig and "

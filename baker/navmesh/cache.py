@@ -28,6 +28,7 @@ The cache heals itself:
 from __future__ import annotations
 
 import ast
+import errno
 import hashlib
 import io
 import json
@@ -332,7 +333,9 @@ def load(path, *, strict: bool = False) -> NavSurface | None:
     except _CORRUPT as exc:
         err = exc
     except OSError as exc:
-        if not path.exists():
+        # a path the file system refuses as too long holds no entry (store then warns once
+        # that the folder cannot be written, and the bake goes on without the cache)
+        if exc.errno == errno.ENAMETOOLONG or not path.exists():
             return None
         err = exc
     if strict:
