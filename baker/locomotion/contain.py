@@ -669,6 +669,35 @@ PRM = ("lead", "max_speed", "speed_cap", "tight_speed", "turn_radius", "max_yaw_
 
 
 @njit(cache=True, nogil=True)
+def _wave(st, prm, u, hx, hz, bx, by, bz, dt):
+    """The end of head_step: the head's side-to-side wave at speed u (phase st[5], amplitude
+    st[6], smoothed heading st[7:9]) and the waved head point st[14:17]."""
+    max_speed, turn_radius = prm[1], prm[4]
+    frac = u / max_speed
+    frac = frac if frac < 2.0 else 2.0
+    rate = prm[7] * prm[8]
+    omega = rate * frac
+    st[5] += omega * dt
+    if omega > 1e-9:
+        want = u * prm[9] / (rate if rate > 1e-9 else 1e-9)
+        want = prm[10] if prm[10] < want else want
+    else:
+        want = st[6]
+    dmax = 0.1 * u * dt
+    st[6] += _clamp(want - st[6], -dmax, dmax)
+    w = u * dt / (0.5 * turn_radius)
+    w = w if w < 1.0 else 1.0
+    sx, sz = st[7], st[8]
+    dx, dz = sx + w * (hx - sx), sz + w * (hz - sz)
+    n = hypot(dx, dz)
+    if n > 1e-9:
+        sx, sz = dx / n, dz / n
+        st[7], st[8] = sx, sz
+    k = st[6] * math.sin(st[5])
+    st[14], st[15], st[16] = bx + sz * k, by + 0.0 * k, bz + -sx * k
+
+
+@njit(cache=True, nogil=True)
 def head_step(cols, pos, nrm, lnk, near, p, st, prm, agent, aim, agent_speed, dt, grid, cos, sin,
               fracs, deflect):
     """HeadSteer.step with a SurfaceTest, the same arithmetic in the same order: st (ST) is
@@ -746,28 +775,7 @@ def head_step(cols, pos, nrm, lnk, near, p, st, prm, agent, aim, agent_speed, dt
         u = step / dt
         moved = 1
     st[13] = u
-    frac = u / max_speed
-    frac = frac if frac < 2.0 else 2.0
-    rate = prm[7] * prm[8]
-    omega = rate * frac
-    st[5] += omega * dt
-    if omega > 1e-9:
-        want = u * prm[9] / (rate if rate > 1e-9 else 1e-9)
-        want = prm[10] if prm[10] < want else want
-    else:
-        want = st[6]
-    dmax = 0.1 * u * dt
-    st[6] += _clamp(want - st[6], -dmax, dmax)
-    w = u * dt / (0.5 * turn_radius)
-    w = w if w < 1.0 else 1.0
-    sx, sz = st[7], st[8]
-    dx, dz = sx + w * (hx - sx), sz + w * (hz - sz)
-    n = hypot(dx, dz)
-    if n > 1e-9:
-        sx, sz = dx / n, dz / n
-        st[7], st[8] = sx, sz
-    k = st[6] * math.sin(st[5])
-    st[14], st[15], st[16] = bx + sz * k, by + 0.0 * k, bz + -sx * k
+    _wave(st, prm, u, hx, hz, bx, by, bz, dt)
     return moved
 
 
