@@ -14,13 +14,15 @@ PKG = Path(__file__).resolve().parents[2] / "baker"
 #: what each part may import from baker (besides itself, errors and geometry)
 ALLOWED = {
     "geometry": {"parallel"},           # fused: quat_rotate's kernel run on the main thread
-                                        # once compiled (parallel imports only the stdlib)
+                                        # once compiled (parallel imports only the stdlib
+                                        # and signals, which imports only the stdlib)
     "errors": set(),
     "signals": set(),
     "atomic": {"signals"},
     "schema": set(),
     "streams": set(),
-    "parallel": set(),                  # a crowd's per-creature work on forked processes
+    "parallel": {"signals"},            # a crowd's per-creature work on forked processes;
+                                        # the workers ignore the signals a bake handles
     "config": {"schema"},
     "context": {"signals"},
     "environment": {"parallel"},        # large ray batches cast on every CPU
