@@ -414,6 +414,15 @@ def reduce_clips(cfg: BakeConfig, rig, traj, clip, segments: tuple, env=None, wo
     else:
         pieces, value = fork_map_beside(plan.piece, plan.pieces, workers, beside)
         reduced = plan.finish(pieces)
+    for _ in range(GRAZE_ROUNDS if plan is not None else 0):
+        # a limb bone the reduced pose moves into the environment: its joints held tight there
+        grazed = limbs_grazed(cfg, skel, traj, env, clip, reduced)
+        if grazed is None:
+            break
+        tight = grazed if tight is None else tight | grazed
+        plan = reduce_plan(clip, skel.parents, tol, contacts=planted, tight=tight, split=split,
+                           **kw)
+        reduced = plan.finish(fork_map(plan.piece, plan.pieces, workers))
     animation = {"tolerance_bl": cfg.tolerance, **reduction_stats(clip, reduced)}
     ranges = {name: (f0, f1) for f0, f1, name in behaviour_ranges(clip.n_frames, traj.events,
                                                                    cfg.fps)}
@@ -471,16 +480,65 @@ def limbs_near(cfg: BakeConfig, skel, traj, env, tol: float):
     # swinging foot grazing the ground just inside the judged part was moved into it)
     hit = bones_near(starts, ends, env.rays, tol,
                      end_gap=max(LIMB_END_GAP * cfg.rig.body.length - 2.0 * tol, 0.0))
-    # a bone is named by its start joint; an upper bone ends at its tip joint, a tip bone at
-    # its foot end joint
+    return _marked(hit, *_bone_joints(skel, names), skel.n_joints)
+
+
+def _bone_joints(skel, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """(first, last) joint indices of metrics.leg_bones' bones: a bone is named by its start
+    joint; an upper bone ends at its tip joint, a tip bone at its foot end joint."""
     first = [skel.index(n) for n in names]
     last = [skel.index(n[: -len("upper")] + "tip" if n.endswith("_upper")
                        else n[: -len("tip")] + "foot") for n in names]
-    near = np.zeros((traj.n_frames, skel.n_joints), dtype=bool)
+    return np.asarray(first, dtype=np.int64), np.asarray(last, dtype=np.int64)
+
+
+def _marked(hit: np.ndarray, first: np.ndarray, last: np.ndarray, joints: int) -> np.ndarray:
+    """(F, J) bool: both joints of each (frame, bone) of `hit` (F, B)."""
+    near = np.zeros((len(hit), joints), dtype=bool)
     f, b = np.nonzero(hit)
-    near[f, np.asarray(first, dtype=np.int64)[b]] = True
-    near[f, np.asarray(last, dtype=np.int64)[b]] = True
+    near[f, first[b]] = True
+    near[f, last[b]] = True
     return near
+
+
+#: reductions done again at most, each holding the joints of the limb bones the last one moved
+#: into the environment within its tight share of the tolerance (limbs_grazed)
+GRAZE_ROUNDS = 2
+
+
+def limbs_grazed(cfg: BakeConfig, skel, traj, env, clip, reduced):
+    """(F, J) bool or None: the frames at which a leg or ultimate-leg bone as the reduced clip
+    plays it (export.reduce.played_joints) passes through the environment where the
+    simulation's bone does not, marked on both of its joints (None: nowhere). The bone is
+    judged as inspect judges a file: one ray along it, all but its last LIMB_END_GAP.
+    limbs_near's offset rays sample the tolerance round a bone and can miss an edge between
+    them (a swinging tip bone 0.07 mm past a leaf's edge, moved 0.15 mm into it)."""
+    from baker.export.reduce import played_joints
+    from baker.metrics import leg_bones
+    from baker.rig.skeleton import forward_kinematics
+
+    if env is None or reduced.keys is None or not cfg.rig.legs.enabled:
+        return None
+    starts, ends, names = leg_bones(traj, cfg.rig.legs)
+    if not names:
+        return None
+    first, last = _bone_joints(skel, names)
+    t, q, _ = played_joints(reduced)
+    moved = (forward_kinematics(skel.parents, t, q)[0]
+             - forward_kinematics(skel.parents, clip.translations, clip.rotations)[0])
+    gap = LIMB_END_GAP * cfg.rig.body.length
+
+    def through(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        v = b - a
+        reach = np.maximum(np.linalg.norm(v, axis=-1) - gap, 0.0)
+        return env.rays.occluded(a.reshape(-1, 3), v.reshape(-1, 3),
+                                 reach.reshape(-1)).reshape(reach.shape)
+
+    hit = through(starts + moved[:, first], ends + moved[:, last])
+    if not hit.any():
+        return None
+    hit &= ~through(starts, ends)
+    return _marked(hit, first, last, skel.n_joints) if hit.any() else None
 
 
 def prey_props(rig_cfg, traj) -> tuple:
