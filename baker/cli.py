@@ -12,7 +12,7 @@ from pathlib import Path
 
 import click
 
-from baker.errors import EXIT_USAGE, BakerError, ConfigError, format_error
+from baker.errors import EXIT_USAGE, BakerError, ConfigError, format_error, short_path
 
 # The heavy modules (baker.config and with it numpy and pydantic; scipy, trimesh, pxr) are
 # imported inside the commands, so `--help` and option errors come before them (issue 15).
@@ -466,9 +466,9 @@ def _too_long(e: OSError) -> ConfigError:
     over NAME_MAX, or the whole path over PATH_MAX), from whichever command met it."""
     name = os.fsdecode(e.filename) if e.filename is not None else ""
     worst = max(name.split(os.sep), key=lambda part: len(os.fsencode(part)), default="")
-    shown = name if len(name) <= 60 else f"{name[:28]}...{name[-28:]}"
     return ConfigError(f"path is too long for the file system ({len(os.fsencode(name))} bytes, "
-                       f"its longest name {len(os.fsencode(worst))}): {shown}", where="path")
+                       f"its longest name {len(os.fsencode(worst))}): {short_path(name)}",
+                       where="path")
 
 
 def run_command(argv=None) -> int:

@@ -71,6 +71,13 @@ def one_line(text: str, limit: int = _MAX_LINE) -> str:
     return s if len(s) <= limit else s[: limit - 3] + "..."
 
 
+def short_path(name: str, limit: int = 60) -> str:
+    """A path for a message: as it is up to `limit` characters, else its first and last
+    characters round an ellipsis (a path too long for the file system can be kilobytes)."""
+    half = (limit - 4) // 2
+    return name if len(name) <= limit else f"{name[:half]}...{name[-half:]}"
+
+
 def format_error(exc: BaseException, where: str | None = None) -> str:
     """The single stderr line for a user error: `Error: <what> (<where>)`."""
     what = exc.what if isinstance(exc, BakerError) else str(exc)

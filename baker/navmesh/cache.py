@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from baker.atomic import atomic_output
+from baker.errors import short_path
 from baker.navmesh.query import NavSurface
 from baker.navmesh.surface import DIRS, FORMAT_VERSION, NavData
 
@@ -409,7 +410,7 @@ def store(cache: NavCache, surface: NavSurface, path: Path) -> bool:
     except (OSError, BakerError) as exc:
         why = getattr(exc, "strerror", None) or str(exc).splitlines()[0]
         _warn_once(str(cache.folder), "navigation cache folder %s cannot be written (%s); "
-                   "baking without the cache", cache.folder, why)
+                   "baking without the cache", short_path(str(cache.folder)), why)
         return False
     if path.stat().st_size > cache.max_bytes:
         log.info("navigation cache entry %s is larger than the cache bound; not kept", path.name)
