@@ -82,8 +82,15 @@ def judge_file(path: str | Path) -> list[dict]:
                            where=str(p))
     inspect_file(p, validate=False)          # a file that cannot be read: one line, as inspect
     usd = next((u for u in (p.with_suffix(".usd"), p.with_suffix(".usda")) if u.is_file()), None)
+    try:
+        judged = judge_creatures(p, usd)
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError) as e:
+        # a file inspect reads but whose skin or animation cannot be played (no joints, an
+        # fps that is not a number, ...)
+        raise InspectError(f"cannot judge this glTF ({type(e).__name__}: {e})",
+                           where=str(p)) from None
     out = []
-    for i, r in enumerate(judge_creatures(p, usd)):
+    for i, r in enumerate(judged):
         m = r["metrics"]
         names = [n for n, _, _ in LIMITS if m.get(n) is not None]
         out.append(dict(creature=i, failures=failures(m), values={n: m[n] for n in names},
@@ -590,6 +597,8 @@ def _json_report(path: Path) -> dict:
         doc = json.loads(path.read_bytes())
     except (UnicodeDecodeError, ValueError) as e:
         raise InspectError(f"not JSON: {e}", where=str(path)) from None
+    except RecursionError:
+        raise InspectError("not a baker report: JSON nested too deeply", where=str(path)) from None
     if not isinstance(doc, dict) or not isinstance(doc.get("metrics"), dict) \
             or not isinstance(doc.get("parameters"), dict):
         raise InspectError("not a baker report (no parameters and metrics)", where=str(path))

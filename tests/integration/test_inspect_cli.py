@@ -289,6 +289,8 @@ BROKEN = {
     "no_skeleton_usd": (lambda d, b: _env_only_usd(d), "no UsdSkel Skeleton"),
     "garbage_json": (lambda d, b: _put(d / "g.json", b"\xff\xfe{"), "not JSON"),
     "other_json": (lambda d, b: _put(d / "o.json", b'{"a": 1}'), "not a baker report"),
+    "deep_json": (lambda d, b: _put(d / "deep.json", b"[" * 100_000 + b"]" * 100_000),
+                  "nested too deeply"),
 }
 
 
@@ -370,3 +372,21 @@ def test_judge_needs_a_glb(bakes, capsys):
     code, out, err = run([bakes / "t.usda", "--judge"], capsys)
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
     assert "--judge reads a GLB" in err
+
+
+def _set_extras_fps(doc):
+    doc["scenes"][doc.get("scene", 0)].setdefault("extras", {})["fps"] = "thirty"
+    doc.setdefault("extras", {})["fps"] = "thirty"
+
+
+@pytest.mark.parametrize("edit", [
+    _set_extras_fps,
+    lambda doc: doc["skins"][0].update(joints=[]),
+], ids=["fps_not_a_number", "skin_without_joints"])
+def test_judge_of_a_glb_it_cannot_play_is_one_line(edit, bakes, capsys, tmp_path):
+    """A GLB plain inspect reads, whose motion --judge cannot play: one line, exit 2."""
+    bad = tmp_path / "bad.glb"
+    bad.write_bytes(_glb_with(bakes / "c.glb", edit))
+    code, out, err = run([bad, "--judge", "--no-validate"], capsys)
+    assert code == 2 and out == "", err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
