@@ -496,9 +496,15 @@ def run_command(argv=None) -> int:
             except BakerError as e:
                 error = format_error(e)
             except OSError as e:
-                if e.errno != errno.ENAMETOOLONG:
+                if e.errno == errno.ENAMETOOLONG:
+                    error = format_error(_too_long(e))
+                elif e.errno in (errno.EACCES, errno.EPERM) and e.filename is not None:
+                    # a file, or a folder on its way, this user may not read, search or write
+                    error = format_error(ConfigError(
+                        f"permission denied: {short_path(os.fsdecode(e.filename))}",
+                        where="path"))
+                else:
                     raise
-                error = format_error(_too_long(e))
             except MemoryError as e:    # the input asks for more than the machine gives
                 error = format_error(ConfigError(
                     f"out of memory ({str(e) or 'an allocation failed'}): this level, rig and "

@@ -334,9 +334,10 @@ def load(path, *, strict: bool = False) -> NavSurface | None:
     except _CORRUPT as exc:
         err = exc
     except OSError as exc:
-        # a path the file system refuses as too long holds no entry (store then warns once
-        # that the folder cannot be written, and the bake goes on without the cache)
-        if exc.errno == errno.ENAMETOOLONG or not path.exists():
+        # a path the file system refuses as too long, or in a folder this user may not search,
+        # holds no entry (store then warns once that the folder cannot be written, and the
+        # bake goes on without the cache)
+        if exc.errno in (errno.ENAMETOOLONG, errno.EACCES, errno.EPERM) or not _exists(path):
             return None
         err = exc
     if strict:
@@ -344,6 +345,13 @@ def load(path, *, strict: bool = False) -> NavSurface | None:
     log.warning("navigation cache entry %s is damaged (%s); rebuilding it", path.name,
                 str(err).splitlines()[0] if str(err) else type(err).__name__)
     return None
+
+
+def _exists(path: Path) -> bool:
+    try:
+        return path.exists()
+    except OSError:
+        return False
 
 
 def _entries(folder: Path):
