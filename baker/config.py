@@ -303,6 +303,9 @@ def validate_bake(cfg: BakeConfig) -> BakeConfig:
             raise ConfigError("--sun must point upward (y > 0): the sun is above the horizon",
                               where="--sun")
     if cfg.sun_path is not None:
+        if sun is not None:
+            raise ConfigError("--sun and --sun-path both set the sun: give one (a fixed sun is a "
+                              "one-key --sun-path 'AZ,EL')", where="--sun-path")
         keys = parse_sun_path(cfg.sun_path)
         if len(keys) == 1:  # one key: a fixed sun, exported as one
             cfg = replace(cfg, sun_direction=tuple(float(x) for x in keys[0]), sun_path=None)
@@ -451,8 +454,8 @@ def parse_sun_path(text: str, samples_per_key: int = 16) -> np.ndarray:
     if not isinstance(text, str) or len(text) > 100_000:
         raise ConfigError(form, where="--sun-path")
     try:
-        pairs = [tuple(float(v) for v in part.split(",")) for part in text.split(";") if part.strip()]
-    except ValueError:
+        pairs = [tuple(float(v) for v in part.split(",")) for part in text.split(";")]
+    except ValueError:       # an empty key ('90,30;;270,30', '90,30;') among them
         raise ConfigError(form, where="--sun-path") from None
     if len(pairs) < 1 or any(len(p) != 2 for p in pairs):
         raise ConfigError(form, where="--sun-path")

@@ -891,6 +891,17 @@ def _folder_resolver(path: Path):
 
     class _Resolver(FilePathResolver):
         def get(self, name: str):
+            # trimesh reads the first of these that exists: a FIFO, a device or a folder is
+            # never read (a FIFO's open blocks until a writer comes) but missing
+            for candidate in (name.strip(), name.strip().lstrip("/"), os.path.split(name)[-1]):
+                try:
+                    found = self.absolute(candidate)
+                except ValueError:
+                    continue
+                if found.exists():
+                    if not found.is_file():
+                        raise FileNotFoundError(name)
+                    break
             data = super().get(name)
             return _to_utf8(data) if str(name).lower().endswith(".mtl") else data
 

@@ -181,3 +181,26 @@ def test_one_key_sun_path_bakes_like_sun(tmp_path, capsys):
     for ext in ("glb", "usd"):
         assert (tmp_path / "a" / f"c.{ext}").read_bytes() == \
             (tmp_path / "b" / f"c.{ext}").read_bytes()
+
+
+OBJ_QUAD = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nusemtl m\nf 1 3 2\nf 1 4 3\n"
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
+@pytest.mark.parametrize("side", ["mtllib", "map_Kd"])
+def test_an_obj_side_file_that_is_a_fifo_is_missing_not_waited_for(side, tmp_path):
+    """An OBJ's material library or texture naming a FIFO in its folder: opening a FIFO blocks
+    until a writer comes, and the load hung; it is a missing side file (the mesh loads)."""
+    os.mkfifo(tmp_path / "pipe")
+    if side == "mtllib":
+        (tmp_path / "level.obj").write_text("mtllib pipe\n" + OBJ_QUAD)
+    else:
+        (tmp_path / "m.mtl").write_text("newmtl m\nKd 0.5 0.5 0.5\nmap_Kd pipe\n")
+        (tmp_path / "level.obj").write_text("mtllib m.mtl\n" + OBJ_QUAD)
+    code = ("from baker.environment.load import load_environment; "
+            f"env = load_environment({str(tmp_path / 'level.obj')!r}); "
+            "print(sum(len(m.faces) for m in env.meshes))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       timeout=120, stdin=subprocess.DEVNULL)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.strip() == "2"

@@ -696,7 +696,7 @@ OPTION_CASES = {
     "sun": ["1e308,0,0", "nan,1,0", "inf,1,0", "0,-1,0", "0,0,0", "1,2", "a,b,c", "1,1e300,1",
             "1,2,3,4", ""],
     "sun-path": ["nan,30", "inf,30", "90,nan", "90,0", "90,91", "abc", "90", "1e308,30",
-                 "90,30;nan,40", "90,30;270", ";;", "90,-inf"],
+                 "90,30;nan,40", "90,30;270", ";;", "90,-inf", "90,30;", "90,30;;270,40"],
     "scale": ["0", "nan", "inf", "-1", "1e6", "abc"],
     # 0.0036 m (39 M columns) left this list in issue 15: the slimmer build's budget (10 GB)
     # fits the default limit, so the bake runs (lazily) instead of being refused
@@ -729,6 +729,9 @@ def _option_cases():
     for opt, values in OPTION_CASES.items():
         for i, v in enumerate(values):
             cases.append(Case(f"opt_{opt}_{i}_{v[:12]}", (lambda f, o=opt, v=v: [f"--{o}", v])))
+    # two options that both set the sun (the sun path won; the report kept --sun's)
+    cases.append(Case("opt_sun_and_sun_path", lambda f: ["--sun", "0,1,0",
+                                                         "--sun-path", "90,30;270,30"]))
     for name, args in NAVMESH_OPTION_CASES:
         cases.append(Case(f"opt_navmesh_{name}", (lambda f, a=args: ["navmesh", *a])))
     return cases

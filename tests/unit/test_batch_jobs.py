@@ -147,6 +147,12 @@ def test_command_line_errors(tmp_path, capsys):
     assert code == 2 and len(err.strip().splitlines()) == 1
     code, _, err = run_cli([tmp_path / "none.toml"], capsys)
     assert code == 2 and "jobs file not found" in err
+    for args, words in ((["--job-timeout", "nan"], "--job-timeout must be"),
+                        (["--scheduler", ""], "--scheduler needs"),
+                        (["--scheduler", "  "], "--scheduler needs")):
+        code, out, err = run_cli([jobs, *args, "--out", tmp_path / "o"], capsys)
+        assert code == 2 and words in err and len(err.strip().splitlines()) == 1, err
+        assert not (tmp_path / "o").exists()          # refused before anything is written
 
 
 def test_unreachable_scheduler_is_a_user_error():
