@@ -327,7 +327,7 @@ _UNSUPPORTED_EXT = {"KHR_draco_mesh_compression", "EXT_meshopt_compression"}
 
 def _parse_glb(data: bytes, path: Path):
     if len(data) < 12 or data[:4] != b"glTF":
-        raise EnvironmentLoadError(f"corrupt GLB: not a binary glTF (bad header)")
+        raise EnvironmentLoadError("corrupt GLB: not a binary glTF (bad header)")
     version, length = struct.unpack_from("<II", data, 4)
     if version != 2:
         raise EnvironmentLoadError(f"unsupported glTF version {version} (need 2)")
@@ -338,14 +338,14 @@ def _parse_glb(data: bytes, path: Path):
         clen, ctype = struct.unpack_from("<II", data, off)
         chunk = data[off + 8: off + 8 + clen]
         if len(chunk) != clen:
-            raise EnvironmentLoadError(f"corrupt GLB: truncated chunk")
+            raise EnvironmentLoadError("corrupt GLB: truncated chunk")
         if ctype == 0x4E4F534A and doc is None:
             doc = json.loads(chunk.decode("utf-8"))
         elif ctype == 0x004E4942 and bin_chunk is None:
             bin_chunk = chunk
         off += 8 + clen
     if doc is None:
-        raise EnvironmentLoadError(f"corrupt GLB: no JSON chunk")
+        raise EnvironmentLoadError("corrupt GLB: no JSON chunk")
     return doc, bin_chunk
 
 
