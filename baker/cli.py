@@ -478,6 +478,25 @@ def _too_long(e: OSError) -> ConfigError:
                        where="path")
 
 
+def _stdout_failed(e: OSError) -> bool:
+    """Whether `e` came from writing to standard output (click.echo: the summary, a report,
+    --help) on a full disk or a closed pipe; stdout is then pointed at os.devnull, so that
+    nothing more fails on it (the interpreter's own flush at exit among it)."""
+    tb = e.__traceback__
+    while tb is not None and tb.tb_next is not None:
+        tb = tb.tb_next
+    if tb is None or tb.tb_frame.f_code.co_name != "echo" \
+            or tb.tb_frame.f_globals.get("__name__") != "click.utils":
+        return False
+    try:
+        fd = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(fd, sys.stdout.fileno())
+        os.close(fd)
+    except (OSError, ValueError, AttributeError):
+        pass
+    return True
+
+
 def run_command(argv=None) -> int:
     """Run the click command; user errors become one line `Error: <what> (<where>)` on stderr
     and EXIT_USAGE. Logs and warnings of a run are held and printed only if it succeeds."""
@@ -505,6 +524,10 @@ def run_command(argv=None) -> int:
             except OSError as e:
                 if e.errno == errno.ENAMETOOLONG:
                     error = format_error(_too_long(e))
+                elif e.filename is None and _stdout_failed(e):
+                    # a full disk or a closed pipe behind stdout (the summary, --help)
+                    error = format_error(ConfigError(
+                        f"cannot write to standard output ({e.strerror or e})", where="stdout"))
                 elif e.errno in (errno.EACCES, errno.EPERM) and e.filename is not None:
                     # a file, or a folder on its way, this user may not read, search or write
                     error = format_error(ConfigError(

@@ -142,3 +142,21 @@ def test_console_script_error_has_no_traceback(tmp_path):
     assert r.returncode == 2
     assert "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full here")
+@pytest.mark.parametrize("args", [["--help"], ["inspect", "--help"], ["bake", "--seconds", "1"]],
+                         ids=["help", "inspect_help", "bake"])
+def test_standard_output_on_a_full_disk_is_one_line(args, tmp_path, nav_cache_dir):
+    """stdout on a full disk (/dev/full): one line on stderr and exit 2, not a traceback; a
+    bake's files are committed before its summary is printed, and stay."""
+    out = tmp_path / "o" / "c"
+    extra = ["--out", str(out), "--cache-dir", str(nav_cache_dir)] if args[0] == "bake" else []
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([sys.executable, "-m", "baker", *args, *extra], stdout=full,
+                           stderr=subprocess.PIPE, text=True, timeout=600)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2, r.stderr[-3000:]
+    assert len(lines) == 1 and lines[0].startswith("Error: cannot write to standard output"), lines
+    if args[0] == "bake":
+        assert out.with_suffix(".glb").stat().st_size > 0 and out.with_suffix(".json").exists()
