@@ -839,6 +839,27 @@ class LocalPool:
 
 
 # --------------------------------------------------------------------------- Dask
+def _address_checked(address: str) -> None:
+    """ConfigError for a scheduler address Dask cannot parse (no port, not a number, no host),
+    before a Client is made: a Client that fails on its address leaves a half-made object whose
+    clean-up stalls and prints a traceback as the process ends."""
+    try:
+        from distributed.comm.addressing import parse_address, parse_host_port
+    except ImportError:
+        raise ConfigError("--scheduler needs Dask: pip install 'baker[dask]'",
+                          where="--scheduler") from None
+
+    try:
+        scheme, loc = parse_address(address)
+        if scheme in ("tcp", "tls", "ws", "wss"):
+            host, _ = parse_host_port(loc)
+            if not host or any(c.isspace() for c in host):
+                raise ValueError(f"no host in {loc!r}")
+    except ValueError as e:
+        raise ConfigError(f"not a Dask scheduler address: {address} ({e}); expected "
+                          "tcp://HOST:PORT", where="--scheduler") from None
+
+
 class DaskPool:
     """The same tasks on a running Dask scheduler (`dask scheduler`, `dask worker`), through
     dask.distributed.Client. At most one task per worker thread is in flight, so a task's
@@ -852,6 +873,7 @@ class DaskPool:
         except ImportError:
             raise ConfigError("--scheduler needs Dask: pip install 'baker[dask]'",
                               where="--scheduler") from None
+        _address_checked(address)
         try:
             self.client = Client(address, timeout=f"{connect_timeout}s", set_as_default=False)
         except (OSError, TimeoutError, ValueError) as e:
@@ -1197,6 +1219,8 @@ def run(jobs_file, *, out=None, workers: int | None = None, scheduler: str | Non
     if scheduler and workers:
         raise ConfigError("--workers sizes the local pool; with --scheduler the Dask workers "
                           "run the jobs", where="--workers")
+    if scheduler:
+        _address_checked(scheduler)         # before the output folder is made
     out = Path(out) if out is not None else Path("outputs") / Path(jobs_file).stem
     if cache is not None:       # one absolute folder, the same for every worker
         from baker.navmesh.cache import NavCache

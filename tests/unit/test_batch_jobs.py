@@ -7,6 +7,8 @@ from __future__ import annotations
 import io
 import json
 import os
+import subprocess
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -427,3 +429,18 @@ def test_jobs_file_error_is_not_cut():
 
     assert len(format_error(e)) > 5000
     assert len(format_error(ConfigError("x" * 5000))) <= 410
+
+
+@pytest.mark.parametrize("address", ["not a url", "localhost", "tcp://host:abc", ":8786"])
+def test_a_scheduler_address_dask_cannot_parse_is_one_line(address, tmp_path):
+    """Refused before a Dask Client is made: one that failed on its address left a half-made
+    object whose clean-up stalled 40 s and printed a traceback after the error line."""
+    pytest.importorskip("distributed")
+    jobs = write_jobs(tmp_path)
+    r = subprocess.run([sys.executable, "-m", "baker", "batch", str(jobs), "--out",
+                        str(tmp_path / "o"), "--scheduler", address],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.strip().splitlines() == [r.stderr.strip()], r.stderr
+    assert "not a Dask scheduler address" in r.stderr
+    assert not (tmp_path / "o").exists()          # refused before the output folder is made
