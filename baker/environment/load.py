@@ -577,6 +577,10 @@ class _GltfReader:
                     pa = acc[attrs["POSITION"]]
                     if pa["type"] != "VEC3":
                         d.fail(f"{w}.attributes.POSITION must be a VEC3 accessor")
+                    for name in attrs:      # one value of every attribute per vertex
+                        if acc[attrs[name]].get("count") != pa.get("count"):
+                            d.fail(f"{w}.attributes.{name} has {acc[attrs[name]].get('count')} "
+                                   f"elements, POSITION {pa.get('count')}")
                 if "NORMAL" in attrs and acc[attrs["NORMAL"]]["type"] != "VEC3":
                     d.fail(f"{w}.attributes.NORMAL must be a VEC3 accessor")
                 i = d.index(prim, "indices", w, "accessors")
@@ -585,7 +589,11 @@ class _GltfReader:
                     if ia["type"] != "SCALAR" or ia["componentType"] not in (5121, 5123, 5125):
                         d.fail(f"{w}.indices must be a SCALAR accessor of unsigned integers "
                                "(componentType 5121, 5123 or 5125)")
-                d.integer(prim, "mode", w, lo=0, hi=6, default=4)
+                mode = d.integer(prim, "mode", w, lo=0, hi=6, default=4)
+                corners = acc[i].get("count") if i is not None else (
+                    acc[attrs["POSITION"]].get("count") if "POSITION" in attrs else 0)
+                if mode == 4 and isinstance(corners, int) and corners % 3:
+                    d.fail(f"{w} lists {corners} triangle corners, not a multiple of 3")
                 if "material" in prim:
                     if isinstance(prim["material"], bool) or not isinstance(prim["material"], int) \
                             or not 0 <= prim["material"] < nmat:
@@ -617,6 +625,14 @@ class _GltfReader:
             d.numbers(node, "translation", w, 3)
             d.numbers(node, "rotation", w, 4)
             d.numbers(node, "scale", w, 3)
+            if "matrix" in node:
+                if any(k in node for k in ("translation", "rotation", "scale")):
+                    d.fail(f"{w} has both a matrix and translation, rotation or scale")
+                if list(map(float, node["matrix"][3::4])) != [0.0, 0.0, 0.0, 1.0]:
+                    d.fail(f"{w}.matrix is not an affine transform (its last row is not "
+                           "0, 0, 0, 1)")
+            if "rotation" in node and not math.fsum(x * x for x in node["rotation"]) > 1e-12:
+                d.fail(f"{w}.rotation is a zero quaternion, not a rotation")
             ext = node.get("extensions", {})
             ref = ext.get("KHR_lights_punctual") if isinstance(ext, dict) else None
             if ref is not None:
