@@ -27,10 +27,12 @@ def _numba_cache_folder() -> None:
     if _writable(os.path.join(os.path.dirname(os.path.abspath(__file__)), "__pycache__")) \
             or _writable(user):
         return
-    import tempfile
-
+    # tempfile.gettempdir()'s first choices, without importing it (this runs before the
+    # signal handlers are installed: the standard library's small modules only)
+    tmp = next((os.environ[k] for k in ("TMPDIR", "TEMP", "TMP") if os.environ.get(k)),
+               "/tmp" if os.name == "posix" else os.getcwd())
     uid = os.getuid() if hasattr(os, "getuid") else 0
-    os.environ["NUMBA_CACHE_DIR"] = os.path.join(tempfile.gettempdir(), f"baker-numba-{uid}")
+    os.environ["NUMBA_CACHE_DIR"] = os.path.join(tmp, f"baker-numba-{uid}")
 
 
 _numba_cache_folder()

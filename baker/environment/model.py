@@ -118,19 +118,21 @@ class Environment:
 
 def distinct_triangles(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     """The faces `f` (T, 3) less the repeats of a triangle just before them in an order of
-    their corners' hashes (the same three corners, bit for bit, in any order or winding: a
-    primitive or a mesh repeated in place); `f` itself when there are none. A column of the
-    navigation build found each copy as a layer of its own, and a level of 200 copies of one
-    box took 4 s and 0.9 GB to build (2000: past 300 s). Each corner is hashed from its
-    coordinates' bits, a triangle from its corners' hashes sorted; triangles whose hashes
-    match are compared coordinate by coordinate, so a distinct triangle is never dropped."""
+    their corners' hashes (the same three corners, bit for bit, wound the same way from any
+    corner: a primitive or a mesh repeated in place); `f` itself when there are none. A column
+    of the navigation build found each copy as a layer of its own, and a level of 200 copies of
+    one box took 4 s and 0.9 GB to build (2000: past 300 s). A copy wound the other way is
+    kept: a floor modelled once each way is walked whichever face the build meets first
+    (navmesh facing). Each corner is hashed from its coordinates' bits, a triangle from its
+    corners' hashes in its own order from the smallest; triangles whose hashes match are
+    compared coordinate by coordinate, so a distinct triangle is never dropped."""
     if len(f) < 2:
         return f
     bits = np.ascontiguousarray(v, dtype=np.float64).view(np.uint64).reshape(-1, 3)
-    point = bits @ _MIX[:3]                       # uint64 arithmetic wraps: a hash
-    order = np.argsort(point[f], axis=1)
-    corners = np.take_along_axis(f, order, axis=1)            # each triangle's corners, sorted
-    key = point[corners] @ _MIX[3:]
+    point = _mixed(bits, _MIX[:3])
+    first = np.argmin(point[f], axis=1)
+    corners = np.take_along_axis(f, (first[:, None] + np.arange(3)) % 3, axis=1)  # same winding
+    key = _mixed(point[corners], _MIX[3:])
     by_key = np.argsort(key, kind="stable")                   # equal keys: earliest first
     pair = np.nonzero(key[by_key[1:]] == key[by_key[:-1]])[0]
     if len(pair) == 0:
@@ -145,6 +147,23 @@ def distinct_triangles(v: np.ndarray, f: np.ndarray) -> np.ndarray:
 
 
 #: odd 64-bit multipliers of distinct_triangles' hashes: a corner's x, y, z, a triangle's
-#: sorted corners
+#: corners from the smallest
 _MIX = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
                  0xD6E8FEB86659FD93, 0xFF51AFD7ED558CCD, 0xC4CEB9FE1A85EC53], dtype=np.uint64)
+
+
+def _mixed(cols: np.ndarray, mix: np.ndarray) -> np.ndarray:
+    """(n,) uint64 hash of (n, 3) uint64 columns: each column scrambled (splitmix64's
+    finalizer: a float's bits, as 2.0's, have their low bits all zero), times mix[k], summed
+    modulo 2^64 (element-wise uint64 arithmetic wraps)."""
+    out = np.zeros(len(cols), dtype=np.uint64)
+    for k in range(3):
+        x = cols[:, k].copy()
+        x ^= x >> np.uint64(30)
+        x *= np.uint64(0xBF58476D1CE4E5B9)
+        x ^= x >> np.uint64(27)
+        x *= np.uint64(0x94D049BB133111EB)
+        x ^= x >> np.uint64(31)
+        x *= mix[k]
+        out += x
+    return out
