@@ -214,8 +214,7 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
 @cli.command()
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
               default=_default_rig, show_default="rigs/scolopendra.toml", help="Rig definition (TOML).")
-@click.option("--out", type=click.Path(path_type=Path), default=Path("outputs"),
-              show_default=True,
+@click.option("--out", type=click.Path(), default="outputs", show_default=True,
               help="Output folder (created if needed): writes cycles.glb, cycles.usd and "
                    "cycles.json in it.")
 @click.option("--speeds", default=None, metavar="WALK,RUN",
@@ -239,6 +238,7 @@ def cycles(rig_path, out, speeds, fps):
     from baker.cycles import CyclesConfig, bake_cycles, validate_cycles
 
     t0 = time.perf_counter()
+    out = Path(_given_out(out, "a folder, e.g. outputs"))
     walk, run = parse_speeds(speeds)
     validate_cycles(CyclesConfig(out=out, fps=fps, walk_speed=walk, run_speed=run))
     if Path(out).exists() and not Path(out).is_dir():
@@ -266,7 +266,17 @@ def parse_speeds(text: str | None) -> tuple[float | None, float | None]:
         raise ConfigError(form, where="--speeds") from None
     if len(vals) != 2:
         raise ConfigError(form, where="--speeds")
+    if vals[0] > vals[1]:
+        raise ConfigError(f"--speeds: the walk ({vals[0]:g}) is faster than the run "
+                          f"({vals[1]:g}); give WALK,RUN with WALK at most RUN", where="--speeds")
     return vals
+
+
+def _given_out(out, example: str):
+    """--out as given; an empty one is refused (it named the current folder)."""
+    if out is not None and not str(out).strip():
+        raise ConfigError(f"--out is empty: give {example}", where="--out")
+    return out
 
 
 @cli.command()
@@ -432,6 +442,7 @@ def preview(file, out, gif, frames):
     from baker.export.preview import write_preview
 
     t0 = time.perf_counter()
+    out = _given_out(out, "a path prefix for the pictures, e.g. outputs/centipede")
     written = write_preview(file, out, frames=frames, gif=gif)
     click.echo(f"wrote {', '.join(str(p) for p in written.values())} in "
                f"{time.perf_counter() - t0:.2f} s")

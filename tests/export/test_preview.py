@@ -263,6 +263,9 @@ def test_bad_files_exit_2_with_one_line(tmp_path, capsys, monkeypatch, small_env
         assert err.count("\n") == 1 and err.startswith("Error: ") and name in err
     code, _, err = _run(["preview", str(tmp_path / "no_skin.glb"), "--frames", "5"], capsys)
     assert code == 2 and err.startswith("Error: --frames must be") and err.count("\n") == 1
+    # an empty --out named the current folder
+    code, _, err = _run(["preview", str(tmp_path / "no_skin.glb"), "--out", ""], capsys)
+    assert code == 2 and err.startswith("Error: --out is empty") and err.count("\n") == 1
     # without matplotlib: one line naming the extra to install
     monkeypatch.setattr(pv.importlib.util, "find_spec",
                         lambda name, *a: None if name == "matplotlib" else object())

@@ -219,6 +219,7 @@ def test_same_options_same_bytes(cycles, tmp_path):
     (["--speeds", "0.1,1.6"], "walk speed"),
     (["--speeds", "0.8,9"], "run speed"),
     (["--speeds", "nan,1"], "walk speed"),
+    (["--speeds", "2,0.5"], "faster than the run"),
     (["--fps", "7"], "--fps"),
     (["--rig", "no_such_rig.toml"], "rig file not found"),
 ])
@@ -255,3 +256,12 @@ def test_the_seam_is_as_smooth_as_the_loop_from_the_file_alone(cycles):
         seam = np.linalg.norm(steps[0] - steps[-1], axis=-1)      # out of the seam vs into it
         assert np.all(seam <= 1.1 * change.max(axis=0) + 1e-7), (
             name, float((seam - change.max(axis=0)).max()))
+
+
+def test_an_empty_out_is_an_error(tmp_path, capsys, monkeypatch):
+    """`--out ""` named the current folder and wrote the clips there."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["cycles", "--out", ""]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("Error: --out is empty") and err.count("\n") == 1
+    assert not list(tmp_path.iterdir())
