@@ -512,12 +512,15 @@ def limbs_grazed(cfg: BakeConfig, skel, traj, env, clip, reduced):
     simulation's bone does not, marked on both of its joints (None: nowhere). The bone is
     judged as inspect judges a file: one ray along it, all but its last LIMB_END_GAP.
     limbs_near's offset rays sample the tolerance round a bone and can miss an edge between
-    them (a swinging tip bone 0.07 mm past a leaf's edge, moved 0.15 mm into it)."""
+    them (a swinging tip bone 0.07 mm past a leaf's edge, moved 0.15 mm into it). As
+    limbs_near, for clips played in the world: an in-place clip's joints move in its root's
+    frame, which turns with the walk."""
     from baker.export.reduce import played_joints
     from baker.metrics import leg_bones
     from baker.rig.skeleton import forward_kinematics
 
-    if env is None or reduced.keys is None or not cfg.rig.legs.enabled:
+    if env is None or reduced.keys is None or not cfg.rig.legs.enabled \
+            or cfg.root_motion == "in-place":
         return None
     starts, ends, names = leg_bones(traj, cfg.rig.legs)
     if not names:

@@ -6,6 +6,7 @@ seed 7281934, frame 715: one leg bone hit judged from the file)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -39,10 +40,11 @@ def setup():
     return cfg, skel, clip, env, (starts, ends, ["leg_L_01_tip"])
 
 
-def _grazed(setup, monkeypatch, foot_drop: np.ndarray, keys=True):
+def _grazed(setup, monkeypatch, foot_drop: np.ndarray, keys=True, root_motion="world"):
     """limbs_grazed with the reduced clip's foot end joint of leg_L_01 lowered by foot_drop
     (F,) metres at each frame."""
     cfg, skel, clip, env, bones = setup
+    cfg = replace(cfg, root_motion=root_motion)
     monkeypatch.setattr(metrics, "leg_bones", lambda traj, legs: bones)
     t = clip.translations.copy()
     t[:, skel.index("leg_L_01_foot"), 1] -= foot_drop
@@ -65,3 +67,5 @@ def test_a_bone_the_reduction_moves_into_the_environment_is_marked_on_its_joints
 def test_nothing_is_marked_where_the_reduced_bones_clear_as_simulated(setup, monkeypatch):
     assert _grazed(setup, monkeypatch, np.zeros(F))[1] is None
     assert _grazed(setup, monkeypatch, np.full(F, 0.0005), keys=False)[1] is None  # --tolerance 0
+    # an in-place clip's joints move in its root's frame (as limbs_near: not checked)
+    assert _grazed(setup, monkeypatch, np.full(F, 0.0005), root_motion="in-place")[1] is None
