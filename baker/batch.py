@@ -843,6 +843,9 @@ def _address_checked(address: str) -> None:
     """ConfigError for a scheduler address Dask cannot parse (no port, not a number, no host),
     before a Client is made: a Client that fails on its address leaves a half-made object whose
     clean-up stalls and prints a traceback as the process ends."""
+    if not address.strip():
+        raise ConfigError("--scheduler needs a Dask scheduler's address, e.g. tcp://host:8786",
+                          where="--scheduler")
     try:
         from distributed.comm.addressing import parse_address, parse_host_port
     except ImportError:
@@ -868,12 +871,9 @@ class DaskPool:
     kind = "dask"
 
     def __init__(self, address: str, connect_timeout: float = 20.0):
-        try:
-            from distributed import Client
-        except ImportError:
-            raise ConfigError("--scheduler needs Dask: pip install 'baker[dask]'",
-                              where="--scheduler") from None
-        _address_checked(address)
+        _address_checked(address)                   # Dask installed, the address parsed
+        from distributed import Client
+
         try:
             self.client = Client(address, timeout=f"{connect_timeout}s", set_as_default=False)
         except (OSError, TimeoutError, ValueError) as e:
@@ -1219,8 +1219,8 @@ def run(jobs_file, *, out=None, workers: int | None = None, scheduler: str | Non
     if scheduler and workers:
         raise ConfigError("--workers sizes the local pool; with --scheduler the Dask workers "
                           "run the jobs", where="--workers")
-    if scheduler:
-        _address_checked(scheduler)         # before the output folder is made
+    if scheduler is not None:
+        _address_checked(scheduler)         # before the output folder is made (an empty one too)
     out = Path(out) if out is not None else Path("outputs") / Path(jobs_file).stem
     if cache is not None:       # one absolute folder, the same for every worker
         from baker.navmesh.cache import NavCache

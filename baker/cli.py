@@ -412,9 +412,6 @@ def batch(ctx, jobs_file, out_dir, workers, scheduler, force, job_timeout, retri
     if job_timeout is not None and math.isnan(job_timeout):     # FloatRange lets NaN through
         raise ConfigError("--job-timeout must be a number of seconds > 0 (got nan)",
                           where="--job-timeout")
-    if scheduler is not None and not scheduler.strip():
-        raise ConfigError("--scheduler needs a Dask scheduler's address, e.g. tcp://host:8786",
-                          where="--scheduler")
     summary = batch_mod.run(jobs_file, out=out_dir, workers=workers, scheduler=scheduler,
                             force=force, job_timeout=job_timeout, retries=retries,
                             cache=NavCache.of(cache_dir or default_cache_dir(), cache_max))
