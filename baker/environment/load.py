@@ -8,7 +8,9 @@ Formats
 -------
 - glTF 2.0 (.gltf, .glb): read directly (JSON + buffers) so base colours keep full float
   precision and `KHR_lights_punctual` directional lights can be found. Node transforms
-  (matrix or TRS) are applied. glTF is always +Y up, metres.
+  (matrix or TRS) are applied. glTF is always +Y up, metres. Compressed geometry
+  (EXT_/KHR_meshopt_compression bufferViews, KHR_draco_mesh_compression primitives) is decoded
+  by environment/compressed.py.
 - OBJ, PLY, STL: read with trimesh as a scene; scene-graph transforms are applied. Assumed to be
   metres, +Y up. OBJ `Kd` (through trimesh's material) is taken as a linear colour; PLY vertex
   or face colours (sRGB bytes) are averaged and converted to linear.
@@ -36,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from baker.environment import compressed
 from baker.environment.model import EnvMesh, Environment, Sun
 from baker.errors import EnvironmentLoadError
 from baker.geometry.transforms import cross, length
@@ -352,9 +355,11 @@ def _parse_glb(data: bytes, path: Path):
 _COMPONENT_NAMES = {5120: "BYTE", 5121: "UNSIGNED_BYTE", 5122: "SHORT",
                     5123: "UNSIGNED_SHORT", 5125: "UNSIGNED_INT", 5126: "FLOAT"}
 #: required extensions that change nothing this loader reads (shading, textures, lights) or
-#: that it implements (quantized attributes are read in any component type)
+#: that it implements (quantized attributes are read in any component type; compressed
+#: bufferViews and primitives are decoded, environment/compressed.py)
 _REQUIRED_OK_PREFIXES = ("KHR_materials_", "KHR_texture_", "EXT_texture_")
-_REQUIRED_OK = {"KHR_lights_punctual", "KHR_mesh_quantization", "KHR_materials_variants"}
+_REQUIRED_OK = {"KHR_lights_punctual", "KHR_mesh_quantization", "KHR_materials_variants",
+                *compressed.MESHOPT, compressed.DRACO}
 #: accessors without a bufferView are zero-filled: at most this many bytes + 64x the file
 _ZERO_FILL_SLACK = 1 << 20
 
@@ -436,6 +441,7 @@ class _GltfReader:
         self.doc, self.bin, self.path, self.d = doc, bin_chunk, path, d
         self.file_size = file_size
         self._buffers: dict[int, bytes] = {}
+        self._views: dict[int, bytes] = {}
         self._sizes = [self._buffer_size(i, b) for i, b in enumerate(d.array("buffers"))]
         self._check_views()
         self._check_accessors()
@@ -461,6 +467,8 @@ class _GltfReader:
     def _buffer_size(self, i: int, b: dict) -> int:
         length = self.d.integer(b, "byteLength", f"buffers[{i}]", lo=1, default=0)
         uri = b.get("uri")
+        if uri is None and compressed.is_fallback(b):
+            return length           # a meshopt placeholder: only compressed views read it
         if uri is None:
             if self.bin is None:
                 self.d.fail(f"buffers[{i}] has no uri and the file has no binary chunk")
@@ -494,9 +502,18 @@ class _GltfReader:
             if off + length > self._sizes[b]:
                 d.fail(f"{w} (bytes {off}..{off + length}) runs past buffers[{b}] "
                        f"({self._sizes[b]} bytes)")
+            ext = compressed.meshopt_of(bv)
+            if ext is not None:
+                compressed.check_meshopt(d, w, bv, ext, self._sizes, self.file_size)
+            elif self._placeholder(b):
+                d.fail(f"{w} reads buffers[{b}], a meshopt fallback that holds no data")
             stride = d.integer(bv, "byteStride", w, lo=4, hi=252)
             if stride is not None and stride % 4:
                 d.fail(f"{w}.byteStride = {stride}; expected a multiple of 4 in [4, 252]")
+
+    def _placeholder(self, b: int) -> bool:
+        buf = self.doc["buffers"][b]
+        return buf.get("uri") is None and compressed.is_fallback(buf)
 
     def _span(self, w: str, view: int, offset: int, count: int, elem: int, ctype: int):
         """Check that count elements of elem bytes at offset fit in bufferViews[view]."""
@@ -568,6 +585,9 @@ class _GltfReader:
                 d.fail(f"meshes[{m}].primitives must be an array of objects")
             for pi, prim in enumerate(prims):
                 w = f"meshes[{m}].primitives[{pi}]"
+                draco = compressed.draco_of(prim)
+                if draco is not None:
+                    compressed.check_draco(d, w, draco)
                 attrs = prim.get("attributes", {})
                 if not isinstance(attrs, dict):
                     d.fail(f"{w}.attributes must be an object")
@@ -663,6 +683,23 @@ class _GltfReader:
             self._buffers[i] = data
         return self._buffers[i]
 
+    def view(self, j: int) -> bytes:
+        """bufferViews[j]'s bytes (byteLength of them), decoded when compressed."""
+        if j not in self._views:
+            bv = self.doc["bufferViews"][j]
+            ext = compressed.meshopt_of(bv)
+            if ext is not None:
+                data = compressed.decode_meshopt(self.buffer(ext["buffer"]), ext,
+                                                 f"bufferViews[{j}]")
+            else:
+                off = bv.get("byteOffset", 0)
+                data = memoryview(self.buffer(bv["buffer"]))[off: off + bv["byteLength"]]
+            if len(data) < bv["byteLength"]:
+                raise EnvironmentLoadError(f"corrupt glTF: bufferViews[{j}] is shorter than "
+                                           "declared", where=str(self.path))
+            self._views[j] = data
+        return self._views[j]
+
     def accessor(self, i: int) -> np.ndarray:
         """Accessor data as a (count, ncomp) float64 or int64 array, normalization applied."""
         a = self.doc["accessors"][i]
@@ -671,12 +708,12 @@ class _GltfReader:
         count = int(a["count"])
         if "bufferView" in a:
             bv = self.doc["bufferViews"][a["bufferView"]]
-            buf = self.buffer(bv["buffer"])
-            start = bv.get("byteOffset", 0) + a.get("byteOffset", 0)
+            buf = self.view(a["bufferView"])
+            start = a.get("byteOffset", 0)
             elem = dtype.itemsize * ncomp
             stride = bv.get("byteStride") or elem
             end = start + stride * (count - 1) + elem if count else start
-            if end > bv.get("byteOffset", 0) + bv["byteLength"] or end > len(buf):
+            if end > len(buf):
                 raise EnvironmentLoadError(f"corrupt glTF {self.path}: accessor {i} out of bounds")
             if count == 0:
                 out = np.zeros((0, ncomp), dtype=dtype)
@@ -692,13 +729,11 @@ class _GltfReader:
         if sparse:
             n = int(sparse["count"])
             idx_info, val_info = sparse["indices"], sparse["values"]
-            ibv = self.doc["bufferViews"][idx_info["bufferView"]]
             idt = np.dtype(_COMPONENT[idx_info["componentType"]]).newbyteorder("<")
-            idx = np.frombuffer(self.buffer(ibv["buffer"]), dtype=idt, count=n,
-                                offset=ibv.get("byteOffset", 0) + idx_info.get("byteOffset", 0))
-            vbv = self.doc["bufferViews"][val_info["bufferView"]]
-            vals = np.frombuffer(self.buffer(vbv["buffer"]), dtype=dtype, count=n * ncomp,
-                                 offset=vbv.get("byteOffset", 0) + val_info.get("byteOffset", 0))
+            idx = np.frombuffer(self.view(idx_info["bufferView"]), dtype=idt, count=n,
+                                offset=idx_info.get("byteOffset", 0))
+            vals = np.frombuffer(self.view(val_info["bufferView"]), dtype=dtype, count=n * ncomp,
+                                 offset=val_info.get("byteOffset", 0))
             idx = idx.astype(np.int64)
             if idx.size and (idx.min() < 0 or idx.max() >= count):
                 raise EnvironmentLoadError(f"corrupt glTF: accessors[{i}].sparse index "
@@ -804,6 +839,15 @@ class _GltfReader:
             for pi, prim in enumerate(prims):
                 name = base if len(prims) == 1 else f"{base}_{pi}"
                 if "POSITION" not in prim.get("attributes", {}):
+                    continue
+                draco = compressed.draco_of(prim)
+                if draco is not None and prim.get("mode", 4) in (4, 5, 6):
+                    points, faces = compressed.decode_draco(
+                        self.view(draco["bufferView"]), draco, f"meshes[{node['mesh']}]"
+                        f".primitives[{pi}]")
+                    v, n = _transform_points(world, points), None
+                    color, rough, metal = self.material(prim.get("material"))
+                    raw.append((name, v, _fix_winding(faces, world), n, color, rough, metal))
                     continue
                 faces = self.triangles(prim)
                 if faces is None:

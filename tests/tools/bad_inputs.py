@@ -203,9 +203,8 @@ GLB_JSON_EDITS = [
     ("prim_mode_points", [("meshes.0.primitives.0.mode", 0)]),
     ("prim_material_99", [("meshes.0.primitives.0.material", 99)]),
     ("material_color_3", [("materials.0.pbrMetallicRoughness.baseColorFactor", [1, 1, 1])]),
-    ("ext_required_draco", [("extensionsRequired", ["KHR_draco_mesh_compression"])]),
     ("ext_required_unknown", [("extensionsRequired", ["EXT_made_up"])]),
-    ("ext_required_meshopt", [("extensionsRequired", ["EXT_meshopt_compression"])]),
+    ("ext_required_draco_like", [("extensionsRequired", ["KHR_draco_mesh_compressionX"])]),
     ("ext_required_string", [("extensionsRequired", "KHR_lights_punctual")]),
     ("asset_missing", [("asset", DELETE)]),
     ("asset_version_1", [("asset.version", "1.0")]),
@@ -320,6 +319,71 @@ def _glb_raw_cases():
     for n in (11, 12, 19, 20, 20 + jlen // 2, 20 + jlen, 28 + jlen, len(g) - 1):
         cases.append(_glb_raw_case(f"truncated_{n}", _truncated(n)))
     return cases
+
+
+def _compressed(kind: str, doc_edit=None, blob_edit=None):
+    """A case of the good GLB compressed (kind "meshopt" or "draco", tests/tools/compress_glb.py)
+    with its JSON or its compressed bytes then edited."""
+    def make(folder: Path):
+        from compress_glb import draco_glb, meshopt_glb, read_glb
+
+        doc, blob = read_glb((meshopt_glb if kind == "meshopt" else draco_glb)(good_glb()))
+        if doc_edit:
+            doc_edit(doc)
+        p = folder / f"{kind}.glb"
+        p.write_bytes(pack_glb(doc, blob_edit(blob) if blob_edit else blob))
+        return [p]
+    return make
+
+
+def _mo(doc, j=0):
+    return doc["bufferViews"][j]["extensions"]["EXT_meshopt_compression"]
+
+
+def _dr(doc):
+    return doc["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]
+
+
+def _point_cloud(doc: dict) -> None:
+    """The Draco stream replaced by a point cloud's (no triangles): in a data: URI."""
+    import DracoPy
+
+    data = DracoPy.encode(scene_arrays()[0])
+    doc["buffers"].append({"byteLength": len(data), "uri": "data:application/octet-stream;"
+                           f"base64,{base64.b64encode(data).decode()}"})
+    doc["bufferViews"][0] = {"buffer": 1, "byteLength": len(data)}
+
+
+def _compressed_cases():
+    """Compressed geometry (EXT_meshopt_compression, KHR_draco_mesh_compression) broken."""
+    mo = {
+        "stream_garbled": (None, lambda b: bytes(x ^ 0x5A for x in b)),
+        "stream_zeroed": (None, lambda b: bytes(len(b))),
+        "count_off_by_one": (lambda d: _mo(d).update(count=_mo(d)["count"] + 1), None),
+        "count_huge": (lambda d: (_mo(d).update(count=2_000_000_000),
+                                  d["bufferViews"][0].update(byteLength=24_000_000_000),
+                                  d["buffers"][1].update(byteLength=24_000_000_100)), None),
+        "mode_quads": (lambda d: _mo(d).update(mode="QUADS"), None),
+        "filter_unknown": (lambda d: _mo(d).update(filter="WAVELET"), None),
+        "stride_6": (lambda d: _mo(d).update(byteStride=6, count=_mo(d)["count"] * 2), None),
+        "indices_stride_8": (lambda d: _mo(d, 2).update(byteStride=8), None),
+        "source_past_buffer": (lambda d: _mo(d).update(byteOffset=10**6), None),
+        "source_buffer_missing": (lambda d: _mo(d).update(buffer=5), None),
+        "ext_not_object": (lambda d: d["bufferViews"][0]["extensions"].update(
+            EXT_meshopt_compression=[1, 2]), None),
+        "plain_view_on_placeholder": (lambda d: d["bufferViews"][0].pop("extensions"), None),
+    }
+    dr = {
+        "stream_garbled": (None, lambda b: bytes(x ^ 0x5A for x in b)),
+        "stream_truncated": (None, lambda b: b[: len(b) // 3] + bytes(len(b) - len(b) // 3)),
+        "no_position": (lambda d: _dr(d).update(attributes={}), None),
+        "position_id_7": (lambda d: _dr(d).update(attributes={"POSITION": 7}), None),
+        "position_id_text": (lambda d: _dr(d).update(attributes={"POSITION": "zero"}), None),
+        "view_missing": (lambda d: _dr(d).update(bufferView=9), None),
+        "point_cloud": (_point_cloud, None),
+    }
+    return ([Case(f"glb_meshopt_{k}", _compressed("meshopt", *v)) for k, v in mo.items()]
+            + [Case(f"glb_draco_{k}", _compressed("draco", *v)) for k, v in dr.items()])
 
 
 def _write(path: Path, data: bytes) -> list:
@@ -749,7 +813,7 @@ def _option_cases():
 def all_cases() -> list[Case]:
     cases = ([_glb_json_case(n, e) for n, e in GLB_JSON_EDITS]
              + [_glb_blob_case(k) for k in GLB_BLOB_EDITS]
-             + _glb_raw_cases() + _gltf_cases() + _mesh_cases() + _usd_cases()
+             + _glb_raw_cases() + _compressed_cases() + _gltf_cases() + _mesh_cases() + _usd_cases()
              + _schema_rig_cases() + _structural_rig_cases() + _rig_path_cases()
              + _option_cases())
     ids = [c.id for c in cases]

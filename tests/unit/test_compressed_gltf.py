@@ -1,0 +1,127 @@
+"""Compressed glTF levels load: EXT_meshopt_compression / KHR_meshopt_compression bufferViews
+(lossless for float data: the same vertices, the same triangles up to the rotation the index
+codec may apply) with their filters, and KHR_draco_mesh_compression primitives (within the
+quantization step). The broken ones are in the bad-input corpus (glb_meshopt_*, glb_draco_*)."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+from bad_inputs import good_gltf, pack_glb, scene_arrays
+from baker.cli import main
+from baker.config import REPO_ROOT
+from baker.environment.load import load_environment
+from compress_glb import draco_glb, meshopt_glb, read_glb
+
+ENVIRONMENTS_DIR = REPO_ROOT / "environments"
+BUNDLED = sorted(ENVIRONMENTS_DIR.glob("*.glb"))
+
+
+def canonical(faces: np.ndarray) -> np.ndarray:
+    """Each triangle rotated to start at its smallest index (winding kept)."""
+    r = np.argmin(faces, axis=1)
+    rows = np.arange(len(faces))
+    return np.stack([faces[rows, (r + k) % 3] for k in range(3)], axis=1)
+
+
+@pytest.mark.parametrize("path", BUNDLED, ids=lambda p: p.stem)
+@pytest.mark.parametrize("name", ["EXT_meshopt_compression", "KHR_meshopt_compression"])
+def test_meshopt_level_loads_the_same_geometry(tmp_path, path, name):
+    plain = load_environment(path)
+    packed = tmp_path / "packed.glb"
+    packed.write_bytes(meshopt_glb(path.read_bytes(), name))
+    assert packed.stat().st_size < path.stat().st_size
+    env = load_environment(packed)
+    assert np.array_equal(env.mesh.vertices, plain.mesh.vertices)
+    assert np.array_equal(canonical(env.mesh.faces), canonical(plain.mesh.faces))
+    assert [m.color for m in env.meshes] == [m.color for m in plain.meshes]
+
+
+@pytest.mark.parametrize("path", BUNDLED, ids=lambda p: p.stem)
+def test_draco_level_loads_within_the_quantization_step(tmp_path, path):
+    plain = load_environment(path)
+    packed = tmp_path / "draco.glb"
+    packed.write_bytes(draco_glb(path.read_bytes(), bits=16))
+    env = load_environment(packed)
+    step = np.ptp(plain.mesh.vertices, axis=0).max() / (2**16 - 1)
+    assert env.mesh.vertices.shape == plain.mesh.vertices.shape
+    assert np.abs(env.mesh.vertices - plain.mesh.vertices).max() <= step
+    assert np.array_equal(env.mesh.faces, plain.mesh.faces)
+
+
+def _filtered_glb() -> tuple[bytes, np.ndarray]:
+    """The corpus scene with gltfpack's filters: positions as EXPONENTIAL floats, normals as
+    OCTAHEDRAL bytes (KHR_mesh_quantization), indices as TRIANGLES; and its positions."""
+    import meshopt
+
+    pos, nrm, idx = scene_arrays()
+    pos = pos * np.float32(3.7) + np.float32(1234.5)          # exponents that differ
+    streams = [
+        (meshopt.encode_filter_exp(pos, 22, "SharedComponent"), "ATTRIBUTES", "EXPONENTIAL"),
+        (meshopt.encode_filter_oct(np.c_[nrm, np.ones(len(nrm), np.float32)], 4, 8),
+         "ATTRIBUTES", "OCTAHEDRAL"),
+        (idx, "TRIANGLES", "NONE")]
+    doc, _ = good_gltf()
+    doc = copy.deepcopy(doc)
+    blob, views, fallback = bytearray(), [], 0
+    for rows, mode, filt in streams:
+        if mode == "TRIANGLES":
+            enc, stride, count = meshopt.encode_index_buffer(rows), 4, len(rows)
+        else:
+            enc, stride, count = meshopt.encode_vertex_buffer(rows), rows.shape[1], len(rows)
+        views.append({"buffer": 1, "byteOffset": fallback, "byteLength": count * stride,
+                      **({"byteStride": stride} if mode == "ATTRIBUTES" else {}),
+                      "extensions": {"EXT_meshopt_compression": {
+                          "buffer": 0, "byteOffset": len(blob), "byteLength": len(enc),
+                          "byteStride": stride, "count": count, "mode": mode, "filter": filt}}})
+        blob += enc + bytes(-len(enc) % 4)
+        fallback += count * stride
+    doc["bufferViews"] = views
+    doc["buffers"] = [{"byteLength": len(blob)}, {
+        "byteLength": fallback, "extensions": {"EXT_meshopt_compression": {"fallback": True}}}]
+    doc["accessors"][0].update(min=pos.min(0).tolist(), max=pos.max(0).tolist())
+    doc["accessors"][1].update(componentType=5120, normalized=True)
+    doc["extensionsUsed"] = ["EXT_meshopt_compression", "KHR_lights_punctual",
+                             "KHR_mesh_quantization"]
+    doc["extensionsRequired"] = ["EXT_meshopt_compression", "KHR_mesh_quantization"]
+    return pack_glb(doc, bytes(blob)), pos
+
+
+def test_meshopt_filters_are_undone(tmp_path):
+    data, pos = _filtered_glb()
+    p = tmp_path / "filtered.glb"
+    p.write_bytes(data)
+    env = load_environment(p)
+    world = env.mesh.vertices + env.origin
+    _, _, idx = scene_arrays()
+    assert len(env.mesh.faces) == len(idx) // 3
+    assert np.abs(world - pos).max() <= 4 * np.abs(pos).max() * 2.0**-22
+
+
+@pytest.mark.parametrize("name", ["EXT_meshopt_compression", "KHR_draco_mesh_compression"])
+def test_required_but_unused_compression_loads(tmp_path, name):
+    """A file may require the extension and use it nowhere: it reads as it is."""
+    doc, blob = good_gltf()
+    doc = {**doc, "extensionsUsed": [name], "extensionsRequired": [name]}
+    p = tmp_path / "scene.glb"
+    p.write_bytes(pack_glb(doc, blob))
+    plain = tmp_path / "plain.glb"
+    plain.write_bytes(pack_glb(*good_gltf()))
+    assert np.array_equal(load_environment(p).mesh.vertices,
+                          load_environment(plain).mesh.vertices)
+
+
+@pytest.mark.parametrize("kind", ["meshopt", "draco"])
+def test_bake_on_a_compressed_level(tmp_path, kind):
+    source = ENVIRONMENTS_DIR / "multistorey.glb"
+    level = tmp_path / f"{kind}.glb"
+    level.write_bytes((meshopt_glb if kind == "meshopt" else draco_glb)(source.read_bytes()))
+    code = main(["bake", str(level), "--seconds", "2", "--no-cache", "--out",
+                 str(tmp_path / "out" / "c")])
+    assert code == 0
+    assert {p.name for p in (tmp_path / "out").iterdir()} == {"c.glb", "c.usd", "c.json"}
+    doc, _ = read_glb((tmp_path / "out" / "c.glb").read_bytes())
+    assert "EXT_meshopt_compression" not in doc.get("extensionsUsed", [])
