@@ -10,7 +10,8 @@ Formats
   precision and `KHR_lights_punctual` directional lights can be found. Node transforms
   (matrix or TRS) are applied. glTF is always +Y up, metres. Compressed geometry
   (EXT_/KHR_meshopt_compression bufferViews, KHR_draco_mesh_compression primitives) is decoded
-  by environment/compressed.py.
+  by environment/gltf_ext.py, which also reads EXT_mesh_gpu_instancing (a mesh placed many
+  times).
 - OBJ, PLY, STL: read with trimesh as a scene; scene-graph transforms are applied. Assumed to be
   metres, +Y up. OBJ `Kd` (through trimesh's material) is taken as a linear colour; PLY vertex
   or face colours (sRGB bytes) are averaged and converted to linear.
@@ -38,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from baker.environment import compressed
+from baker.environment import gltf_ext
 from baker.environment.model import EnvMesh, Environment, Sun
 from baker.errors import EnvironmentLoadError
 from baker.geometry.transforms import cross, length
@@ -356,10 +357,10 @@ _COMPONENT_NAMES = {5120: "BYTE", 5121: "UNSIGNED_BYTE", 5122: "SHORT",
                     5123: "UNSIGNED_SHORT", 5125: "UNSIGNED_INT", 5126: "FLOAT"}
 #: required extensions that change nothing this loader reads (shading, textures, lights) or
 #: that it implements (quantized attributes are read in any component type; compressed
-#: bufferViews and primitives are decoded, environment/compressed.py)
+#: bufferViews and primitives are decoded, environment/gltf_ext.py)
 _REQUIRED_OK_PREFIXES = ("KHR_materials_", "KHR_texture_", "EXT_texture_")
 _REQUIRED_OK = {"KHR_lights_punctual", "KHR_mesh_quantization", "KHR_materials_variants",
-                *compressed.MESHOPT, compressed.DRACO}
+                *gltf_ext.MESHOPT, gltf_ext.DRACO, gltf_ext.INSTANCING}
 #: accessors without a bufferView are zero-filled: at most this many bytes + 64x the file
 _ZERO_FILL_SLACK = 1 << 20
 
@@ -467,7 +468,7 @@ class _GltfReader:
     def _buffer_size(self, i: int, b: dict) -> int:
         length = self.d.integer(b, "byteLength", f"buffers[{i}]", lo=1, default=0)
         uri = b.get("uri")
-        if uri is None and compressed.is_fallback(b):
+        if uri is None and gltf_ext.is_fallback(b):
             return length           # a meshopt placeholder: only compressed views read it
         if uri is None:
             if self.bin is None:
@@ -502,9 +503,9 @@ class _GltfReader:
             if off + length > self._sizes[b]:
                 d.fail(f"{w} (bytes {off}..{off + length}) runs past buffers[{b}] "
                        f"({self._sizes[b]} bytes)")
-            ext = compressed.meshopt_of(bv)
+            ext = gltf_ext.meshopt_of(bv)
             if ext is not None:
-                compressed.check_meshopt(d, w, bv, ext, self._sizes, self.file_size)
+                gltf_ext.check_meshopt(d, w, bv, ext, self._sizes, self.file_size)
             elif self._placeholder(b):
                 d.fail(f"{w} reads buffers[{b}], a meshopt fallback that holds no data")
             stride = d.integer(bv, "byteStride", w, lo=4, hi=252)
@@ -513,7 +514,7 @@ class _GltfReader:
 
     def _placeholder(self, b: int) -> bool:
         buf = self.doc["buffers"][b]
-        return buf.get("uri") is None and compressed.is_fallback(buf)
+        return buf.get("uri") is None and gltf_ext.is_fallback(buf)
 
     def _span(self, w: str, view: int, offset: int, count: int, elem: int, ctype: int):
         """Check that count elements of elem bytes at offset fit in bufferViews[view]."""
@@ -585,9 +586,9 @@ class _GltfReader:
                 d.fail(f"meshes[{m}].primitives must be an array of objects")
             for pi, prim in enumerate(prims):
                 w = f"meshes[{m}].primitives[{pi}]"
-                draco = compressed.draco_of(prim)
+                draco = gltf_ext.draco_of(prim)
                 if draco is not None:
-                    compressed.check_draco(d, w, draco)
+                    gltf_ext.check_draco(d, w, draco)
                 attrs = prim.get("attributes", {})
                 if not isinstance(attrs, dict):
                     d.fail(f"{w}.attributes must be an object")
@@ -653,6 +654,9 @@ class _GltfReader:
                            "0, 0, 0, 1)")
             if "rotation" in node and not math.fsum(x * x for x in node["rotation"]) > 1e-12:
                 d.fail(f"{w}.rotation is a zero quaternion, not a rotation")
+            inst = gltf_ext.instancing_of(node)
+            if inst is not None:
+                gltf_ext.check_instancing(d, w, inst, self.doc.get("accessors", []))
             ext = node.get("extensions", {})
             ref = ext.get("KHR_lights_punctual") if isinstance(ext, dict) else None
             if ref is not None:
@@ -684,12 +688,12 @@ class _GltfReader:
         return self._buffers[i]
 
     def view(self, j: int) -> bytes:
-        """bufferViews[j]'s bytes (byteLength of them), decoded when compressed."""
+        """bufferViews[j]'s bytes (byteLength of them), decoded when gltf_ext."""
         if j not in self._views:
             bv = self.doc["bufferViews"][j]
-            ext = compressed.meshopt_of(bv)
+            ext = gltf_ext.meshopt_of(bv)
             if ext is not None:
-                data = compressed.decode_meshopt(self.buffer(ext["buffer"]), ext,
+                data = gltf_ext.decode_meshopt(self.buffer(ext["buffer"]), ext,
                                                  f"bufferViews[{j}]")
             else:
                 off = bv.get("byteOffset", 0)
@@ -812,10 +816,74 @@ class _GltfReader:
             return np.stack([np.full_like(k, idx[0]), idx[k], idx[k + 1]], axis=1)
         return None
 
+    def instances(self, node: dict, world: np.ndarray) -> np.ndarray:
+        """The node's world matrices (k, 4, 4): one, or with EXT_mesh_gpu_instancing one per
+        instance (world @ the instance's translation, rotation and scale)."""
+        ext = gltf_ext.instancing_of(node)
+        if ext is None:
+            return world[None]
+        attrs = ext["attributes"]
+        k = self.doc["accessors"][next(iter(attrs.values()))]["count"]
+        mats = np.tile(np.eye(4), (k, 1, 1))
+        if "ROTATION" in attrs:
+            from scipy.spatial.transform import Rotation
+
+            q = self.accessor(attrs["ROTATION"])
+            if not np.all(np.einsum("ij,ij->i", q, q) > 1e-12):
+                raise EnvironmentLoadError("corrupt glTF: EXT_mesh_gpu_instancing has a zero "
+                                           "rotation", where=str(self.path))
+            mats[:, :3, :3] = Rotation.from_quat(q).as_matrix()
+        if "SCALE" in attrs:
+            mats[:, :3, :3] *= self.accessor(attrs["SCALE"])[:, None, :]
+        if "TRANSLATION" in attrs:
+            mats[:, :3, 3] = self.accessor(attrs["TRANSLATION"])
+        return world @ mats
+
+    def _primitive(self, mi: int, pi: int, prim: dict):
+        """A primitive's local (points, triangles, normals or None), or None for points and
+        lines."""
+        draco = gltf_ext.draco_of(prim)
+        if draco is not None and prim.get("mode", 4) in (4, 5, 6):
+            points, faces = gltf_ext.decode_draco(self.view(draco["bufferView"]), draco,
+                                                    f"meshes[{mi}].primitives[{pi}]")
+            return points, faces, None
+        faces = self.triangles(prim)
+        if faces is None:
+            return None
+        attrs = prim["attributes"]
+        normals = self.accessor(attrs["NORMAL"]) if "NORMAL" in attrs else None
+        return self.accessor(attrs["POSITION"]), faces, normals
+
+    def _mesh_entries(self, node: dict, world: np.ndarray) -> list:
+        """The raw entries (name, world vertices, triangles, normals, colour, roughness,
+        metalness) of a node's mesh, every instance of it in one entry per primitive."""
+        mats = self.instances(node, world)
+        mesh = self.doc["meshes"][node["mesh"]]
+        base = node.get("name") or mesh.get("name") or f"mesh_{node['mesh']}"
+        prims = mesh.get("primitives", [])
+        out = []
+        for pi, prim in enumerate(prims):
+            if "POSITION" not in prim.get("attributes", {}):
+                continue
+            got = self._primitive(node["mesh"], pi, prim)
+            if got is None:
+                continue
+            points, faces, normals = got
+            gltf_ext.check_instanced_size(len(mats), len(points), len(faces), self.path)
+            vs, fs, ns = [], [], []
+            for k, m in enumerate(mats):
+                vs.append(_transform_points(m, points))
+                fs.append(_fix_winding(faces, m) + k * len(points))
+                ns.append(None if normals is None else _transform_normals(m, normals))
+            n = None if any(x is None for x in ns) else np.concatenate(ns)
+            color, rough, metal = self.material(prim.get("material"))
+            out.append((base if len(prims) == 1 else f"{base}_{pi}", np.concatenate(vs),
+                        np.concatenate(fs), n, color, rough, metal))
+        return out
+
     def read(self):
         doc = self.doc
         nodes = doc.get("nodes", [])
-        meshes = doc.get("meshes", [])
         lights = doc.get("extensions", {}).get("KHR_lights_punctual", {}).get("lights", [])
         raw, suns = [], []
         for ni, world in self.world_nodes():
@@ -831,33 +899,8 @@ class _GltfReader:
                                         color=tuple(float(c) for c in
                                                     light.get("color", [1.0, 1.0, 1.0])),
                                         azimuth_rate=_azimuth_rate(light)))
-            if "mesh" not in node:
-                continue
-            mesh = meshes[node["mesh"]]
-            base = node.get("name") or mesh.get("name") or f"mesh_{node['mesh']}"
-            prims = mesh.get("primitives", [])
-            for pi, prim in enumerate(prims):
-                name = base if len(prims) == 1 else f"{base}_{pi}"
-                if "POSITION" not in prim.get("attributes", {}):
-                    continue
-                draco = compressed.draco_of(prim)
-                if draco is not None and prim.get("mode", 4) in (4, 5, 6):
-                    points, faces = compressed.decode_draco(
-                        self.view(draco["bufferView"]), draco, f"meshes[{node['mesh']}]"
-                        f".primitives[{pi}]")
-                    v, n = _transform_points(world, points), None
-                    color, rough, metal = self.material(prim.get("material"))
-                    raw.append((name, v, _fix_winding(faces, world), n, color, rough, metal))
-                    continue
-                faces = self.triangles(prim)
-                if faces is None:
-                    continue
-                v = _transform_points(world, self.accessor(prim["attributes"]["POSITION"]))
-                n = None
-                if "NORMAL" in prim["attributes"]:
-                    n = _transform_normals(world, self.accessor(prim["attributes"]["NORMAL"]))
-                color, rough, metal = self.material(prim.get("material"))
-                raw.append((name, v, _fix_winding(faces, world), n, color, rough, metal))
+            if "mesh" in node:
+                raw += self._mesh_entries(node, world)
         sun = max(suns, key=lambda s: s.intensity) if suns else None
         return raw, sun
 

@@ -1,7 +1,9 @@
-"""Compressed glTF levels load: EXT_meshopt_compression / KHR_meshopt_compression bufferViews
-(lossless for float data: the same vertices, the same triangles up to the rotation the index
-codec may apply) with their filters, and KHR_draco_mesh_compression primitives (within the
-quantization step). The broken ones are in the bad-input corpus (glb_meshopt_*, glb_draco_*)."""
+"""Compressed and instanced glTF levels load: EXT_meshopt_compression and
+KHR_meshopt_compression bufferViews (lossless for float data: the same vertices, the same
+triangles up to the rotation the index codec may apply) with their filters,
+KHR_draco_mesh_compression primitives (within the quantization step) and EXT_mesh_gpu_instancing
+nodes (every instance placed). The broken streams are in the bad-input corpus (glb_meshopt_*,
+glb_draco_*)."""
 
 from __future__ import annotations
 
@@ -125,3 +127,84 @@ def test_bake_on_a_compressed_level(tmp_path, kind):
     assert {p.name for p in (tmp_path / "out").iterdir()} == {"c.glb", "c.usd", "c.json"}
     doc, _ = read_glb((tmp_path / "out" / "c.glb").read_bytes())
     assert "EXT_meshopt_compression" not in doc.get("extensionsUsed", [])
+
+
+def _instanced_glb(rotation=None, scale=None, translation=None, node_scale=(1.0, 1.0, 1.0)):
+    """The corpus scene's mesh placed by EXT_mesh_gpu_instancing: float accessors appended
+    in a second buffer (a data: URI)."""
+    import base64
+
+    doc, blob = good_gltf()
+    doc = copy.deepcopy(doc)
+    attrs, extra = {}, bytearray()
+    for name, arr, kind in (("ROTATION", rotation, "VEC4"), ("SCALE", scale, "VEC3"),
+                            ("TRANSLATION", translation, "VEC3")):
+        if arr is None:
+            continue
+        arr = np.asarray(arr, np.float32)
+        doc["bufferViews"].append({"buffer": 1, "byteOffset": len(extra),
+                                   "byteLength": arr.nbytes})
+        doc["accessors"].append({"bufferView": len(doc["bufferViews"]) - 1,
+                                 "componentType": 5126, "count": len(arr), "type": kind})
+        attrs[name] = len(doc["accessors"]) - 1
+        extra += arr.tobytes()
+    if extra:
+        doc["buffers"].append({"byteLength": len(extra), "uri": "data:application/octet-stream;"
+                               f"base64,{base64.b64encode(bytes(extra)).decode()}"})
+    doc["nodes"][0]["scale"] = list(node_scale)
+    doc["nodes"][0]["extensions"] = {"EXT_mesh_gpu_instancing": {"attributes": attrs}}
+    doc["extensionsUsed"] = ["EXT_mesh_gpu_instancing", "KHR_lights_punctual"]
+    doc["extensionsRequired"] = ["EXT_mesh_gpu_instancing"]
+    return pack_glb(doc, blob)
+
+
+def test_gpu_instancing_places_every_instance(tmp_path):
+    """Three instances: moved, turned 90 degrees about +Y and mirrored (winding kept facing
+    out), under a node scaled by 2."""
+    from scipy.spatial.transform import Rotation
+
+    q = Rotation.from_euler("y", [[0], [90], [0]], degrees=True).as_quat()
+    t = np.array([[0, 0, 0], [10, 0, 0], [0, 0, -10]], float)
+    s = np.array([[1, 1, 1], [1, 1, 1], [-1, 1, 1]], float)
+    p = tmp_path / "instanced.glb"
+    p.write_bytes(_instanced_glb(q, s, t, node_scale=(2, 2, 2)))
+    env = load_environment(p)
+    pos, _, idx = scene_arrays()
+    world = env.mesh.vertices.astype(np.float64) + env.origin
+    mats = [np.diag([2.0, 2, 2]) @ Rotation.from_quat(qk).as_matrix() @ np.diag(sk)
+            for qk, sk in zip(q, s)]
+    expected = np.concatenate([pos @ m.T + 2 * tk for m, tk in zip(mats, t)])
+    assert len(env.mesh.faces) == 3 * len(idx) // 3
+    # every expected vertex is in the level (the loader may drop duplicated corners)
+    d = np.linalg.norm(world[None, :, :] - expected[:, None, :], axis=2).min(axis=1)
+    assert d.max() < 1e-4
+    # the mirrored copy's floor still faces up: its triangles' normals point +Y
+    tri = world[env.mesh.faces]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    floor = (np.abs(tri[:, :, 1]).max(axis=1) < 1e-6) & (np.ptp(tri[:, :, 0], axis=1) > 4)
+    assert floor.sum() == 6 and np.all(n[floor, 1] > 0)
+
+
+@pytest.mark.parametrize("bad, message", [
+    (dict(rotation=[[0, 0, 0, 0]], translation=[[1, 0, 0]]), "zero rotation"),
+    (dict(translation=[[1, 0, 0], [2, 0, 0]], scale=[[1, 1, 1]]), "different counts"),
+    (dict(), "none of TRANSLATION"),
+])
+def test_gpu_instancing_refusals(tmp_path, bad, message):
+    from baker.errors import EnvironmentLoadError
+
+    p = tmp_path / "bad.glb"
+    p.write_bytes(_instanced_glb(**bad))
+    with pytest.raises(EnvironmentLoadError, match=message):
+        load_environment(p)
+
+
+def test_gpu_instancing_bounded(tmp_path, monkeypatch):
+    from baker.environment import gltf_ext
+    from baker.errors import EnvironmentLoadError
+
+    monkeypatch.setattr(gltf_ext, "MAX_INSTANCED_VERTICES", 100)
+    p = tmp_path / "many.glb"
+    p.write_bytes(_instanced_glb(translation=np.arange(60.0).reshape(20, 3)))
+    with pytest.raises(EnvironmentLoadError, match="places a 12-vertex mesh 20 times"):
+        load_environment(p)

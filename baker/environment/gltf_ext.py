@@ -1,9 +1,13 @@
-"""Compressed glTF geometry: `EXT_meshopt_compression` (and its ratified twin
-`KHR_meshopt_compression`) bufferViews, decoded with meshoptimizer's codec (the `meshopt`
-package), and `KHR_draco_mesh_compression` primitives, decoded with Google's Draco (`DracoPy`).
+"""The glTF extensions that change a level's geometry, as game pipelines write them:
 
-gltfpack, gltf-transform and most engines' exporters write one or the other, so real levels
-often arrive compressed. Both codecs are C++ behind the Python bindings and release the GIL.
+- `EXT_meshopt_compression` (and its ratified twin `KHR_meshopt_compression`) bufferViews,
+  decoded with meshoptimizer's codec (the `meshopt` package), every filter;
+- `KHR_draco_mesh_compression` primitives, decoded with Google's Draco (`DracoPy`);
+- `EXT_mesh_gpu_instancing` nodes: a mesh placed many times (trees, rocks, props), each
+  instance's translation, rotation and scale read here and applied by the loader.
+
+gltfpack, gltf-transform and most engines' exporters write them, so real levels often arrive
+compressed and instanced. Both codecs are C++ behind the Python bindings and release the GIL.
 
 Every field is checked before a byte is decoded, and the decoded size is bounded by the file's
 (a small file cannot ask for gigabytes); a corrupt stream is an `EnvironmentLoadError` naming
@@ -18,6 +22,12 @@ from baker.errors import EnvironmentLoadError
 
 MESHOPT = ("EXT_meshopt_compression", "KHR_meshopt_compression")
 DRACO = "KHR_draco_mesh_compression"
+INSTANCING = "EXT_mesh_gpu_instancing"
+#: the instanced vertices of one primitive (instances x vertices) are bounded: a small file can
+#: place a big mesh a million times
+MAX_INSTANCED_VERTICES = 50_000_000
+_INSTANCE_TYPES = {"TRANSLATION": ("VEC3", (5126,)), "SCALE": ("VEC3", (5126,)),
+                   "ROTATION": ("VEC4", (5126, 5120, 5122))}
 _MODES = ("ATTRIBUTES", "TRIANGLES", "INDICES")
 _FILTERS = ("NONE", "OCTAHEDRAL", "QUATERNION", "EXPONENTIAL", "COLOR")
 #: a decoded bufferView holds at most this many times the file's bytes, plus the slack
@@ -146,3 +156,40 @@ def decode_draco(data: bytes, ext: dict, where: str) -> tuple[np.ndarray, np.nda
         raise EnvironmentLoadError(f"corrupt glTF: {where}'s Draco triangles index past its "
                                    f"{len(points)} points")
     return points, faces
+
+
+def instancing_of(node: dict) -> dict | None:
+    """A node's EXT_mesh_gpu_instancing object, or None."""
+    return _extension(node, INSTANCING)
+
+
+def check_instancing(d, where: str, ext, accessors: list) -> None:
+    """Check a node's instancing: TRANSLATION, ROTATION and SCALE accessors of the types the
+    extension allows, one element per instance in each (other attributes, e.g. _ID, are
+    ignored)."""
+    w = f"{where}.extensions.{INSTANCING}"
+    attrs = ext.get("attributes") if isinstance(ext, dict) else None
+    if not isinstance(attrs, dict):
+        d.fail(f"{w}.attributes must be an object")
+    attrs = {k: v for k, v in attrs.items() if k in _INSTANCE_TYPES}
+    if not attrs:
+        d.fail(f"{w} has none of TRANSLATION, ROTATION and SCALE")
+    counts = set()
+    for name, (kind, types) in _INSTANCE_TYPES.items():
+        if name in attrs:
+            a = accessors[d.index(attrs, name, f"{w}.attributes", "accessors")]
+            if a.get("type") != kind or a.get("componentType") not in types or (
+                    a.get("componentType") != 5126 and not a.get("normalized")):
+                d.fail(f"{w}.attributes.{name} must be a {kind} accessor of floats"
+                       + (" or normalized bytes or shorts" if name == "ROTATION" else ""))
+            counts.add(a.get("count"))
+    if len(counts) != 1:
+        d.fail(f"{w}'s attributes have different counts ({sorted(map(str, counts))})")
+
+
+def check_instanced_size(instances: int, vertices: int, triangles: int, path) -> None:
+    """Refuse a primitive placed so often that its copies would not fit in memory."""
+    if instances * max(vertices, triangles) > MAX_INSTANCED_VERTICES:
+        raise EnvironmentLoadError(
+            f"{INSTANCING} places a {vertices:,}-vertex mesh {instances:,} times: more than "
+            f"{MAX_INSTANCED_VERTICES:,} vertices", where=str(path))
