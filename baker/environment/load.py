@@ -15,7 +15,7 @@ Formats
 - OBJ, PLY, STL: read with trimesh as a scene; scene-graph transforms are applied. Assumed to be
   metres, +Y up. OBJ `Kd` (through trimesh's material) is taken as a linear colour; PLY vertex
   or face colours (sRGB bytes) are averaged and converted to linear.
-- USD (.usd, .usda, .usdc): every visible, non-guide `UsdGeom.Mesh` is fan-triangulated,
+- USD (.usd, .usda, .usdc, .usdz): every visible, non-guide `UsdGeom.Mesh` is fan-triangulated,
   moved to world space with `ComputeLocalToWorldTransform`, scaled by the stage's
   `metersPerUnit` and rotated to +Y up when the stage is Z up. The colour comes from a bound
   `UsdPreviewSurface` diffuseColor, else the `displayColor` primvar. The sun is a
@@ -54,7 +54,7 @@ DEFAULT_COLOR = (0.5, 0.5, 0.5, 1.0)
 
 GLTF_EXTS = {".gltf", ".glb"}
 TRIMESH_EXTS = {".obj", ".ply", ".stl"}
-USD_EXTS = {".usd", ".usda", ".usdc"}
+USD_EXTS = {".usd", ".usda", ".usdc", ".usdz"}
 SUPPORTED_EXTS = GLTF_EXTS | TRIMESH_EXTS | USD_EXTS
 
 _MAX_NAME = 63
@@ -64,7 +64,7 @@ _MAX_NAME = 63
 def load_environment(path: str | Path, sun_override=None) -> Environment:
     """Read an environment file.
 
-    path         : .glb/.gltf, .obj, .ply, .stl, .usd/.usda/.usdc
+    path         : .glb/.gltf, .obj, .ply, .stl, .usd/.usda/.usdc/.usdz
     sun_override : (3,) float toward the sun, or None to use the file's directional light
                    (or DEFAULT_SUN_DIRECTION when the file has none)
     returns      : Environment with one EnvMesh per source mesh primitive (metres, +Y up,
@@ -1219,11 +1219,12 @@ _MAX_USD_LAYERS = 1000
 
 def _check_usd_layers(path: Path) -> None:
     """Before the stage is composed: every layer the file brings in (sublayers, references,
-    payloads, recursively) must be a file inside the environment's folder that opens."""
-    from pxr import Sdf
+    payloads, recursively) must be a file inside the environment's folder that opens, or a
+    layer inside a .usdz package that is such a file."""
+    from pxr import Ar, Sdf
 
     folder = path.parent.resolve()
-    todo, seen = [path.resolve()], set()
+    todo, seen = [str(path.resolve())], set()
     while todo:
         p = todo.pop()
         if p in seen:
@@ -1232,25 +1233,38 @@ def _check_usd_layers(path: Path) -> None:
         if len(seen) > _MAX_USD_LAYERS:
             raise EnvironmentLoadError(f"USD composes more than {_MAX_USD_LAYERS} layers",
                                        where=str(path))
-        layer = Sdf.Layer.FindOrOpen(str(p))
+        layer = Sdf.Layer.FindOrOpen(p)
+        outer, inner = Ar.SplitPackageRelativePathInner(p)
+        name = Path(outer).name + (f"[{inner}]" if inner else "")
         if layer is None:
-            raise EnvironmentLoadError(f"cannot open USD layer {p.name}", where=str(path))
+            raise EnvironmentLoadError(f"cannot open USD layer {name}", where=str(path))
         for dep in layer.GetCompositionAssetDependencies():
             dep = str(dep)
-            if not dep:
-                continue
-            if "://" in dep or dep.startswith(("@", "anon:")):
-                raise EnvironmentLoadError(f"USD layer {p.name} refers to '{dep[:80]}', which "
-                                           "is not a file in the environment's folder",
-                                           where=str(path))
-            target = (p.parent / dep).resolve()
-            if not target.is_relative_to(folder):
-                raise EnvironmentLoadError(f"USD layer {p.name} refers to '{dep[:80]}', "
-                                           "outside the environment's folder", where=str(path))
-            if not target.is_file():
-                raise EnvironmentLoadError(f"USD layer {p.name} refers to '{dep[:80]}', which "
-                                           "does not exist", where=str(path))
-            todo.append(target)
+            if dep:
+                todo.append(_usd_dependency(layer, name, dep, folder, path))
+
+
+def _usd_dependency(layer, name: str, dep: str, folder: Path, path: Path) -> str:
+    """The checked absolute path of a layer's dependency dep (package-relative inside a .usdz:
+    the package is then the file checked)."""
+    from pxr import Ar
+
+    if "://" in dep or dep.startswith(("@", "anon:")):
+        raise EnvironmentLoadError(f"USD layer {name} refers to '{dep[:80]}', which is not a "
+                                   "file in the environment's folder", where=str(path))
+    target = layer.ComputeAbsolutePath(dep)
+    outer = Path(Ar.SplitPackageRelativePathOuter(target)[0])
+    if not outer.is_absolute():     # unresolved: a file a package does not hold
+        raise EnvironmentLoadError(f"USD layer {name} refers to '{dep[:80]}', which does not "
+                                   "exist", where=str(path))
+    outer = outer.resolve()
+    if not outer.is_relative_to(folder):
+        raise EnvironmentLoadError(f"USD layer {name} refers to '{dep[:80]}', outside the "
+                                   "environment's folder", where=str(path))
+    if not outer.is_file():
+        raise EnvironmentLoadError(f"USD layer {name} refers to '{dep[:80]}', which does not "
+                                   "exist", where=str(path))
+    return target if Ar.IsPackageRelativePath(target) else str(outer)
 
 
 def _read_usd(path: Path):

@@ -616,7 +616,38 @@ def _usd_cases():
         "crate_garbage": lambda: {"level.usdc": b"PXR-USDC" + bytes(range(256)) * 8},
         "usd_text_garbage": lambda: {"level.usd": b"\x00\x01\x02 not usd at all"},
     }
+    def inside(sub):
+        return usd_text(extra=f"    subLayers = [@{sub}@]\n")
+
+    cases.update({
+        "usdz_sublayer_outside": lambda: {"level.usdz": usdz({"level.usda": inside(
+            "../outside.usda")})},
+        "usdz_sublayer_missing": lambda: {"level.usdz": usdz({"level.usda": inside(
+            "missing.usda")})},
+        "usdz_sublayer_corrupt": lambda: {"level.usdz": usdz({
+            "level.usda": inside("a.usda"), "a.usda": "#usda 1.0\ndef Mesh \"x\" {{{"})},
+        "usdz_empty_zip": lambda: {"level.usdz": usdz({})},
+        "usdz_not_zip": lambda: {"level.usdz": b"PK\x03\x04" + bytes(range(256)) * 4},
+        "usdz_text_inside_only": lambda: {"level.usdz": usdz({"notes.txt": "hello"})},
+    })
     return [_usd_case(k, v) for k, v in cases.items()]
+
+
+def usdz(files: dict[str, str]) -> bytes:
+    """A .usdz package (an uncompressed zip, each file's data 64-byte aligned) of text files,
+    the first the root layer."""
+    import io
+    import zipfile
+
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_STORED) as z:
+        for name, text in files.items():
+            info = zipfile.ZipInfo(name)
+            header = 30 + len(name.encode())
+            pad = -(buf.tell() + header + 4) % 64
+            info.extra = struct.pack("<HH", 0x1986, pad) + bytes(pad)
+            z.writestr(info, text)
+    return buf.getvalue()
 
 
 # --------------------------------------------------------------------------- rig files
