@@ -89,7 +89,7 @@ OPTIONS: dict[str, object] = {
     "root_motion": ("world", "root", "in-place"), "max_memory": "number", "scale": "number",
     "agent_radius": "number", "agent_height": "number", "step_height": "number",
     "max_slope": "number", "cell_size": "number", "tolerance": "number",
-    "rotations": ("short", "float"), "preview": "bool",
+    "rotations": ("short", "float"), "preview": "bool", "up": ("y", "z"),
 }
 #: `bake` options that are one per batch: `baker batch`'s own options set them.
 BATCH_LEVEL = {"out": "--out", "cache_dir": "--cache-dir", "no_cache": "--cache-dir",
@@ -100,7 +100,8 @@ _FIELDS = {"seconds": "seconds", "fps": "fps", "seed": "seed", "prey": "prey",
            "behaviour": "behaviour", "cobra": "cobra", "sun_path": "sun_path", "clips": "clips",
            "root_motion": "root_motion", "nav_build": "nav_build",
            "debug_navmesh": "debug_navmesh", "max_memory": "max_memory_mb",
-           "tolerance": "tolerance", "rotations": "rotations", "preview": "preview"}
+           "tolerance": "tolerance", "rotations": "rotations", "preview": "preview",
+           "up": "up_axis"}
 #: keys checked by trying them alone on a default BakeConfig (validate_bake's own rules)
 _BAKE_RULES = {"fps": "fps", "sun": "sun_direction", "sun_path": "sun_path", "tolerance": "tolerance"}
 _RIG_OVERRIDES = ("scale", "agent_radius", "agent_height", "step_height", "max_slope",
@@ -663,7 +664,8 @@ def _run_nav(task: NavTask) -> Outcome:
 
     check = _deadline(task.timeout)
     cfg = task.cfg
-    env = load_environment(cfg.environment, sun_override=cfg.sun_direction)
+    env = load_environment(cfg.environment, sun_override=cfg.sun_direction,
+                           up_axis=cfg.up_axis)
     if check:
         check("navmesh", 0.0)
     with memory_limit(cfg.max_memory_mb):

@@ -75,6 +75,15 @@ def rig_options(f):
     return f
 
 
+#: --up, of `bake` and `navmesh`: the level's up axis
+up_option = click.option(
+    "--up", type=click.Choice(["y", "z"]), default=None,
+    help="The level's up axis, for a file that says otherwise or nothing: OBJ, PLY and STL are "
+         "read +Y up unless told z (3ds Max, Unreal and CAD exports are +Z up); glTF is +Y up "
+         "by definition; USD says its own (upAxis), which this overrides. [default: the "
+         "file's own]")
+
+
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="baker")
 @click.option("-v", "--verbose", count=True, help="More log output (-vv for debug).")
@@ -104,6 +113,7 @@ def cli(verbose: int):
               help="Direction toward the sun, fixed; overrides the environment's light "
                    "(and its motion).")
 @click.option("--debug-navmesh", is_flag=True, help="Add the walkable surface as an extra mesh layer.")
+@up_option
 @click.option("--cache-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Navigation cache folder [default: ~/.cache/baker/navmesh].")
 @click.option("--no-cache", is_flag=True, help="Always rebuild the navigation surface.")
@@ -153,7 +163,7 @@ def cli(verbose: int):
 @max_memory_option
 @rig_options
 def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_navmesh,
-         cache_dir, no_cache, cache_max, nav_build, behaviour, prey, creatures, workers, cobra,
+         up, cache_dir, no_cache, cache_max, nav_build, behaviour, prey, creatures, workers, cobra,
          sun_path, clips, root_motion, tolerance, rotations, preview, max_memory,
          **rig_overrides):
     """Bake a centipede on ENVIRONMENT (glTF/GLB, OBJ, PLY, STL or USD).
@@ -189,7 +199,7 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
         seconds=seconds, fps=fps, seed=seed,
         rig=override_rig(load_rig_config(rig_path), **rig_overrides), out=resolve_out(out),
         formats=formats, sun_direction=sun_direction, debug_navmesh=debug_navmesh,
-        nav_cache_dir=None if no_cache else NavCache.of(cache_dir or default_cache_dir(), cache_max),
+        up_axis=up, nav_cache_dir=None if no_cache else NavCache.of(cache_dir or default_cache_dir(), cache_max),
         nav_build=nav_build, behaviour=behaviour, prey=prey, creatures=creatures,
         workers=workers, cobra=cobra, sun_path=sun_path, clips=clips,
         root_motion=root_motion, max_memory_mb=max_memory, tolerance=tolerance,
@@ -289,6 +299,7 @@ def _given_out(out, example: str):
 @click.option("--from", "path_from", default=None, metavar="X,Y,Z",
               help="Find a path from this point (with --to); drawn on the --png map.")
 @click.option("--to", "path_to", default=None, metavar="X,Y,Z", help="Path goal (with --from).")
+@up_option
 @click.option("--cache-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Navigation cache folder [default: ~/.cache/baker/navmesh].")
 @click.option("--no-cache", is_flag=True, help="Build without reading or writing the cache.")
@@ -297,8 +308,8 @@ def _given_out(out, example: str):
                    "are evicted [default: 1024].")
 @max_memory_option
 @rig_options
-def navmesh(environment, rig_path, png, path_from, path_to, cache_dir, no_cache, cache_max,
-            max_memory,
+def navmesh(environment, rig_path, png, path_from, path_to, up, cache_dir, no_cache,
+            cache_max, max_memory,
             **rig_overrides):
     """Build (or load from the cache) the navigation surface of ENVIRONMENT and report on it.
 
@@ -317,7 +328,8 @@ def navmesh(environment, rig_path, png, path_from, path_to, cache_dir, no_cache,
     rig = override_rig(load_rig_config(rig_path), **rig_overrides)
     report = run(environment, rig.navigation,
                  None if no_cache else NavCache.of(cache_dir or default_cache_dir(), cache_max),
-                 png=png, path_from=p_from, path_to=p_to, max_memory_mb=max_memory)
+                 png=png, path_from=p_from, path_to=p_to, max_memory_mb=max_memory,
+                 up_axis=up)
     click.echo(format_report(report))
 
 

@@ -209,6 +209,8 @@ class BakeConfig:
     sun_direction: tuple[float, float, float] | None = None  # toward the sun, fixed; None: the
                                  # file's light (turning about +Y when its extras say so)
     debug_navmesh: bool = False
+    up_axis: str | None = None   # y | z: the level file's up axis, when it says otherwise or
+                                 # nothing (OBJ, PLY, STL); None: the file's own
     behaviour: str = "auto"      # auto | wander | shade | hunt: which drives the brain may use
     cobra: str = "auto"          # auto | always | never
     prey: int = 2                # [0..16] prey capsules
@@ -288,7 +290,8 @@ def validate_bake(cfg: BakeConfig) -> BakeConfig:
                                 ("--cobra", cfg.cobra, ("auto", "always", "never")),
                                 ("--nav-build", cfg.nav_build, ("auto", "full", "lazy")),
                                 ("--root-motion", cfg.root_motion, ("world", "root", "in-place")),
-                                ("--rotations", cfg.rotations, ("short", "float"))):
+                                ("--rotations", cfg.rotations, ("short", "float")),
+                                ("--up", cfg.up_axis or "y", ("y", "z"))):
         if value not in allowed:
             raise ConfigError(f"{opt} must be one of {', '.join(allowed)} (got {value})", where=opt)
     for what, p in [("start", cfg.start)] + [("prey position", q) for q in cfg.prey_positions]:

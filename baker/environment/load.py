@@ -29,6 +29,7 @@ from __future__ import annotations
 import base64
 import binascii
 import contextlib
+import dataclasses
 import json
 import os
 import logging
@@ -61,12 +62,16 @@ _MAX_NAME = 63
 
 
 # --------------------------------------------------------------------------- public API
-def load_environment(path: str | Path, sun_override=None) -> Environment:
+def load_environment(path: str | Path, sun_override=None, up_axis: str | None = None
+                     ) -> Environment:
     """Read an environment file.
 
     path         : .glb/.gltf, .obj, .ply, .stl, .usd/.usda/.usdc/.usdz
-    sun_override : (3,) float toward the sun, or None to use the file's directional light
-                   (or DEFAULT_SUN_DIRECTION when the file has none)
+    sun_override : (3,) float toward the sun (in baker's +Y-up frame), or None to use the
+                   file's directional light (or DEFAULT_SUN_DIRECTION when the file has none)
+    up_axis      : "y" or "z", the file's up axis when it says otherwise or nothing (OBJ, PLY
+                   and STL are read +Y up, glTF is +Y up by definition, USD has its upAxis);
+                   None: the file's own. A +Z-up file is turned (x, y, z) -> (x, z, -y).
     returns      : Environment with one EnvMesh per source mesh primitive (metres, +Y up,
                    float32 vertices relative to the environment's `origin`, chosen by
                    choose_origin from the float64 world bounds) and the sun
@@ -89,12 +94,12 @@ def load_environment(path: str | Path, sun_override=None) -> Environment:
 
     try:
         with _quiet():
-            if ext in GLTF_EXTS:
-                raw, sun = _read_gltf(path)
-            elif ext in USD_EXTS:
-                raw, sun = _read_usd(path)
+            if ext in USD_EXTS:
+                raw, sun = _read_usd(path, up_axis)
             else:
-                raw, sun = _read_trimesh(path)
+                raw, sun = _read_gltf(path) if ext in GLTF_EXTS else _read_trimesh(path)
+                if up_axis == "z":
+                    raw, sun = _z_up(raw, sun)
     except EnvironmentLoadError as exc:
         raise EnvironmentLoadError(exc.what, where=exc.where or str(path)) from None
     except MemoryError:
@@ -307,6 +312,21 @@ def _fix_winding(f: np.ndarray, m: np.ndarray) -> np.ndarray:
     if np.linalg.det(m[:3, :3]) < 0:
         return f[:, ::-1].copy()
     return f
+
+
+#: a +Z-up frame to baker's +Y-up one: (x, y, z) -> (x, z, -y)
+Z_UP_TO_Y_UP = np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])
+
+
+def _z_up(raw: list, sun: Sun | None) -> tuple[list, Sun | None]:
+    """Raw meshes and the sun read from a +Z-up file, turned +Y up (a rotation: windings keep)."""
+    m = np.eye(4)
+    m[:3, :3] = Z_UP_TO_Y_UP
+    turned = [(name, _transform_points(m, v), f, None if n is None else n @ Z_UP_TO_Y_UP.T,
+               *rest) for name, v, f, n, *rest in raw]
+    if sun is not None:
+        sun = dataclasses.replace(sun, direction=Z_UP_TO_Y_UP @ sun.direction)
+    return turned, sun
 
 
 def _transform_points(m: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -1267,14 +1287,14 @@ def _usd_dependency(layer, name: str, dep: str, folder: Path, path: Path) -> str
     return target if Ar.IsPackageRelativePath(target) else str(outer)
 
 
-def _read_usd(path: Path):
+def _read_usd(path: Path, up_axis: str | None = None):
     from pxr import Tf
 
     # USD reports problems as diagnostics on stderr: trap them, refuse the file on any
     # composition error or error, and print nothing of USD's own
     with Tf.DiagnosticTrap() as trap:
         try:
-            return _read_usd_trapped(path, trap)
+            return _read_usd_trapped(path, trap, up_axis)
         finally:
             for w in trap.GetWarnings():
                 log.debug("USD warning while reading %s: %s", path, _usd_diagnostic_text(w))
@@ -1286,7 +1306,7 @@ def _usd_diagnostic_text(d) -> str:
     return " ".join(str(text).split())
 
 
-def _read_usd_trapped(path: Path, trap):
+def _read_usd_trapped(path: Path, trap, up_axis: str | None):
     from pxr import Usd, UsdGeom, UsdLux
 
     _check_usd_layers(path)
@@ -1303,11 +1323,12 @@ def _read_usd_trapped(path: Path, trap):
     mpu = float(UsdGeom.GetStageMetersPerUnit(stage))
     if not (math.isfinite(mpu) and mpu > 0):
         raise EnvironmentLoadError(f"invalid metersPerUnit {mpu}; expected a finite number > 0")
-    z_up = UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
+    z_up = UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z if up_axis is None \
+        else up_axis == "z"
     # stage space -> baker space (+Y up, metres)
     fix = np.eye(4)
     if z_up:
-        fix[:3, :3] = [[1, 0, 0], [0, 0, 1], [0, -1, 0]]  # (x, y, z) -> (x, z, -y)
+        fix[:3, :3] = Z_UP_TO_Y_UP
     fix[:3, :3] *= mpu
     time = Usd.TimeCode.EarliestTime()
     cache = UsdGeom.XformCache(time)

@@ -1,0 +1,75 @@
+"""--up z: a level whose file is +Z up (OBJ, PLY, STL from 3ds Max, Unreal or CAD; a glTF or
+USD that says otherwise) is turned +Y up, (x, y, z) -> (x, z, -y), its sun with it."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from bad_inputs import good_gltf, pack_glb, usd_text
+from baker.cli import main
+from baker.environment.load import load_environment
+
+#: the corpus floor and box, +Y up, and the same turned +Z up (x, y, z) -> (x, -z, y)
+Y_UP = np.array([[-2, 0, -2], [2, 0, -2], [2, 0, 2], [-2, 0, 2], [0.8, 0, -0.2], [1.2, 0, -0.2],
+                 [1.2, 0.4, -0.2], [0.8, 0.4, -0.2]], float)
+FACES = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]])
+
+
+def _obj(v: np.ndarray) -> str:
+    return "".join(f"v {x:g} {y:g} {z:g}\n" for x, y, z in v) + "".join(
+        f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in FACES)
+
+
+def z_up(v: np.ndarray) -> np.ndarray:
+    return np.c_[v[:, 0], -v[:, 2], v[:, 1]]
+
+
+def world(env) -> np.ndarray:
+    return env.mesh.vertices.astype(np.float64) + env.origin
+
+
+def test_obj_z_up_is_turned_y_up(tmp_path):
+    (tmp_path / "y.obj").write_text(_obj(Y_UP))
+    (tmp_path / "z.obj").write_text(_obj(z_up(Y_UP)))
+    ref = load_environment(tmp_path / "y.obj")
+    env = load_environment(tmp_path / "z.obj", up_axis="z")
+    assert np.allclose(world(env), world(ref), atol=1e-6)
+    assert np.array_equal(env.mesh.faces, ref.mesh.faces)      # a rotation keeps windings
+    # read as +Y up, the floor would stand on its edge
+    assert np.ptp(world(load_environment(tmp_path / "z.obj"))[:, 1]) == pytest.approx(4.0)
+
+
+def test_gltf_sun_turns_with_the_level(tmp_path):
+    doc, blob = good_gltf()
+    (tmp_path / "scene.glb").write_bytes(pack_glb(doc, blob))
+    plain = load_environment(tmp_path / "scene.glb")
+    turned = load_environment(tmp_path / "scene.glb", up_axis="z")
+    def y_up(v):        # the turn --up z applies: (x, y, z) -> (x, z, -y)
+        return np.c_[v[:, 0], v[:, 2], -v[:, 1]]
+
+    assert np.allclose(turned.sun.direction, y_up(plain.sun.direction[None])[0])
+    assert np.allclose(world(turned), y_up(world(plain)), atol=1e-6)
+
+
+def test_usd_up_overrides_the_stage(tmp_path):
+    """A stage that says upAxis Y but holds +Z-up points: --up z reads it right."""
+    text = usd_text(points="[" + ", ".join(f"({x:g}, {y:g}, {z:g})" for x, y, z in z_up(
+        Y_UP[:4])) + "]")
+    (tmp_path / "level.usda").write_text(text)
+    env = load_environment(tmp_path / "level.usda", up_axis="z")
+    assert np.ptp(world(env)[:, 1]) == pytest.approx(0.0, abs=1e-6)
+    assert np.ptp(world(load_environment(tmp_path / "level.usda"))[:, 1]) == pytest.approx(4.0)
+
+
+def test_bake_with_up_z(tmp_path):
+    level = tmp_path / "z.obj"
+    level.write_text(_obj(z_up(Y_UP)))
+    out = tmp_path / "out" / "c"
+    assert main(["bake", str(level), "--up", "z", "--seconds", "1", "--no-cache", "--out",
+                 str(out)]) == 0
+    report = json.loads(out.with_suffix(".json").read_text())
+    assert report["environment"]["up_axis"] == "z"
+    assert report["environment"]["bounds"][1][1] == pytest.approx(0.4, abs=1e-5)
