@@ -163,6 +163,11 @@ def instancing_of(node: dict) -> dict | None:
     return _extension(node, INSTANCING)
 
 
+def instance_attributes(ext: dict) -> dict:
+    """A checked instancing extension's TRANSLATION, ROTATION and SCALE accessor indices."""
+    return {k: v for k, v in ext["attributes"].items() if k in _INSTANCE_TYPES}
+
+
 def check_instancing(d, where: str, ext, accessors: list) -> None:
     """Check a node's instancing: TRANSLATION, ROTATION and SCALE accessors of the types the
     extension allows, one element per instance in each (other attributes, e.g. _ID, are

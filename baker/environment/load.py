@@ -100,6 +100,11 @@ def load_environment(path: str | Path, sun_override=None, up_axis: str | None = 
                 raw, sun = _read_gltf(path) if ext in GLTF_EXTS else _read_trimesh(path)
                 if up_axis == "z":
                     raw, sun = _z_up(raw, sun)
+        total = sum(len(r[2]) for r in raw)
+        if total > MAX_TRIANGLES:
+            raise EnvironmentLoadError(f"the level has {total:,} triangles; a bake takes at "
+                                       f"most {MAX_TRIANGLES:,}: keep the part of the level "
+                                       "the creature uses")
     except EnvironmentLoadError as exc:
         raise EnvironmentLoadError(exc.what, where=exc.where or str(path)) from None
     except MemoryError:
@@ -211,14 +216,17 @@ def _error_text(exc: Exception) -> str:
 
 
 def _unique_names(names: list[str]) -> list[str]:
-    out, used = [], set()
+    """Each name sanitized, repeats numbered _2, _3, ... (each base's count kept: linear in
+    the names, however many repeat)."""
+    out, used, tried = [], set(), {}
     for raw in names:
         base = sanitize_name(raw)
-        name, k = base, 1
+        name, k = base, tried.get(base, 1)
         while name in used:
             k += 1
             suffix = f"_{k}"
             name = base[: _MAX_NAME - len(suffix)] + suffix
+        tried[base] = k
         used.add(name)
         out.append(name)
     return out
@@ -381,6 +389,9 @@ _COMPONENT_NAMES = {5120: "BYTE", 5121: "UNSIGNED_BYTE", 5122: "SHORT",
 _REQUIRED_OK_PREFIXES = ("KHR_materials_", "KHR_texture_", "EXT_texture_")
 _REQUIRED_OK = {"KHR_lights_punctual", "KHR_mesh_quantization", "KHR_materials_variants",
                 *gltf_ext.MESHOPT, gltf_ext.DRACO, gltf_ext.INSTANCING}
+#: the most triangles a level may place (its meshes times their placements): a level of 20 M
+#: triangles needs about 4 GB to navigate (navmesh.budget); beyond it, cut the level down
+MAX_TRIANGLES = 20_000_000
 #: accessors without a bufferView are zero-filled: at most this many bytes + 64x the file
 _ZERO_FILL_SLACK = 1 << 20
 
@@ -393,14 +404,19 @@ class _Doc:
         if not isinstance(doc, dict):
             raise EnvironmentLoadError("corrupt glTF: the JSON is not an object", where=str(path))
         self.doc, self.path = doc, path
+        self._checked: set[str] = set()
 
     def fail(self, what: str):
         raise EnvironmentLoadError(f"corrupt glTF: {what}", where=str(self.path))
 
     def array(self, name: str) -> list:
+        """doc[name], checked once to be an array of objects (an index check asks for it per
+        index)."""
         a = self.doc.get(name, [])
-        if not isinstance(a, list) or not all(isinstance(x, dict) for x in a):
-            self.fail(f"'{name}' must be an array of objects")
+        if name not in self._checked:
+            if not isinstance(a, list) or not all(isinstance(x, dict) for x in a):
+                self.fail(f"'{name}' must be an array of objects")
+            self._checked.add(name)
         return a
 
     def integer(self, obj: dict, key: str, where: str, lo: int = 0, hi: int = 2**53,
@@ -785,8 +801,9 @@ class _GltfReader:
         m[:3, 3] = node.get("translation", [0, 0, 0])
         return m
 
-    def world_nodes(self):
-        """Yield (node_index, world_matrix) over the default scene, parents first."""
+    def world_nodes(self, matrices: bool = True):
+        """Yield (node_index, world_matrix) over the default scene, parents first (the matrix
+        None unless `matrices`)."""
         nodes = self.doc.get("nodes", [])
         scenes = self.doc.get("scenes", [])
         if scenes:
@@ -801,7 +818,7 @@ class _GltfReader:
             if i in seen:
                 raise EnvironmentLoadError(f"corrupt glTF: node {i} has two parents (or is its own ancestor)")
             seen.add(i)
-            world = parent @ self.local_matrix(nodes[i])
+            world = parent @ self.local_matrix(nodes[i]) if matrices else None
             yield i, world
             for c in reversed(nodes[i].get("children", [])):
                 stack.append((c, world))
@@ -842,7 +859,7 @@ class _GltfReader:
         ext = gltf_ext.instancing_of(node)
         if ext is None:
             return world[None]
-        attrs = ext["attributes"]
+        attrs = gltf_ext.instance_attributes(ext)
         k = self.doc["accessors"][next(iter(attrs.values()))]["count"]
         mats = np.tile(np.eye(4), (k, 1, 1))
         if "ROTATION" in attrs:
@@ -901,7 +918,41 @@ class _GltfReader:
                         np.concatenate(fs), n, color, rough, metal))
         return out
 
+    def _mesh_triangles(self, mi: int) -> int:
+        """meshes[mi]'s triangles, from its accessors' counts (no data read)."""
+        acc, total = self.doc["accessors"], 0
+        for prim in self.doc["meshes"][mi].get("primitives", []):
+            attrs = prim.get("attributes", {})
+            if "POSITION" not in attrs or prim.get("mode", 4) not in (4, 5, 6):
+                continue
+            c = acc[prim["indices"] if "indices" in prim else attrs["POSITION"]]["count"]
+            total += c // 3 if prim.get("mode", 4) == 4 else max(c - 2, 0)
+        return total
+
+    def _check_size(self) -> None:
+        """Refuse a scene whose placed meshes add up to more than MAX_TRIANGLES, before any
+        of them is read (a small file can place a big mesh thousands of times)."""
+        nodes, per_mesh = self.doc.get("nodes", []), {}
+        total = placements = 0
+        for ni, _ in self.world_nodes(matrices=False):
+            node = nodes[ni]
+            if "mesh" in node:
+                mi = node["mesh"]
+                if mi not in per_mesh:
+                    per_mesh[mi] = self._mesh_triangles(mi)
+                inst = gltf_ext.instancing_of(node)
+                k = 1 if inst is None else self.doc["accessors"][
+                    next(iter(gltf_ext.instance_attributes(inst).values()))]["count"]
+                placements += k
+                total += per_mesh[mi] * k
+        if total > MAX_TRIANGLES:
+            raise EnvironmentLoadError(
+                f"the level places {total:,} triangles ({placements:,} mesh placements); a bake "
+                f"takes at most {MAX_TRIANGLES:,}: keep the part of the level the creature "
+                "uses", where=str(self.path))
+
     def read(self):
+        self._check_size()
         doc = self.doc
         nodes = doc.get("nodes", [])
         lights = doc.get("extensions", {}).get("KHR_lights_punctual", {}).get("lights", [])

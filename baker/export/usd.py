@@ -120,6 +120,76 @@ def _mesh(stage, path, vertices, faces, normals, rgba, material, double_sided: b
     return mesh
 
 
+def _spec(layer, path, type_name: str):
+    """A new `def <type_name>` prim spec at path (its parent spec exists)."""
+    from pxr import Sdf
+
+    spec = Sdf.CreatePrimInLayer(layer, path)
+    spec.specifier = Sdf.SpecifierDef
+    spec.typeName = type_name
+    return spec
+
+
+def _attr(spec, name: str, type_name, value=None, uniform: bool = False):
+    """An attribute spec authored as the schema's Create*Attr authors it (not custom;
+    uniform where the schema says so), its default value set unless None."""
+    from pxr import Sdf
+
+    a = Sdf.AttributeSpec(spec, name, type_name,
+                          Sdf.VariabilityUniform if uniform else Sdf.VariabilityVarying,
+                          declaresCustom=False)
+    if value is not None:
+        a.default = value
+    return a
+
+
+def _level_material(layer, path, rgb, metallic: float, roughness: float):
+    """_material's specs (opaque), authored straight in the layer (Sdf): the same specs in the
+    same order, without a stage recomposition per prim."""
+    Gf, Sdf, _, _, _, _, _, _ = _pxr()
+    T = Sdf.ValueTypeNames
+    mat = _spec(layer, path, "Material")
+    shader_path = path.AppendChild("PreviewSurface")
+    shader = _spec(layer, shader_path, "Shader")
+    _attr(shader, "info:id", T.Token, "UsdPreviewSurface", uniform=True)
+    _attr(shader, "inputs:diffuseColor", T.Color3f,
+          Gf.Vec3f(*[float(np.clip(c, 0, 1)) for c in rgb[:3]]))
+    _attr(shader, "inputs:metallic", T.Float, float(np.clip(metallic, 0, 1)))
+    _attr(shader, "inputs:roughness", T.Float, float(np.clip(roughness, 0, 1)))
+    out = _attr(mat, "outputs:surface", T.Token)
+    _attr(shader, "outputs:surface", T.Token)
+    out.connectionPathList.explicitItems = [shader_path.AppendProperty("outputs:surface")]
+
+
+def _level_mesh(layer, path, vertices, faces, normals, rgba, material_path):
+    """_mesh's specs for a level's mesh (double-sided, opaque), authored straight in the layer
+    (Sdf), as _level_material."""
+    Gf, Sdf, _, _, _, _, _, Vt = _pxr()
+    T = Sdf.ValueTypeNames
+    v, f, n = checked_mesh(path.name, vertices, faces, normals)
+    spec = _spec(layer, path, "Mesh")
+    spec.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["MaterialBindingAPI"]))
+    _attr(spec, "points", T.Point3fArray, Vt.Vec3fArray.FromNumpy(v))
+    _attr(spec, "faceVertexCounts", T.IntArray,
+          Vt.IntArray.FromNumpy(np.full(len(f), 3, dtype=np.int32)))
+    _attr(spec, "faceVertexIndices", T.IntArray,
+          Vt.IntArray.FromNumpy(f.astype(np.int32).reshape(-1)))
+    _attr(spec, "normals", T.Normal3fArray, Vt.Vec3fArray.FromNumpy(n)).SetInfo(
+        "interpolation", "vertex")
+    _attr(spec, "subdivisionScheme", T.Token, "none", uniform=True)
+    _attr(spec, "orientation", T.Token, "rightHanded", uniform=True)
+    _attr(spec, "doubleSided", T.Bool, True, uniform=True)
+    _attr(spec, "extent", T.Float3Array, Vt.Vec3fArray([Gf.Vec3f(*map(float, v.min(0))),
+                                                        Gf.Vec3f(*map(float, v.max(0)))]))
+    _attr(spec, "primvars:displayColor", T.Color3fArray,
+          Vt.Vec3fArray([Gf.Vec3f(*[float(c) for c in rgba[:3]])]))
+    if len(rgba) > 3 and rgba[3] < 1.0:
+        _attr(spec, "primvars:displayOpacity", T.FloatArray, Vt.FloatArray([float(rgba[3])]))
+    rel = Sdf.RelationshipSpec(spec, "material:binding", custom=False,
+                               variability=Sdf.VariabilityUniform)
+    rel.targetPathList.explicitItems = [material_path]
+
+
 def _offset(xformable, v) -> None:
     """A double-precision translate op of v (3,) float64 metres, unless v is zero."""
     Gf, _, _, UsdGeom, _, _, _, _ = _pxr()
@@ -321,12 +391,14 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
     env_xf = UsdGeom.Xform.Define(stage, "/World/Environment")
     _offset(env_xf, env.origin)
     env_path = env_xf.GetPath()
-    for m, rgba in environment_parts(env):
-        nm = safe_name(m.name, taken, "env_mesh")
-        mat = _material(stage, looks, safe_name(f"{nm}_mat", taken), rgba, 1.0, m.metallic,
-                        m.roughness)
-        _mesh(stage, env_path.AppendChild(nm), m.vertices, m.faces, m.normals, rgba, mat,
-              double_sided=True)
+    layer = stage.GetRootLayer()
+    with Sdf.ChangeBlock():     # one recomposition for the level's meshes, however many
+        for m, rgba in environment_parts(env):
+            nm = safe_name(m.name, taken, "env_mesh")
+            mat = looks.AppendChild(safe_name(f"{nm}_mat", taken))
+            _level_material(layer, mat, rgba, m.metallic, m.roughness)
+            _level_mesh(layer, env_path.AppendChild(nm), m.vertices, m.faces, m.normals, rgba,
+                        mat)
 
     # -- sun: DistantLight shines along its local -Z
     sun = env.sun

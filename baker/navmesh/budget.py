@@ -42,7 +42,7 @@ class Estimate:
     seconds: float    # [s] build wall time
 
 
-def estimate(columns: int, triangles: int) -> Estimate:
+def estimate(columns: float, triangles: int) -> Estimate:
     """The estimated peak memory and time of a build of `columns` columns over a level of
     `triangles` triangles."""
     return Estimate(bytes=BASE_BYTES + BYTES_PER_COLUMN * columns + BYTES_PER_TRIANGLE * triangles,
@@ -112,6 +112,10 @@ def memory_limit(megabytes: float | None):
         _limit.reset(token)
 
 
+def _count(n: int) -> str:
+    return f"{n:,}" if n < 10**12 else f"{float(n):.3g}"
+
+
 def check(nx: int, nz: int, cell: float, triangles: int, where: str | None = None,
           area: float | None = None, hint: str = "") -> Estimate:
     """Raise BudgetError when a build of nx x nz columns at `cell` metres is estimated over
@@ -119,8 +123,8 @@ def check(nx: int, nz: int, cell: float, triangles: int, where: str | None = Non
     horizontal area; default nx * nz * cell^2); `hint` is appended to the message.
     Returns the estimate."""
     nx, nz = int(nx), int(nz)
-    area = float(nx) * float(nz) * cell * cell if area is None else float(area)
-    est = estimate(nx * nz, triangles)
+    area = (nx * cell) * (nz * cell) if area is None else float(area)
+    est = estimate(float(nx) * float(nz), triangles)   # (floats: a grid may be absurd)
     cap = limit()
     if est.bytes <= cap:
         return est
@@ -136,7 +140,8 @@ def check(nx: int, nz: int, cell: float, triangles: int, where: str | None = Non
     e = math.floor(math.log10(need)) - 1
     fit = math.ceil(need / 10 ** e) * 10 ** e
     raise BudgetError(
-        f"navigation build of {nx:,} x {nz:,} columns at cell size {cell:g} m needs about "
+        f"navigation build of {_count(nx)} x {_count(nz)} columns at cell size {cell:g} m "
+        f"needs about "
         f"{est.bytes / 1e9:.3g} GB and {est.seconds:.3g} s, over the {cap / 1e9:.3g} GB memory "
         f"limit; use --cell-size {fit:.2g} or larger, or raise --max-memory{hint}",
         where=where or "--cell-size")

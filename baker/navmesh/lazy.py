@@ -70,6 +70,9 @@ class LazyNav:
         self.windows: list[tuple[float, float, float, float]] = []
         self.cache_hits = 0
         self.surface: NavSurface
+        # at most ~20 widenings: a window under a millionth of the level (an absurd rig) starts
+        # at that size
+        half = max(half, float(np.max(hi - lo)) * 2.0**-20)
         while True:  # a window with no walkable surface in it is widened until the level ends
             try:
                 self._build(c - half, c + half)

@@ -164,3 +164,31 @@ def test_quaternion_order_round_trips(stage, clip):
     np.testing.assert_allclose([*q.GetImaginary(), q.GetReal()], clip.rotations[5, 3], atol=0)
     v = quat_rotate(clip.rotations[5, 3].astype(float), np.array([0.0, 0, 1]))
     assert np.isfinite(v).all()
+
+
+@pytest.mark.parametrize("rgba", [(0.2, 0.3, 0.4, 1.0), (0.9, 0.1, 0.1, 0.5)])
+def test_level_meshes_authored_in_sdf_match_the_schema_api(rgba):
+    """The level's meshes and materials are authored straight in the layer (one recomposition
+    for thousands of meshes): the same specs, in the same order, as UsdGeom/UsdShade author."""
+    from pxr import Sdf, Usd, UsdGeom
+
+    from baker.export import usd
+
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 0, 1], [1, 0.5, 1]], np.float32)
+    f = np.array([[0, 2, 1], [1, 2, 3]])
+    texts = []
+    for sdf in (False, True):
+        stage = Usd.Stage.CreateInMemory()
+        looks = UsdGeom.Scope.Define(stage, "/World/Looks").GetPath()
+        env = UsdGeom.Xform.Define(stage, "/World/Environment").GetPath()
+        if sdf:
+            with Sdf.ChangeBlock():
+                usd._level_material(stage.GetRootLayer(), looks.AppendChild("m"), rgba, 0.1, 0.8)
+                usd._level_mesh(stage.GetRootLayer(), env.AppendChild("g"), v, f, None, rgba,
+                                looks.AppendChild("m"))
+        else:
+            mat = usd._material(stage, looks, "m", rgba, 1.0, 0.1, 0.8)
+            usd._mesh(stage, env.AppendChild("g"), v, f, None, rgba, mat, double_sided=True)
+        texts.append(stage.GetRootLayer().ExportToString())
+    assert texts[0] == texts[1]
+    assert ("displayOpacity" in texts[0]) == (rgba[3] < 1)

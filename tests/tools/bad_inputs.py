@@ -314,6 +314,7 @@ def _glb_raw_cases():
         "no_bin_chunk": lambda: pack_glb(doc, None),
         "bin_short": lambda: pack_glb(doc, blob[: len(blob) // 2]),
         "garbage": lambda: bytes(range(256)) * 64,
+        "placements_20M": _placements_glb,
     }
     cases = [_glb_raw_case(k, v) for k, v in raw.items()]
     for n in (11, 12, 19, 20, 20 + jlen // 2, 20 + jlen, 28 + jlen, len(g) - 1):
@@ -384,6 +385,28 @@ def _compressed_cases():
     }
     return ([Case(f"glb_meshopt_{k}", _compressed("meshopt", *v)) for k, v in mo.items()]
             + [Case(f"glb_draco_{k}", _compressed("draco", *v)) for k, v in dr.items()])
+
+
+def _placements_glb(nodes: int = 10_000, side: int = 32) -> bytes:
+    """A 2,048-triangle grid placed `nodes` times (20.5 M triangles from a 0.4 MB file)."""
+    g = np.arange(side + 1)
+    pos = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2) / side * 4.0 - 2.0
+    pos = np.c_[pos[:, 0], np.zeros(len(pos)), pos[:, 1]].astype(np.float32)
+    q = (np.arange(side)[:, None] * (side + 1) + np.arange(side)[None, :]).reshape(-1)
+    idx = np.c_[q, q + 1, q + side + 2, q, q + side + 2, q + side + 1].astype(np.uint32)
+    blob = pos.tobytes() + idx.tobytes()
+    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": list(range(nodes))}],
+           "nodes": [{"mesh": 0, "translation": [5.0 * (i % 100), 0.0, 5.0 * (i // 100)]}
+                     for i in range(nodes)],
+           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+           "buffers": [{"byteLength": len(blob)}],
+           "bufferViews": [{"buffer": 0, "byteLength": pos.nbytes},
+                           {"buffer": 0, "byteOffset": pos.nbytes, "byteLength": idx.nbytes}],
+           "accessors": [{"bufferView": 0, "componentType": 5126, "count": len(pos),
+                          "type": "VEC3", "min": [-2, 0, -2], "max": [2, 0, 2]},
+                         {"bufferView": 1, "componentType": 5125, "count": idx.size,
+                          "type": "SCALAR"}]}
+    return pack_glb(doc, blob)
 
 
 def _write(path: Path, data: bytes) -> list:
@@ -753,6 +776,7 @@ def _structural_rig_cases():
         "segments_x": lambda: rk(base, "body", "segments", '"x"'),
         "length_long": lambda: rk(base, "body", "length", '"long"'),
         "length_inf": lambda: rk(base, "body", "length", "inf"),
+        "length_1e-300": lambda: rk(base, "body", "length", "1e-300"),   # a grid of 1e286 cells
         "max_speed_list": lambda: rk(base, "locomotion", "max_speed", "[1, 2]"),
         "curve_ragged": lambda: rk(base, "cobra", "curve", "[[0.0, 0.0], [0.5, 0.1, 0.2], [1.0, 1.0]]"),
         "curve_flat": lambda: rk(base, "cobra", "curve", "[0.0, 0.5, 1.0]"),

@@ -208,3 +208,23 @@ def test_gpu_instancing_bounded(tmp_path, monkeypatch):
     p.write_bytes(_instanced_glb(translation=np.arange(60.0).reshape(20, 3)))
     with pytest.raises(EnvironmentLoadError, match="places a 12-vertex mesh 20 times"):
         load_environment(p)
+
+
+def test_triangle_cap_counts_placements_before_reading(tmp_path, monkeypatch):
+    """MAX_TRIANGLES bounds the placed triangles: a glTF's meshes times their nodes and
+    instances, counted from the accessors before any is read; an OBJ's after reading."""
+    from baker.environment import load
+    from baker.errors import EnvironmentLoadError
+
+    monkeypatch.setattr(load, "MAX_TRIANGLES", 40)
+    p = tmp_path / "three.glb"
+    p.write_bytes(_instanced_glb(translation=np.arange(9.0).reshape(3, 3)))   # 3 x 14
+    with pytest.raises(EnvironmentLoadError, match="places 42 triangles .3 mesh placements"):
+        load_environment(p)
+    p.write_bytes(_instanced_glb(translation=np.arange(6.0).reshape(2, 3)))   # 2 x 14
+    assert len(load_environment(p).mesh.faces) == 28
+    obj = tmp_path / "many.obj"
+    obj.write_text("".join(f"v {i} 0 {i % 2}\n" for i in range(50))
+                   + "".join(f"f {i} {i + 1} {i + 2}\n" for i in range(1, 48)))
+    with pytest.raises(EnvironmentLoadError, match="has 47 triangles"):
+        load_environment(obj)
