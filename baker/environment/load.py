@@ -1086,6 +1086,17 @@ _OBJ_FACE = re.compile(rb"^[ \t]*f[ \t]+(.*)$", re.M)
 _OBJ_VERTEX = re.compile(rb"^[ \t]*v[ \t]+(.*)$", re.M)
 
 
+def _obj_spaces(data: bytes) -> bytes:
+    """An OBJ's whitespace as trimesh reads it: tabs (which the format allows between
+    fields) as spaces, no indentation (trimesh skips an indented `f` line and reads tabbed
+    `v` lines wrong)."""
+    if b"\t" in data:
+        data = data.replace(b"\t", b" ")
+    if re.search(rb"^ ", data, re.M):
+        data = re.sub(rb"^ +", b"", data, flags=re.M)
+    return data
+
+
 def _check_obj(data: bytes) -> None:
     """OBJ structure trimesh lets through silently: a vertex with fewer than 3 coordinates, a
     face index of 0 (OBJ counts from 1) or beyond the vertex list (negative: relative)."""
@@ -1176,6 +1187,8 @@ def _read_trimesh(path: Path):
     if path.suffix.lower() == ".ply":
         _check_ascii_ply(data)
     data = _text_as_utf8(path, data)
+    if path.suffix.lower() == ".obj":
+        data = _obj_spaces(data)
     scene = trimesh.load_scene(io.BytesIO(data), file_type=path.suffix.lower()[1:],
                                resolver=_folder_resolver(path), process=False)
     raw = []

@@ -19,6 +19,7 @@ import sys
 import tracemalloc
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import bad_inputs
@@ -136,6 +137,20 @@ def test_files_in_other_encodings_load(name, tmp_path):
     p.write_bytes(bad_inputs.GOOD_LATIN1[name])
     env = load_environment(p)
     assert sum(len(m.faces) for m in env.meshes) == 2
+
+
+@pytest.mark.parametrize("name", sorted(bad_inputs.GOOD_UNUSUAL))
+def test_unusual_but_valid_files_load(name, tmp_path):
+    """Tabs between fields, indented lines, CRLF: the same floor as GOOD_OBJ."""
+    from baker.environment import load_environment
+
+    p = tmp_path / name
+    p.write_bytes(bad_inputs.GOOD_UNUSUAL[name])
+    plain = tmp_path / "plain.obj"
+    plain.write_text(bad_inputs.GOOD_OBJ)
+    env, ref = load_environment(p), load_environment(plain)
+    assert np.array_equal(env.mesh.vertices, ref.mesh.vertices)
+    assert np.array_equal(env.mesh.faces, ref.mesh.faces)
 
 
 def test_latin1_obj_bakes(tmp_path, capsys):

@@ -542,6 +542,14 @@ def _mesh_cases():
     return c
 
 
+#: valid files written the way some tools write them; each holds GOOD_OBJ's floor
+GOOD_UNUSUAL = {
+    "tabs.obj": b"v\t-2e0\t0.0E+00\t-2.\nv\t+2.0e+0\t-0\t-20E-1\nv 2 0 .2e1\n"
+                b"v  -2  0  2  \n\tf\t1\t3\t2\nf 1 4 3 \n",
+    "indented.obj": b"".join(b"  " + line + b"\n" for line in GOOD_OBJ.encode().splitlines()),
+    "crlf_tabs.obj": GOOD_OBJ.replace(" ", "\t").replace("\n", "\r\n").encode(),
+}
+
 GOOD_LATIN1 = {
     "latin1.obj": b"# Fl\xe4che f\xfcr den Tausendf\xfc\xdfler, \xa9 2026\n" + GOOD_OBJ.encode(),
     "cp1252.obj": b"# caf\xe9 \x93quoted\x94\n" + GOOD_OBJ.encode(),
