@@ -23,9 +23,6 @@ from baker.errors import EnvironmentLoadError
 MESHOPT = ("EXT_meshopt_compression", "KHR_meshopt_compression")
 DRACO = "KHR_draco_mesh_compression"
 INSTANCING = "EXT_mesh_gpu_instancing"
-#: the instanced vertices of one primitive (instances x vertices) are bounded: a small file can
-#: place a big mesh a million times
-MAX_INSTANCED_VERTICES = 50_000_000
 _INSTANCE_TYPES = {"TRANSLATION": ("VEC3", (5126,)), "SCALE": ("VEC3", (5126,)),
                    "ROTATION": ("VEC4", (5126, 5120, 5122))}
 _MODES = ("ATTRIBUTES", "TRIANGLES", "INDICES")
@@ -191,10 +188,3 @@ def check_instancing(d, where: str, ext, accessors: list) -> None:
     if len(counts) != 1:
         d.fail(f"{w}'s attributes have different counts ({sorted(map(str, counts))})")
 
-
-def check_instanced_size(instances: int, vertices: int, triangles: int, path) -> None:
-    """Refuse a primitive placed so often that its copies would not fit in memory."""
-    if instances * max(vertices, triangles) > MAX_INSTANCED_VERTICES:
-        raise EnvironmentLoadError(
-            f"{INSTANCING} places a {vertices:,}-vertex mesh {instances:,} times: more than "
-            f"{MAX_INSTANCED_VERTICES:,} vertices", where=str(path))

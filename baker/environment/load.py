@@ -15,7 +15,8 @@ Formats
 - OBJ, PLY, STL: read with trimesh as a scene; scene-graph transforms are applied. Assumed to be
   metres, +Y up. OBJ `Kd` (through trimesh's material) is taken as a linear colour; PLY vertex
   or face colours (sRGB bytes) are averaged and converted to linear.
-- USD (.usd, .usda, .usdc, .usdz): every visible, non-guide `UsdGeom.Mesh` is fan-triangulated,
+- USD (.usd, .usda, .usdc, .usdz): every visible, non-guide `UsdGeom.Mesh` is fan-triangulated
+  (a `UsdGeom.PointInstancer` places its prototypes' meshes at its visible instances),
   moved to world space with `ComputeLocalToWorldTransform`, scaled by the stage's
   `metersPerUnit` and rotated to +Y up when the stage is Z up. The colour comes from a bound
   `UsdPreviewSurface` diffuseColor, else the `displayColor` primvar. The sun is a
@@ -335,6 +336,26 @@ def _z_up(raw: list, sun: Sun | None) -> tuple[list, Sun | None]:
     if sun is not None:
         sun = dataclasses.replace(sun, direction=Z_UP_TO_Y_UP @ sun.direction)
     return turned, sun
+
+
+def _placed(mats: np.ndarray, points: np.ndarray, faces: np.ndarray, normals):
+    """A mesh placed by each of mats (k, 4, 4): (vertices (k n, 3), triangles (k m, 3), normals
+    or None), the copies one after another, each copy's winding kept facing out."""
+    vs, fs, ns = [], [], []
+    for k, m in enumerate(mats):
+        vs.append(_transform_points(m, points))
+        fs.append(_fix_winding(faces, m) + k * len(points))
+        ns.append(None if normals is None else _transform_normals(m, normals))
+    n = None if any(x is None for x in ns) else np.concatenate(ns)
+    return np.concatenate(vs), np.concatenate(fs), n
+
+
+def check_placed(copies: int, triangles: int, path) -> None:
+    """Refuse a mesh placed so often that its copies pass MAX_TRIANGLES."""
+    if copies * triangles > MAX_TRIANGLES:
+        raise EnvironmentLoadError(
+            f"the level places a {triangles:,}-triangle mesh {copies:,} times: more than the "
+            f"{MAX_TRIANGLES:,} triangles a bake takes", where=str(path))
 
 
 def _transform_points(m: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -906,16 +927,10 @@ class _GltfReader:
             if got is None:
                 continue
             points, faces, normals = got
-            gltf_ext.check_instanced_size(len(mats), len(points), len(faces), self.path)
-            vs, fs, ns = [], [], []
-            for k, m in enumerate(mats):
-                vs.append(_transform_points(m, points))
-                fs.append(_fix_winding(faces, m) + k * len(points))
-                ns.append(None if normals is None else _transform_normals(m, normals))
-            n = None if any(x is None for x in ns) else np.concatenate(ns)
+            check_placed(len(mats), len(faces), self.path)
             color, rough, metal = self.material(prim.get("material"))
-            out.append((base if len(prims) == 1 else f"{base}_{pi}", np.concatenate(vs),
-                        np.concatenate(fs), n, color, rough, metal))
+            out.append((base if len(prims) == 1 else f"{base}_{pi}",
+                        *_placed(mats, points, faces, normals), color, rough, metal))
         return out
 
     def _mesh_triangles(self, mi: int) -> int:
@@ -1370,6 +1385,63 @@ def _usd_diagnostic_text(d) -> str:
     return " ".join(str(text).split())
 
 
+def _usd_mesh(prim, time):
+    """A UsdGeom.Mesh's local (points (n, 3) float64, triangles, colour, roughness,
+    metalness), or None when it has no points or faces."""
+    from pxr import UsdGeom
+
+    mesh = UsdGeom.Mesh(prim)
+    pts = mesh.GetPointsAttr().Get(time)
+    counts = mesh.GetFaceVertexCountsAttr().Get(time)
+    idx = mesh.GetFaceVertexIndicesAttr().Get(time)
+    if pts is None or counts is None or idx is None or len(pts) == 0:
+        return None
+    holes = mesh.GetHoleIndicesAttr().Get(time)
+    left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
+    faces = _fan_triangulate(np.asarray(counts), np.asarray(idx),
+                             np.asarray(holes if holes is not None else [], dtype=np.int64),
+                             left)
+    return (np.asarray(pts, dtype=np.float64).reshape(-1, 3), faces,
+            *_usd_color(prim, mesh, time))
+
+
+def _usd_point_instances(instancer, cache, fix, time, path) -> list:
+    """The raw entries of a UsdGeom.PointInstancer: each prototype's meshes placed at every
+    visible instance of it (the instance transforms include the prototype root's own), one
+    entry per prototype mesh."""
+    from pxr import Usd, UsdGeom
+
+    xforms = instancer.ComputeInstanceTransformsAtTime(time, time)   # masked ids dropped
+    protos = instancer.GetPrototypesRel().GetTargets()
+    ids = np.asarray(instancer.GetProtoIndicesAttr().Get(time) or [], dtype=np.int64)
+    mask = instancer.ComputeMaskAtTime(time)
+    if mask:
+        ids = ids[np.asarray(mask, dtype=bool)]
+    if xforms is None or len(xforms) != len(ids) or (len(ids) and (
+            ids.min() < 0 or ids.max() >= len(protos))):
+        raise EnvironmentLoadError(f"USD PointInstancer {instancer.GetPath()} has instances "
+                                   "without a prototype", where=str(path))
+    inst = np.array([_usd_matrix(x) for x in xforms]).reshape(-1, 4, 4)
+    base = fix @ _usd_matrix(cache.GetLocalToWorldTransform(instancer.GetPrim()))
+    stage, raw = instancer.GetPrim().GetStage(), []
+    for p, target in enumerate(protos):
+        root = stage.GetPrimAtPath(target)
+        mats = base @ inst[ids == p]
+        if not root or not len(mats):
+            continue
+        to_root = np.linalg.inv(_usd_matrix(cache.GetLocalToWorldTransform(root)))
+        for prim in Usd.PrimRange(root, Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
+            local = _usd_mesh(prim, time) if prim.IsA(UsdGeom.Mesh) else None
+            if local is None:
+                continue
+            pts, faces, color, rough, metal = local
+            check_placed(len(mats), len(faces), path)
+            rel = to_root @ _usd_matrix(cache.GetLocalToWorldTransform(prim))
+            raw.append((prim.GetName(), *_placed(mats @ rel, pts, faces, None), color, rough,
+                        metal))
+    return raw
+
+
 def _read_usd_trapped(path: Path, trap, up_axis: str | None):
     from pxr import Usd, UsdGeom, UsdLux
 
@@ -1397,7 +1469,9 @@ def _read_usd_trapped(path: Path, trap, up_axis: str | None):
     time = Usd.TimeCode.EarliestTime()
     cache = UsdGeom.XformCache(time)
     raw, suns = [], []
-    for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
+    prims = iter(Usd.PrimRange.Stage(stage, Usd.TraverseInstanceProxies(
+        Usd.PrimDefaultPredicate)))
+    for prim in prims:
         if prim.IsA(UsdGeom.Imageable):
             img = UsdGeom.Imageable(prim)
             if img.ComputeVisibility(time) == UsdGeom.Tokens.invisible:
@@ -1412,23 +1486,16 @@ def _read_usd_trapped(path: Path, trap, up_axis: str | None):
                 inten, color = _usd_light(light, time, path)
                 suns.append(Sun(direction=d / np.linalg.norm(d), intensity=inten, color=color))
             continue
-        if not prim.IsA(UsdGeom.Mesh):
+        if prim.IsA(UsdGeom.PointInstancer):   # its prototypes are drawn only where it places them
+            raw += _usd_point_instances(UsdGeom.PointInstancer(prim), cache, fix, time, path)
+            prims.PruneChildren()
             continue
-        mesh = UsdGeom.Mesh(prim)
-        pts = mesh.GetPointsAttr().Get(time)
-        counts = mesh.GetFaceVertexCountsAttr().Get(time)
-        idx = mesh.GetFaceVertexIndicesAttr().Get(time)
-        if pts is None or counts is None or idx is None or len(pts) == 0:
+        local = _usd_mesh(prim, time) if prim.IsA(UsdGeom.Mesh) else None
+        if local is None:
             continue
-        holes = mesh.GetHoleIndicesAttr().Get(time)
-        left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
-        faces = _fan_triangulate(np.asarray(counts), np.asarray(idx),
-                                 np.asarray(holes if holes is not None else [], dtype=np.int64),
-                                 left)
+        pts, faces, color, rough, metal = local
         world = fix @ _usd_matrix(cache.GetLocalToWorldTransform(prim))
-        v = _transform_points(world, np.asarray(pts, dtype=np.float64).reshape(-1, 3))
-        color, rough, metal = _usd_color(prim, mesh, time)
-        raw.append((prim.GetName(), v, _fix_winding(faces, world), None, color, rough, metal))
+        raw.append((prim.GetName(), *_placed(world[None], pts, faces, None), color, rough, metal))
     if trap.HasErrors():
         raise EnvironmentLoadError(
             f"USD error: {_usd_diagnostic_text(trap.GetErrors()[0])}", where=str(path))

@@ -200,13 +200,13 @@ def test_gpu_instancing_refusals(tmp_path, bad, message):
 
 
 def test_gpu_instancing_bounded(tmp_path, monkeypatch):
-    from baker.environment import gltf_ext
+    from baker.environment import load
     from baker.errors import EnvironmentLoadError
 
-    monkeypatch.setattr(gltf_ext, "MAX_INSTANCED_VERTICES", 100)
+    monkeypatch.setattr(load, "MAX_TRIANGLES", 100)
     p = tmp_path / "many.glb"
     p.write_bytes(_instanced_glb(translation=np.arange(60.0).reshape(20, 3)))
-    with pytest.raises(EnvironmentLoadError, match="places a 12-vertex mesh 20 times"):
+    with pytest.raises(EnvironmentLoadError, match="places 280 triangles .20 mesh placements"):
         load_environment(p)
 
 

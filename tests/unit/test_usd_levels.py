@@ -1,0 +1,100 @@
+"""USD levels as packed and instanced: .usdz packages load like the layers they hold (the
+package's root layer, with sublayers and references resolved inside the package; bad packages
+are in the bad-input corpus, usd_usdz_*), and a UsdGeom.PointInstancer's prototypes are drawn
+where it places them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bad_inputs import usd_text, usdz
+from baker.environment.load import load_environment
+
+BOX = usd_text(points="[(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)]").replace(
+    'def Mesh "floor"', 'def Mesh "box"')
+
+
+def test_usdz_loads_as_its_layers(tmp_path):
+    plain = tmp_path / "level.usda"
+    plain.write_text(usd_text())
+    packed = tmp_path / "level.usdz"
+    packed.write_bytes(usdz({"level.usda": usd_text()}))
+    a, b = load_environment(plain), load_environment(packed)
+    assert np.array_equal(a.mesh.vertices, b.mesh.vertices)
+    assert np.array_equal(a.mesh.faces, b.mesh.faces)
+
+
+def test_usdz_sublayer_inside_the_package(tmp_path):
+    root = usd_text(extra="    subLayers = [@parts/box.usda@]\n")
+    packed = tmp_path / "level.usdz"
+    packed.write_bytes(usdz({"level.usda": root, "parts/box.usda": BOX}))
+    env = load_environment(packed)
+    assert len(env.meshes) == 2 and len(env.mesh.faces) == 4
+
+
+def test_usdz_written_by_usd_itself(tmp_path):
+    """A package made by UsdUtils (crate layers, its own alignment) with a crate sublayer."""
+    from pxr import Sdf, Usd, UsdUtils
+
+    part = Usd.Stage.CreateInMemory()
+    part.GetRootLayer().ImportFromString(BOX)
+    part.GetRootLayer().Export(str(tmp_path / "box.usdc"))
+    (tmp_path / "level.usda").write_text(usd_text(extra="    subLayers = [@box.usdc@]\n"))
+    assert UsdUtils.CreateNewUsdzPackage(Sdf.AssetPath(str(tmp_path / "level.usda")),
+                                         str(tmp_path / "level.usdz"))
+    (tmp_path / "box.usdc").unlink()          # the package must carry it
+    env = load_environment(tmp_path / "level.usdz")
+    assert len(env.meshes) == 2 and len(env.mesh.faces) == 4
+
+
+def _instancer_stage(path, invisible=()):
+    """A floor, and a PointInstancer placing a 0.5 m tile (prototype root translated 1 m up,
+    the tile 0.1 m above its root) at x = 10, 20, 30."""
+    from pxr import Gf, Usd, UsdGeom
+
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, "Y")
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    floor = UsdGeom.Mesh.Define(stage, "/World/floor")
+    floor.CreatePointsAttr([(-40, 0, -5), (40, 0, -5), (40, 0, 5), (-40, 0, 5)])
+    floor.CreateFaceVertexCountsAttr([4])
+    floor.CreateFaceVertexIndicesAttr([0, 3, 2, 1])
+    inst = UsdGeom.PointInstancer.Define(stage, "/World/tiles")
+    root = UsdGeom.Xform.Define(stage, "/World/tiles/Prototypes/tile")
+    root.AddTranslateOp().Set(Gf.Vec3d(0, 1, 0))
+    tile = UsdGeom.Mesh.Define(stage, "/World/tiles/Prototypes/tile/mesh")
+    tile.AddTranslateOp().Set(Gf.Vec3d(0, 0.1, 0))
+    tile.CreatePointsAttr([(0, 0, 0), (0.5, 0, 0), (0.5, 0, 0.5), (0, 0, 0.5)])
+    tile.CreateFaceVertexCountsAttr([4])
+    tile.CreateFaceVertexIndicesAttr([0, 3, 2, 1])
+    inst.CreatePrototypesRel().SetTargets([root.GetPath()])
+    inst.CreateProtoIndicesAttr([0, 0, 0])
+    inst.CreatePositionsAttr([(10, 0, 0), (20, 0, 0), (30, 0, 0)])
+    if invisible:
+        inst.CreateInvisibleIdsAttr(list(invisible))
+    stage.GetRootLayer().Save()
+
+
+def test_point_instancer_places_its_prototypes(tmp_path):
+    """A prototype is drawn where the instancer places it (its root's transform included) and
+    nowhere else; hidden instances are not drawn."""
+    _instancer_stage(tmp_path / "level.usda", invisible=[1])
+    env = load_environment(tmp_path / "level.usda")
+    world = env.mesh.vertices.astype(np.float64) + env.origin
+    tiles = world[world[:, 1] > 0.5]
+    assert len(env.mesh.faces) == 2 + 2 * 2                    # floor + two visible tiles
+    assert np.allclose(np.unique(tiles[:, 1]), [1.1])
+    assert set(np.unique(np.round(tiles[:, 0], 6))) == {10.0, 10.5, 30.0, 30.5}
+    # the prototype itself, under the instancer, is not drawn where it is defined
+    assert not np.any((world[:, 0] < 1.0) & (world[:, 1] > 0.5))
+
+
+def test_point_instancer_bounded(tmp_path, monkeypatch):
+    from baker.environment import load
+    from baker.errors import EnvironmentLoadError
+
+    monkeypatch.setattr(load, "MAX_TRIANGLES", 5)
+    _instancer_stage(tmp_path / "level.usda")
+    with pytest.raises(EnvironmentLoadError, match="places a 2-triangle mesh 3 times"):
+        load_environment(tmp_path / "level.usda")
