@@ -52,13 +52,14 @@ import logging
 import os
 import re
 import socket
+import string
 import sys
 import threading
 import time
 import traceback
 import uuid
 from collections import deque
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 
@@ -318,7 +319,18 @@ def _job_name(entry: dict, index: int, combo: dict, opts: dict) -> str:
     if "{" in name:
         values = {k: _display(v) for k, v in opts.items()}
         values.setdefault("environment", DEFAULT_ENVIRONMENT.stem)
-        return name.format_map(values)
+        out = []
+        for text, field_name, spec, conversion in string.Formatter().parse(name):
+            out.append(text)
+            if field_name is None:
+                continue
+            if not field_name.isidentifier() or spec or conversion:
+                # no format specs, conversions, attributes or indices: "{seed:>3000000000}"
+                # would pad a name to 3 GB
+                raise ValueError(f"'{{{field_name}{'!' + conversion if conversion else ''}"
+                                 f"{':' + spec if spec else ''}}}' is not a plain {{key}} field")
+            out.append(values[field_name])
+        return "".join(out)
     parts = [(k if isinstance(v, (int, float, tuple)) and not isinstance(v, bool) else "")
              + _display(v) for k, v in combo.items()]
     return "-".join([name] + parts)
@@ -1179,20 +1191,40 @@ def _has_cache(plan: Plan) -> bool:
 
 @contextmanager
 def _batch_lock(out: Path):
+    """Hold `out`'s lock file for the batch, and remove it after: it is unlinked while still
+    locked, and a batch that locks a file another has just unlinked (the path no longer
+    names its file) opens the path again."""
+    path = out / LOCK_FILE
+    fd = _locked(path, out)
+    try:
+        yield
+    finally:
+        with suppress(OSError):
+            os.unlink(path)
+        os.close(fd)
+
+
+def _locked(path: Path, out: Path) -> int:
+    """A descriptor of the lock file at path, exclusively locked (unlocked on a file system
+    without locks); ConfigError when another batch holds it."""
     import fcntl
 
-    fd = os.open(out / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o666)
-    try:
+    while True:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
+            os.close(fd)
             raise ConfigError(f"another `baker batch` is writing into {out}",
                               where="--out") from None
         except OSError:
-            pass                # a file system without locks: go on unlocked
-        yield
-    finally:
-        os.close(fd)
+            return fd           # a file system without locks: go on unlocked
+        try:
+            if os.stat(path).st_ino == os.fstat(fd).st_ino:
+                return fd
+        except FileNotFoundError:
+            pass
+        os.close(fd)            # unlinked by the batch that held it: take the new file
 
 
 def local_workers(workers: int | None) -> int:

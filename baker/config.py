@@ -9,6 +9,7 @@ them to metres and radians, so everything downstream is in metres and seconds.
 from __future__ import annotations
 
 import math
+import os
 import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -339,11 +340,14 @@ def read_toml_file(path: Path | str, what: str, max_bytes: int | None = None) ->
     if not path.is_file():
         raise ConfigError(f"{what} path is not a file", where=str(path))
     try:
-        raw = path.read_bytes()
+        with open(path, "rb") as f:     # at most one byte past the bound is read
+            raw = f.read() if max_bytes is None else f.read(max_bytes + 1)
+            size = len(raw) if max_bytes is None or len(raw) <= max_bytes \
+                else os.fstat(f.fileno()).st_size
     except OSError as e:
         raise ConfigError(f"cannot read {what} file: {e.strerror or e}", where=str(path)) from None
     if max_bytes is not None and len(raw) > max_bytes:
-        raise ConfigError(f"{what} file is {len(raw)} bytes; expected at most "
+        raise ConfigError(f"{what} file is {max(size, len(raw))} bytes; expected at most "
                           f"{max_bytes / (1 << 20):g} MB", where=str(path))
     try:
         return tomllib.loads(raw.decode("utf-8"))
@@ -402,6 +406,23 @@ def validate_rig(rig: RigConfig, where: str = "rig") -> RigConfig:
                           f"{b.segments}", where=where)
     if not b.width_profile:
         rig = replace(rig, body=replace(b, width_profile=tuple([0.045 * b.length] * b.segments)))
+    return check_sizes(rig, where)
+
+
+#: [m] the smallest body length and navigation size a bake works with (float32 geometry)
+MIN_SIZE = 1e-6
+
+
+def check_sizes(rig: RigConfig, where: str = "rig") -> RigConfig:
+    """ConfigError when the body length or a navigation size (in metres, after the body-length
+    conversion and any scaling) is under MIN_SIZE: a rig file's 1e-300 m body or a cell of
+    1e-30 body lengths would divide by zero downstream."""
+    nav = rig.navigation
+    for name, v in (("body.length", rig.body.length), ("navigation.radius", nav.radius),
+                    ("navigation.height", nav.height), ("navigation.cell_size", nav.cell_size)):
+        if not v >= MIN_SIZE:
+            raise ConfigError(f"{name} comes to {v:.3g} m: under the {MIN_SIZE:g} m a bake can "
+                              "represent", where=where)
     return rig
 
 
@@ -446,7 +467,7 @@ def override_rig(rig: RigConfig, *, scale: float | None = None, agent_radius: fl
         kw["max_slope"] = math.radians(opts.max_slope)
     if kw:
         rig = replace(rig, navigation=replace(nav, **kw))
-    return rig
+    return check_sizes(rig, "command line")
 
 
 def parse_sun_path(text: str, samples_per_key: int = 16) -> np.ndarray:

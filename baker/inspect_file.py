@@ -147,30 +147,34 @@ def skeleton_summary(names: list[str], parents: list[int]) -> dict:
 def _read_glb(path: Path) -> tuple[dict, int, int]:
     """(glTF JSON document, JSON chunk length, BIN chunk length) of a GLB; InspectError on
     anything that is not a whole GLB 2.0 container."""
-    data = path.read_bytes()
     where = str(path)
-    if len(data) < 20 or data[:4] != b"glTF":
-        raise InspectError("not a GLB file (no glTF header)", where=where)
-    version, total = struct.unpack_from("<II", data, 4)
-    if version != 2:
-        raise InspectError(f"GLB version {version}, expected 2", where=where)
-    if total != len(data):
-        raise InspectError(f"truncated or padded GLB: the header says {total} bytes, the file "
-                           f"has {len(data)}", where=where)
-    jlen, jtype = struct.unpack_from("<I4s", data, 12)
-    if jtype != b"JSON" or 20 + jlen > len(data):
-        raise InspectError("GLB without a whole JSON chunk", where=where)
+    with open(path, "rb") as f:     # the header and the JSON chunk only: not the whole file
+        size = os.fstat(f.fileno()).st_size
+        data = f.read(20)
+        if len(data) < 20 or data[:4] != b"glTF":
+            raise InspectError("not a GLB file (no glTF header)", where=where)
+        version, total = struct.unpack_from("<II", data, 4)
+        if version != 2:
+            raise InspectError(f"GLB version {version}, expected 2", where=where)
+        if total != size:
+            raise InspectError(f"truncated or padded GLB: the header says {total} bytes, the "
+                               f"file has {size}", where=where)
+        jlen, jtype = struct.unpack_from("<I4s", data, 12)
+        if jtype != b"JSON" or 20 + jlen > size:
+            raise InspectError("GLB without a whole JSON chunk", where=where)
+        text = f.read(jlen)
+        bin_head = f.read(8)
     try:
-        doc = json.loads(data[20:20 + jlen])
+        doc = json.loads(text)
     except (UnicodeDecodeError, ValueError) as e:
         raise InspectError(f"GLB JSON chunk is not JSON: {e}", where=where) from None
     if not isinstance(doc, dict):
         raise InspectError("GLB JSON chunk is not an object", where=where)
     off = 20 + jlen
     blen = 0
-    if off + 8 <= len(data):
-        blen, btype = struct.unpack_from("<I4s", data, off)
-        if btype != b"BIN\0" or off + 8 + blen > len(data):
+    if len(bin_head) == 8:
+        blen, btype = struct.unpack_from("<I4s", bin_head)
+        if btype != b"BIN\0" or off + 8 + blen > size:
             raise InspectError("GLB without a whole BIN chunk", where=where)
     return doc, jlen, blen
 

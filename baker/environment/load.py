@@ -1189,11 +1189,28 @@ def _check_ascii_ply(data: bytes) -> None:
                                    "header declares")
 
 
+def _check_stl_size(path: Path) -> None:
+    """A binary STL whose size is not its header's triangle count's, refused from its first
+    84 bytes and its size (before a sparse 4 GB file is read whole)."""
+    with open(path, "rb") as f:
+        head = f.read(84)
+        size = os.fstat(f.fileno()).st_size
+    if len(head) < 84 or head.lstrip()[:5].lower() == b"solid":
+        return          # short or ASCII: _text_as_utf8 decides
+    (n,) = struct.unpack_from("<I", head, 80)
+    if size != 84 + 50 * n:
+        raise EnvironmentLoadError(
+            f"corrupt binary STL: its header says {n:,} triangles ({84 + 50 * n:,} bytes) but "
+            f"the file has {size:,} bytes")
+
+
 def _read_trimesh(path: Path):
     import io
 
     import trimesh
 
+    if path.suffix.lower() == ".stl":
+        _check_stl_size(path)
     data = path.read_bytes()
     if path.suffix.lower() == ".obj" and b"\x00" in data[: 1 << 16]:
         raise EnvironmentLoadError("corrupt OBJ: binary data in a text format", where=str(path))

@@ -68,7 +68,7 @@ def test_first_run_bakes_every_job(first):
     m = manifest(out)
     assert list(m["jobs"]) == NAMES_12
     assert m["summary"] == {"jobs": 12, "baked": 12, "skipped": 0, "failed": 0, "pending": 0}
-    assert {p.name for p in out.iterdir()} - {".baker-batch.lock"} == expected_files(NAMES_12)
+    assert {p.name for p in out.iterdir()} == expected_files(NAMES_12)
     assert stray_files(out) == []
     for name, e in m["jobs"].items():
         assert e["status"] == "baked" and e["error"] is None and e["attempts"] == 1
@@ -175,7 +175,7 @@ seed = 2
     assert bad["status"] == "failed" and bad["outputs"] == {}
     assert bad["error"].startswith("navigation surface: ") and "broken.glb" in bad["error"]
     assert m["summary"] == {"jobs": 12, "baked": 11, "skipped": 0, "failed": 1, "pending": 0}
-    assert {p.name for p in out.iterdir()} - {".baker-batch.lock"} == \
+    assert {p.name for p in out.iterdir()} == \
         expected_files(set(NAMES_12) - {"small-seed2-hunt"})
     assert stray_files(out) == []
     assert "failed small-seed2-hunt: navigation surface: " in stderr
@@ -196,7 +196,7 @@ def test_job_timeout(tmp_path, capsys, nav_cache_dir):
     e = manifest(tmp_path / "o")["jobs"]["long"]
     assert e["status"] == "failed" and e["error"].startswith("timed out after 1 s (--job-timeout)")
     assert e["attempts"] == 1
-    assert {p.name for p in (tmp_path / "o").iterdir()} == {"manifest.json", ".baker-batch.lock"}
+    assert {p.name for p in (tmp_path / "o").iterdir()} == {"manifest.json"}   # no lock left
 
 
 # ----------------------------------------------------------------------------- Dask
@@ -294,7 +294,7 @@ def test_sigterm_half_way_then_run_again(first, tmp_path, nav_cache_dir):
     assert {e["status"] for n, e in m["jobs"].items() if n not in done} == {"pending"}
     # each job's files are all there or none (a job whose commit finished as the signal came
     # may be on disk but not yet in the manifest: it is baked again, whole)
-    files = {p.name for p in out.iterdir()} - {"manifest.json", ".baker-batch.lock"}
+    files = {p.name for p in out.iterdir()} - {"manifest.json"}
     for name in names:
         have = {s for s in (".glb", ".usd", ".json") if name + s in files}
         assert have in (set(), {".glb", ".usd", ".json"}), (name, have)
@@ -305,6 +305,6 @@ def test_sigterm_half_way_then_run_again(first, tmp_path, nav_cache_dir):
     m = manifest(out)
     assert {n for n, e in m["jobs"].items() if e["status"] == "skipped"} == done
     assert {n for n, e in m["jobs"].items() if e["status"] == "baked"} == set(names) - done
-    assert {p.name for p in out.iterdir()} - {".baker-batch.lock"} == expected_files(names)
+    assert {p.name for p in out.iterdir()} == expected_files(names)
     assert stray_files(out) == []
     assert digests(out) == {k: v for k, v in local.items() if k.startswith("small")}

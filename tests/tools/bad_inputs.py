@@ -785,6 +785,8 @@ def _structural_rig_cases():
         "length_long": lambda: rk(base, "body", "length", '"long"'),
         "length_inf": lambda: rk(base, "body", "length", "inf"),
         "length_1e-300": lambda: rk(base, "body", "length", "1e-300"),   # a grid of 1e286 cells
+        "length_denormal": lambda: rk(base, "body", "length", "5e-324"),
+        "cell_size_1e-30": lambda: rk(base, "navigation", "cell_size", "1e-30"),
         "max_speed_list": lambda: rk(base, "locomotion", "max_speed", "[1, 2]"),
         "curve_ragged": lambda: rk(base, "cobra", "curve", "[[0.0, 0.0], [0.5, 0.1, 0.2], [1.0, 1.0]]"),
         "curve_flat": lambda: rk(base, "cobra", "curve", "[0.0, 0.5, 1.0]"),

@@ -73,6 +73,5 @@ def digests(out: Path, suffixes=(".glb", ".usd")) -> dict[str, str]:
 
 
 def stray_files(out: Path) -> list[str]:
-    """Temporaries and backups left in `out` (hidden files other than the batch's lock)."""
-    return sorted(p.name for p in out.iterdir()
-                  if p.name.startswith(".") and p.name != ".baker-batch.lock")
+    """Temporaries, backups and locks left in `out` (hidden files)."""
+    return sorted(p.name for p in out.iterdir() if p.name.startswith("."))

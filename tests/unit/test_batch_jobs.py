@@ -130,6 +130,10 @@ name = "d"
     ("[[job]]\nname = 'x y/z'\n[job.matrix]\nseed = []\n", "matrix.seed = []: expected a "
                                                           "non-empty list"),
     ("[[job]]\nname = '{seeed}'\n", "name template: 'seeed' is not a job key"),
+    ("[[job]]\nseed = 1\nname = '{seed:>3000000000}'\n",       # would pad the name to 3 GB
+     "'{seed:>3000000000}' is not a plain {key} field"),
+    ("[[job]]\nname = '{seed.__class__.__mro__}'\n", "'{seed.__class__.__mro__}' is not a plain"),
+    ("[[job]]\nname = '{environment!r}'\n", "'{environment!r}' is not a plain {key} field"),
     ("[[job]]\nrig = 'nope.toml'\n", "job #1: rig: file not found"),
     ("[[job]]\nenvironment = 'jobs.toml'\n", "environment: unsupported format '.toml'"),
 ])
@@ -444,3 +448,44 @@ def test_a_scheduler_address_dask_cannot_parse_is_one_line(address, tmp_path):
     assert r.stderr.strip().splitlines() == [r.stderr.strip()], r.stderr
     assert "not a Dask scheduler address" in r.stderr
     assert not (tmp_path / "o").exists()          # refused before the output folder is made
+
+
+def test_batch_lock_is_exclusive_and_leaves_no_file(tmp_path):
+    """One batch per output folder: a second is refused while the first holds the lock, and
+    the lock file is gone once the first ends (the next batch locks afresh)."""
+    from baker.errors import ConfigError
+
+    with batch._batch_lock(tmp_path):
+        assert (tmp_path / batch.LOCK_FILE).exists()
+        with pytest.raises(ConfigError, match="another `baker batch` is writing"):
+            with batch._batch_lock(tmp_path):
+                pass
+    assert not (tmp_path / batch.LOCK_FILE).exists()
+    with batch._batch_lock(tmp_path):
+        pass
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_batch_lock_retakes_a_file_unlinked_under_it(tmp_path, monkeypatch):
+    """A batch that locks the file another batch unlinked as it ended opens the path again:
+    it holds the file the path names, so a third batch sees its lock."""
+    import fcntl
+
+    from baker.errors import ConfigError
+
+    path = tmp_path / batch.LOCK_FILE
+    real_flock, calls = fcntl.flock, []
+
+    def flock(fd, op):          # the first lock lands on a file unlinked just before
+        calls.append(fd)
+        if len(calls) == 1:
+            path.unlink()
+        return real_flock(fd, op)
+
+    monkeypatch.setattr(fcntl, "flock", flock)
+    with batch._batch_lock(tmp_path):
+        monkeypatch.setattr(fcntl, "flock", real_flock)
+        assert len(calls) == 2 and path.exists()
+        with pytest.raises(ConfigError):
+            with batch._batch_lock(tmp_path):
+                pass
