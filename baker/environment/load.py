@@ -102,10 +102,11 @@ def load_environment(path: str | Path, sun_override=None, up_axis: str | None = 
                 if up_axis == "z":
                     raw, sun = _z_up(raw, sun)
         total = sum(len(r[2]) for r in raw)
-        if total > MAX_TRIANGLES:
-            raise EnvironmentLoadError(f"the level has {total:,} triangles; a bake takes at "
-                                       f"most {MAX_TRIANGLES:,}: keep the part of the level "
-                                       "the creature uses")
+        if total > MAX_TRIANGLES or len(raw) > MAX_MESHES:
+            raise EnvironmentLoadError(f"the level has {total:,} triangles in {len(raw):,} "
+                                       f"meshes; a bake takes at most {MAX_TRIANGLES:,} "
+                                       f"triangles and {MAX_MESHES:,} meshes: keep the part "
+                                       "of the level the creature uses")
     except EnvironmentLoadError as exc:
         raise EnvironmentLoadError(exc.what, where=exc.where or str(path)) from None
     except MemoryError:
@@ -136,6 +137,9 @@ def load_environment(path: str | Path, sun_override=None, up_axis: str | None = 
         kept.append((name, cleaned, color, rough, metal))
     if not kept:
         raise EnvironmentLoadError("environment has no triangle faces", where=str(path))
+    if len(kept) > MERGE_ABOVE:
+        log.info("environment %s: %d meshes merged into one per material", path, len(kept))
+        kept = _merged_by_material(kept)
     world = [v for _, (v, _, _), _, _, _ in kept]
     origin = choose_origin(np.min([v.min(axis=0) for v in world], axis=0),
                            np.max([v.max(axis=0) for v in world], axis=0))
@@ -214,6 +218,27 @@ def _error_text(exc: Exception) -> str:
     if m:
         text = m.group(1).strip().strip("'")
     return text[:200] or type(exc).__name__
+
+
+def _merged_by_material(kept: list) -> list:
+    """kept's meshes (name, (v, f, n), colour, roughness, metalness) merged into one per
+    material, in the order each material first appears, named after its first mesh: a level
+    of thousands of objects exports as a handful of meshes."""
+    groups: dict = {}
+    for entry in kept:
+        key = (tuple(float(c) for c in entry[2]), float(entry[3]), float(entry[4]))
+        groups.setdefault(key, []).append(entry)
+    out = []
+    for (color, rough, metal), entries in groups.items():
+        vs = [e[1][0] for e in entries]
+        starts = np.cumsum([0] + [len(v) for v in vs[:-1]])
+        faces = np.concatenate([e[1][1] + k for e, k in zip(entries, starts)])
+        ns = [e[1][2] for e in entries]
+        n = None if any(x is None for x in ns) else np.concatenate(ns)
+        name = entries[0][0] if len(entries) == 1 else f"{entries[0][0]}_merged"
+        out.append((name, (np.concatenate(vs), faces, n), color, rough, metal))
+    names = _unique_names([e[0] for e in out])
+    return [(nm, *e[1:]) for nm, e in zip(names, out)]
 
 
 def _unique_names(names: list[str]) -> list[str]:
@@ -413,6 +438,11 @@ _REQUIRED_OK = {"KHR_lights_punctual", "KHR_mesh_quantization", "KHR_materials_v
 #: the most triangles a level may place (its meshes times their placements): a level of 20 M
 #: triangles needs about 4 GB to navigate (navmesh.budget); beyond it, cut the level down
 MAX_TRIANGLES = 20_000_000
+#: a level of more meshes than this (an engine's export of every prop) is merged into one mesh
+#: per material: the files keep a handful of nodes, and writing them stays quick
+MERGE_ABOVE = 1_000
+#: the most meshes a level may place (refused beyond: reading each one costs)
+MAX_MESHES = 100_000
 #: accessors without a bufferView are zero-filled: at most this many bytes + 64x the file
 _ZERO_FILL_SLACK = 1 << 20
 
@@ -960,11 +990,11 @@ class _GltfReader:
                     next(iter(gltf_ext.instance_attributes(inst).values()))]["count"]
                 placements += k
                 total += per_mesh[mi] * k
-        if total > MAX_TRIANGLES:
+        if total > MAX_TRIANGLES or placements > MAX_MESHES:
             raise EnvironmentLoadError(
                 f"the level places {total:,} triangles ({placements:,} mesh placements); a bake "
-                f"takes at most {MAX_TRIANGLES:,}: keep the part of the level the creature "
-                "uses", where=str(self.path))
+                f"takes at most {MAX_TRIANGLES:,} triangles and {MAX_MESHES:,} placements: keep "
+                "the part of the level the creature uses", where=str(self.path))
 
     def read(self):
         self._check_size()
@@ -1510,6 +1540,10 @@ def _read_usd_trapped(path: Path, trap, up_axis: str | None):
         local = _usd_mesh(prim, time) if prim.IsA(UsdGeom.Mesh) else None
         if local is None:
             continue
+        if len(raw) >= MAX_MESHES:
+            raise EnvironmentLoadError(f"the level has more than {MAX_MESHES:,} meshes (with its "
+                                       "instances): keep the part of the level the creature "
+                                       "uses", where=str(path))
         pts, faces, color, rough, metal = local
         world = fix @ _usd_matrix(cache.GetLocalToWorldTransform(prim))
         raw.append((prim.GetName(), *_placed(world[None], pts, faces, None), color, rough, metal))

@@ -228,3 +228,46 @@ def test_triangle_cap_counts_placements_before_reading(tmp_path, monkeypatch):
                    + "".join(f"f {i} {i + 1} {i + 2}\n" for i in range(1, 48)))
     with pytest.raises(EnvironmentLoadError, match="has 47 triangles"):
         load_environment(obj)
+
+
+def _placements(n: int) -> bytes:
+    """The corpus mesh placed n times, every other placement with a second material."""
+    doc, blob = good_gltf()
+    doc = copy.deepcopy(doc)
+    doc["materials"].append({"pbrMetallicRoughness": {"baseColorFactor": [0.1, 0.6, 0.2, 1]}})
+    doc["meshes"].append({"primitives": [{**doc["meshes"][0]["primitives"][0], "material": 1}]})
+    doc["nodes"] = [{"mesh": i % 2, "translation": [5.0 * (i % 40), 0.0, 5.0 * (i // 40)]}
+                    for i in range(n)]
+    doc["scenes"][0]["nodes"] = list(range(n))
+    return pack_glb(doc, blob)
+
+
+def test_many_objects_merge_into_one_mesh_per_material(tmp_path, monkeypatch):
+    from baker.environment import load
+
+    p = tmp_path / "objects.glb"
+    p.write_bytes(_placements(40))
+    monkeypatch.setattr(load, "MERGE_ABOVE", 1000)
+    plain = load_environment(p)
+    monkeypatch.setattr(load, "MERGE_ABOVE", 10)
+    merged = load_environment(p)
+    assert len(plain.meshes) == 40 and len(merged.meshes) == 2
+    assert [m.color for m in merged.meshes] == [plain.meshes[0].color, plain.meshes[1].color]
+    for m, k in zip(merged.meshes, (0, 1)):
+        parts = plain.meshes[k::2]
+        assert np.array_equal(m.vertices, np.concatenate([q.vertices for q in parts]))
+        assert len(m.faces) == sum(len(q.faces) for q in parts)
+        tri = m.vertices[m.faces]
+        assert np.array_equal(np.sort(tri.reshape(-1, 9), axis=0), np.sort(np.concatenate(
+            [q.vertices[q.faces] for q in parts]).reshape(-1, 9), axis=0))
+
+
+def test_placements_bounded(tmp_path, monkeypatch):
+    from baker.environment import load
+    from baker.errors import EnvironmentLoadError
+
+    monkeypatch.setattr(load, "MAX_MESHES", 30)
+    p = tmp_path / "objects.glb"
+    p.write_bytes(_placements(40))
+    with pytest.raises(EnvironmentLoadError, match=r"\(40 mesh placements\)"):
+        load_environment(p)

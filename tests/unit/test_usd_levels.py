@@ -98,3 +98,22 @@ def test_point_instancer_bounded(tmp_path, monkeypatch):
     _instancer_stage(tmp_path / "level.usda")
     with pytest.raises(EnvironmentLoadError, match="places a 2-triangle mesh 3 times"):
         load_environment(tmp_path / "level.usda")
+
+
+def test_usd_mesh_count_bounded(tmp_path, monkeypatch):
+    """Instanced references can multiply a small file into millions of meshes: the traversal
+    stops at MAX_MESHES."""
+    from baker.environment import load
+    from baker.errors import EnvironmentLoadError
+
+    monkeypatch.setattr(load, "MAX_MESHES", 5)
+    refs = "".join(f'def Xform "c{i}" (\n    instanceable = true\n    prepend references = '
+                   f'</proto>\n)\n{{\n    double3 xformOp:translate = ({5 * i}, 0, 0)\n'
+                   '    uniform token[] xformOpOrder = ["xformOp:translate"]\n}\n'
+                   for i in range(8))
+    text = usd_text().replace('def Mesh "floor"', 'class Xform "proto"\n{\ndef Mesh "floor"')
+    (tmp_path / "level.usda").write_text(text + "}\n" + refs)
+    with pytest.raises(EnvironmentLoadError, match="more than 5 meshes"):
+        load_environment(tmp_path / "level.usda")
+    monkeypatch.setattr(load, "MAX_MESHES", 50)
+    assert len(load_environment(tmp_path / "level.usda").meshes) == 8
