@@ -775,13 +775,13 @@ class _GltfReader:
         return self._buffers[i]
 
     def view(self, j: int) -> bytes:
-        """bufferViews[j]'s bytes (byteLength of them), decoded when gltf_ext."""
+        """bufferViews[j]'s bytes (byteLength of them), decoded when compressed (meshopt)."""
         if j not in self._views:
             bv = self.doc["bufferViews"][j]
             ext = gltf_ext.meshopt_of(bv)
             if ext is not None:
                 data = gltf_ext.decode_meshopt(self.buffer(ext["buffer"]), ext,
-                                                 f"bufferViews[{j}]")
+                                               f"bufferViews[{j}]")
             else:
                 off = bv.get("byteOffset", 0)
                 data = memoryview(self.buffer(bv["buffer"]))[off: off + bv["byteLength"]]
@@ -933,7 +933,7 @@ class _GltfReader:
         draco = gltf_ext.draco_of(prim)
         if draco is not None and prim.get("mode", 4) in (4, 5, 6):
             points, faces = gltf_ext.decode_draco(self.view(draco["bufferView"]), draco,
-                                                    f"meshes[{mi}].primitives[{pi}]")
+                                                  f"meshes[{mi}].primitives[{pi}]")
             return points, faces, None
         faces = self.triangles(prim)
         if faces is None:
