@@ -75,6 +75,8 @@ log = logging.getLogger(__name__)
 MANIFEST = "manifest.json"
 #: Held (flock) for the whole run, so two batches never write into one folder at once.
 LOCK_FILE = ".baker-batch.lock"
+#: the largest jobs file read (a matrix of MAX_JOBS jobs fits in a few kB)
+MAX_JOBS_FILE_BYTES = 16 << 20
 #: The most jobs one file may expand to, and the most errors listed.
 MAX_JOBS = 10_000
 MAX_ERRORS = 100
@@ -435,7 +437,7 @@ def load_plan(jobs_file, out, cache=None) -> Plan:
     cache     : the navigation cache (a NavCache, a folder or None)
     """
     path = Path(jobs_file)
-    doc = read_toml_file(path, "jobs")
+    doc = read_toml_file(path, "jobs", max_bytes=MAX_JOBS_FILE_BYTES)
     base = path.resolve().parent
     out = Path(out).resolve()
     problems = _Problems()

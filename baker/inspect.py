@@ -19,6 +19,7 @@ read_usd take a creature index (0 by default), and judge_creatures judges each o
 from __future__ import annotations
 
 import json
+import os
 import re
 import struct
 from dataclasses import dataclass, replace
@@ -92,6 +93,23 @@ class BakedScene:
 
 
 # ---------------------------------------------------------------- glTF
+
+
+def glb_bytes(path: str | Path) -> bytes:
+    """A GLB file's bytes, read whole only once its 20-byte header agrees with the file (the
+    total length, a non-empty JSON chunk inside it): a sparse file of gigabytes is refused
+    unread.
+    InspectError otherwise."""
+    with open(path, "rb") as f:
+        head = f.read(20)
+        size = os.fstat(f.fileno()).st_size
+        if len(head) >= 20 and head[:4] == b"glTF":
+            total, jlen = struct.unpack_from("<I", head, 8)[0], struct.unpack_from("<I", head, 12)[0]
+            if total != size or 20 + jlen > size or not jlen or head[16:20] != b"JSON":
+                raise InspectError(f"not a whole GLB file (its header says {total:,} bytes with "
+                                   f"a {jlen:,}-byte JSON chunk; the file has {size:,})",
+                                   where=str(path))
+        return head + f.read()
 
 
 class GlbFile:
@@ -240,7 +258,7 @@ def read_glb(path: str | Path, animation: str | int = 0,
     environment's triangles in world coordinates. glb: the file already parsed (then `path`
     only names it in messages). creature: which skin (a crowd's creature); its joint names
     are returned less their creature prefix."""
-    g = glb if glb is not None else GlbFile(Path(path).read_bytes())
+    g = glb if glb is not None else GlbFile(glb_bytes(path))
     doc = g.doc
     nodes = doc.get("nodes", [])
     if not doc.get("skins") or not doc.get("animations"):
@@ -552,7 +570,7 @@ def judge_creatures(glb_path: str | Path, usd_path: str | Path | None = None,
     """judge() of every creature of a bake (one for a lone creature), each read from the GLB
     (its skin) and, when given, the USD (its Skeleton); sims: each creature's `sim` for
     judge() (None: none)."""
-    g = GlbFile(Path(glb_path).read_bytes())
+    g = GlbFile(glb_bytes(glb_path))
     names = [a.get("name") for a in g.doc.get("animations", [])]
     anim = "bake" if "bake" in names else 0
     out = []

@@ -596,7 +596,14 @@ def metadata_summary(extras: dict) -> dict:
     return out
 
 
+#: the largest report JSON read (a 1000-creature bake's is tens of MB)
+MAX_REPORT_BYTES = 1 << 30
+
+
 def _json_report(path: Path) -> dict:
+    if path.stat().st_size > MAX_REPORT_BYTES:
+        raise InspectError(f"not a baker report: {path.stat().st_size:,} bytes, over the "
+                           f"{MAX_REPORT_BYTES >> 20:,} MB a report can be", where=str(path))
     try:
         doc = json.loads(path.read_bytes())
     except (UnicodeDecodeError, ValueError) as e:

@@ -1103,6 +1103,11 @@ def _text_as_utf8(path: Path, data: bytes) -> bytes:
     return data
 
 
+#: an OBJ's material library or texture over this size is read as missing (the bake takes only
+#: the materials' colours)
+MAX_SIDE_FILE_BYTES = 256 << 20
+
+
 def _folder_resolver(path: Path):
     """trimesh resolver for the files an OBJ refers to (material libraries, textures): only
     inside the environment's folder (trimesh's own rule), material text re-encoded as UTF-8."""
@@ -1119,6 +1124,10 @@ def _folder_resolver(path: Path):
                     continue
                 if found.exists():
                     if not found.is_file():
+                        raise FileNotFoundError(name)
+                    if found.stat().st_size > MAX_SIDE_FILE_BYTES:   # read as missing
+                        log.warning("environment %s: %s is over %d MB; read as missing",
+                                    path, found.name, MAX_SIDE_FILE_BYTES >> 20)
                         raise FileNotFoundError(name)
                     break
             data = super().get(name)

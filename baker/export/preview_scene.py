@@ -19,7 +19,8 @@ from scipy.spatial.transform import Rotation
 
 from baker.export import vertex_normals
 from baker.inspect import (BakedScene, GlbFile, InspectError, environment_nodes, frame_times,
-                           moved, read_glb, root_motion_fix, sample_track, static_world)
+                           glb_bytes, moved, read_glb, root_motion_fix, sample_track,
+                           static_world)
 
 #: the debug layer of the walkable surface (`bake --debug-navmesh`): one quad per sample
 NAVMESH_NODE = "navmesh"
@@ -173,7 +174,7 @@ def load_bake(source: str | Path | bytes, name: str | None = None) -> PreviewSce
             raise InspectError("file not found", where=where)
         if not p.is_file():
             raise InspectError("not a file", where=where)
-        data = p.read_bytes()
+        data = glb_bytes(p)
         name = name or p.stem
         if not data:
             raise InspectError("the file is empty", where=where)
