@@ -35,6 +35,7 @@ import json
 import os
 import logging
 import math
+import mmap
 import re
 import struct
 from pathlib import Path
@@ -767,8 +768,10 @@ class _GltfReader:
             uri = self.doc["buffers"][i].get("uri")
             if uri is None:
                 data = self.bin
-            else:
-                data = self._external(uri, i).read_bytes()
+            else:       # mapped: only the bytes the views use are read
+                with open(self._external(uri, i), "rb") as f:
+                    size = os.fstat(f.fileno()).st_size
+                    data = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) if size else b""
                 if len(data) < self._sizes[i]:
                     self.d.fail(f"buffers[{i}] is shorter than declared")
             self._buffers[i] = data
