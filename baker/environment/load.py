@@ -695,9 +695,10 @@ class _GltfReader:
                 i = d.index(prim, "indices", w, "accessors")
                 if i is not None:
                     ia = acc[i]
-                    if ia["type"] != "SCALAR" or ia["componentType"] not in (5121, 5123, 5125):
+                    if ia["type"] != "SCALAR" or ia["componentType"] not in (5121, 5123, 5125) \
+                            or ia.get("normalized"):
                         d.fail(f"{w}.indices must be a SCALAR accessor of unsigned integers "
-                               "(componentType 5121, 5123 or 5125)")
+                               "(componentType 5121, 5123 or 5125), not normalized")
                 mode = d.integer(prim, "mode", w, lo=0, hi=6, default=4)
                 corners = acc[i].get("count") if i is not None else (
                     acc[attrs["POSITION"]].get("count") if "POSITION" in attrs else 0)
@@ -1307,6 +1308,17 @@ def _usd_light(light, time, path) -> tuple[float, tuple[float, float, float]]:
 
 
 def _usd_color(prim, mesh, time):
+    """A mesh's (base colour RGBA, roughness, metalness) from its bound UsdPreviewSurface, else
+    its displayColor; a value of the wrong type or shape (a float diffuseColor, a float[]
+    displayColor) counts as unauthored: the colour is cosmetic, the level still loads."""
+    try:
+        return _usd_color_authored(prim, mesh, time)
+    except (TypeError, ValueError, IndexError):
+        log.info("USD mesh %s: its colour is not a colour; the default is used", prim.GetPath())
+        return DEFAULT_COLOR, 1.0, 0.0
+
+
+def _usd_color_authored(prim, mesh, time):
     from pxr import UsdShade
 
     rough, metal = 1.0, 0.0

@@ -203,6 +203,7 @@ GLB_JSON_EDITS = [
     ("prim_mode_points", [("meshes.0.primitives.0.mode", 0)]),
     ("prim_material_99", [("meshes.0.primitives.0.material", 99)]),
     ("material_color_3", [("materials.0.pbrMetallicRoughness.baseColorFactor", [1, 1, 1])]),
+    ("indices_normalized", [("accessors.2.normalized", True)]),
     ("ext_required_unknown", [("extensionsRequired", ["EXT_made_up"])]),
     ("ext_required_draco_like", [("extensionsRequired", ["KHR_draco_mesh_compressionX"])]),
     ("ext_required_string", [("extensionsRequired", "KHR_lights_punctual")]),

@@ -117,3 +117,21 @@ def test_usd_mesh_count_bounded(tmp_path, monkeypatch):
         load_environment(tmp_path / "level.usda")
     monkeypatch.setattr(load, "MAX_MESHES", 50)
     assert len(load_environment(tmp_path / "level.usda").meshes) == 8
+
+
+@pytest.mark.parametrize("attr", [
+    "float[] primvars:displayColor = [0.1, 0.2, 0.3, 0.4]",
+    "color3f[] primvars:displayColor = [(0.1, 0.2, 0.3), (0.4, 0.5, 0.6)]\n"
+    "    float[] primvars:displayOpacity = [0.5, 0.7]",
+])
+def test_usd_colour_of_an_odd_type_does_not_refuse_the_level(tmp_path, attr):
+    """Colours are cosmetic: a displayColor of the wrong shape keeps the level (the default
+    colour); a well-formed one is averaged."""
+    text = usd_text().replace("point3f[] points", attr + "\n    point3f[] points")
+    (tmp_path / "level.usda").write_text(text)
+    env = load_environment(tmp_path / "level.usda")
+    assert len(env.mesh.faces) == 2
+    if attr.startswith("float[]"):
+        assert env.meshes[0].color == (0.5, 0.5, 0.5, 1.0)
+    else:
+        assert np.allclose(env.meshes[0].color, (0.25, 0.35, 0.45, 0.6))
