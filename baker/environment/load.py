@@ -866,6 +866,9 @@ class _GltfReader:
         else:  # no scene: every node without a parent is a root
             children = {c for n in nodes for c in n.get("children", [])}
             roots = [i for i in range(len(nodes)) if i not in children]
+            if nodes and not roots:
+                raise EnvironmentLoadError("corrupt glTF: no scene, and every node has a parent "
+                                           "(the nodes form a cycle)", where=str(self.path))
         stack = [(r, np.eye(4)) for r in reversed(roots)]
         seen = set()
         while stack:
@@ -1238,8 +1241,8 @@ def _check_stl_size(path: Path) -> None:
     with open(path, "rb") as f:
         head = f.read(84)
         size = os.fstat(f.fileno()).st_size
-    if len(head) < 84 or head.lstrip()[:5].lower() == b"solid":
-        return          # short or ASCII: _text_as_utf8 decides
+    if len(head) < 84 or (head.lstrip()[:5].lower() == b"solid" and b"\0" not in head):
+        return          # short or ASCII (text has no NUL; a binary header may say "solid")
     (n,) = struct.unpack_from("<I", head, 80)
     if size != 84 + 50 * n:
         raise EnvironmentLoadError(
