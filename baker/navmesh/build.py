@@ -586,13 +586,22 @@ def _samples(caster: _Caster, grid: _Grid, ytop, solids, slope, height, timings,
     del fields
     if len(scol) == 0:
         raise NavError("environment has no walkable surface (no upward-facing surface within "
-                       f"{math.degrees(slope):.1f} deg with {height:g} m of clearance)",
-                       where=where)
+                       f"{math.degrees(slope):.1f} deg with {height:g} m of clearance)"
+                       + _z_up_hint(caster.face_normals, cos_slope), where=where)
     counts = np.bincount(scol, minlength=ncols)
     col_start = np.zeros(ncols + 1, dtype=np.int64)
     np.cumsum(counts, out=col_start[1:])
     timings["samples"] += time.perf_counter() - t
     return _Samples(scol, six, siz, px, pz, sy, sceil, snrm, col_start, counts, nh)
+
+
+def _z_up_hint(normals: np.ndarray, cos_slope: float) -> str:
+    """A hint for a level with no walkable surface whose faces mostly face along Z (a +Z-up
+    file read +Y up): '', or the --up option to try."""
+    flat_y = np.count_nonzero(np.abs(normals[:, 1]) >= cos_slope)
+    flat_z = np.count_nonzero(np.abs(normals[:, 2]) >= cos_slope)
+    return "; its faces face along Z: if the level is +Z up, pass --up z" \
+        if flat_z > max(flat_y, 0.25 * len(normals)) else ""
 
 
 def _links(caster: _Caster, grid: _Grid, s: _Samples, step, height, blockers,

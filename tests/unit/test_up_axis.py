@@ -73,3 +73,15 @@ def test_bake_with_up_z(tmp_path):
     report = json.loads(out.with_suffix(".json").read_text())
     assert report["environment"]["up_axis"] == "z"
     assert report["environment"]["bounds"][1][1] == pytest.approx(0.4, abs=1e-5)
+
+
+def test_navmesh_hints_at_up_z(tmp_path, capsys):
+    """Read +Y up, a +Z-up floor stands on its edge: the refusal says to pass --up z, which
+    then finds the floor."""
+    level = tmp_path / "z.obj"
+    level.write_text(_obj(z_up(Y_UP[:4])).replace("f 5 6 7\nf 5 7 8\n", ""))
+    assert main(["navmesh", str(level), "--no-cache"]) == 2
+    err = capsys.readouterr().err
+    assert "pass --up z" in err and len(err.strip().splitlines()) == 1
+    assert main(["navmesh", str(level), "--no-cache", "--up", "z"]) == 0
+    assert "walkable" in capsys.readouterr().out
