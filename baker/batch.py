@@ -93,6 +93,7 @@ OPTIONS: dict[str, object] = {
     "agent_radius": "number", "agent_height": "number", "step_height": "number",
     "max_slope": "number", "cell_size": "number", "tolerance": "number",
     "rotations": ("short", "float"), "preview": "bool", "up": ("y", "z"),
+    "units": ("m", "cm", "mm", "km", "in", "ft"),
 }
 #: `bake` options that are one per batch: `baker batch`'s own options set them.
 BATCH_LEVEL = {"out": "--out", "cache_dir": "--cache-dir", "no_cache": "--cache-dir",
@@ -104,7 +105,7 @@ _FIELDS = {"seconds": "seconds", "fps": "fps", "seed": "seed", "prey": "prey",
            "root_motion": "root_motion", "nav_build": "nav_build",
            "debug_navmesh": "debug_navmesh", "max_memory": "max_memory_mb",
            "tolerance": "tolerance", "rotations": "rotations", "preview": "preview",
-           "up": "up_axis"}
+           "up": "up_axis", "units": "units"}
 #: keys checked by trying them alone on a default BakeConfig (validate_bake's own rules)
 _BAKE_RULES = {"fps": "fps", "sun": "sun_direction", "sun_path": "sun_path", "tolerance": "tolerance"}
 _RIG_OVERRIDES = ("scale", "agent_radius", "agent_height", "step_height", "max_slope",
@@ -679,7 +680,7 @@ def _run_nav(task: NavTask) -> Outcome:
     check = _deadline(task.timeout)
     cfg = task.cfg
     env = load_environment(cfg.environment, sun_override=cfg.sun_direction,
-                           up_axis=cfg.up_axis)
+                           up_axis=cfg.up_axis, units=cfg.units)
     if check:
         check("navmesh", 0.0)
     with memory_limit(cfg.max_memory_mb):

@@ -84,6 +84,15 @@ up_option = click.option(
          "file's own]")
 
 
+#: --units, of `bake` and `navmesh`: the level's unit
+units_option = click.option(
+    "--units", type=click.Choice(["m", "cm", "mm", "km", "in", "ft"]), default=None,
+    help="The level's unit, for a file that says otherwise or nothing: OBJ, PLY and STL are "
+         "read in metres unless told (Unreal exports are in cm); glTF is in metres by "
+         "definition; USD says its own (metersPerUnit), which this overrides. [default: the "
+         "file's own]")
+
+
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="baker")
 @click.option("-v", "--verbose", count=True, help="More log output (-vv for debug).")
@@ -114,6 +123,7 @@ def cli(verbose: int):
                    "(and its motion).")
 @click.option("--debug-navmesh", is_flag=True, help="Add the walkable surface as an extra mesh layer.")
 @up_option
+@units_option
 @click.option("--cache-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Navigation cache folder [default: ~/.cache/baker/navmesh].")
 @click.option("--no-cache", is_flag=True, help="Always rebuild the navigation surface.")
@@ -163,7 +173,7 @@ def cli(verbose: int):
 @max_memory_option
 @rig_options
 def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_navmesh,
-         up, cache_dir, no_cache, cache_max, nav_build, behaviour, prey, creatures, workers, cobra,
+         up, units, cache_dir, no_cache, cache_max, nav_build, behaviour, prey, creatures, workers, cobra,
          sun_path, clips, root_motion, tolerance, rotations, preview, max_memory,
          **rig_overrides):
     """Bake a centipede on ENVIRONMENT (glTF/GLB, OBJ, PLY, STL or USD).
@@ -199,7 +209,7 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
         seconds=seconds, fps=fps, seed=seed,
         rig=override_rig(load_rig_config(rig_path), **rig_overrides), out=resolve_out(out),
         formats=formats, sun_direction=sun_direction, debug_navmesh=debug_navmesh,
-        up_axis=up, nav_cache_dir=None if no_cache else NavCache.of(cache_dir or default_cache_dir(), cache_max),
+        up_axis=up, units=units, nav_cache_dir=None if no_cache else NavCache.of(cache_dir or default_cache_dir(), cache_max),
         nav_build=nav_build, behaviour=behaviour, prey=prey, creatures=creatures,
         workers=workers, cobra=cobra, sun_path=sun_path, clips=clips,
         root_motion=root_motion, max_memory_mb=max_memory, tolerance=tolerance,
@@ -300,6 +310,7 @@ def _given_out(out, example: str):
               help="Find a path from this point (with --to); drawn on the --png map.")
 @click.option("--to", "path_to", default=None, metavar="X,Y,Z", help="Path goal (with --from).")
 @up_option
+@units_option
 @click.option("--cache-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Navigation cache folder [default: ~/.cache/baker/navmesh].")
 @click.option("--no-cache", is_flag=True, help="Build without reading or writing the cache.")
@@ -308,7 +319,7 @@ def _given_out(out, example: str):
                    "are evicted [default: 1024].")
 @max_memory_option
 @rig_options
-def navmesh(environment, rig_path, png, path_from, path_to, up, cache_dir, no_cache,
+def navmesh(environment, rig_path, png, path_from, path_to, up, units, cache_dir, no_cache,
             cache_max, max_memory,
             **rig_overrides):
     """Build (or load from the cache) the navigation surface of ENVIRONMENT and report on it.
@@ -329,7 +340,7 @@ def navmesh(environment, rig_path, png, path_from, path_to, up, cache_dir, no_ca
     report = run(environment, rig.navigation,
                  None if no_cache else NavCache.of(cache_dir or default_cache_dir(), cache_max),
                  png=png, path_from=p_from, path_to=p_to, max_memory_mb=max_memory,
-                 up_axis=up)
+                 up_axis=up, units=units)
     click.echo(format_report(report))
 
 

@@ -212,6 +212,7 @@ class BakeConfig:
     debug_navmesh: bool = False
     up_axis: str | None = None   # y | z: the level file's up axis, when it says otherwise or
                                  # nothing (OBJ, PLY, STL); None: the file's own
+    units: str | None = None     # m | cm | mm | km | in | ft: the level file's unit, likewise
     behaviour: str = "auto"      # auto | wander | shade | hunt: which drives the brain may use
     cobra: str = "auto"          # auto | always | never
     prey: int = 2                # [0..16] prey capsules
@@ -292,7 +293,8 @@ def validate_bake(cfg: BakeConfig) -> BakeConfig:
                                 ("--nav-build", cfg.nav_build, ("auto", "full", "lazy")),
                                 ("--root-motion", cfg.root_motion, ("world", "root", "in-place")),
                                 ("--rotations", cfg.rotations, ("short", "float")),
-                                ("--up", cfg.up_axis or "y", ("y", "z"))):
+                                ("--up", cfg.up_axis or "y", ("y", "z")),
+                                ("--units", cfg.units or "m", ("m", "cm", "mm", "km", "in", "ft"))):
         if value not in allowed:
             raise ConfigError(f"{opt} must be one of {', '.join(allowed)} (got {value})", where=opt)
     for what, p in [("start", cfg.start)] + [("prey position", q) for q in cfg.prey_positions]:

@@ -146,7 +146,7 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
     # Step 1: the environment, in metres, +Y up, with the sun.
     with ctx.stage("load"):
         env = load_environment(cfg.environment, sun_override=cfg.sun_direction,
-                               up_axis=cfg.up_axis)
+                               up_axis=cfg.up_axis, units=cfg.units)
 
     # From here on, positions are in the environment's local frame.
     run_cfg = in_local_frame(cfg, env.origin)

@@ -64,8 +64,8 @@ _MAX_NAME = 63
 
 
 # --------------------------------------------------------------------------- public API
-def load_environment(path: str | Path, sun_override=None, up_axis: str | None = None
-                     ) -> Environment:
+def load_environment(path: str | Path, sun_override=None, up_axis: str | None = None,
+                     units: str | None = None) -> Environment:
     """Read an environment file.
 
     path         : .glb/.gltf, .obj, .ply, .stl, .usd/.usda/.usdc/.usdz
@@ -74,6 +74,9 @@ def load_environment(path: str | Path, sun_override=None, up_axis: str | None = 
     up_axis      : "y" or "z", the file's up axis when it says otherwise or nothing (OBJ, PLY
                    and STL are read +Y up, glTF is +Y up by definition, USD has its upAxis);
                    None: the file's own. A +Z-up file is turned (x, y, z) -> (x, z, -y).
+    units        : a key of UNITS, the length of the file's unit when it says otherwise or
+                   nothing (OBJ, PLY and STL are read in metres, glTF is in metres by
+                   definition, USD has its metersPerUnit); None: the file's own
     returns      : Environment with one EnvMesh per source mesh primitive (metres, +Y up,
                    float32 vertices relative to the environment's `origin`, chosen by
                    choose_origin from the float64 world bounds) and the sun
@@ -97,11 +100,11 @@ def load_environment(path: str | Path, sun_override=None, up_axis: str | None = 
     try:
         with _quiet():
             if ext in USD_EXTS:
-                raw, sun = _read_usd(path, up_axis)
+                raw, sun = _read_usd(path, up_axis, units)
             else:
                 raw, sun = _read_gltf(path) if ext in GLTF_EXTS else _read_trimesh(path)
-                if up_axis == "z":
-                    raw, sun = _z_up(raw, sun)
+                if up_axis == "z" or (units or "m") != "m":
+                    raw, sun = _reframed(raw, sun, up_axis == "z", UNITS[units or "m"])
         total = sum(len(r[2]) for r in raw)
         if total > MAX_TRIANGLES or len(raw) > MAX_MESHES:
             raise EnvironmentLoadError(f"the level has {total:,} triangles in {len(raw):,} "
@@ -351,16 +354,21 @@ def _fix_winding(f: np.ndarray, m: np.ndarray) -> np.ndarray:
 
 #: a +Z-up frame to baker's +Y-up one: (x, y, z) -> (x, z, -y)
 Z_UP_TO_Y_UP = np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])
+#: --units: metres per unit
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "km": 1000.0, "in": 0.0254, "ft": 0.3048}
 
 
-def _z_up(raw: list, sun: Sun | None) -> tuple[list, Sun | None]:
-    """Raw meshes and the sun read from a +Z-up file, turned +Y up (a rotation: windings keep)."""
+def _reframed(raw: list, sun: Sun | None, z_up: bool, metres: float
+              ) -> tuple[list, Sun | None]:
+    """Raw meshes and the sun read from a file in units of `metres` metres, +Z up when z_up,
+    put in metres and +Y up (a rotation and a uniform scale: windings keep)."""
+    turn = Z_UP_TO_Y_UP if z_up else np.eye(3)
     m = np.eye(4)
-    m[:3, :3] = Z_UP_TO_Y_UP
-    turned = [(name, _transform_points(m, v), f, None if n is None else n @ Z_UP_TO_Y_UP.T,
+    m[:3, :3] = turn * metres
+    turned = [(name, _transform_points(m, v), f, None if n is None else n @ turn.T,
                *rest) for name, v, f, n, *rest in raw]
     if sun is not None:
-        sun = dataclasses.replace(sun, direction=Z_UP_TO_Y_UP @ sun.direction)
+        sun = dataclasses.replace(sun, direction=turn @ sun.direction)
     return turned, sun
 
 
@@ -1440,14 +1448,14 @@ def _usd_dependency(layer, name: str, dep: str, folder: Path, path: Path) -> str
     return target if Ar.IsPackageRelativePath(target) else str(outer)
 
 
-def _read_usd(path: Path, up_axis: str | None = None):
+def _read_usd(path: Path, up_axis: str | None = None, units: str | None = None):
     from pxr import Tf
 
     # USD reports problems as diagnostics on stderr: trap them, refuse the file on any
     # composition error or error, and print nothing of USD's own
     with Tf.DiagnosticTrap() as trap:
         try:
-            return _read_usd_trapped(path, trap, up_axis)
+            return _read_usd_trapped(path, trap, up_axis, units)
         finally:
             for w in trap.GetWarnings():
                 log.debug("USD warning while reading %s: %s", path, _usd_diagnostic_text(w))
@@ -1516,7 +1524,7 @@ def _usd_point_instances(instancer, cache, fix, time, path) -> list:
     return raw
 
 
-def _read_usd_trapped(path: Path, trap, up_axis: str | None):
+def _read_usd_trapped(path: Path, trap, up_axis: str | None, units: str | None):
     from pxr import Usd, UsdGeom, UsdLux
 
     _check_usd_layers(path)
@@ -1530,7 +1538,7 @@ def _read_usd_trapped(path: Path, trap, up_axis: str | None):
     if trap.HasErrors():
         raise EnvironmentLoadError(
             f"USD error: {_usd_diagnostic_text(trap.GetErrors()[0])}", where=str(path))
-    mpu = float(UsdGeom.GetStageMetersPerUnit(stage))
+    mpu = float(UsdGeom.GetStageMetersPerUnit(stage)) if units is None else UNITS[units]
     if not (math.isfinite(mpu) and mpu > 0):
         raise EnvironmentLoadError(f"invalid metersPerUnit {mpu}; expected a finite number > 0")
     z_up = UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z if up_axis is None \

@@ -166,6 +166,7 @@ def build_report(cfg, env, nav, traj, motion: dict, ctx, written: dict) -> dict:
         "environment": {
             "source": env.source,
             "up_axis": cfg.up_axis,     # None: the file's own
+            "units": cfg.units,         # None: the file's own
             "meshes": len(env.meshes),
             "triangles": int(len(env.mesh.faces)),
             "bounds": env.bounds + env.origin,

@@ -39,14 +39,15 @@ class NavReport:
 
 def run(environment, agent, cache_dir=None, *, png=None, path_from=None, path_to=None,
         surface_out: list | None = None, max_memory_mb: float | None = None,
-        up_axis: str | None = None) -> NavReport:
+        up_axis: str | None = None, units: str | None = None) -> NavReport:
     """Load `environment`, build its surface for `agent` (a NavAgentConfig) or load it from
     `cache_dir` (None: no cache), find the path from `path_from` to `path_to` ((3,) world points,
     both or neither; the surface itself is in the environment's local frame) and draw the map to
     `png` (needs matplotlib; axes in world coordinates).
     surface_out: optional list that receives the NavSurface (for callers and tests).
     max_memory_mb: refuse a build estimated over this many MB (None: half of the RAM).
-    up_axis: the level's up axis ("y", "z"; None: the file's own), as `load_environment`."""
+    up_axis, units: the level's up axis ("y", "z") and unit ("cm", ...; None: the file's
+    own), as `load_environment`."""
     from baker.environment import load_environment
     from baker.navmesh import cache as nav_cache
 
@@ -62,7 +63,7 @@ def run(environment, agent, cache_dir=None, *, png=None, path_from=None, path_to
             raise ConfigError("--png needs matplotlib: pip install 'baker[debug]'") from None
         if png.parent.exists() and not png.parent.is_dir():
             raise ConfigError(f"--png folder is not a folder: {png.parent}")
-    env = load_environment(Path(environment), up_axis=up_axis)
+    env = load_environment(Path(environment), up_axis=up_axis, units=units)
     t = time.perf_counter()
     from baker.navmesh.budget import memory_limit
 

@@ -1,5 +1,6 @@
 """--up z: a level whose file is +Z up (OBJ, PLY, STL from 3ds Max, Unreal or CAD; a glTF or
-USD that says otherwise) is turned +Y up, (x, y, z) -> (x, z, -y), its sun with it."""
+USD that says otherwise) is turned +Y up, (x, y, z) -> (x, z, -y), its sun with it; --units: a
+level in centimetres (Unreal), millimetres, inches, ... is put in metres."""
 
 from __future__ import annotations
 
@@ -85,3 +86,29 @@ def test_navmesh_hints_at_up_z(tmp_path, capsys):
     assert "pass --up z" in err and len(err.strip().splitlines()) == 1
     assert main(["navmesh", str(level), "--no-cache", "--up", "z"]) == 0
     assert "walkable" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("units, metres", [("cm", 0.01), ("mm", 0.001), ("ft", 0.3048)])
+def test_units_put_the_level_in_metres(tmp_path, units, metres):
+    """An Unreal-style level (+Z up, centimetres) and others: --up z --units cm gives the
+    metre level back; USD's metersPerUnit is overridden the same way."""
+    (tmp_path / "y.obj").write_text(_obj(Y_UP))
+    (tmp_path / "z.obj").write_text(_obj(z_up(Y_UP) / metres))
+    ref = load_environment(tmp_path / "y.obj")
+    env = load_environment(tmp_path / "z.obj", up_axis="z", units=units)
+    assert np.allclose(world(env), world(ref), atol=1e-5)
+    text = usd_text(mpu="1").replace("(2, 0, 2)", f"({2 / metres:g}, 0, {2 / metres:g})")
+    (tmp_path / "level.usda").write_text(text)
+    usd = load_environment(tmp_path / "level.usda", units=units)
+    assert world(usd).max(axis=0)[0] == pytest.approx(2.0, rel=1e-6)
+
+
+def test_bake_with_units(tmp_path):
+    level = tmp_path / "cm.obj"
+    level.write_text(_obj(z_up(Y_UP) * 100))
+    out = tmp_path / "out" / "c"
+    assert main(["bake", str(level), "--up", "z", "--units", "cm", "--seconds", "1",
+                 "--no-cache", "--out", str(out)]) == 0
+    report = json.loads(out.with_suffix(".json").read_text())
+    assert report["environment"]["units"] == "cm"
+    assert report["environment"]["bounds"][1][1] == pytest.approx(0.4, abs=1e-5)
