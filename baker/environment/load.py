@@ -106,7 +106,8 @@ def load_environment(path: str | Path, sun_override=None, up_axis: str | None = 
                 if up_axis == "z" or (units or "m") != "m":
                     raw, sun = _reframed(raw, sun, up_axis == "z", UNITS[units or "m"])
         total = sum(len(r[2]) for r in raw)
-        if total > MAX_TRIANGLES or len(raw) > MAX_MESHES:
+        if total > MAX_TRIANGLES or sum(len(r[1]) for r in raw) > MAX_VERTICES \
+                or len(raw) > MAX_MESHES:
             raise EnvironmentLoadError(f"the level has {total:,} triangles in {len(raw):,} "
                                        f"meshes; a bake takes at most {MAX_TRIANGLES:,} "
                                        f"triangles and {MAX_MESHES:,} meshes: keep the part "
@@ -384,12 +385,13 @@ def _placed(mats: np.ndarray, points: np.ndarray, faces: np.ndarray, normals):
     return np.concatenate(vs), np.concatenate(fs), n
 
 
-def check_placed(copies: int, triangles: int, path) -> None:
-    """Refuse a mesh placed so often that its copies pass MAX_TRIANGLES."""
-    if copies * triangles > MAX_TRIANGLES:
+def check_placed(copies: int, triangles: int, vertices: int, path) -> None:
+    """Refuse a mesh placed so often that its copies pass MAX_TRIANGLES or MAX_VERTICES."""
+    if copies * triangles > MAX_TRIANGLES or copies * vertices > MAX_VERTICES:
         raise EnvironmentLoadError(
-            f"the level places a {triangles:,}-triangle mesh {copies:,} times: more than the "
-            f"{MAX_TRIANGLES:,} triangles a bake takes", where=str(path))
+            f"the level places a {triangles:,}-triangle, {vertices:,}-vertex mesh {copies:,} "
+            f"times: more than the {MAX_TRIANGLES:,} triangles and {MAX_VERTICES:,} vertices "
+            "a bake takes", where=str(path))
 
 
 def _transform_points(m: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -447,6 +449,8 @@ _REQUIRED_OK = {"KHR_lights_punctual", "KHR_mesh_quantization", "KHR_materials_v
 #: the most triangles a level may place (its meshes times their placements): a level of 20 M
 #: triangles needs about 4 GB to navigate (navmesh.budget); beyond it, cut the level down
 MAX_TRIANGLES = 20_000_000
+#: the most vertices a level may place, likewise (a mesh of few triangles can hold many)
+MAX_VERTICES = 20_000_000
 #: a level of more meshes than this (an engine's export of every prop) is merged into one mesh
 #: per material: the files keep a handful of nodes, and writing them stays quick
 MERGE_ABOVE = 1_000
@@ -539,6 +543,7 @@ class _GltfReader:
         self.file_size = file_size
         self._buffers: dict[int, bytes] = {}
         self._views: dict[int, bytes] = {}
+        self._placeholders: set[int] = set()
         self._sizes = [self._buffer_size(i, b) for i, b in enumerate(d.array("buffers"))]
         self._check_views()
         self._check_accessors()
@@ -564,8 +569,9 @@ class _GltfReader:
     def _buffer_size(self, i: int, b: dict) -> int:
         length = self.d.integer(b, "byteLength", f"buffers[{i}]", lo=1, default=0)
         uri = b.get("uri")
-        if uri is None and gltf_ext.is_fallback(b):
-            return length           # a meshopt placeholder: only compressed views read it
+        if gltf_ext.is_fallback(b) and (uri is None or self._missing(uri)):
+            self._placeholders.add(i)   # a meshopt placeholder: only compressed views read it
+            return length
         if uri is None:
             if self.bin is None:
                 self.d.fail(f"buffers[{i}] has no uri and the file has no binary chunk")
@@ -609,8 +615,18 @@ class _GltfReader:
                 d.fail(f"{w}.byteStride = {stride}; expected a multiple of 4 in [4, 252]")
 
     def _placeholder(self, b: int) -> bool:
-        buf = self.doc["buffers"][b]
-        return buf.get("uri") is None and gltf_ext.is_fallback(buf)
+        return b in self._placeholders
+
+    def _missing(self, uri) -> bool:
+        """Whether a fallback buffer's uri names no file in the environment's folder (a
+        decoder never needs it)."""
+        if not isinstance(uri, str) or uri.startswith("data:"):
+            return False
+        try:
+            self._external(uri, -1)
+        except EnvironmentLoadError:
+            return True
+        return False
 
     def _span(self, w: str, view: int, offset: int, count: int, elem: int, ctype: int):
         """Check that count elements of elem bytes at offset fit in bufferViews[view]."""
@@ -972,44 +988,47 @@ class _GltfReader:
             if got is None:
                 continue
             points, faces, normals = got
-            check_placed(len(mats), len(faces), self.path)
+            check_placed(len(mats), len(faces), len(points), self.path)
             color, rough, metal = self.material(prim.get("material"))
             out.append((base if len(prims) == 1 else f"{base}_{pi}",
                         *_placed(mats, points, faces, normals), color, rough, metal))
         return out
 
-    def _mesh_triangles(self, mi: int) -> int:
-        """meshes[mi]'s triangles, from its accessors' counts (no data read)."""
-        acc, total = self.doc["accessors"], 0
+    def _mesh_size(self, mi: int) -> tuple[int, int]:
+        """meshes[mi]'s (triangles, vertices), from its accessors' counts (no data read)."""
+        acc, tris, verts = self.doc["accessors"], 0, 0
         for prim in self.doc["meshes"][mi].get("primitives", []):
             attrs = prim.get("attributes", {})
             if "POSITION" not in attrs or prim.get("mode", 4) not in (4, 5, 6):
                 continue
             c = acc[prim["indices"] if "indices" in prim else attrs["POSITION"]]["count"]
-            total += c // 3 if prim.get("mode", 4) == 4 else max(c - 2, 0)
-        return total
+            tris += c // 3 if prim.get("mode", 4) == 4 else max(c - 2, 0)
+            verts += acc[attrs["POSITION"]]["count"]
+        return tris, verts
 
     def _check_size(self) -> None:
         """Refuse a scene whose placed meshes add up to more than MAX_TRIANGLES, before any
         of them is read (a small file can place a big mesh thousands of times)."""
         nodes, per_mesh = self.doc.get("nodes", []), {}
-        total = placements = 0
+        total = vertices = placements = 0
         for ni, _ in self.world_nodes(matrices=False):
             node = nodes[ni]
             if "mesh" in node:
                 mi = node["mesh"]
                 if mi not in per_mesh:
-                    per_mesh[mi] = self._mesh_triangles(mi)
+                    per_mesh[mi] = self._mesh_size(mi)
                 inst = gltf_ext.instancing_of(node)
                 k = 1 if inst is None else self.doc["accessors"][
                     next(iter(gltf_ext.instance_attributes(inst).values()))]["count"]
                 placements += k
-                total += per_mesh[mi] * k
-        if total > MAX_TRIANGLES or placements > MAX_MESHES:
+                total += per_mesh[mi][0] * k
+                vertices += per_mesh[mi][1] * k
+        if total > MAX_TRIANGLES or vertices > MAX_VERTICES or placements > MAX_MESHES:
             raise EnvironmentLoadError(
-                f"the level places {total:,} triangles ({placements:,} mesh placements); a bake "
-                f"takes at most {MAX_TRIANGLES:,} triangles and {MAX_MESHES:,} placements: keep "
-                "the part of the level the creature uses", where=str(self.path))
+                f"the level places {total:,} triangles and {vertices:,} vertices ({placements:,} "
+                f"mesh placements); a bake takes at most {MAX_TRIANGLES:,} triangles, "
+                f"{MAX_VERTICES:,} vertices and {MAX_MESHES:,} placements: keep the part of the "
+                "level the creature uses", where=str(self.path))
 
     def read(self):
         self._check_size()
@@ -1512,12 +1531,15 @@ def _usd_point_instances(instancer, cache, fix, time, path) -> list:
         if not root or not len(mats):
             continue
         to_root = np.linalg.inv(_usd_matrix(cache.GetLocalToWorldTransform(root)))
-        for prim in Usd.PrimRange(root, Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
+        # prototypes are often kept under an `over` or `class` parent, hidden from ordinary
+        # traversals: only the instancer draws them
+        for prim in Usd.PrimRange(root, Usd.TraverseInstanceProxies(Usd.PrimIsActive
+                                                                    & Usd.PrimIsLoaded)):
             local = _usd_mesh(prim, time) if prim.IsA(UsdGeom.Mesh) else None
             if local is None:
                 continue
             pts, faces, color, rough, metal = local
-            check_placed(len(mats), len(faces), path)
+            check_placed(len(mats), len(faces), len(pts), path)
             rel = to_root @ _usd_matrix(cache.GetLocalToWorldTransform(prim))
             raw.append((prim.GetName(), *_placed(mats @ rel, pts, faces, None), color, rough,
                         metal))

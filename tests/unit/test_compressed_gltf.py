@@ -206,7 +206,8 @@ def test_gpu_instancing_bounded(tmp_path, monkeypatch):
     monkeypatch.setattr(load, "MAX_TRIANGLES", 100)
     p = tmp_path / "many.glb"
     p.write_bytes(_instanced_glb(translation=np.arange(60.0).reshape(20, 3)))
-    with pytest.raises(EnvironmentLoadError, match="places 280 triangles .20 mesh placements"):
+    with pytest.raises(EnvironmentLoadError,
+                       match=r"places 280 triangles and 240 vertices \(20 mesh placements"):
         load_environment(p)
 
 
@@ -219,7 +220,8 @@ def test_triangle_cap_counts_placements_before_reading(tmp_path, monkeypatch):
     monkeypatch.setattr(load, "MAX_TRIANGLES", 40)
     p = tmp_path / "three.glb"
     p.write_bytes(_instanced_glb(translation=np.arange(9.0).reshape(3, 3)))   # 3 x 14
-    with pytest.raises(EnvironmentLoadError, match="places 42 triangles .3 mesh placements"):
+    with pytest.raises(EnvironmentLoadError,
+                       match=r"places 42 triangles and 36 vertices \(3 mesh placements"):
         load_environment(p)
     p.write_bytes(_instanced_glb(translation=np.arange(6.0).reshape(2, 3)))   # 2 x 14
     assert len(load_environment(p).mesh.faces) == 28
@@ -271,3 +273,34 @@ def test_placements_bounded(tmp_path, monkeypatch):
     p.write_bytes(_placements(40))
     with pytest.raises(EnvironmentLoadError, match=r"\(40 mesh placements\)"):
         load_environment(p)
+
+
+def test_vertex_cap_counts_placed_vertices(tmp_path, monkeypatch):
+    """A mesh of few triangles and many vertices placed many times is bounded by its
+    vertices (MAX_VERTICES), before anything is read."""
+    from baker.environment import load
+    from baker.errors import EnvironmentLoadError
+
+    monkeypatch.setattr(load, "MAX_VERTICES", 30)
+    p = tmp_path / "three.glb"
+    p.write_bytes(_instanced_glb(translation=np.arange(9.0).reshape(3, 3)))   # 3 x 12
+    with pytest.raises(EnvironmentLoadError, match=r"and 36 vertices \(3 mesh placements"):
+        load_environment(p)
+
+
+def test_meshopt_fallback_file_not_needed(tmp_path):
+    """A fallback buffer may name an uncompressed file; a decoder never reads it, so a
+    missing one is no error (a plain view that reads it is: the corpus' placeholder case)."""
+    import base64
+    import json
+
+    doc, blob = read_glb(meshopt_glb(pack_glb(*good_gltf())))
+    doc["buffers"][0]["uri"] = ("data:application/octet-stream;base64,"
+                                + base64.b64encode(blob).decode())
+    doc["buffers"][1]["uri"] = "fallback.bin"          # never written
+    p = tmp_path / "scene.gltf"
+    p.write_text(json.dumps(doc))
+    plain = tmp_path / "plain.glb"
+    plain.write_bytes(pack_glb(*good_gltf()))
+    assert np.array_equal(load_environment(p).mesh.vertices,
+                          load_environment(plain).mesh.vertices)

@@ -96,7 +96,7 @@ def test_point_instancer_bounded(tmp_path, monkeypatch):
 
     monkeypatch.setattr(load, "MAX_TRIANGLES", 5)
     _instancer_stage(tmp_path / "level.usda")
-    with pytest.raises(EnvironmentLoadError, match="places a 2-triangle mesh 3 times"):
+    with pytest.raises(EnvironmentLoadError, match="places a 2-triangle, 4-vertex mesh 3 times"):
         load_environment(tmp_path / "level.usda")
 
 
@@ -135,3 +135,20 @@ def test_usd_colour_of_an_odd_type_does_not_refuse_the_level(tmp_path, attr):
         assert env.meshes[0].color == (0.5, 0.5, 0.5, 1.0)
     else:
         assert np.allclose(env.meshes[0].color, (0.25, 0.35, 0.45, 0.6))
+
+
+@pytest.mark.parametrize("parent", ["over", "class"])
+def test_point_instancer_prototypes_under_a_hidden_parent(tmp_path, parent):
+    """Prototypes kept under an `over` or `class` parent (hidden from ordinary traversals)
+    are drawn where the instancer places them, and only there."""
+    text = usd_text(body=(
+        'def PointInstancer "pi"\n{\n    point3f[] positions = [(0, 0, 0), (10, 0, 0)]\n'
+        '    int[] protoIndices = [0, 0]\n    rel prototypes = [</Protos/a>]\n}\n'
+        f'{parent} "Protos"\n{{\ndef Mesh "a"\n{{\n    int[] faceVertexCounts = [3, 3]\n'
+        '    int[] faceVertexIndices = [0, 2, 1, 0, 3, 2]\n'
+        '    point3f[] points = [(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)]\n}\n}\n'))
+    (tmp_path / "level.usda").write_text(text)
+    env = load_environment(tmp_path / "level.usda")
+    world = env.mesh.vertices.astype(np.float64) + env.origin
+    assert len(env.mesh.faces) == 4
+    assert set(np.unique(np.round(world[:, 0]))) == {-1.0, 1.0, 9.0, 11.0}
