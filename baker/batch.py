@@ -535,12 +535,13 @@ def job_key(cfg: BakeConfig, env_digest: str) -> str:
 
 
 def nav_group(cfg: BakeConfig) -> str:
-    """Jobs with the same group share one navigation surface: same environment, agent, build
-    mode, and (for a lazy build's first window) the same start and window sizes."""
+    """Jobs with the same group share one navigation surface: same environment read the same
+    way (up axis, units), agent, build mode, and (for a lazy build's first window) the same
+    start and window sizes."""
     r = cfg.rig
-    return json.dumps(_plain([cfg.environment, asdict(r.navigation), cfg.nav_build, cfg.start,
-                              r.wander.radius, r.behaviour.detection_range, r.body.length,
-                              cfg.max_memory_mb]))
+    return json.dumps(_plain([cfg.environment, cfg.up_axis, cfg.units, asdict(r.navigation),
+                              cfg.nav_build, cfg.start, r.wander.radius,
+                              r.behaviour.detection_range, r.body.length, cfg.max_memory_mb]))
 
 
 def file_record(path: Path) -> dict:

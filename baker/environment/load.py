@@ -544,6 +544,7 @@ class _GltfReader:
         self._buffers: dict[int, bytes] = {}
         self._views: dict[int, bytes] = {}
         self._placeholders: set[int] = set()
+        self._decoded: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
         self._sizes = [self._buffer_size(i, b) for i, b in enumerate(d.array("buffers"))]
         self._check_views()
         self._check_accessors()
@@ -963,8 +964,12 @@ class _GltfReader:
         lines."""
         draco = gltf_ext.draco_of(prim)
         if draco is not None and prim.get("mode", 4) in (4, 5, 6):
-            points, faces = gltf_ext.decode_draco(self.view(draco["bufferView"]), draco,
-                                                  f"meshes[{mi}].primitives[{pi}]")
+            if (mi, pi) not in self._decoded:       # once, however often the mesh is placed
+                w = f"meshes[{mi}].primitives[{pi}]"
+                points, faces = gltf_ext.decode_draco(self.view(draco["bufferView"]), draco, w)
+                self._check_decoded(prim, len(points), faces.size, w)
+                self._decoded[(mi, pi)] = points, faces
+            points, faces = self._decoded[(mi, pi)]
             return points, faces, None
         faces = self.triangles(prim)
         if faces is None:
@@ -972,6 +977,18 @@ class _GltfReader:
         attrs = prim["attributes"]
         normals = self.accessor(attrs["NORMAL"]) if "NORMAL" in attrs else None
         return self.accessor(attrs["POSITION"]), faces, normals
+
+    def _check_decoded(self, prim: dict, points: int, corners: int, where: str) -> None:
+        """A Draco primitive must decode to what its accessors declare (the placement bounds
+        were counted from them)."""
+        acc = self.doc["accessors"]
+        declared = (acc[prim["attributes"]["POSITION"]]["count"],
+                    acc[prim["indices"]]["count"] if "indices" in prim else corners)
+        if (points, corners) != declared:
+            raise EnvironmentLoadError(
+                f"corrupt glTF: {where}'s Draco data decodes to {points:,} points and {corners:,} "
+                f"triangle corners; its accessors declare {declared[0]:,} and {declared[1]:,}",
+                where=str(self.path))
 
     def _mesh_entries(self, node: dict, world: np.ndarray) -> list:
         """The raw entries (name, world vertices, triangles, normals, colour, roughness,
@@ -1174,14 +1191,21 @@ _OBJ_FACE = re.compile(rb"^[ \t]*f[ \t]+(.*)$", re.M)
 _OBJ_VERTEX = re.compile(rb"^[ \t]*v[ \t]+(.*)$", re.M)
 
 
+#: a comment after the fields of a geometry statement ("v 1 2 3 # top")
+_OBJ_TRAILING_COMMENT = re.compile(rb"^((?:v|vt|vn|vp|f|l|p) [^#\n]*?) *#[^\n]*$", re.M)
+
+
 def _obj_spaces(data: bytes) -> bytes:
-    """An OBJ's whitespace as trimesh reads it: tabs (which the format allows between
-    fields) as spaces, no indentation (trimesh skips an indented `f` line and reads tabbed
-    `v` lines wrong)."""
+    """An OBJ's whitespace and comments as trimesh reads them: tabs (which the format allows
+    between fields) as spaces, no indentation (trimesh skips an indented `f` line and reads
+    tabbed `v` lines wrong), no comment after a statement's fields (trimesh reads it as
+    numbers)."""
     if b"\t" in data:
         data = data.replace(b"\t", b" ")
     if re.search(rb"^ ", data, re.M):
         data = re.sub(rb"^ +", b"", data, flags=re.M)
+    if b"#" in data:
+        data = _OBJ_TRAILING_COMMENT.sub(rb"\1", data)
     return data
 
 

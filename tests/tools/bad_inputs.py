@@ -385,6 +385,8 @@ def _compressed_cases():
         "position_id_text": (lambda d: _dr(d).update(attributes={"POSITION": "zero"}), None),
         "view_missing": (lambda d: _dr(d).update(bufferView=9), None),
         "point_cloud": (_point_cloud, None),
+        # placements are bounded by the accessors' counts: the decoded data must match them
+        "counts_understated": (lambda d: d["accessors"][0].update(count=3), None),
     }
     return ([Case(f"glb_meshopt_{k}", _compressed("meshopt", *v)) for k, v in mo.items()]
             + [Case(f"glb_draco_{k}", _compressed("draco", *v)) for k, v in dr.items()])
@@ -553,6 +555,8 @@ GOOD_UNUSUAL = {
                 b"v  -2  0  2  \n\tf\t1\t3\t2\nf 1 4 3 \n",
     "indented.obj": b"".join(b"  " + line + b"\n" for line in GOOD_OBJ.encode().splitlines()),
     "crlf_tabs.obj": GOOD_OBJ.replace(" ", "\t").replace("\n", "\r\n").encode(),
+    "trailing_comments.obj": b"".join(line + b"\t# corner " + str(i).encode() + b"\n"
+                                      for i, line in enumerate(GOOD_OBJ.encode().splitlines())),
 }
 
 GOOD_LATIN1 = {

@@ -489,3 +489,17 @@ def test_batch_lock_retakes_a_file_unlinked_under_it(tmp_path, monkeypatch):
         with pytest.raises(ConfigError):
             with batch._batch_lock(tmp_path):
                 pass
+
+
+def test_up_and_units_split_navigation_groups(tmp_path):
+    """Jobs reading the same level with another --up or --units navigate another surface."""
+    write_small_level(tmp_path / "small.obj")
+    (tmp_path / "j.toml").write_text('[defaults]\nenvironment = "small.obj"\nseconds = 1\n'
+                                     '[[job]]\nname = "a"\nup = "z"\n'
+                                     '[[job]]\nname = "b"\n'
+                                     '[[job]]\nname = "c"\nunits = "mm"\n'
+                                     '[[job]]\nname = "d"\nup = "y"\nunits = "m"\n')
+    plan = batch.load_plan(tmp_path / "j.toml", tmp_path / "o")
+    assert [j.nav for j in plan.jobs] == [0, 1, 2, 3]
+    assert [(c.up_axis, c.units) for c in plan.nav_groups] == [
+        ("z", None), (None, None), (None, "mm"), ("y", "m")]
