@@ -1530,12 +1530,15 @@ def _usd_mesh(prim, time):
             *_usd_color(prim, mesh, time))
 
 
-def _usd_point_instances(instancer, cache, fix, time, path) -> list:
+def _usd_point_instances(instancer, cache, fix, time, path, depth: int = 0) -> list:
     """The raw entries of a UsdGeom.PointInstancer: each prototype's meshes placed at every
     visible instance of it (the instance transforms include the prototype root's own), one
-    entry per prototype mesh."""
-    from pxr import Usd, UsdGeom
-
+    entry per prototype mesh. A prototype's own PointInstancers are expanded the same way
+    (nested instancing, at most _MAX_INSTANCER_DEPTH deep); its invisible or guide prims are
+    not drawn."""
+    if depth > _MAX_INSTANCER_DEPTH:
+        raise EnvironmentLoadError(f"USD PointInstancers nest more than {_MAX_INSTANCER_DEPTH} "
+                                   "deep", where=str(path))
     xforms = instancer.ComputeInstanceTransformsAtTime(time, time)   # masked ids dropped
     protos = instancer.GetPrototypesRel().GetTargets()
     ids = np.asarray(instancer.GetProtoIndicesAttr().Get(time) or [], dtype=np.int64)
@@ -1554,20 +1557,48 @@ def _usd_point_instances(instancer, cache, fix, time, path) -> list:
         mats = base @ inst[ids == p]
         if not root or not len(mats):
             continue
-        to_root = np.linalg.inv(_usd_matrix(cache.GetLocalToWorldTransform(root)))
-        # prototypes are often kept under an `over` or `class` parent, hidden from ordinary
-        # traversals: only the instancer draws them
-        for prim in Usd.PrimRange(root, Usd.TraverseInstanceProxies(Usd.PrimIsActive
-                                                                    & Usd.PrimIsLoaded)):
-            local = _usd_mesh(prim, time) if prim.IsA(UsdGeom.Mesh) else None
-            if local is None:
-                continue
-            pts, faces, color, rough, metal = local
+        # the prototype's meshes, in stage space as defined, then moved to every instance
+        mats = mats @ np.linalg.inv(_usd_matrix(cache.GetLocalToWorldTransform(root)))
+        for name, pts, faces, color, rough, metal in _usd_prototype(root, cache, time, path,
+                                                                    depth):
             check_placed(len(mats), len(faces), len(pts), path)
-            rel = to_root @ _usd_matrix(cache.GetLocalToWorldTransform(prim))
-            raw.append((prim.GetName(), *_placed(mats @ rel, pts, faces, None), color, rough,
-                        metal))
+            raw.append((name, *_placed(mats, pts, faces, None), color, rough, metal))
     return raw
+
+
+#: the deepest nesting of PointInstancers inside prototypes that is expanded
+_MAX_INSTANCER_DEPTH = 8
+
+
+def _usd_prototype(root, cache, time, path, depth: int) -> list:
+    """A PointInstancer prototype's meshes in stage space as defined: (name, points, triangles,
+    colour, roughness, metalness) each, its own instancers' placements included. Prototypes
+    are often kept under an `over` or `class` parent, hidden from ordinary traversals: only
+    the instancer draws them, so undefined and abstract prims are read here."""
+    from pxr import Usd, UsdGeom
+
+    out = []
+    prims = iter(Usd.PrimRange(root, Usd.TraverseInstanceProxies(Usd.PrimIsActive
+                                                                 & Usd.PrimIsLoaded)))
+    for prim in prims:
+        if prim != root and prim.IsA(UsdGeom.Imageable) and (
+                UsdGeom.Imageable(prim).GetVisibilityAttr().Get(time) == UsdGeom.Tokens.invisible
+                or UsdGeom.Imageable(prim).GetPurposeAttr().Get() == UsdGeom.Tokens.guide):
+            prims.PruneChildren()           # hidden below the root: hidden in every instance
+            continue
+        if prim.IsA(UsdGeom.PointInstancer):
+            for name, v, f, _, color, rough, metal in _usd_point_instances(
+                    UsdGeom.PointInstancer(prim), cache, np.eye(4), time, path, depth + 1):
+                out.append((name, v, f, color, rough, metal))
+            prims.PruneChildren()
+            continue
+        local = _usd_mesh(prim, time) if prim.IsA(UsdGeom.Mesh) else None
+        if local is not None:
+            pts, faces, color, rough, metal = local
+            world = _usd_matrix(cache.GetLocalToWorldTransform(prim))
+            out.append((prim.GetName(), _transform_points(world, pts),
+                        _fix_winding(faces, world), color, rough, metal))
+    return out
 
 
 def _read_usd_trapped(path: Path, trap, up_axis: str | None, units: str | None):

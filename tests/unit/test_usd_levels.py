@@ -152,3 +152,42 @@ def test_point_instancer_prototypes_under_a_hidden_parent(tmp_path, parent):
     world = env.mesh.vertices.astype(np.float64) + env.origin
     assert len(env.mesh.faces) == 4
     assert set(np.unique(np.round(world[:, 0]))) == {-1.0, 1.0, 9.0, 11.0}
+
+
+QUAD = ('def Mesh "m"\n{\n    int[] faceVertexCounts = [3, 3]\n'
+        '    int[] faceVertexIndices = [0, 2, 1, 0, 3, 2]\n'
+        '    point3f[] points = [(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)]\n}\n')
+
+
+def _instancer(name: str, positions: str, proto: str, protos_body: str) -> str:
+    return (f'def PointInstancer "{name}"\n{{\n    point3f[] positions = [{positions}]\n'
+            f'    int[] protoIndices = [{", ".join("0" * (positions.count("(")))}]\n'
+            f'    rel prototypes = [<{proto}>]\n    def Scope "Protos"\n    {{\n{protos_body}'
+            '    }\n}\n')
+
+
+def test_nested_point_instancers(tmp_path):
+    """An instancer of (an instancer of quads): every quad at every outer x inner place."""
+    inner = _instancer("inner", "(0, 0, 0), (100, 0, 0)", "/outer/Protos/a/inner/Protos/m",
+                       QUAD)
+    outer = _instancer("outer", "(0, 0, 0), (0, 0, 50)", "/outer/Protos/a",
+                       'def Xform "a"\n{\n' + inner + '}\n')
+    (tmp_path / "level.usda").write_text(usd_text(body=outer))
+    env = load_environment(tmp_path / "level.usda")
+    world = env.mesh.vertices.astype(np.float64) + env.origin
+    assert len(env.mesh.faces) == 2 * 4
+    centres = {(round(x), round(z)) for x, z in world[:, [0, 2]] // 10 * 10}
+    assert centres == {(-10, -10), (0, -10), (-10, 0), (0, 0), (90, -10), (100, -10),
+                       (90, 0), (100, 0), (-10, 40), (0, 40), (-10, 50), (0, 50),
+                       (90, 40), (100, 40), (90, 50), (100, 50)}
+
+
+@pytest.mark.parametrize("hidden", ['token visibility = "invisible"',
+                                    'uniform token purpose = "guide"'])
+def test_point_instancer_prototype_hidden_parts(tmp_path, hidden):
+    """A prototype's invisible or guide parts are not drawn in any instance."""
+    extra = QUAD.replace('"m"', '"helper"').replace("{\n", "{\n    " + hidden + "\n", 1)
+    body = _instancer("pi", "(0, 0, 0), (10, 0, 0)", "/pi/Protos/a",
+                      'def Xform "a"\n{\n' + QUAD + extra + '}\n')
+    (tmp_path / "level.usda").write_text(usd_text(body=body))
+    assert len(load_environment(tmp_path / "level.usda").mesh.faces) == 2 * 2
