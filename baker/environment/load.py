@@ -1477,6 +1477,10 @@ def _usd_dependency(layer, name: str, dep: str, folder: Path, path: Path) -> str
         raise EnvironmentLoadError(f"USD layer {name} refers to '{dep[:80]}', which is not a "
                                    "file in the environment's folder", where=str(path))
     target = layer.ComputeAbsolutePath(dep)
+    if Ar.IsPackageRelativePath(target) and any(
+            part == ".." for part in Ar.SplitPackageRelativePathInner(target)[1].split("/")):
+        raise EnvironmentLoadError(f"USD layer {name} refers to '{dep[:80]}', outside its .usdz "
+                                   "package", where=str(path))
     outer = Path(Ar.SplitPackageRelativePathOuter(target)[0])
     if not outer.is_absolute():     # unresolved: a file a package does not hold
         raise EnvironmentLoadError(f"USD layer {name} refers to '{dep[:80]}', which does not "

@@ -191,3 +191,13 @@ def test_point_instancer_prototype_hidden_parts(tmp_path, hidden):
                       'def Xform "a"\n{\n' + QUAD + extra + '}\n')
     (tmp_path / "level.usda").write_text(usd_text(body=body))
     assert len(load_environment(tmp_path / "level.usda").mesh.faces) == 2 * 2
+
+
+def test_usdz_dependency_outside_the_package_named(tmp_path):
+    from baker.errors import EnvironmentLoadError
+
+    (tmp_path / "outside.usda").write_text(usd_text())
+    root = usd_text(extra="    subLayers = [@../outside.usda@]\n")
+    (tmp_path / "level.usdz").write_bytes(usdz({"level.usda": root}))
+    with pytest.raises(EnvironmentLoadError, match="'../outside.usda', outside its .usdz"):
+        load_environment(tmp_path / "level.usdz")
