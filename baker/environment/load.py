@@ -943,8 +943,7 @@ class _GltfReader:
         if ext is None:
             return world[None]
         attrs = gltf_ext.instance_attributes(ext)
-        k = self.doc["accessors"][next(iter(attrs.values()))]["count"]
-        mats = np.tile(np.eye(4), (k, 1, 1))
+        mats = np.tile(np.eye(4), (self._placements(node), 1, 1))
         if "ROTATION" in attrs:
             from scipy.spatial.transform import Rotation
 
@@ -958,6 +957,14 @@ class _GltfReader:
         if "TRANSLATION" in attrs:
             mats[:, :3, 3] = self.accessor(attrs["TRANSLATION"])
         return world @ mats
+
+    def _placements(self, node: dict) -> int:
+        """How many times a node places its mesh: 1, or its EXT_mesh_gpu_instancing count."""
+        ext = gltf_ext.instancing_of(node)
+        if ext is None:
+            return 1
+        return self.doc["accessors"][next(iter(gltf_ext.instance_attributes(ext).values()))][
+            "count"]
 
     def _primitive(self, mi: int, pi: int, prim: dict):
         """A primitive's local (points, triangles, normals or None), or None for points and
@@ -1004,8 +1011,7 @@ class _GltfReader:
             got = self._primitive(node["mesh"], pi, prim)
             if got is None:
                 continue
-            points, faces, normals = got
-            check_placed(len(mats), len(faces), len(points), self.path)
+            points, faces, normals = got      # (sizes checked by _check_size before reading)
             color, rough, metal = self.material(prim.get("material"))
             out.append((base if len(prims) == 1 else f"{base}_{pi}",
                         *_placed(mats, points, faces, normals), color, rough, metal))
@@ -1034,9 +1040,7 @@ class _GltfReader:
                 mi = node["mesh"]
                 if mi not in per_mesh:
                     per_mesh[mi] = self._mesh_size(mi)
-                inst = gltf_ext.instancing_of(node)
-                k = 1 if inst is None else self.doc["accessors"][
-                    next(iter(gltf_ext.instance_attributes(inst).values()))]["count"]
+                k = self._placements(node)
                 placements += k
                 total += per_mesh[mi][0] * k
                 vertices += per_mesh[mi][1] * k
@@ -1136,10 +1140,7 @@ def _text_as_utf8(path: Path, data: bytes) -> bytes:
                 return data  # binary STL
         if data.lstrip()[:5].lower() == b"solid":
             return _to_utf8(data)
-        if len(data) >= 84:
-            raise EnvironmentLoadError(
-                f"corrupt binary STL: its header says {n:,} triangles ({84 + 50 * n:,} bytes) "
-                f"but the file has {len(data):,} bytes")
+        # (a binary STL whose size is not its count's was refused unread: _check_stl_size)
         raise EnvironmentLoadError("corrupt STL: neither ASCII ('solid ...') nor binary")
     if ext == ".ply":
         end = data.find(b"end_header")

@@ -81,45 +81,6 @@ def _custom_data_value(v):
     return json.dumps(v, separators=(",", ":"), allow_nan=False)
 
 
-def _material(stage, looks_path, name: str, rgb, opacity: float, metallic: float,
-              roughness: float):
-    _, Sdf, _, _, _, UsdShade, _, _ = _pxr()
-    from pxr import Gf
-
-    mat = UsdShade.Material.Define(stage, looks_path.AppendChild(name))
-    shader = UsdShade.Shader.Define(stage, mat.GetPath().AppendChild("PreviewSurface"))
-    shader.CreateIdAttr("UsdPreviewSurface")
-    shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(
-        Gf.Vec3f(*[float(np.clip(c, 0, 1)) for c in rgb[:3]]))
-    shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(float(np.clip(metallic, 0, 1)))
-    shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(np.clip(roughness, 0, 1)))
-    if opacity < 1.0:
-        shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(float(opacity))
-    mat.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
-    return mat
-
-
-def _mesh(stage, path, vertices, faces, normals, rgba, material, double_sided: bool):
-    Gf, Sdf, _, UsdGeom, _, UsdShade, _, Vt = _pxr()
-    v, f, n = checked_mesh(path.name, vertices, faces, normals)
-    mesh = UsdGeom.Mesh.Define(stage, path)
-    mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(v))
-    mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(f), 3, dtype=np.int32)))
-    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(f.astype(np.int32).reshape(-1)))
-    mesh.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(n))
-    mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
-    mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-    mesh.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
-    mesh.CreateDoubleSidedAttr(bool(double_sided))
-    mesh.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, v.min(0))),
-                                         Gf.Vec3f(*map(float, v.max(0)))]))
-    mesh.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*[float(c) for c in rgba[:3]])]))
-    if len(rgba) > 3 and rgba[3] < 1.0:
-        mesh.CreateDisplayOpacityAttr(Vt.FloatArray([float(rgba[3])]))
-    UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(material)
-    return mesh
-
-
 def _spec(layer, path, type_name: str):
     """A new `def <type_name>` prim spec at path (its parent spec exists)."""
     from pxr import Sdf
@@ -143,11 +104,17 @@ def _attr(spec, name: str, type_name, value=None, uniform: bool = False):
     return a
 
 
-def _level_material(layer, path, rgb, metallic: float, roughness: float):
-    """_material's specs (opaque), authored straight in the layer (Sdf): the same specs in the
-    same order, without a stage recomposition per prim."""
+# _material and _mesh author their specs straight in the root layer (Sdf), the specs and the
+# order UsdShade and UsdGeom would author (tests/export/test_usd.py compares them), so that a
+# level of thousands of meshes is written in one Sdf.ChangeBlock, without a stage
+# recomposition per prim.
+def _material(stage, looks_path, name: str, rgb, opacity: float, metallic: float,
+              roughness: float):
+    """A UsdPreviewSurface material at looks_path/name; returns its path."""
     Gf, Sdf, _, _, _, _, _, _ = _pxr()
     T = Sdf.ValueTypeNames
+    path = looks_path.AppendChild(name)
+    layer = stage.GetRootLayer()
     mat = _spec(layer, path, "Material")
     shader_path = path.AppendChild("PreviewSurface")
     shader = _spec(layer, shader_path, "Shader")
@@ -156,18 +123,21 @@ def _level_material(layer, path, rgb, metallic: float, roughness: float):
           Gf.Vec3f(*[float(np.clip(c, 0, 1)) for c in rgb[:3]]))
     _attr(shader, "inputs:metallic", T.Float, float(np.clip(metallic, 0, 1)))
     _attr(shader, "inputs:roughness", T.Float, float(np.clip(roughness, 0, 1)))
+    if opacity < 1.0:
+        _attr(shader, "inputs:opacity", T.Float, float(opacity))
     out = _attr(mat, "outputs:surface", T.Token)
     _attr(shader, "outputs:surface", T.Token)
     out.connectionPathList.explicitItems = [shader_path.AppendProperty("outputs:surface")]
+    return path
 
 
-def _level_mesh(layer, path, vertices, faces, normals, rgba, material_path):
-    """_mesh's specs for a level's mesh (double-sided, opaque), authored straight in the layer
-    (Sdf), as _level_material."""
-    Gf, Sdf, _, _, _, _, _, Vt = _pxr()
+def _mesh(stage, path, vertices, faces, normals, rgba, material_path, double_sided: bool):
+    """A triangle mesh bound to material_path; returns it as a UsdGeom.Mesh (not valid until
+    an enclosing Sdf.ChangeBlock ends)."""
+    Gf, Sdf, _, UsdGeom, _, _, _, Vt = _pxr()
     T = Sdf.ValueTypeNames
     v, f, n = checked_mesh(path.name, vertices, faces, normals)
-    spec = _spec(layer, path, "Mesh")
+    spec = _spec(stage.GetRootLayer(), path, "Mesh")
     spec.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["MaterialBindingAPI"]))
     _attr(spec, "points", T.Point3fArray, Vt.Vec3fArray.FromNumpy(v))
     _attr(spec, "faceVertexCounts", T.IntArray,
@@ -178,7 +148,7 @@ def _level_mesh(layer, path, vertices, faces, normals, rgba, material_path):
         "interpolation", "vertex")
     _attr(spec, "subdivisionScheme", T.Token, "none", uniform=True)
     _attr(spec, "orientation", T.Token, "rightHanded", uniform=True)
-    _attr(spec, "doubleSided", T.Bool, True, uniform=True)
+    _attr(spec, "doubleSided", T.Bool, bool(double_sided), uniform=True)
     _attr(spec, "extent", T.Float3Array, Vt.Vec3fArray([Gf.Vec3f(*map(float, v.min(0))),
                                                         Gf.Vec3f(*map(float, v.max(0)))]))
     _attr(spec, "primvars:displayColor", T.Color3fArray,
@@ -188,6 +158,7 @@ def _level_mesh(layer, path, vertices, faces, normals, rgba, material_path):
     rel = Sdf.RelationshipSpec(spec, "material:binding", custom=False,
                                variability=Sdf.VariabilityUniform)
     rel.targetPathList.explicitItems = [material_path]
+    return UsdGeom.Mesh(stage.GetPrimAtPath(path))
 
 
 def _offset(xformable, v) -> None:
@@ -391,14 +362,13 @@ def build_stage(env: Environment, rig: Rig, clip: Clip, *, fps: int, extras: dic
     env_xf = UsdGeom.Xform.Define(stage, "/World/Environment")
     _offset(env_xf, env.origin)
     env_path = env_xf.GetPath()
-    layer = stage.GetRootLayer()
     with Sdf.ChangeBlock():     # one recomposition for the level's meshes, however many
         for m, rgba in environment_parts(env):
             nm = safe_name(m.name, taken, "env_mesh")
-            mat = looks.AppendChild(safe_name(f"{nm}_mat", taken))
-            _level_material(layer, mat, rgba, m.metallic, m.roughness)
-            _level_mesh(layer, env_path.AppendChild(nm), m.vertices, m.faces, m.normals, rgba,
-                        mat)
+            mat = _material(stage, looks, safe_name(f"{nm}_mat", taken), rgba, 1.0, m.metallic,
+                            m.roughness)
+            _mesh(stage, env_path.AppendChild(nm), m.vertices, m.faces, m.normals, rgba, mat,
+                  double_sided=True)
 
     # -- sun: DistantLight shines along its local -Z
     sun = env.sun
@@ -478,7 +448,7 @@ def _skinned_meshes(stage, looks, part_names, rig: Rig, root, sk, meshes: dict |
     meshes : {material index: (Mesh prim path, Material)} of a creature already written: the
              Meshes then reference those prims (the mesh data is stored once), with their own
              skeleton and material bindings
-    Returns {material index: (Mesh prim path, Material)}."""
+    Returns {material index: (Mesh prim path, Material path)}."""
     Gf, _, _, UsdGeom, _, UsdShade, UsdSkel, Vt = _pxr()
     mesh = rig.mesh
     identity = Gf.Matrix4d(1.0)
@@ -493,7 +463,8 @@ def _skinned_meshes(stage, looks, part_names, rig: Rig, root, sk, meshes: dict |
             src, mat = meshes[mi]
             prim = UsdGeom.Mesh.Define(stage, path).GetPrim()
             prim.GetReferences().AddInternalReference(src)
-            UsdShade.MaterialBindingAPI.Apply(prim).Bind(mat)
+            UsdShade.MaterialBindingAPI.Apply(prim).Bind(
+                UsdShade.Material(stage.GetPrimAtPath(mat)))
             UsdSkel.BindingAPI.Apply(prim).CreateSkeletonRel().SetTargets([sk.GetPath()])
             out[mi] = (src, mat)
             continue

@@ -166,13 +166,53 @@ def test_quaternion_order_round_trips(stage, clip):
     assert np.isfinite(v).all()
 
 
-@pytest.mark.parametrize("rgba", [(0.2, 0.3, 0.4, 1.0), (0.9, 0.1, 0.1, 0.5)])
-def test_level_meshes_authored_in_sdf_match_the_schema_api(rgba):
-    """The level's meshes and materials are authored straight in the layer (one recomposition
-    for thousands of meshes): the same specs, in the same order, as UsdGeom/UsdShade author."""
+def _schema_material(stage, looks_path, name, rgb, opacity, metallic, roughness):
+    """The material as UsdShade authors it (the reference usd._material matches)."""
+    from pxr import Gf, Sdf, UsdShade
+
+    mat = UsdShade.Material.Define(stage, looks_path.AppendChild(name))
+    shader = UsdShade.Shader.Define(stage, mat.GetPath().AppendChild("PreviewSurface"))
+    shader.CreateIdAttr("UsdPreviewSurface")
+    shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(
+        Gf.Vec3f(*[float(np.clip(c, 0, 1)) for c in rgb[:3]]))
+    shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(float(np.clip(metallic, 0, 1)))
+    shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(np.clip(roughness, 0, 1)))
+    if opacity < 1.0:
+        shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(float(opacity))
+    mat.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+    return mat
+
+
+def _schema_mesh(stage, path, v, f, n, rgba, material, double_sided):
+    """The mesh as UsdGeom and UsdShade author it (the reference usd._mesh matches)."""
+    from pxr import Gf, UsdGeom, UsdShade, Vt
+
+    mesh = UsdGeom.Mesh.Define(stage, path)
+    mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(v))
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(f), 3, dtype=np.int32)))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(f.astype(np.int32).reshape(-1)))
+    mesh.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(n))
+    mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+    mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    mesh.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
+    mesh.CreateDoubleSidedAttr(bool(double_sided))
+    mesh.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, v.min(0))),
+                                         Gf.Vec3f(*map(float, v.max(0)))]))
+    mesh.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*[float(c) for c in rgba[:3]])]))
+    if len(rgba) > 3 and rgba[3] < 1.0:
+        mesh.CreateDisplayOpacityAttr(Vt.FloatArray([float(rgba[3])]))
+    UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(material)
+
+
+@pytest.mark.parametrize("rgba, double_sided", [((0.2, 0.3, 0.4, 1.0), True),
+                                                ((0.9, 0.1, 0.1, 0.5), False)])
+def test_meshes_authored_in_sdf_match_the_schema_api(rgba, double_sided):
+    """Meshes and materials are authored straight in the layer (one recomposition for a
+    level's thousands of meshes): the same specs, in the same order, as UsdGeom/UsdShade
+    author."""
     from pxr import Sdf, Usd, UsdGeom
 
-    from baker.export import usd
+    from baker.export import checked_mesh, usd
 
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 0, 1], [1, 0.5, 1]], np.float32)
     f = np.array([[0, 2, 1], [1, 2, 3]])
@@ -183,12 +223,12 @@ def test_level_meshes_authored_in_sdf_match_the_schema_api(rgba):
         env = UsdGeom.Xform.Define(stage, "/World/Environment").GetPath()
         if sdf:
             with Sdf.ChangeBlock():
-                usd._level_material(stage.GetRootLayer(), looks.AppendChild("m"), rgba, 0.1, 0.8)
-                usd._level_mesh(stage.GetRootLayer(), env.AppendChild("g"), v, f, None, rgba,
-                                looks.AppendChild("m"))
+                mat = usd._material(stage, looks, "m", rgba, rgba[3], 0.1, 0.8)
+                usd._mesh(stage, env.AppendChild("g"), v, f, None, rgba, mat, double_sided)
         else:
-            mat = usd._material(stage, looks, "m", rgba, 1.0, 0.1, 0.8)
-            usd._mesh(stage, env.AppendChild("g"), v, f, None, rgba, mat, double_sided=True)
+            mat = _schema_material(stage, looks, "m", rgba, rgba[3], 0.1, 0.8)
+            _schema_mesh(stage, env.AppendChild("g"), *checked_mesh("g", v, f, None), rgba, mat,
+                         double_sided)
         texts.append(stage.GetRootLayer().ExportToString())
     assert texts[0] == texts[1]
     assert ("displayOpacity" in texts[0]) == (rgba[3] < 1)
