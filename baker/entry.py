@@ -22,6 +22,7 @@ def main(argv=None) -> int:
         code = cli_main(argv)
         if signals.stopping():      # a signal whose Interrupted a library swallowed
             raise signals.Interrupted(signals.stopping(), signals.phase())
+        signals.finished()          # done: a signal now changes nothing
         return code
     except BaseException as exc:
         # An Interrupted, or what a library made of it (some catch BaseException around

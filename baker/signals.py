@@ -152,6 +152,18 @@ def _handler(signum, frame):
     raise Interrupted(signum, _state["phase"])
 
 
+def finished() -> None:
+    """The command has returned (its files committed or refused): from here on SIGINT and
+    SIGTERM are ignored. Python puts its handlers back to the defaults as the interpreter
+    ends, and a Ctrl-C then (just after a bake's success line) killed the process with no
+    message and exit code 130 though its files were whole. Main thread only."""
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        for s in HANDLED:
+            signal.signal(s, signal.SIG_IGN)
+
+
 def stopping() -> int:
     """The signal number once one has interrupted the process, else 0."""
     return _state["raised"]

@@ -143,3 +143,22 @@ def test_console_entry_point_installs_the_handlers_first():
                                "threading", "select", "baker"), (mod, n)
                 if top == "baker":
                     assert n in ("baker", "baker.signals", "baker.cli"), (mod, n)
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_after_the_command_returned_changes_nothing(tmp_path, signum):
+    """Once the command has returned (a bake's files committed, its success line printed), a
+    Ctrl-C or SIGTERM as the interpreter ends leaves exit code 0 and nothing on stderr (it
+    killed the process with 130 and no message: Python restores the default handlers as it
+    ends). The signal is sent from an atexit hook, after baker's main has returned."""
+    import subprocess
+    import sys
+
+    code = ("import atexit, os, sys\n"
+            f"atexit.register(lambda: os.kill(os.getpid(), {int(signum)}))\n"
+            "from baker.entry import main\n"
+            "sys.exit(main(['--version']))\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       timeout=120, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert r.stderr == "" and "version" in r.stdout
