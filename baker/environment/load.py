@@ -28,6 +28,7 @@ Every failure is an `EnvironmentLoadError` with a one-line message naming the fi
 from __future__ import annotations
 
 import base64
+import bisect
 import binascii
 import contextlib
 import dataclasses
@@ -1213,12 +1214,13 @@ def _obj_spaces(data: bytes) -> bytes:
 def _check_obj(data: bytes) -> None:
     """OBJ structure trimesh lets through silently: a vertex with fewer than 3 coordinates, a
     face index of 0 (OBJ counts from 1) or beyond the vertex list (negative: relative)."""
-    nverts = 0
+    starts = []                     # where each vertex is defined
     for m in _OBJ_VERTEX.finditer(data):
-        nverts += 1
+        starts.append(m.start())
         if len(m.group(1).split(b"#", 1)[0].split()) < 3:
             line = data.count(b"\n", 0, m.start()) + 1
             raise EnvironmentLoadError(f"OBJ line {line}: a vertex needs 3 coordinates")
+    nverts = len(starts)
     for m in _OBJ_FACE.finditer(data):
         for tok in m.group(1).split(b"#", 1)[0].split():
             head = tok.split(b"/", 1)[0]
@@ -1229,11 +1231,46 @@ def _check_obj(data: bytes) -> None:
                 raise EnvironmentLoadError(
                     f"OBJ line {line}: face index '{head[:20].decode('latin-1')}' is not an "
                     "integer") from None
-            if k == 0 or abs(k) > nverts:
+            before = nverts if k > 0 else bisect.bisect_left(starts, m.start())
+            if k == 0 or abs(k) > before:
                 line = data.count(b"\n", 0, m.start()) + 1
                 raise EnvironmentLoadError(
-                    f"OBJ line {line}: face index {k} outside the {nverts} vertices (OBJ "
-                    "indices count from 1; negative ones count back from the end)")
+                    f"OBJ line {line}: face index {k} outside the {before} vertices " + (
+                        "(OBJ indices count from 1)" if k >= 0 else
+                        "defined before it (a negative index counts back from the last)"))
+
+
+#: a face with a negative (relative) index
+_OBJ_RELATIVE = re.compile(rb"^f [^\n]*[ /]-[0-9]", re.M)
+#: the statements a face's v/vt/vn indices count
+_OBJ_KINDS = (b"v", b"vt", b"vn")
+
+
+def _obj_absolute(data: bytes) -> bytes:
+    """An OBJ (as _obj_spaces leaves it) with its negative face indices made absolute. OBJ
+    counts -1 as the last vertex (texture coordinate, normal) defined before the face; trimesh
+    counts from the end of the file, so a file whose objects each end in `f -3 -2 -1` read as
+    one triangle, the last object's, placed once per object."""
+    if not _OBJ_RELATIVE.search(data):
+        return data
+    counts = dict.fromkeys(_OBJ_KINDS, 0)
+    lines = data.split(b"\n")
+    for i, line in enumerate(lines):
+        key = line.split(b" ", 1)[0]
+        if key in counts:
+            counts[key] += 1
+        elif key == b"f" and b"-" in line:
+            body = line.rstrip(b"\r")
+            fields = [b"/".join(_obj_index(c, counts[kind])
+                                for c, kind in zip(tok.split(b"/"), _OBJ_KINDS))
+                      for tok in body.split(b" ")[1:] if tok]
+            lines[i] = b"f " + b" ".join(fields) + line[len(body):]
+    return b"\n".join(lines)
+
+
+def _obj_index(field: bytes, defined: int) -> bytes:
+    """A face's index field made absolute (`defined`: how many of its kind come before)."""
+    return str(defined + int(field) + 1).encode() if field.startswith(b"-") else field
 
 
 def _check_ascii_ply(data: bytes) -> None:
@@ -1318,7 +1355,7 @@ def _read_trimesh(path: Path):
         _check_ascii_ply(data)
     data = _text_as_utf8(path, data)
     if path.suffix.lower() == ".obj":
-        data = _obj_spaces(data)
+        data = _obj_absolute(_obj_spaces(data))
     scene = trimesh.load_scene(io.BytesIO(data), file_type=path.suffix.lower()[1:],
                                resolver=_folder_resolver(path), process=False)
     raw = []

@@ -458,6 +458,34 @@ def test_corrupt_obj(tmp_path, text):
         load_environment(p)
 
 
+@pytest.mark.parametrize("eol", ["\n", "\r\n"])
+def test_obj_relative_indices_count_back_from_the_face(tmp_path, eol):
+    """OBJ's -1 is the last vertex (texture coordinate, normal) defined before the face, not
+    the file's last: two objects each ending in `f -3 -2 -1` are two triangles (they read as
+    the second one, once)."""
+    text = eol.join(["o a", "v 0 0 0", "vt 0 0", "vn 0 1 0", "v 0 0 1", "v 1 0 0",
+                     "f -3/-1/-1 -2/-1/-1 -1/-1/-1", "o b", "v 5 0 5", "v 5 0 6", "vt 1 1",
+                     "v 6 0 5", "f -3//1 -2//1 -1//1", "o c", "v 9 0 9", "f 4 5 -1", ""])
+    p = tmp_path / "relative.obj"
+    p.write_text(text)
+    env = load_environment(p)
+    tri = {tuple(map(tuple, np.round(env.mesh.vertices[f] + env.origin, 6)))
+           for f in env.mesh.faces}
+    assert tri == {((0, 0, 0), (0, 0, 1), (1, 0, 0)), ((5, 0, 5), (5, 0, 6), (6, 0, 5)),
+                   ((5, 0, 5), (5, 0, 6), (9, 0, 9))}
+
+
+@pytest.mark.parametrize("text, message", [
+    ("f -1 -2 -3\nv 0 0 0\nv 1 0 0\nv 0 0 1\nf 1 2 3\n", "-1 outside the 0 vertices defined"),
+    ("v 0 0 0\nv 1 0 0\nf 1 2 -3\nv 0 0 1\nf 1 2 3\n", "-3 outside the 2 vertices defined"),
+])
+def test_obj_relative_index_before_its_vertices(tmp_path, text, message):
+    p = tmp_path / "early.obj"
+    p.write_text(text)
+    with pytest.raises(EnvironmentLoadError, match=message):
+        load_environment(p)
+
+
 def test_obj_with_vertices_but_no_faces(tmp_path):
     p = tmp_path / "cloud.obj"
     p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
