@@ -13,10 +13,12 @@ Formats
   by environment/gltf_ext.py, which also reads EXT_mesh_gpu_instancing (a mesh placed many
   times).
 - OBJ, PLY, STL: read with trimesh as a scene; scene-graph transforms are applied. Assumed to be
-  metres, +Y up. OBJ `Kd` (through trimesh's material) is taken as a linear colour; PLY vertex
-  or face colours (sRGB bytes) are averaged and converted to linear.
-- USD (.usd, .usda, .usdc, .usdz): every visible, non-guide `UsdGeom.Mesh` is fan-triangulated
-  (a `UsdGeom.PointInstancer` places its prototypes' meshes at its visible instances),
+  metres, +Y up. An OBJ's concave polygons are ear-cut before trimesh reads them (it fans every
+  polygon; a PLY's are fanned). OBJ `Kd` (through trimesh's material) is taken as a linear
+  colour; PLY vertex or face colours (sRGB bytes) are averaged and converted to linear.
+- USD (.usd, .usda, .usdc, .usdz): every visible, non-guide `UsdGeom.Mesh` is triangulated
+  (a fan for a convex face, ear clipping for a concave one: geometry/polygons.py; a
+  `UsdGeom.PointInstancer` places its prototypes' meshes at its visible instances),
   moved to world space with `ComputeLocalToWorldTransform`, scaled by the stage's
   `metersPerUnit` and rotated to +Y up when the stage is Z up. The colour comes from a bound
   `UsdPreviewSurface` diffuseColor, else the `displayColor` primvar. The sun is a
@@ -46,6 +48,7 @@ import numpy as np
 from baker.environment import gltf_ext
 from baker.environment.model import EnvMesh, Environment, Sun
 from baker.errors import EnvironmentLoadError
+from baker.geometry import polygons
 from baker.geometry.transforms import cross, length
 
 log = logging.getLogger(__name__)
@@ -1268,6 +1271,52 @@ def _obj_absolute(data: bytes) -> bytes:
     return b"\n".join(lines)
 
 
+#: a face of four or more corners, its fields (group 1) and line end (group 2)
+_OBJ_POLYGON = re.compile(rb"^f +([^ \r\n]+ +[^ \r\n]+ +[^ \r\n]+ +[^ \r\n][^\r\n]*?) *(\r?)$",
+                          re.M)
+#: a vertex's position (the first three numbers of a `v` statement)
+_OBJ_POSITION = re.compile(rb"^v +([^ \r\n]+ +[^ \r\n]+ +[^ \r\n]+)", re.M)
+
+
+def _obj_cut(data: bytes) -> bytes:
+    """An OBJ (as _obj_absolute leaves it) with each concave polygon written as the triangles
+    geometry.polygons cuts it into, on lines of their own in its place: trimesh fans every
+    polygon from its first corner, which covers a concave one wrongly (an L-shaped floor got a
+    triangle over its notch, wound the other way). Convex polygons stay as they are."""
+    bodies = [b for b, _ in _OBJ_POLYGON.findall(data)]
+    if not bodies:
+        return data
+    # each polygon's corner count, vertex numbers (before any '/') and the positions, each
+    # parsed in one call
+    text = re.sub(rb"  +", b" ", b"\n".join(bodies))
+    chars = np.frombuffer(text, dtype=np.uint8)
+    gaps = np.cumsum(chars == 32)[np.flatnonzero(chars == 10)]
+    counts = np.diff(np.concatenate([[0], gaps, [np.count_nonzero(chars == 32)]])) + 1
+    try:
+        idx = np.array(re.sub(rb"/[^ \n]*", b"", text).split(), dtype=np.int64) - 1
+        points = np.array(b" ".join(_OBJ_POSITION.findall(data)).split(),
+                          dtype=np.float64).reshape(-1, 3)
+    except ValueError:
+        return data                     # not numbers: trimesh's reading says so
+    if len(idx) != counts.sum() or idx.min() < 0 or idx.max() >= len(points):
+        return data
+    bent = set(np.flatnonzero(polygons.concave(points, counts, idx)).tolist())
+    if not bent:
+        return data
+    starts = np.cumsum(counts) - counts
+    out, at = [], 0
+    for k, m in enumerate(_OBJ_POLYGON.finditer(data)):
+        if k not in bent:
+            continue
+        corners = idx[starts[k]:starts[k] + counts[k]]
+        tri = polygons.triangulate(points, counts[k:k + 1], corners)
+        token = dict(zip(corners.tolist(), m.group(1).split()))
+        out += [data[at:m.start()], b"\n".join(
+            b"f " + b" ".join(token[v] for v in t) + m.group(2) for t in tri.tolist())]
+        at = m.end()
+    return b"".join(out + [data[at:]])
+
+
 def _obj_index(field: bytes, defined: int) -> bytes:
     """A face's index field made absolute (`defined`: how many of its kind come before)."""
     return str(defined + int(field) + 1).encode() if field.startswith(b"-") else field
@@ -1355,7 +1404,7 @@ def _read_trimesh(path: Path):
         _check_ascii_ply(data)
     data = _text_as_utf8(path, data)
     if path.suffix.lower() == ".obj":
-        data = _obj_absolute(_obj_spaces(data))
+        data = _obj_cut(_obj_absolute(_obj_spaces(data)))
     scene = trimesh.load_scene(io.BytesIO(data), file_type=path.suffix.lower()[1:],
                                resolver=_folder_resolver(path), process=False)
     raw = []
@@ -1451,28 +1500,25 @@ def _usd_color_authored(prim, mesh, time):
     return DEFAULT_COLOR, rough, metal
 
 
-def _fan_triangulate(counts: np.ndarray, indices: np.ndarray, holes: np.ndarray,
-                     left_handed: bool) -> np.ndarray:
+def _usd_triangles(points: np.ndarray, counts: np.ndarray, indices: np.ndarray,
+                   holes: np.ndarray, left_handed: bool) -> np.ndarray:
+    """A UsdGeom.Mesh's faces as triangles (geometry.polygons: concave ones ear-cut), holes and
+    faces of fewer than 3 corners left out, wound counter-clockwise."""
     counts = np.asarray(counts, dtype=np.int64)
     indices = np.asarray(indices, dtype=np.int64)
     if len(counts) == 0 or counts.sum() != len(indices) or np.any(counts < 0):
         raise ValueError("faceVertexCounts do not match faceVertexIndices")
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     keep = counts >= 3
     if len(holes):
         h = np.asarray(holes, dtype=np.int64)
         keep[h[(h >= 0) & (h < len(counts))]] = False
-    counts, starts = counts[keep], starts[keep]
-    ntri = counts - 2
-    if ntri.sum() == 0:
-        return np.zeros((0, 3), np.int64)
-    face_of_tri = np.repeat(np.arange(len(counts)), ntri)
-    k = np.arange(ntri.sum()) - np.repeat(np.cumsum(ntri) - ntri, ntri) + 1
-    s = starts[face_of_tri]
-    tris = np.stack([indices[s], indices[s + k], indices[s + k + 1]], axis=1)
-    if left_handed:
-        tris = tris[:, ::-1]
-    return tris
+    corners = np.repeat(keep, counts)
+    counts, indices = counts[keep], indices[corners]
+    if len(indices) and (indices.min() < 0 or indices.max() >= len(points)):
+        tris = polygons.fan(counts, indices)   # out of range: refused by _check_geometry
+    else:
+        tris = polygons.triangulate(points, counts, indices)
+    return tris[:, ::-1] if left_handed else tris
 
 
 #: most layers (sublayers, references, payloads) a USD environment may compose
@@ -1565,10 +1611,10 @@ def _usd_mesh(prim, time):
         return None
     holes = mesh.GetHoleIndicesAttr().Get(time)
     left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
-    faces = _fan_triangulate(np.asarray(counts), np.asarray(idx),
-                             np.asarray(holes if holes is not None else [], dtype=np.int64),
-                             left)
-    return (np.asarray(pts, dtype=np.float64).reshape(-1, 3), faces,
+    pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
+    faces = _usd_triangles(pts, np.asarray(counts), np.asarray(idx),
+                           np.asarray(holes if holes is not None else [], dtype=np.int64), left)
+    return (pts, faces,
             *_usd_color(prim, mesh, time))
 
 
