@@ -16,7 +16,8 @@ Formats
   metres, +Y up. An OBJ's concave polygons are ear-cut before trimesh reads them (it fans every
   polygon; a PLY's are fanned). OBJ `Kd` (through trimesh's material) is taken as a linear
   colour; PLY vertex or face colours (sRGB bytes) are averaged and converted to linear.
-- USD (.usd, .usda, .usdc, .usdz): every visible, non-guide `UsdGeom.Mesh` is triangulated
+- USD (.usd, .usda, .usdc, .usdz): every visible `UsdGeom.Mesh` of default or render purpose
+  (proxy only on a stage of nothing else) is triangulated
   (a fan for a convex face, ear clipping for a concave one: geometry/polygons.py; a
   `UsdGeom.PointInstancer` places its prototypes' meshes at its visible instances),
   moved to world space with `ComputeLocalToWorldTransform`, scaled by the stage's
@@ -1689,8 +1690,55 @@ def _usd_prototype(root, cache, time, path, depth: int) -> list:
     return out
 
 
-def _read_usd_trapped(path: Path, trap, up_axis: str | None, units: str | None):
+def _usd_traverse(stage, fix: np.ndarray, time, path: Path) -> tuple[list, list]:
+    """(raw meshes, suns) of a stage's visible prims, stage space moved by `fix` (4, 4). Guide
+    prims are not drawn, nor are proxy prims (stand-ins for render geometry) unless the stage
+    has nothing else: a final render draws default and render purposes (drawing both would
+    lay a proxy's boxes over the level's own surfaces)."""
     from pxr import Usd, UsdGeom, UsdLux
+
+    cache = UsdGeom.XformCache(time)
+    raw, proxies, suns = [], [], []
+    prims = iter(Usd.PrimRange.Stage(stage, Usd.TraverseInstanceProxies(
+        Usd.PrimDefaultPredicate)))
+    for prim in prims:
+        purpose = None
+        if prim.IsA(UsdGeom.Imageable):
+            img = UsdGeom.Imageable(prim)
+            if img.ComputeVisibility(time) == UsdGeom.Tokens.invisible:
+                continue
+            purpose = img.ComputePurpose()
+            if purpose == UsdGeom.Tokens.guide:
+                continue
+        if prim.IsA(UsdLux.DistantLight):
+            light = UsdLux.DistantLight(prim)
+            world = fix @ _usd_matrix(cache.GetLocalToWorldTransform(prim))
+            d = world[:3, :3] @ np.array([0.0, 0.0, 1.0])
+            if np.linalg.norm(d) > 1e-12:
+                inten, color = _usd_light(light, time, path)
+                suns.append(Sun(direction=d / np.linalg.norm(d), intensity=inten, color=color))
+            continue
+        into = proxies if purpose == UsdGeom.Tokens.proxy else raw
+        if prim.IsA(UsdGeom.PointInstancer):   # its prototypes are drawn only where it places them
+            into += _usd_point_instances(UsdGeom.PointInstancer(prim), cache, fix, time, path)
+            prims.PruneChildren()
+            continue
+        local = _usd_mesh(prim, time) if prim.IsA(UsdGeom.Mesh) else None
+        if local is None:
+            continue
+        if len(raw) + len(proxies) >= MAX_MESHES:
+            raise EnvironmentLoadError(f"the level has more than {MAX_MESHES:,} meshes (with its "
+                                       "instances): keep the part of the level the creature "
+                                       "uses", where=str(path))
+        pts, faces, color, rough, metal = local
+        world = fix @ _usd_matrix(cache.GetLocalToWorldTransform(prim))
+        into.append((prim.GetName(), *_placed(world[None], pts, faces, None), color, rough,
+                     metal))
+    return raw or proxies, suns
+
+
+def _read_usd_trapped(path: Path, trap, up_axis: str | None, units: str | None):
+    from pxr import Usd, UsdGeom
 
     _check_usd_layers(path)
     stage = Usd.Stage.Open(str(path))
@@ -1713,40 +1761,7 @@ def _read_usd_trapped(path: Path, trap, up_axis: str | None, units: str | None):
     if z_up:
         fix[:3, :3] = Z_UP_TO_Y_UP
     fix[:3, :3] *= mpu
-    time = Usd.TimeCode.EarliestTime()
-    cache = UsdGeom.XformCache(time)
-    raw, suns = [], []
-    prims = iter(Usd.PrimRange.Stage(stage, Usd.TraverseInstanceProxies(
-        Usd.PrimDefaultPredicate)))
-    for prim in prims:
-        if prim.IsA(UsdGeom.Imageable):
-            img = UsdGeom.Imageable(prim)
-            if img.ComputeVisibility(time) == UsdGeom.Tokens.invisible:
-                continue
-            if img.ComputePurpose() == UsdGeom.Tokens.guide:
-                continue
-        if prim.IsA(UsdLux.DistantLight):
-            light = UsdLux.DistantLight(prim)
-            world = fix @ _usd_matrix(cache.GetLocalToWorldTransform(prim))
-            d = world[:3, :3] @ np.array([0.0, 0.0, 1.0])
-            if np.linalg.norm(d) > 1e-12:
-                inten, color = _usd_light(light, time, path)
-                suns.append(Sun(direction=d / np.linalg.norm(d), intensity=inten, color=color))
-            continue
-        if prim.IsA(UsdGeom.PointInstancer):   # its prototypes are drawn only where it places them
-            raw += _usd_point_instances(UsdGeom.PointInstancer(prim), cache, fix, time, path)
-            prims.PruneChildren()
-            continue
-        local = _usd_mesh(prim, time) if prim.IsA(UsdGeom.Mesh) else None
-        if local is None:
-            continue
-        if len(raw) >= MAX_MESHES:
-            raise EnvironmentLoadError(f"the level has more than {MAX_MESHES:,} meshes (with its "
-                                       "instances): keep the part of the level the creature "
-                                       "uses", where=str(path))
-        pts, faces, color, rough, metal = local
-        world = fix @ _usd_matrix(cache.GetLocalToWorldTransform(prim))
-        raw.append((prim.GetName(), *_placed(world[None], pts, faces, None), color, rough, metal))
+    raw, suns = _usd_traverse(stage, fix, Usd.TimeCode.EarliestTime(), path)
     if trap.HasErrors():
         raise EnvironmentLoadError(
             f"USD error: {_usd_diagnostic_text(trap.GetErrors()[0])}", where=str(path))

@@ -201,3 +201,41 @@ def test_usdz_dependency_outside_the_package_named(tmp_path):
     (tmp_path / "level.usdz").write_bytes(usdz({"level.usda": root}))
     with pytest.raises(EnvironmentLoadError, match="'../outside.usda', outside its .usdz"):
         load_environment(tmp_path / "level.usdz")
+
+
+PURPOSES = """#usda 1.0
+(
+    upAxis = "Y"
+    metersPerUnit = 1
+)
+def Xform "set"
+{{
+    def Mesh "floor"
+    {{
+        {purpose}
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        point3f[] points = [(0, 0, 0), (0, 0, 4), (4, 0, 4), (4, 0, 0)]
+    }}
+    def Mesh "floor_proxy"
+    {{
+        uniform token purpose = "proxy"
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        point3f[] points = [(0, 0.3, 0), (0, 0.3, 4), (4, 0.3, 4), (4, 0.3, 0)]
+    }}
+}}
+"""
+
+
+@pytest.mark.parametrize("purpose, drawn", [
+    ('uniform token purpose = "render"', ["floor"]),
+    ("", ["floor"]),                                          # default purpose
+    ('uniform token purpose = "guide"', ["floor_proxy"]),     # the proxy is all there is
+])
+def test_usd_proxy_stand_ins_are_not_drawn_over_the_level(tmp_path, purpose, drawn):
+    """A proxy (a stand-in for render geometry, here a box 0.3 m over the floor) is drawn only
+    on a stage that draws nothing else, as a final render draws it."""
+    p = tmp_path / "set.usda"
+    p.write_text(PURPOSES.format(purpose=purpose))
+    assert [m.name for m in load_environment(p).meshes] == drawn
