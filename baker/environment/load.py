@@ -13,9 +13,10 @@ Formats
   by environment/gltf_ext.py, which also reads EXT_mesh_gpu_instancing (a mesh placed many
   times).
 - OBJ, PLY, STL: read with trimesh as a scene; scene-graph transforms are applied. Assumed to be
-  metres, +Y up. An OBJ's concave polygons are ear-cut before trimesh reads them (it fans every
-  polygon; a PLY's are fanned). OBJ `Kd` (through trimesh's material) is taken as a linear
-  colour; PLY vertex or face colours (sRGB bytes) are averaged and converted to linear.
+  metres, +Y up. Concave polygons are ear-cut (geometry/polygons.py: trimesh fans every
+  polygon): an OBJ's before trimesh reads it, a PLY's from the faces trimesh keeps as read.
+  OBJ `Kd` (through trimesh's material) is taken as a linear colour; PLY vertex or face
+  colours (sRGB bytes) are averaged and converted to linear.
 - USD (.usd, .usda, .usdc, .usdz): every visible `UsdGeom.Mesh` of default or render purpose
   (proxy only on a stage of nothing else) is triangulated
   (a fan for a convex face, ear clipping for a concave one: geometry/polygons.py; a
@@ -1323,6 +1324,63 @@ def _obj_index(field: bytes, defined: int) -> bytes:
     return str(defined + int(field) + 1).encode() if field.startswith(b"-") else field
 
 
+def _ply_cut(geom) -> np.ndarray | None:
+    """A PLY mesh's faces (T, 3) triangulated afresh (geometry.polygons) when the file has a
+    concave polygon, which trimesh fans from its first corner; None otherwise (and for any
+    other mesh). trimesh keeps the file's faces as read in metadata['_ply_raw']."""
+    face = (getattr(geom, "metadata", None) or {}).get("_ply_raw", {}).get("face", {})
+    rows = face.get("data") if isinstance(face, dict) else None
+    names = (rows.dtype.names or ()) if isinstance(rows, np.ndarray) else tuple(rows or ())
+    key = next((k for k in ("vertex_indices", "vertex_index") if k in names), None)
+    if key is None:
+        return None
+    lists = rows[key]
+    if isinstance(lists, np.ndarray) and lists.dtype.names:     # binary: (count, items)
+        lists = lists[lists.dtype.names[-1]]
+    if len(lists) == 0:
+        return None
+    try:
+        if isinstance(lists, np.ndarray) and lists.dtype != object and lists.ndim == 2:
+            counts = np.full(len(lists), lists.shape[1], dtype=np.int64)
+            flat = lists.reshape(-1).astype(np.int64)
+        else:
+            counts = np.array([len(x) for x in lists], dtype=np.int64)
+            flat = np.concatenate([np.asarray(x, dtype=np.int64).reshape(-1) for x in lists])
+    except (TypeError, ValueError):
+        return None
+    points = np.asarray(geom.vertices, dtype=np.float64)
+    if (counts.max() < 4 or counts.min() < 3 or flat.min() < 0 or flat.max() >= len(points)
+            or not polygons.concave(points, counts, flat).any()):
+        return None
+    return polygons.triangulate(points, counts, flat)
+
+
+def _ragged_ply(path: Path, data: bytes) -> tuple:
+    """The raw mesh entry of a binary PLY whose faces vary in size (environment.ply reads it;
+    trimesh cannot), triangulated by geometry.polygons, its vertices merged as trimesh merges
+    a mesh it loads."""
+    import trimesh
+
+    from baker.environment import ply
+
+    v, counts, flat, rgba = ply.read(data)
+    keep = np.repeat(counts >= 3, counts)
+    counts, flat = counts[counts >= 3], flat[keep]
+    if len(flat) and (flat.min() < 0 or flat.max() >= len(v)):
+        raise EnvironmentLoadError(f"PLY face index outside its {len(v):,} vertices")
+    faces = polygons.triangulate(v, counts, flat) if len(counts) else np.zeros((0, 3), np.int64)
+    _check_geometry(v, faces, path.stem)
+    geom = trimesh.Trimesh(v, faces, process=False)
+    geom.process()
+    color = DEFAULT_COLOR
+    if rgba is not None:
+        mean = np.asarray(rgba, dtype=np.float64) / 255.0
+        rgb = _srgb_to_linear(mean[:3])
+        color = (float(rgb[0]), float(rgb[1]), float(rgb[2]), float(mean[3]))
+    return (path.stem, np.asarray(geom.vertices, dtype=np.float64),
+            np.asarray(geom.faces, dtype=np.int64), None, color, 1.0, 0.0)
+
+
 def _check_ascii_ply(data: bytes) -> None:
     """An ASCII PLY's body must hold exactly the values its header declares (trimesh reads a
     short or overlong body without a word)."""
@@ -1406,8 +1464,13 @@ def _read_trimesh(path: Path):
     data = _text_as_utf8(path, data)
     if path.suffix.lower() == ".obj":
         data = _obj_cut(_obj_absolute(_obj_spaces(data)))
-    scene = trimesh.load_scene(io.BytesIO(data), file_type=path.suffix.lower()[1:],
-                               resolver=_folder_resolver(path), process=False)
+    try:
+        scene = trimesh.load_scene(io.BytesIO(data), file_type=path.suffix.lower()[1:],
+                                   resolver=_folder_resolver(path), process=False)
+    except ValueError as exc:
+        if path.suffix.lower() != ".ply" or "unexpected length" not in str(exc):
+            raise
+        return [_ragged_ply(path, data)], None      # trimesh takes every row's list as the first's
     raw = []
     for node in scene.graph.nodes_geometry:
         transform, geom_name = scene.graph[node]
@@ -1417,12 +1480,16 @@ def _read_trimesh(path: Path):
             continue
         _check_geometry(np.asarray(geom.vertices, dtype=np.float64),
                         np.asarray(faces, dtype=np.int64), str(geom_name))
+        color, cut = None, _ply_cut(geom)
+        if cut is not None:     # a new mesh: the file's face colours do not fit its faces
+            color = _trimesh_color(geom)
+            geom = trimesh.Trimesh(geom.vertices, cut, process=False)
         geom.process()  # merge vertices as trimesh does on load (solids are found by them)
         m = np.asarray(transform, dtype=np.float64)
         v = _transform_points(m, np.asarray(geom.vertices, dtype=np.float64))
         f = _fix_winding(np.asarray(geom.faces, dtype=np.int64), m)
         name = node if node != path.name else (geom_name if geom_name != path.name else path.stem)
-        raw.append((name, v, f, None, _trimesh_color(geom), 1.0, 0.0))
+        raw.append((name, v, f, None, color or _trimesh_color(geom), 1.0, 0.0))
     return raw, None
 
 

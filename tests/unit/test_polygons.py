@@ -113,3 +113,28 @@ def test_usd_concave_face_is_cut(tmp_path, orientation):
     assert len(env.mesh.faces) == 6
     assert np.all(up[:4] > 0) and np.isclose(up[:4].sum(), 3.0)
     assert np.isclose(np.abs(up[4:]).sum(), abs(_shoelace(L_SHAPE[:4])))
+
+
+@pytest.mark.parametrize("binary", [False, True])
+def test_ply_concave_polygon_is_cut(tmp_path, binary):
+    """A PLY's L-shaped hexagon (ASCII and binary, with face colours) covers 3 square metres
+    facing up, its colour kept."""
+    import struct
+
+    pts = _lifted(L_SHAPE[::-1])
+    head = ("ply\nformat {} 1.0\nelement vertex 6\nproperty float x\nproperty float y\n"
+            "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+            "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n")
+    if binary:
+        body = b"".join(struct.pack("<3f", *p) for p in pts)
+        body += struct.pack("<B6i3B", 6, *range(6), 255, 0, 0)
+        data = head.format("binary_little_endian").encode() + body
+    else:
+        data = (head.format("ascii") + "".join(f"{x} {y} {z}\n" for x, y, z in pts)
+                + "6 0 1 2 3 4 5 255 0 0\n").encode()
+    p = tmp_path / "floor.ply"
+    p.write_bytes(data)
+    env = load_environment(p)
+    up = _areas(env.mesh.vertices, env.mesh.faces)[:, 1]
+    assert len(env.mesh.faces) == 4 and np.all(up > 0) and np.isclose(up.sum(), 3.0)
+    assert env.meshes[0].color[0] > 0.9 and env.meshes[0].color[1] < 0.1

@@ -1,0 +1,135 @@
+"""Binary PLY files whose list properties vary in length from row to row.
+
+trimesh reads a binary PLY's list property (a face's vertex_indices) as if every row had the
+first row's length, and refuses a file whose faces mix sizes ("PLY is unexpected length!"):
+Blender's PLY export (binary, polygons as modelled) of a level of triangles and quads. This
+reads such a file itself: each element in the header's order, the rows of one without lists in
+one go, the rows of one with lists walked row by row for their offsets, then every property
+gathered at once.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from baker.errors import EnvironmentLoadError
+
+_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2",
+          "int16": "i2", "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4",
+          "uint": "u4", "uint32": "u4", "float": "f4", "float32": "f4", "double": "f8",
+          "float64": "f8"}
+_COLOURS = ("red", "green", "blue", "alpha")
+
+
+def read(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple | None]:
+    """(vertices (n, 3) float64, face corner counts (m,), their vertex indices (sum counts,),
+    the mean colour of the vertices (else of the faces) as sRGB bytes (r, g, b, a) or None) of
+    a binary PLY."""
+    elements, pos, order = _header(data)
+    read_ = {}
+    for name, count, props in elements:
+        read_[name], pos = _element(data, pos, count, props, order)
+    if pos != len(data):
+        raise EnvironmentLoadError(f"corrupt PLY: its elements take {pos:,} bytes, the file "
+                                   f"has {len(data):,}")
+    vertex = read_.get("vertex", {})
+    if not all(k in vertex for k in "xyz"):
+        raise EnvironmentLoadError("PLY has no vertex x, y, z")
+    v = np.stack([vertex[k].astype(np.float64) for k in "xyz"], axis=1)
+    face = read_.get("face", {})
+    lists = face.get("vertex_indices", face.get("vertex_index"))
+    counts, flat = lists if isinstance(lists, tuple) else (np.zeros(0, np.int64),) * 2
+    return v, counts, flat, _colour(vertex) or _colour(face)
+
+
+def _header(data: bytes) -> tuple[list, int, str]:
+    """([(element, count, [(property, numpy type, list count type or None)])], where the body
+    starts, '<' or '>')."""
+    end = data.find(b"end_header")
+    nl = data.find(b"\n", end)
+    if end < 0 or nl < 0:
+        raise EnvironmentLoadError("corrupt PLY: no end_header")
+    order, elements = None, []
+    for line in data[:end].decode("latin-1").splitlines():
+        w = line.split()
+        if len(w) >= 2 and w[0] == "format":
+            order = {"binary_little_endian": "<", "binary_big_endian": ">"}.get(w[1])
+        elif len(w) >= 3 and w[0] == "element":
+            elements.append((w[1], _count(w[2]), []))
+        elif len(w) >= 3 and w[0] == "property" and elements:
+            if w[1] == "list" and len(w) >= 5:
+                elements[-1][2].append((w[4], _type(w[3]), _type(w[2])))
+            else:
+                elements[-1][2].append((w[2], _type(w[1]), None))
+    if order is None:
+        raise EnvironmentLoadError("PLY is not binary")
+    return elements, nl + 1, order
+
+
+def _count(word: str) -> int:
+    try:
+        n = int(word)
+    except ValueError:
+        n = -1
+    if n < 0:
+        raise EnvironmentLoadError(f"PLY element count '{word[:20]}' is not a count")
+    return n
+
+
+def _type(word: str) -> str:
+    if word not in _TYPES:
+        raise EnvironmentLoadError(f"PLY property type '{word[:20]}' is not a PLY type")
+    return _TYPES[word]
+
+
+def _element(data: bytes, pos: int, count: int, props: list, order: str) -> tuple[dict, int]:
+    """({property: values (count,), or for a list (counts, values)}, where the next element
+    starts) of one element's `count` rows from `pos`."""
+    if not any(kind for _, _, kind in props):
+        dtype = np.dtype([(name, order + t) for name, t, _ in props])
+        if pos + count * dtype.itemsize > len(data):
+            raise EnvironmentLoadError("corrupt PLY: truncated")
+        rows = np.frombuffer(data, dtype, count, pos)
+        return {name: rows[name] for name, _, _ in props}, pos + count * dtype.itemsize
+    starts = np.empty((len(props), count), dtype=np.int64)   # each property's offset per row
+    lengths = np.zeros((len(props), count), dtype=np.int64)
+    sizes = [(np.dtype(t).itemsize, None if kind is None else np.dtype(order + kind))
+             for _, t, kind in props]
+    for r in range(count):
+        for k, (size, kind) in enumerate(sizes):
+            if kind is None:
+                starts[k, r] = pos
+                pos += size
+                continue
+            if pos + kind.itemsize > len(data):
+                raise EnvironmentLoadError("corrupt PLY: truncated")
+            n = data[pos] if kind.itemsize == 1 and kind.kind == "u" else int.from_bytes(
+                data[pos:pos + kind.itemsize], "little" if order == "<" else "big",
+                signed=kind.kind == "i")
+            if n < 0:
+                raise EnvironmentLoadError(f"corrupt PLY: a list of {n} items")
+            starts[k, r], lengths[k, r] = pos + kind.itemsize, n
+            pos += kind.itemsize + n * size
+    if pos > len(data):
+        raise EnvironmentLoadError("corrupt PLY: truncated")
+    buf = np.frombuffer(data, np.uint8)
+    out = {}
+    for k, ((name, t, kind), (size, _)) in enumerate(zip(props, sizes)):
+        n = lengths[k] if kind is not None else np.ones(count, np.int64)
+        at = np.repeat(starts[k], n) + size * (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n))
+        values = buf[at[:, None] + np.arange(size)].copy().view(order + t).reshape(-1)
+        out[name] = (n, values.astype(np.int64)) if kind is not None else values
+    return out, pos
+
+
+def _colour(props: dict) -> tuple | None:
+    """The mean of an element's red, green, blue (alpha) as bytes, or None."""
+    if not all(c in props and not isinstance(props[c], tuple) for c in _COLOURS[:3]):
+        return None
+    cols = [props[c].astype(np.float64) for c in _COLOURS if c in props
+            and not isinstance(props[c], tuple)]
+    if not len(cols[0]):
+        return None
+    scale = 255.0 if all(props[c].dtype.kind == "f" for c in _COLOURS[:3]) else 1.0
+    mean = [float(np.mean(c)) * scale for c in cols]
+    return tuple(mean) if len(mean) == 4 else (*mean, 255.0)
