@@ -91,6 +91,10 @@ def _element(data: bytes, pos: int, count: int, props: list, order: str) -> tupl
             raise EnvironmentLoadError("corrupt PLY: truncated")
         rows = np.frombuffer(data, dtype, count, pos)
         return {name: rows[name] for name, _, _ in props}, pos + count * dtype.itemsize
+    least = sum(np.dtype(t if kind is None else kind).itemsize for _, t, kind in props)
+    if count * least > len(data) - pos:                      # before allocating for the rows
+        raise EnvironmentLoadError(f"corrupt PLY: {count:,} rows of at least {least} bytes "
+                                   f"in {len(data) - pos:,} bytes")
     starts = np.empty((len(props), count), dtype=np.int64)   # each property's offset per row
     lengths = np.zeros((len(props), count), dtype=np.int64)
     sizes = [(np.dtype(t).itemsize, None if kind is None else np.dtype(order + kind))

@@ -74,3 +74,11 @@ def test_face_index_out_of_range_refused(tmp_path):
     p.write_bytes(_ply(faces=FACES + [(0, 1, 99, 2)]))
     with pytest.raises(EnvironmentLoadError, match="outside its 11 vertices"):
         load_environment(p)
+
+
+def test_row_count_past_the_file_refused_before_reading(tmp_path):
+    """A header claiming 3 billion faces in a 0.3 kB file is refused before any row is read."""
+    p = tmp_path / "huge.ply"
+    p.write_bytes(_ply().replace(b"element face 3\n", b"element face 3000000000\n"))
+    with pytest.raises(EnvironmentLoadError, match="3,000,000,000 rows"):
+        load_environment(p)
