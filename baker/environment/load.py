@@ -70,6 +70,11 @@ _MAX_NAME = 63
 
 
 # --------------------------------------------------------------------------- public API
+#: the native and interchange formats of the tools levels come from, which export glTF
+_EXPORT_AS_GLTF = {".fbx", ".blend", ".dae", ".3ds", ".max", ".ma", ".mb", ".umap", ".uasset",
+                   ".unity", ".prefab", ".x3d", ".abc", ".3mf", ".ifc", ".skp", ".c4d", ".lwo"}
+
+
 def load_environment(path: str | Path, sun_override=None, up_axis: str | None = None,
                      units: str | None = None) -> Environment:
     """Read an environment file.
@@ -95,9 +100,11 @@ def load_environment(path: str | Path, sun_override=None, up_axis: str | None = 
                                    where=str(path))
     ext = path.suffix.lower()
     if ext not in SUPPORTED_EXTS:
+        hint = ("; export the level from its tool as glTF (.glb), OBJ or USD"
+                if ext in _EXPORT_AS_GLTF else "")
         raise EnvironmentLoadError(
             f"unsupported environment format '{path.suffix or '(none)'}'; expected one of "
-            f"{', '.join(sorted(SUPPORTED_EXTS))}", where=str(path))
+            f"{', '.join(sorted(SUPPORTED_EXTS))}{hint}", where=str(path))
     if not path.exists():
         raise EnvironmentLoadError("environment file not found", where=str(path))
     if not path.is_file():

@@ -423,7 +423,15 @@ def test_unsupported_extension(tmp_path):
     p.write_text("0 0 0\n")
     with pytest.raises(EnvironmentLoadError, match="unsupported") as ei:
         load_environment(p)
-    assert "points.xyz" in str(ei.value)
+    assert "points.xyz" in str(ei.value) and "export" not in str(ei.value)
+
+
+@pytest.mark.parametrize("name", ["level.fbx", "level.blend", "Level.UMAP"])
+def test_unsupported_tool_format_says_to_export(tmp_path, name):
+    p = tmp_path / name
+    p.write_bytes(b"Kaydara FBX Binary  \x00")
+    with pytest.raises(EnvironmentLoadError, match=r"export the level from its tool as glTF"):
+        load_environment(p)
 
 
 @pytest.mark.parametrize("data", [b"", b"glTF", b"not a glb at all" * 10,
