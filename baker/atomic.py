@@ -23,6 +23,7 @@ import errno
 import fcntl
 import os
 import secrets
+import stat
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -145,12 +146,25 @@ def resolve_out(out) -> Path:
     if text.endswith(os.sep) or (os.altsep and text.endswith(os.altsep)) or _isdir(Path(text)):
         return Path(text) / DEFAULT_NAME
     path = Path(text)
+    if _special(path):
+        raise ExportError(f"--out {text!r} is a device, pipe or socket, not a path: give a "
+                          "folder or a path without extension, e.g. outputs/centipede")
     if path.name.lower() in OUT_EXTENSIONS:
         raise ExportError(f"--out {text!r} names only an extension: give a name, e.g. "
                           f"{path.parent / DEFAULT_NAME}{path.name}")
     if path.suffix.lower() in OUT_EXTENSIONS and path.stem:
         return path.with_suffix("")
     return path
+
+
+def _special(path: Path) -> bool:
+    """Whether `path` is there and is neither a folder nor a regular file (`--out /dev/null`
+    wrote /dev/null.glb, /dev/null.usd and /dev/null.json beside the device)."""
+    try:
+        mode = path.stat().st_mode
+    except (OSError, ValueError):
+        return False
+    return not (stat.S_ISDIR(mode) or stat.S_ISREG(mode))
 
 
 def _name_max(folder: Path) -> int:

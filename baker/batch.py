@@ -68,7 +68,8 @@ from baker import signals
 from baker.atomic import atomic_write_bytes, check_outputs, check_writable
 from baker.config import (DEFAULT_ENVIRONMENT, DEFAULT_RIG, BakeConfig, load_rig_config,
                           override_rig, read_toml_file, validate_bake)
-from baker.errors import BakerError, ConfigError, JobsFileError, format_error
+from baker.errors import (BakerError, ConfigError, JobsFileError, format_error,
+                          short_path)
 
 log = logging.getLogger(__name__)
 
@@ -229,11 +230,32 @@ def _as_key(text: str, key: str) -> str:
     return text.replace("--" + key.replace("_", "-"), key)
 
 
+def absolute_path(value, base: Path | None = None) -> Path:
+    """`value` as an absolute path: '~' expanded, relative to `base` (else the working folder),
+    symbolic links resolved. ValueError naming what is wrong for a path no file can have: a NUL
+    character, a '~user' with no home folder, a loop of symbolic links (pathlib raises
+    RuntimeError for the last two, which read as a bug)."""
+    text = os.fspath(value)
+    if "\0" in text:
+        raise ValueError("a path cannot hold a NUL character")
+    p = Path(text)
+    try:
+        p = p.expanduser()
+    except RuntimeError:
+        raise ValueError(f"'{text.split(os.sep)[0][:60]}' names no user's home folder") from None
+    try:
+        return (p if p.is_absolute() or base is None else base / p).resolve()
+    except (RuntimeError, OSError) as e:      # a symbolic link loop (OSError ELOOP in 3.13)
+        raise ValueError(f"cannot resolve the path: {e}") from None
+
+
 def _check_path(key: str, value, base: Path):
     if not isinstance(value, str) or not value.strip():
         return None, f"{key} = {_show(value)}: expected a file path"
-    p = Path(value).expanduser()
-    p = (p if p.is_absolute() else base / p).resolve()
+    try:
+        p = absolute_path(value, base)
+    except ValueError as e:
+        return None, f"{key} = {_show(value)}: {e}"
     if not p.is_file():
         return None, f"{key}: {'not a file' if p.exists() else 'file not found'}: {p}"
     if key == "rig":
@@ -440,7 +462,10 @@ def load_plan(jobs_file, out, cache=None) -> Plan:
     path = Path(jobs_file)
     doc = read_toml_file(path, "jobs", max_bytes=MAX_JOBS_FILE_BYTES)
     base = path.resolve().parent
-    out = Path(out).resolve()
+    try:
+        out = absolute_path(out)
+    except ValueError as e:
+        raise ConfigError(f"--out {short_path(str(out))}: {e}", where="--out") from None
     problems = _Problems()
     defaults, _ = _check_table(doc.get("defaults", {}), "[defaults]", base, problems, job=False)
     made = _expand(_entries(doc, problems), defaults, base, out, cache, problems)
@@ -1264,7 +1289,11 @@ def run(jobs_file, *, out=None, workers: int | None = None, scheduler: str | Non
         from baker.navmesh.cache import NavCache
 
         cache = NavCache.of(cache)
-        cache = replace(cache, folder=Path(cache.folder).expanduser().resolve())
+        try:
+            cache = replace(cache, folder=absolute_path(cache.folder))
+        except ValueError as e:
+            raise ConfigError(f"--cache-dir {short_path(str(cache.folder))}: {e}",
+                              where="--cache-dir") from None
     # Step 1: the whole jobs file, and every output path, checked before any work.
     plan = load_plan(jobs_file, out, cache)
     check_writable(plan.out)

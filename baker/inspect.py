@@ -334,13 +334,24 @@ def read_glb(path: str | Path, animation: str | int = 0,
 # ---------------------------------------------------------------- USD
 
 
+def open_stage(path: str | Path):
+    """Usd.Stage.Open(path), or None; what USD's C++ code prints itself (a corrupt crate's
+    'failed call to posix_madvise') is held back from stderr (environment.native)."""
+    from pxr import Usd
+
+    from baker.environment.native import held_stderr
+
+    with held_stderr(str(path)):
+        return Usd.Stage.Open(str(path))
+
+
 def read_usd(path: str | Path, creature: int = 0) -> BakedScene:
     """Read a bake's USD: the skeleton's joints (the `creature`-th Skeleton, in stage order:
     a crowd's creatures), posed by its bound animation at every time code, as world transforms
     (UsdSkel, double precision). No environment."""
-    from pxr import Usd, UsdGeom, UsdSkel
+    from pxr import UsdGeom, UsdSkel
 
-    stage = Usd.Stage.Open(str(path))
+    stage = open_stage(path)
     if stage is None:
         raise InspectError(f"{path}: cannot open the USD stage")
     skels = [p for p in stage.Traverse() if p.IsA(UsdSkel.Skeleton)]

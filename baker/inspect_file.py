@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from baker.inspect import InspectError, glb_extras
+from baker.inspect import InspectError, glb_extras, open_stage
 
 #: file types, by suffix
 GLB, USD, REPORT = (".glb",), (".usd", ".usdc", ".usda"), (".json",)
@@ -325,11 +325,11 @@ def _with_creatures(report: dict, n: int) -> dict:
 
 def _open_stage(path: Path):
     """The USD stage, USD's own diagnostics trapped; InspectError when it does not open."""
-    from pxr import Tf, Usd
+    from pxr import Tf
 
     with Tf.DiagnosticTrap() as trap:
         try:
-            stage = Usd.Stage.Open(str(path))
+            stage = open_stage(path)
         except Exception as e:          # pxr raises Tf.ErrorException (an Exception subclass)
             raise InspectError(f"cannot open the USD stage: {_pxr_text(e)}",
                                where=str(path)) from None

@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from baker.environment import gltf_ext
+from baker.environment import gltf_ext, native
 from baker.environment.model import EnvMesh, Environment, Sun
 from baker.errors import EnvironmentLoadError
 from baker.geometry import polygons
@@ -1658,8 +1658,9 @@ def _read_usd(path: Path, up_axis: str | None = None, units: str | None = None):
     from pxr import Tf
 
     # USD reports problems as diagnostics on stderr: trap them, refuse the file on any
-    # composition error or error, and print nothing of USD's own
-    with Tf.DiagnosticTrap() as trap:
+    # composition error or error, and print nothing of USD's own (nor what its C++ code
+    # prints itself: native.held_stderr)
+    with native.held_stderr(str(path)), Tf.DiagnosticTrap() as trap:
         try:
             return _read_usd_trapped(path, trap, up_axis, units)
         finally:

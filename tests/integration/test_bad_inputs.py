@@ -39,6 +39,7 @@ SUBPROCESS = [
     "ply_binary_vertex_2e9", "ply_ascii_vertex_2e9", "obj_nan_vertex", "gltf_bin_outside",
     "usd_sublayer_missing", "usd_reference_outside", "usd_syntax_error", "usd_face_index_past",
     "usd_reference_bad_prim", "usd_variant_reference_outside",
+    "usd_crate_section_start",
     "rig_legs_none", "rig_empty", "opt_sun_0_1e308,0,0",
     "opt_navmesh_from_nan", "opt_seconds_0_nan",
 ]
@@ -48,6 +49,9 @@ def bake_args(case, folder: Path, out: Path) -> list[str]:
     extra = [str(a) for a in case.make(folder)]
     if extra and extra[0] == "navmesh":
         return ["navmesh", str(FLOOR_ENVIRONMENT), "--no-cache", *extra[1:]]
+    if extra and extra[0] == "batch":   # a jobs file; a refused one makes no output folder
+        return ["batch", extra[1], "--out", str(out / "batch"), "--workers", "1",
+                "--cache-dir", str(folder / "cache"), *extra[2:]]
     env = []
     if extra and not extra[0].startswith("--"):
         env, extra = [extra[0]], extra[1:]

@@ -15,6 +15,7 @@ import pytest
 from baker.cli import main
 from baker.config import FLOOR_ENVIRONMENT
 from baker.inspect_file import LOOP_RULE, inspect_file, khronos_validate, loops_by_name
+import bad_inputs
 from glb_read import Glb
 
 SECONDS = 3
@@ -286,6 +287,8 @@ BROKEN = {
     "garbage_usd": (lambda d, b: _put(d / "g.usd", b"garbage\x00\x01" * 50), "USD"),
     "truncated_usd": (lambda d, b: _put(d / "t.usd", (b / "c.usd").read_bytes()[:4000]), "USD"),
     "garbage_usda": (lambda d, b: _put(d / "g.usda", b"#usda 1.0\n(\n garbage"), "USD"),
+    "crate_section_start": (lambda d, b: _put(d / "s.usdc", bad_inputs.crate_section_flipped()),
+                            "USD"),
     "no_skeleton_usd": (lambda d, b: _env_only_usd(d), "no UsdSkel Skeleton"),
     "garbage_json": (lambda d, b: _put(d / "g.json", b"\xff\xfe{"), "not JSON"),
     "other_json": (lambda d, b: _put(d / "o.json", b'{"a": 1}'), "not a baker report"),
@@ -319,9 +322,11 @@ def test_unreadable_file_is_one_line_and_exit_2(case, bakes, tmp_path, capsys):
         assert out == ""
 
 
-@pytest.mark.parametrize("case", ["truncated_usd", "garbage_usda", "bad_skin", "png"])
+@pytest.mark.parametrize("case", ["truncated_usd", "garbage_usda", "bad_skin", "png",
+                                  "crate_section_start"])
 def test_unreadable_file_in_a_subprocess(case, bakes, tmp_path):
-    """The console entry point: nothing of USD's or Python's own reaches stderr."""
+    """The console entry point: nothing of USD's or Python's own reaches stderr (a crate whose
+    section starts past the file: USD's C++ code printed 'failed call to posix_madvise')."""
     path = BROKEN[case][0](tmp_path, bakes)
     r = subprocess.run([sys.executable, "-m", "baker", "inspect", str(path)],
                        capture_output=True, text=True)

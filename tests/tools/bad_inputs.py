@@ -13,6 +13,8 @@ item is "navmesh", of a `baker navmesh`). Classes:
 - rig_*   : the default rig file mutated, generated from the declared schema (every key: a wrong
             type, each bound crossed, NaN) plus structural cases (not a table, unknown key, ...)
 - opt_*   : bad option values (every numeric option: NaN, inf, out of range, not a number)
+- batch_* : `baker batch` of a jobs file (the first item "batch") whose paths cannot be
+            resolved: a '~user' with no home, a NUL character, a loop of symbolic links
 
 `GOOD_LATIN1` are files in other encodings that must load.
 """
@@ -655,6 +657,9 @@ def _usd_cases():
         "no_meshes": lambda: {"level.usda": usd_text(body='def Xform "x"\n{\n}\n')},
         "crate_garbage": lambda: {"level.usdc": b"PXR-USDC" + bytes(range(256)) * 8},
         "usd_text_garbage": lambda: {"level.usd": b"\x00\x01\x02 not usd at all"},
+        # a section's start past any file: USD's C++ code printed 'failed call to
+        # posix_madvise(...)' on stderr itself, above the error line
+        "crate_section_start": lambda: {"level.usdc": crate_section_flipped()},
     }
     def inside(sub):
         return usd_text(extra=f"    subLayers = [@{sub}@]\n")
@@ -671,6 +676,29 @@ def _usd_cases():
         "usdz_text_inside_only": lambda: {"level.usdz": usdz({"notes.txt": "hello"})},
     })
     return [_usd_case(k, v) for k, v in cases.items()]
+
+
+def usd_crate(text: str) -> bytes:
+    """The USD layer `text` as a crate (.usdc) file's bytes."""
+    import tempfile
+
+    from pxr import Sdf
+
+    layer = Sdf.Layer.CreateAnonymous(".usda")
+    layer.ImportFromString(text)
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / "x.usdc"
+        layer.Export(str(p))
+        return p.read_bytes()
+
+
+def crate_section_flipped() -> bytes:
+    """The good level as a crate whose first section's start has its high byte flipped (the
+    table of contents: a count, then 16-byte names each with an int64 start and size)."""
+    b = bytearray(usd_crate(usd_text()))
+    toc = struct.unpack_from("<q", b, 16)[0]
+    b[toc + 8 + 16 + 7] ^= 0xFF
+    return bytes(b)
 
 
 def usdz(files: dict[str, str]) -> bytes:
@@ -825,6 +853,49 @@ def _structural_rig_cases():
     return [_rig_case(k, v) for k, v in c.items()]
 
 
+# --------------------------------------------------------------------------- batch jobs
+BATCH_HEAD = '[defaults]\nenvironment = "scene.glb"\nseconds = 1\n'
+
+
+def _batch_case(cid, text, *extra, setup=None):
+    """`baker batch` of a jobs file beside the good scene (the first item "batch": see
+    test_bad_inputs.bake_args); `setup(folder)` adds what the file names."""
+    def make(folder: Path):
+        (folder / "scene.glb").write_bytes(good_glb())
+        if setup:
+            setup(folder)
+        p = folder / "jobs.toml"
+        p.write_text(text)
+        return ["batch", p, *(x(folder) if callable(x) else x for x in extra)]
+    return Case(f"batch_{cid}", make)
+
+
+def _loop(name):
+    """A symbolic link `name` in the folder that points at itself."""
+    def setup(folder: Path):
+        (folder / name).symlink_to(folder / name)
+    return setup
+
+
+def _batch_cases():
+    """Paths pathlib cannot resolve (it raised RuntimeError or ValueError: tracebacks)."""
+    job = BATCH_HEAD + "[[job]]\n"
+    return [
+        _batch_case("env_unknown_user", job + 'environment = "~nosuchuser_baker/x.glb"\n'),
+        _batch_case("rig_unknown_user", job + 'rig = "~nosuchuser_baker/rig.toml"\n'),
+        _batch_case("env_nul", job + 'environment = "level\\u0000.glb"\n'),
+        _batch_case("rig_nul", job + 'rig = "rig\\u0000.toml"\n'),
+        _batch_case("matrix_env_nul",
+                    job + '[job.matrix]\nenvironment = ["scene.glb", "a\\u0000.glb"]\n'),
+        _batch_case("env_link_loop", job + 'environment = "loop.glb"\n', setup=_loop("loop.glb")),
+        _batch_case("rig_link_loop", job + 'rig = "loop.toml"\n', setup=_loop("loop.toml")),
+        _batch_case("out_link_loop", job, "--out", lambda f: f / "loop" / "o", setup=_loop("loop")),
+        _batch_case("cache_dir_unknown_user", job, "--cache-dir", "~nosuchuser_baker/cache"),
+        _batch_case("cache_dir_link_loop", job, "--cache-dir", lambda f: f / "loop",
+                    setup=_loop("loop")),
+    ]
+
+
 def _rig_path_cases():
     return [
         Case("rig_missing", lambda f: ["--rig", f / "nope.toml"]),
@@ -878,6 +949,8 @@ def _option_cases():
     # two options that both set the sun (the sun path won; the report kept --sun's)
     cases.append(Case("opt_sun_and_sun_path", lambda f: ["--sun", "0,1,0",
                                                          "--sun-path", "90,30;270,30"]))
+    # a device as the output prefix: /dev/null.glb, .usd and .json were written beside it
+    cases.append(Case("opt_out_device", lambda f: ["--out", "/dev/null"]))
     for name, args in NAVMESH_OPTION_CASES:
         cases.append(Case(f"opt_navmesh_{name}", (lambda f, a=args: ["navmesh", *a])))
     return cases
@@ -889,7 +962,7 @@ def all_cases() -> list[Case]:
              + [_glb_blob_case(k) for k in GLB_BLOB_EDITS]
              + _glb_raw_cases() + _compressed_cases() + _gltf_cases() + _mesh_cases() + _usd_cases()
              + _schema_rig_cases() + _structural_rig_cases() + _rig_path_cases()
-             + _option_cases())
+             + _option_cases() + _batch_cases())
     ids = [c.id for c in cases]
     assert len(ids) == len(set(ids)), "duplicate case ids"
     return cases
