@@ -67,12 +67,35 @@ def can_fork() -> bool:
     return sys.platform.startswith("linux") and not multiprocessing.current_process().daemon
 
 
-def _child_start(workers: int) -> None:
-    """A fork_map child: its share of the CPUs (thread_count), and its signals
-    (_child_signals)."""
+def _child_start(workers: int, parent: int) -> None:
+    """A fork_map child (or a Peer's): its share of the CPUs (thread_count), its signals
+    (_child_signals), and its end with its parent's (_die_with_parent)."""
     global _SHARE
     _SHARE = max(1, int(workers))
     _child_signals()
+    _die_with_parent(parent)
+
+
+#: prctl's option for the signal a process gets when its parent dies (linux/prctl.h)
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent: int) -> None:
+    """Linux: this child is killed when `parent` (the process that forked it) dies. A parent
+    killed outright (SIGKILL: a CI timeout, the OOM killer) cannot end its children, and a
+    fork_map child never saw it go: it waits on the call queue, whose write end its sister
+    children hold too, and waited for ever (with its copy of the level's memory). (A Peer
+    also ends when its pipe closes.)"""
+    if not sys.platform.startswith("linux"):   # pragma: no cover - fork is Linux only here
+        return
+    import ctypes
+
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):           # pragma: no cover - no prctl in this libc
+        return
+    if os.getppid() != parent:      # it died before the call above
+        os._exit(1)
 
 
 def _child_signals() -> None:
@@ -128,7 +151,8 @@ def _fork_map(fn, n: int, workers: int, beside) -> tuple:
             warnings.filterwarnings("ignore", r".*fork\(\) may lead to deadlocks",
                                     DeprecationWarning)
             pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
-                                       initializer=_child_start, initargs=(workers,))
+                                       initializer=_child_start,
+                                       initargs=(workers, os.getpid()))
             # waited for one by one, never cancelled: an interrupted pool.map cancels the calls
             # not started, and Python 3.11's pool, broken by the children's end below, then
             # fails to mark them ("Exception in thread ... InvalidStateError" on stderr)
@@ -179,7 +203,8 @@ class Peer:
         with warnings.catch_warnings():     # Python 3.12+: fork with the ray caster's threads
             warnings.filterwarnings("ignore", r".*fork\(\) may lead to deadlocks",
                                     DeprecationWarning)
-            self._proc = ctx.Process(target=_peer_serve, args=(child, fn, share, self._conn),
+            self._proc = ctx.Process(target=_peer_serve,
+                                     args=(child, fn, share, self._conn, os.getpid()),
                                      daemon=True, name="baker-peer")
             self._proc.start()
         child.close()
@@ -254,12 +279,12 @@ def _spin(poller) -> None:
         os.sched_yield()
 
 
-def _peer_serve(conn, fn, share: int, parent_end) -> None:
+def _peer_serve(conn, fn, share: int, parent_end, parent: int) -> None:
     """A Peer's child: answer requests until None or the pipe closes; after an error, stop.
     It closes its copy of the parent's end first, so that the pipe closes when the parent
     dies (killed, it cannot say so)."""
     parent_end.close()
-    _child_start(share)
+    _child_start(share, parent)
     poller = _poller(conn)
     while True:
         try:

@@ -284,6 +284,44 @@ def test_a_peer_ends_when_its_parent_is_killed(tmp_path):
         pytest.fail("the peer outlived its killed parent")
 
 
+@forks
+@pytest.mark.parametrize("kind", ["fork_map", "two_peers"])
+def test_children_end_when_their_parent_is_killed_outright(tmp_path, kind):
+    """A bake killed with SIGKILL (a CI timeout, the OOM killer) cannot end its children: a
+    fork_map child waiting on the call queue (whose write end its sister holds) waited for
+    ever. They die with their parent now (Peers too, two of them forked one after the other)."""
+    import subprocess
+    import sys
+    import time
+
+    work = {"fork_map": "parallel.fork_map(lambda i: time.sleep(600), 4, 2)",
+            "two_peers": "a, b = parallel.Peer(lambda x: x), parallel.Peer(lambda x: x)\n"
+                         "time.sleep(600)"}[kind]
+    script = tmp_path / "parent.py"
+    script.write_text("import multiprocessing, os, threading, time\n"
+                      "from baker import parallel\n"
+                      "def tell():\n"
+                      "    while len(multiprocessing.active_children()) < 2:\n"
+                      "        time.sleep(0.05)\n"
+                      "    print(*[p.pid for p in multiprocessing.active_children()], "
+                      "flush=True)\n"
+                      "threading.Thread(target=tell, daemon=True).start()\n" + work + "\n")
+    parent = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    children = [int(x) for x in parent.stdout.readline().split()]
+    assert len(children) == 2
+    parent.kill()
+    parent.wait()
+    for _ in range(200):
+        if not any(running(c) for c in children):
+            break
+        time.sleep(0.05)
+    else:
+        for c in children:
+            if running(c):
+                os.kill(c, signal.SIGKILL)
+        pytest.fail("a child outlived its killed parent")
+
+
 def running(pid: int) -> bool:
     """The process exists and is not a zombie (an orphan's may wait for a reaper)."""
     try:
