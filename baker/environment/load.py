@@ -1205,6 +1205,40 @@ _OBJ_FACE = re.compile(rb"^[ \t]*f[ \t]+(.*)$", re.M)
 _OBJ_VERTEX = re.compile(rb"^[ \t]*v[ \t]+(.*)$", re.M)
 
 
+#: a backslash ending a line, before the line break (the statement goes on on the next line)
+_OBJ_CONTINUED = re.compile(rb"\\[ \t]*\r?\n")
+
+
+def _obj_lines(data: bytes) -> bytes:
+    """An OBJ's lines as the format writes them, as the rest of the reading takes them: a
+    line ended by a lone carriage return (classic Mac OS) ended by a line feed, and a line
+    ending in a backslash joined to the next (the format's continuation: `v 1 2 \\` then
+    `3`), an empty line left in its place so that line numbers stay. A comment's backslash
+    continues nothing (a Windows path at the end of a comment: it is dropped, trimesh would
+    join the next line to the comment). A CR-only file was read as one line and refused, and
+    a continued vertex as one of two coordinates."""
+    if b"\r" in data:
+        data = re.sub(rb"\r(?!\n)", b"\n", data)
+    if not _OBJ_CONTINUED.search(data):
+        return data
+    out, parts = [], []             # the lines done; the parts of the statement read
+    for line in data.split(b"\n"):
+        body = line.rstrip(b" \t\r")
+        if body.endswith(b"\\"):
+            if (parts or [line])[0].lstrip().startswith(b"#"):
+                line = body[:-1]        # (trimesh would join the next line to the comment)
+            else:
+                parts.append(body[:-1])
+                continue
+        out.append(b" ".join(parts + [line]))
+        out.extend([b""] * len(parts))
+        parts = []
+    if parts:
+        out.append(b" ".join(parts))
+        out.extend([b""] * (len(parts) - 1))
+    return b"\n".join(out)
+
+
 #: a comment after the fields of a geometry statement ("v 1 2 3 # top")
 _OBJ_TRAILING_COMMENT = re.compile(rb"^((?:v|vt|vn|vp|f|l|p) [^#\n]*?) *#[^\n]*$", re.M)
 
@@ -1465,6 +1499,7 @@ def _read_trimesh(path: Path):
     if path.suffix.lower() == ".obj" and b"\x00" in data[: 1 << 16]:
         raise EnvironmentLoadError("corrupt OBJ: binary data in a text format", where=str(path))
     if path.suffix.lower() == ".obj":
+        data = _obj_lines(data)
         _check_obj(data)
     if path.suffix.lower() == ".ply":
         _check_ascii_ply(data)

@@ -559,6 +559,12 @@ GOOD_UNUSUAL = {
     "crlf_tabs.obj": GOOD_OBJ.replace(" ", "\t").replace("\n", "\r\n").encode(),
     "trailing_comments.obj": b"".join(line + b"\t# corner " + str(i).encode() + b"\n"
                                       for i, line in enumerate(GOOD_OBJ.encode().splitlines())),
+    # classic Mac OS line ends (a lone CR): trimesh read one line and refused it
+    "cr_only.obj": GOOD_OBJ.replace("\n", "\r").encode(),
+    # the format's line continuation (a backslash before the line break); a comment's
+    # backslash continues nothing
+    "continued.obj": b"# saved in C:\\levels\\\n" + GOOD_OBJ.replace(
+        "v 2 0 2", "v 2 \\\n0 \\\r\n2").replace("f 1 4 3", "f 1 \\\n4 3").encode(),
 }
 
 GOOD_LATIN1 = {
