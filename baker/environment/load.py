@@ -441,8 +441,8 @@ def _parse_glb(data: bytes, path: Path):
         chunk = data[off + 8: off + 8 + clen]
         if len(chunk) != clen:
             raise EnvironmentLoadError("corrupt GLB: truncated chunk")
-        if ctype == 0x4E4F534A and doc is None:
-            doc = json.loads(chunk.decode("utf-8"))
+        if ctype == 0x4E4F534A and doc is None:    # (a byte order mark is passed over)
+            doc = json.loads(chunk.decode("utf-8-sig"))
         elif ctype == 0x004E4942 and bin_chunk is None:
             bin_chunk = chunk
         off += 8 + clen
@@ -471,6 +471,19 @@ MERGE_ABOVE = 1_000
 MAX_MESHES = 100_000
 #: accessors without a bufferView are zero-filled: at most this many bytes + 64x the file
 _ZERO_FILL_SLACK = 1 << 20
+
+
+def _forgiving_base64(payload: str) -> bytes:
+    """A data: URI's base64 payload decoded as browsers (and three.js) decode it, WHATWG's
+    forgiving-base64: ASCII whitespace (a payload broken into lines) ignored, the '=' padding
+    optional. binascii.Error for anything else (another alphabet, a stray '=')."""
+    if any(c in payload for c in "\t\n\f\r "):
+        payload = re.sub(r"[\t\n\f\r ]+", "", payload)
+    if len(payload) % 4 == 0 and payload.endswith("="):
+        payload = payload[:-2] if payload.endswith("==") else payload[:-1]
+    if len(payload) % 4 == 1:
+        raise binascii.Error("a base64 payload cannot be 1 more than a multiple of 4 long")
+    return base64.b64decode(payload + "=" * (-len(payload) % 4), validate=True)
 
 
 class _Doc:
@@ -570,8 +583,14 @@ class _GltfReader:
         if urlparse(uri).scheme:
             self.d.fail(f"buffers[{i}].uri '{uri[:60]}' is not a relative file path")
         rel = unquote(uri)
+        if "\0" in rel:
+            self.d.fail(f"buffers[{i}].uri holds a NUL character")
         folder = self.path.parent.resolve()
-        target = (folder / rel).resolve()
+        try:
+            target = (folder / rel).resolve()
+        except (RuntimeError, OSError) as e:    # a loop of symbolic links (ELOOP in 3.13)
+            raise EnvironmentLoadError(f"buffers[{i}].uri '{uri[:60]}' cannot be resolved: "
+                                       f"{_error_text(e)}", where=str(self.path)) from None
         if os.path.isabs(rel) or not target.is_relative_to(folder):
             raise EnvironmentLoadError(f"buffers[{i}].uri '{uri[:60]}' points outside the "
                                        "environment's folder", where=str(self.path))
@@ -597,7 +616,7 @@ class _GltfReader:
             if not sep or not head.endswith(";base64"):
                 self.d.fail(f"buffers[{i}].uri is a data: URI without ';base64,'")
             try:
-                data = base64.b64decode(payload, validate=True)
+                data = _forgiving_base64(payload)
             except (binascii.Error, ValueError):
                 raise EnvironmentLoadError(f"buffers[{i}].uri is a data: URI that is not valid "
                                            "base64", where=str(self.path)) from None
@@ -1095,7 +1114,7 @@ def _read_gltf(path: Path):
         doc, bin_chunk = _parse_glb(data, path)
     else:
         try:
-            doc, bin_chunk = json.loads(data.decode("utf-8")), None
+            doc, bin_chunk = json.loads(data.decode("utf-8-sig")), None    # (a BOM passed)
         except (UnicodeDecodeError, ValueError) as e:
             raise EnvironmentLoadError(f"corrupt glTF: not UTF-8 JSON ({_error_text(e)})",
                                        where=str(path)) from None

@@ -157,6 +157,22 @@ def test_unusual_but_valid_files_load(name, tmp_path):
     assert np.array_equal(env.mesh.faces, ref.mesh.faces)
 
 
+@pytest.mark.parametrize("name", sorted(bad_inputs.GOOD_UNUSUAL_GLTF))
+def test_unusual_but_valid_gltf_load(name, tmp_path):
+    """A byte order mark before the JSON, a data: URI's base64 in lines or unpadded: the same
+    scene as the corpus's good GLB."""
+    from baker.environment import load_environment
+
+    p = tmp_path / name
+    p.write_bytes(bad_inputs.GOOD_UNUSUAL_GLTF[name])
+    plain = tmp_path / "plain.glb"
+    plain.write_bytes(bad_inputs.good_glb())
+    env, ref = load_environment(p), load_environment(plain)
+    assert len(env.meshes) == len(ref.meshes)
+    for a, b in zip(env.meshes, ref.meshes):
+        assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
+
+
 def test_latin1_obj_bakes(tmp_path, capsys):
     p = tmp_path / "latin1.obj"
     p.write_bytes(bad_inputs.GOOD_LATIN1["latin1.obj"])

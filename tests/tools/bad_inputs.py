@@ -172,6 +172,7 @@ GLB_JSON_EDITS = [
     ("buffer_uri_number", [("buffers.0.uri", 5)]),
     ("buffer_uri_dotdot_encoded", [("buffers.0.uri", "%2e%2e/%2e%2e/etc/passwd")]),
     ("buffers_not_array", [("buffers", {"0": 1})]),
+    ("buffer_uri_nul", [("buffers.0.uri", "level\0.bin")]),     # (was 'embedded null byte')
     ("node_mesh_99", [("nodes.0.mesh", 99)]),
     ("node_mesh_string", [("nodes.0.mesh", "ground")]),
     ("node_child_self", [("nodes.0.children", [0])]),
@@ -447,6 +448,8 @@ def _gltf_cases():
         "bin_subdir_escape": lambda f: base(f, uri="sub/../../o.bin", write_bin=False),
         "bin_short": lambda f: (base(f), (f / "scene.bin").write_bytes(blob[:40]))[0],
         "bin_is_folder": lambda f: ((f / "dir.bin").mkdir(), base(f, uri="dir.bin"))[1],
+        "bin_link_loop": lambda f: ((f / "loop.bin").symlink_to(f / "loop.bin"),
+                                    base(f, uri="loop.bin", write_bin=False))[1],
         "data_bad_base64": dataurl("data:application/octet-stream;base64," + b64[:-3] + "*=="),
         "data_short": dataurl("data:application/octet-stream;base64," + b64[:40]),
         "data_no_comma": dataurl("data:application/octet-stream;base64"),
@@ -565,6 +568,33 @@ GOOD_UNUSUAL = {
     # backslash continues nothing
     "continued.obj": b"# saved in C:\\levels\\\n" + GOOD_OBJ.replace(
         "v 2 0 2", "v 2 \\\n0 \\\r\n2").replace("f 1 4 3", "f 1 \\\n4 3").encode(),
+}
+
+def _gltf_data_uri(payload=lambda b64: b64, pad: int = 0, bom: bool = False) -> bytes:
+    """The good scene as a .gltf whose buffer is a data: URI (`pad` unused bytes after the
+    scene's; the base64 text passed through `payload`), with a UTF-8 byte order mark."""
+    doc, blob = good_gltf()
+    doc = copy.deepcopy(doc)
+    blob += b"\0" * pad
+    doc["buffers"][0] = {"byteLength": len(blob), "uri": "data:application/octet-stream;base64,"
+                         + payload(base64.b64encode(blob).decode())}
+    return (b"\xef\xbb\xbf" if bom else b"") + json.dumps(doc).encode()
+
+
+def _glb_bom() -> bytes:
+    doc, blob = good_gltf()
+    return pack_glb(None, blob, b"\xef\xbb\xbf" + json.dumps(doc).encode())
+
+
+#: valid glTF written the way some tools write them; each holds good_glb()'s scene. A byte
+#: order mark before the JSON was refused ('Unexpected UTF-8 BOM'); base64 broken into lines
+#: or without its '=' padding (which browsers and three.js decode) was refused as not base64
+GOOD_UNUSUAL_GLTF = {
+    "bom.gltf": _gltf_data_uri(bom=True),
+    "bom.glb": _glb_bom(),
+    "base64_lines.gltf": _gltf_data_uri(
+        lambda t: "\r\n".join(t[i:i + 76] for i in range(0, len(t), 76))),
+    "base64_unpadded.gltf": _gltf_data_uri(lambda t: t.rstrip("="), pad=1),
 }
 
 GOOD_LATIN1 = {
