@@ -477,8 +477,11 @@ def parse_sun_path(text: str, samples_per_key: int = 16) -> np.ndarray:
     evenly spaced over the bake -> (K, 3) unit directions toward the sun, densified so that
     interpolating them follows the sky (azimuth and elevation are interpolated, not vectors)."""
     form = "--sun-path must look like 'AZ,EL;AZ,EL' in degrees, e.g. '90,30;270,30'"
-    if not isinstance(text, str) or len(text) > 100_000:
+    if not isinstance(text, str):
         raise ConfigError(form, where="--sun-path")
+    if len(text) > 100_000:     # (it said the form was wrong: 20,000 good keys)
+        raise ConfigError(f"--sun-path is {len(text):,} characters long; expected at most "
+                          "100,000 (and 1000 keys)", where="--sun-path")
     try:
         pairs = [tuple(float(v) for v in part.split(",")) for part in text.split(";")]
     except ValueError:       # an empty key ('90,30;;270,30', '90,30;') among them

@@ -312,8 +312,8 @@ def _check_geometry(v, f, name: str) -> None:
                                    f"{v[bad].tolist()})")
     if len(v) and np.abs(v).max() > COORD_LIMIT:
         raise EnvironmentLoadError(
-            f"coordinates out of range in mesh '{name}': up to {np.abs(v).max():.3g} m; "
-            f"expected within +-{COORD_LIMIT:g} m")
+            f"coordinates out of range in mesh '{name}': up to {np.abs(v).max():.9g} m; "
+            f"expected within +-{COORD_LIMIT:.9g} m")   # (1e+08 m was 'over' 1e+08 m)
     if len(f) and (f.min() < 0 or f.max() >= len(v)):
         bad = int(f.max()) if f.max() >= len(v) else int(f.min())
         raise EnvironmentLoadError(f"mesh '{name}' has a face index {bad} outside its "

@@ -949,7 +949,8 @@ OPTION_CASES = {
     "sun": ["1e308,0,0", "nan,1,0", "inf,1,0", "0,-1,0", "0,0,0", "1,2", "a,b,c", "1,1e300,1",
             "1,2,3,4", ""],
     "sun-path": ["nan,30", "inf,30", "90,nan", "90,0", "90,91", "abc", "90", "1e308,30",
-                 "90,30;nan,40", "90,30;270", ";;", "90,-inf", "90,30;", "90,30;;270,40"],
+                 "90,30;nan,40", "90,30;270", ";;", "90,-inf", "90,30;", "90,30;;270,40",
+                 ";".join(["90,30"] * 20_000)],    # (refused as if its form were wrong)
     "scale": ["0", "nan", "inf", "-1", "1e6", "abc"],
     # 0.0036 m (39 M columns) left this list in issue 15: the slimmer build's budget (10 GB)
     # fits the default limit, so the bake runs (lazily) instead of being refused
