@@ -1698,14 +1698,23 @@ def _usd_dependency(layer, name: str, dep: str, folder: Path, path: Path) -> str
     if not outer.is_absolute():     # unresolved: a file a package does not hold
         raise EnvironmentLoadError(f"USD layer {name} refers to '{dep[:80]}', which does not "
                                    "exist", where=str(path))
-    outer = outer.resolve()
+    try:
+        outer = outer.resolve()
+    except (RuntimeError, OSError):     # a loop of symbolic links (ELOOP in Python 3.13)
+        raise EnvironmentLoadError(f"USD layer {name} refers to '{dep[:80]}', a loop of "
+                                   "symbolic links", where=str(path)) from None
     if not outer.is_relative_to(folder):
         raise EnvironmentLoadError(f"USD layer {name} refers to '{dep[:80]}', outside the "
                                    "environment's folder", where=str(path))
-    if not outer.is_file():
-        raise EnvironmentLoadError(f"USD layer {name} refers to '{dep[:80]}', which does not "
-                                   "exist", where=str(path))
+    if not outer.is_file():     # (a folder or a FIFO said 'which does not exist')
+        raise EnvironmentLoadError(f"USD layer {name} refers to '{dep[:80]}', which "
+                                   f"{'is not a file' if outer.exists() else 'does not exist'}",
+                                   where=str(path))
     return target if Ar.IsPackageRelativePath(target) else str(outer)
+
+
+#: the smallest unit a USD level may say it is in (metersPerUnit): a nanometre
+MIN_METERS_PER_UNIT = 1e-9
 
 
 def _read_usd(path: Path, up_axis: str | None = None, units: str | None = None):
@@ -1881,8 +1890,10 @@ def _read_usd_trapped(path: Path, trap, up_axis: str | None, units: str | None):
         raise EnvironmentLoadError(
             f"USD error: {_usd_diagnostic_text(trap.GetErrors()[0])}", where=str(path))
     mpu = float(UsdGeom.GetStageMetersPerUnit(stage)) if units is None else UNITS[units]
-    if not (math.isfinite(mpu) and mpu > 0):
-        raise EnvironmentLoadError(f"invalid metersPerUnit {mpu}; expected a finite number > 0")
+    if not (math.isfinite(mpu) and mpu >= MIN_METERS_PER_UNIT):
+        # (a unit of 1e-300 m shrank the level to a point: 'no triangle faces')
+        raise EnvironmentLoadError(f"invalid metersPerUnit {mpu:g}; expected a finite number of "
+                                   f"at least {MIN_METERS_PER_UNIT:g} (a nanometre)")
     z_up = UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z if up_axis is None \
         else up_axis == "z"
     # stage space -> baker space (+Y up, metres)

@@ -25,6 +25,7 @@ import base64
 import copy
 import json
 import math
+import os
 import struct
 from dataclasses import dataclass
 from pathlib import Path
@@ -632,13 +633,21 @@ def usd_text(counts="[3, 3]", indices="[0, 2, 1, 0, 3, 2]", points=USD_POINTS, m
                                                       points=points))
 
 
+#: a file in a case's dict that is a symbolic link to itself
+LOOP = object()
+
+
 def _usd_case(cid, make_files):
     def make(folder: Path):
         files = make_files()
         for name, text in files.items():
             target = folder / name
             target.parent.mkdir(parents=True, exist_ok=True)
-            if isinstance(text, bytes):
+            if text is None:        # a FIFO: opening it would wait for a writer
+                os.mkfifo(target)
+            elif text is LOOP:      # a symbolic link to itself
+                target.symlink_to(target)
+            elif isinstance(text, bytes):
                 target.write_bytes(text)
             else:
                 target.write_text(text)
@@ -696,6 +705,14 @@ def _usd_cases():
         # a section's start past any file: USD's C++ code printed 'failed call to
         # posix_madvise(...)' on stderr itself, above the error line
         "crate_section_start": lambda: {"level.usdc": crate_section_flipped()},
+        # a unit that shrinks the level to a point (it said 'no triangle faces')
+        "mpu_tiny": lambda: {"level.usda": usd_text(mpu="1e-300")},
+        # a sublayer that is a FIFO or a loop of links (they said 'does not exist', 'Symlink
+        # loop from ...')
+        "sublayer_fifo": lambda: {"level.usda": usd_text(extra="    subLayers = [@p.usda@]\n"),
+                                  "p.usda": None},
+        "sublayer_link_loop": lambda: {"level.usda": usd_text(
+            extra="    subLayers = [@l.usda@]\n"), "l.usda": LOOP},
     }
     def inside(sub):
         return usd_text(extra=f"    subLayers = [@{sub}@]\n")
