@@ -360,16 +360,15 @@ def inspect(file, as_json, no_validate, judge):
     (npm install -g gltf-validator, or BAKER_GLTF_VALIDATOR=<its folder>). --judge reads every
     creature of a GLB (and the bake's USD beside it, compared joint by joint) and judges it as
     benchmarks/quality_sweep.py does."""
-    import json
-
-    from baker.inspect_file import format_judged, format_report, inspect_file, judge_file
+    from baker.inspect_file import (format_judged, format_report, inspect_file, judge_file,
+                                    report_json)
 
     report = inspect_file(file, validate=not no_validate)
     judged = judge_file(file) if judge else None
     if as_json:
         if judged is not None:
             report["judged"] = judged
-        click.echo(json.dumps(report, indent=2, allow_nan=False, default=str))
+        click.echo(report_json(report))
     else:
         click.echo(format_report(report) + ("\n" + format_judged(judged) if judged else ""))
     return 1 if judged and any(j["failures"] for j in judged) else 0

@@ -112,6 +112,16 @@ def glb_bytes(path: str | Path) -> bytes:
         return head + f.read()
 
 
+def _not_json(name: str):
+    raise ValueError(f"{name} is not a JSON number")
+
+
+def strict_json(text):
+    """json.loads, refusing NaN, Infinity and -Infinity (Python's reader takes them; they are
+    not JSON, and a report printed with --json must be JSON): ValueError."""
+    return json.loads(text, parse_constant=_not_json)
+
+
 class GlbFile:
     """A GLB container parsed: `doc` (the JSON document) and `accessor(i)` (float64 arrays)."""
 
@@ -119,7 +129,7 @@ class GlbFile:
         if len(data) < 20 or data[:4] != b"glTF":
             raise InspectError("not a GLB file")
         jlen = struct.unpack_from("<I", data, 12)[0]
-        self.doc = json.loads(data[20:20 + jlen])
+        self.doc = strict_json(data[20:20 + jlen])
         off = 20 + jlen
         self.bin = data[off + 8:] if off + 8 <= len(data) else b""
 
@@ -349,7 +359,7 @@ def read_usd(path: str | Path, creature: int = 0) -> BakedScene:
     """Read a bake's USD: the skeleton's joints (the `creature`-th Skeleton, in stage order:
     a crowd's creatures), posed by its bound animation at every time code, as world transforms
     (UsdSkel, double precision). No environment."""
-    from pxr import UsdGeom, UsdSkel
+    from pxr import Usd, UsdGeom, UsdSkel
 
     stage = open_stage(path)
     if stage is None:

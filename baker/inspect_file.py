@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from baker.inspect import InspectError, glb_extras, open_stage
+from baker.inspect import InspectError, glb_extras, open_stage, strict_json
 
 #: file types, by suffix
 GLB, USD, REPORT = (".glb",), (".usd", ".usdc", ".usda"), (".json",)
@@ -165,7 +165,7 @@ def _read_glb(path: Path) -> tuple[dict, int, int]:
         text = f.read(jlen)
         bin_head = f.read(8)
     try:
-        doc = json.loads(text)
+        doc = strict_json(text)
     except (UnicodeDecodeError, ValueError) as e:
         raise InspectError(f"GLB JSON chunk is not JSON: {e}", where=where) from None
     if not isinstance(doc, dict):
@@ -562,6 +562,32 @@ def _scalars(d: dict, prefix: str = "") -> dict:
     return out
 
 
+def report_json(report: dict) -> str:
+    """`baker inspect --json`'s text: strict JSON, a non-finite number (a USD's customData may
+    hold NaN; json.dumps refused it, a traceback) written as a string, "nan" or "inf"."""
+    return json.dumps(_finite(report), indent=2, allow_nan=False, default=str)
+
+
+def _finite(v):
+    if isinstance(v, float) and not math.isfinite(v):
+        return str(v)
+    if isinstance(v, dict):
+        return {k: _finite(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_finite(x) for x in v]
+    return v
+
+
+def _seconds(v) -> float | None:
+    """A timeline event's time: a finite number (missing: 0), else None (a file edited by
+    hand or by another tool: 'x' for a start raised ValueError, a traceback)."""
+    if v is None:
+        return 0.0
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        return None
+    return float(v)
+
+
 def metadata_summary(extras: dict) -> dict:
     """The embedded metadata in short: generator, seed, fps, seconds, the rig's name, the
     timeline (events, seconds per state), foot contacts (feet, planted intervals), and every
@@ -579,7 +605,8 @@ def metadata_summary(extras: dict) -> dict:
         states: dict[str, float] = {}
         for e in tl:
             if isinstance(e, dict) and isinstance(e.get("state"), str):
-                d = float(e.get("end", 0) or 0) - float(e.get("start", 0) or 0)
+                start, end = _seconds(e.get("start")), _seconds(e.get("end"))
+                d = end - start if start is not None and end is not None else 0.0
                 states[e["state"]] = round(states.get(e["state"], 0.0) + d, 6)
         out["timeline"] = {"events": len(tl), "state_seconds": states}
     fc = extras.get("foot_contacts")
@@ -605,7 +632,7 @@ def _json_report(path: Path) -> dict:
         raise InspectError(f"not a baker report: {path.stat().st_size:,} bytes, over the "
                            f"{MAX_REPORT_BYTES >> 20:,} MB a report can be", where=str(path))
     try:
-        doc = json.loads(path.read_bytes())
+        doc = strict_json(path.read_bytes())
     except (UnicodeDecodeError, ValueError) as e:
         raise InspectError(f"not JSON: {e}", where=str(path)) from None
     except RecursionError:

@@ -395,3 +395,43 @@ def test_judge_of_a_glb_it_cannot_play_is_one_line(edit, bakes, capsys, tmp_path
     code, out, err = run([bad, "--judge", "--no-validate"], capsys)
     assert code == 2 and out == "", err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+
+
+def _timeline_start_text(doc):
+    doc["scenes"][doc.get("scene", 0)]["extras"]["timeline"][0]["start"] = "x"
+
+
+def test_hand_edited_metadata_is_summarized(bakes, capsys, tmp_path):
+    """A timeline event whose start is not a number (an edited file) counts no seconds; it
+    raised ValueError (a traceback)."""
+    p = tmp_path / "edited.glb"
+    p.write_bytes(_glb_with(bakes / "c.glb", _timeline_start_text))
+    code, out, err = run([p, "--no-validate"], capsys)
+    assert code == 0 and "timeline" in out, err
+
+
+def test_glb_json_with_nan_is_not_json(bakes, capsys, tmp_path):
+    """NaN in a GLB's JSON chunk (Python's reader takes it; it is not JSON): one line, exit 2,
+    for inspect, --json (it raised ValueError printing the report) and --judge."""
+    p = tmp_path / "nan.glb"
+    p.write_bytes(_glb_with(bakes / "c.glb", lambda d: d.setdefault("extras", {}).update(
+        seed=float("nan"))))
+    for extra in ([], ["--json"], ["--judge"]):
+        code, out, err = run([p, "--no-validate", *extra], capsys)
+        assert code == 2 and out == "", err
+        assert len(err.splitlines()) == 1 and "not JSON" in err, err
+
+
+def test_usd_custom_data_nan_prints_as_json(bakes, capsys, tmp_path):
+    """A USD's customData may hold NaN: --json writes it as the string "nan" (json.dumps
+    refused it: a traceback)."""
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(str(bakes / "c.usd"))
+    world = stage.GetPrimAtPath("/World")
+    world.SetCustomDataByKey("seed", float("nan"))
+    p = tmp_path / "nan.usda"
+    stage.GetRootLayer().Export(str(p))
+    code, out, err = run([p, "--no-validate", "--json"], capsys)
+    assert code == 0, err
+    assert json.loads(out)["metadata"]["seed"] == "nan"
