@@ -359,9 +359,14 @@ def read_usd(path: str | Path, creature: int = 0) -> BakedScene:
     """Read a bake's USD: the skeleton's joints (the `creature`-th Skeleton, in stage order:
     a crowd's creatures), posed by its bound animation at every time code, as world transforms
     (UsdSkel, double precision). No environment."""
-    from pxr import Usd, UsdGeom, UsdSkel
+    from pxr import Tf, Usd, UsdGeom, UsdSkel
 
-    stage = open_stage(path)
+    try:
+        stage = open_stage(path)
+    except Tf.ErrorException as e:  # a corrupt file (--judge's USD beside the GLB: a traceback)
+        reason = " ".join(str(e).split()).rpartition(" : ")[2].strip("'") or "USD error"
+        raise InspectError(f"cannot open the USD stage: {reason[:200]}", where=str(path)) \
+            from None
     if stage is None:
         raise InspectError(f"{path}: cannot open the USD stage")
     skels = [p for p in stage.Traverse() if p.IsA(UsdSkel.Skeleton)]

@@ -435,3 +435,13 @@ def test_usd_custom_data_nan_prints_as_json(bakes, capsys, tmp_path):
     code, out, err = run([p, "--no-validate", "--json"], capsys)
     assert code == 0, err
     assert json.loads(out)["metadata"]["seed"] == "nan"
+
+
+def test_judge_with_a_corrupt_usd_beside_is_one_line(bakes, capsys, tmp_path):
+    """--judge compares the GLB with the bake's USD beside it: a USD that does not open is one
+    line naming it (pxr's Tf.ErrorException was a traceback)."""
+    (tmp_path / "c.glb").write_bytes((bakes / "c.glb").read_bytes())
+    (tmp_path / "c.usd").write_bytes(b"garbage\x00\x01" * 50)
+    code, out, err = run([tmp_path / "c.glb", "--judge", "--no-validate"], capsys)
+    assert code == 2 and out == "", err
+    assert len(err.splitlines()) == 1 and "c.usd" in err and "Traceback" not in err, err
