@@ -412,7 +412,7 @@ def _expand(entries, defaults, base, out, cache, problems):
     """(name, label, BakeConfig) of every job the entries expand to."""
     made = []
     for i, entry in enumerate(entries, 1):
-        label = (f"job '{entry['name']}'" if isinstance(entry, dict)
+        label = (f"job '{short_path(entry['name'])}'" if isinstance(entry, dict)
                  and isinstance(entry.get("name"), str) else f"job #{i}")
         before = len(problems.items)
         opts, matrix = _check_table(entry, label, base, problems, job=True)
@@ -471,9 +471,10 @@ def load_plan(jobs_file, out, cache=None) -> Plan:
     made = _expand(_entries(doc, problems), defaults, base, out, cache, problems)
     seen: dict[str, str] = {}
     for name, label, _ in made:
-        if not _NAME.match(name):
-            problems.add(label, f"name '{name}': expected letters, digits, _ . - (at most 100, "
-                                "not starting with . or -)")
+        if not _NAME.match(name):   # (a name of a million characters was shown whole)
+            problems.add(label, f"name '{short_path(name)}' ({len(name):,} characters): "
+                                "expected letters, digits, _ . - (at most 100, not starting "
+                                "with . or -)")
         elif name.casefold() == Path(MANIFEST).stem:
             problems.add(label, f"name '{name}' is taken by the batch's {MANIFEST}")
         elif name.casefold() in seen:

@@ -352,7 +352,7 @@ def read_toml_file(path: Path | str, what: str, max_bytes: int | None = None) ->
         raise ConfigError(f"{what} file is {max(size, len(raw))} bytes; expected at most "
                           f"{max_bytes / (1 << 20):g} MB", where=str(path))
     try:
-        return tomllib.loads(raw.decode("utf-8"))
+        return tomllib.loads(raw.decode("utf-8-sig"))    # (a byte order mark is passed over)
     except UnicodeDecodeError as e:
         raise ConfigError(f"{what} file is not UTF-8 text (byte {e.start})",
                           where=str(path)) from None

@@ -145,6 +145,27 @@ def test_jobs_file_errors(tmp_path, capsys, text, words):
     assert words in err, err
 
 
+def test_a_long_name_is_shown_short(tmp_path, capsys):
+    """A name of a million characters: the error line names it cut (it was 20 kB long)."""
+    (tmp_path / "jobs.toml").write_text("[[job]]\nname = '" + "x" * 1_000_000 + "'\n")
+    code, _, err = run_cli([tmp_path / "jobs.toml", "--out", tmp_path / "o"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err[:500]
+    assert "1,000,000 characters" in err and len(err) < 1000, err[:500]
+
+
+def test_a_byte_order_mark_is_passed_over(tmp_path):
+    """A jobs file and a rig file saved with a UTF-8 byte order mark (Windows Notepad) load
+    (they were 'not valid TOML: Invalid statement (at line 1, column 1)')."""
+    rig = tmp_path / "rig.toml"
+    rig.write_bytes(b"\xef\xbb\xbf" + DEFAULT_RIG.read_bytes())
+    assert replace(load_rig_config(rig), source=None) == \
+        replace(load_rig_config(DEFAULT_RIG), source=None)
+    (tmp_path / "jobs.toml").write_bytes(
+        b"\xef\xbb\xbf[[job]]\nname = 'a'\nrig = 'rig.toml'\nseconds = 1\n")
+    plan = batch.load_plan(tmp_path / "jobs.toml", tmp_path / "o")
+    assert [j.name for j in plan.jobs] == ["a"]
+
+
 def test_command_line_errors(tmp_path, capsys):
     jobs = write_jobs(tmp_path)
     code, _, err = run_cli([jobs, "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], capsys)
