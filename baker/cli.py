@@ -401,7 +401,7 @@ def validate_memory(max_memory, cache_max=None) -> None:
 
 @cli.command()
 @click.argument("jobs_file", metavar="JOBS.toml", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
               help="Output folder: <job name>.glb/.usd/.json per job and manifest.json "
                    "[default: outputs/<jobs file name>].")
 @click.option("--workers", type=click.IntRange(1, 1024), default=None, metavar="N",
@@ -431,6 +431,9 @@ def batch(ctx, jobs_file, out_dir, workers, scheduler, force, job_timeout, retri
     from baker.navmesh.cache import NavCache
 
     validate_memory(None, cache_max)
+    # an empty --out is refused, as bake's is (the jobs were baked into the working folder)
+    out_dir = _given_out(out_dir, "a folder, e.g. outputs/jobs")
+    out_dir = None if out_dir is None else Path(out_dir)
     if job_timeout is not None and math.isnan(job_timeout):     # FloatRange lets NaN through
         raise ConfigError("--job-timeout must be a number of seconds > 0 (got nan)",
                           where="--job-timeout")

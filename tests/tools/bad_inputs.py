@@ -944,6 +944,7 @@ def _batch_cases():
         _batch_case("rig_link_loop", job + 'rig = "loop.toml"\n', setup=_loop("loop.toml")),
         _batch_case("out_link_loop", job, "--out", lambda f: f / "loop" / "o", setup=_loop("loop")),
         _batch_case("cache_dir_unknown_user", job, "--cache-dir", "~nosuchuser_baker/cache"),
+        _batch_case("out_empty", job, "--out", ""),      # (baked into the working folder)
         _batch_case("cache_dir_link_loop", job, "--cache-dir", lambda f: f / "loop",
                     setup=_loop("loop")),
     ]
