@@ -1654,6 +1654,33 @@ def _usd_triangles(points: np.ndarray, counts: np.ndarray, indices: np.ndarray,
 _MAX_USD_LAYERS = 1000
 
 
+#: the deepest nesting of braces a text USD layer may have (prims in prims: a real scene's
+#: tree is tens deep). USD's C++ code recurses once per level: a layer 20,000 prims deep
+#: crashed the process (SIGSEGV) listing its dependencies, one 100,000 deep parsing it
+MAX_USDA_DEPTH = 1000
+
+
+def _usda_depth(path: Path, chunk: int = 1 << 24) -> int:
+    """The deepest nesting of `{` in a text USD layer (0 for a crate or another file), read
+    in chunks (braces in strings count too: an over-estimate)."""
+    depth = deepest = 0
+    try:
+        with open(path, "rb") as f:
+            if f.read(5) != b"#usda":
+                return 0
+            while data := f.read(chunk):
+                b = np.frombuffer(data, dtype=np.uint8)
+                step = (b == ord("{")).astype(np.int32) - (b == ord("}"))
+                if not step.any():
+                    continue
+                run = np.cumsum(step, dtype=np.int64) + depth
+                deepest = max(deepest, int(run.max()))
+                depth = int(run[-1])
+    except OSError:
+        return 0        # (Sdf says what it cannot open)
+    return deepest
+
+
 def _check_usd_layers(path: Path) -> None:
     """Before the stage is composed: every layer the file brings in (sublayers, references,
     payloads, recursively) must be a file inside the environment's folder that opens, or a
@@ -1670,9 +1697,12 @@ def _check_usd_layers(path: Path) -> None:
         if len(seen) > _MAX_USD_LAYERS:
             raise EnvironmentLoadError(f"USD composes more than {_MAX_USD_LAYERS} layers",
                                        where=str(path))
-        layer = Sdf.Layer.FindOrOpen(p)
         outer, inner = Ar.SplitPackageRelativePathInner(p)
         name = Path(outer).name + (f"[{inner}]" if inner else "")
+        if not inner and _usda_depth(Path(outer)) > MAX_USDA_DEPTH:
+            raise EnvironmentLoadError(f"USD layer {name} nests more than {MAX_USDA_DEPTH} "
+                                       "levels deep (prims in prims)", where=str(path))
+        layer = Sdf.Layer.FindOrOpen(p)
         if layer is None:
             raise EnvironmentLoadError(f"cannot open USD layer {name}", where=str(path))
         for dep in layer.GetCompositionAssetDependencies():

@@ -705,6 +705,10 @@ def _usd_cases():
         # a section's start past any file: USD's C++ code printed 'failed call to
         # posix_madvise(...)' on stderr itself, above the error line
         "crate_section_start": lambda: {"level.usdc": crate_section_flipped()},
+        # prims 20,000 deep: USD's C++ code recursed past the stack (SIGSEGV)
+        "prims_20000_deep": lambda: {"level.usda": usd_text(body="".join(
+            f'def Xform "x{i}"\n{{\n' for i in range(20_000)) + USD_MESH.format(
+            counts="[3, 3]", indices="[0, 2, 1, 0, 3, 2]", points=USD_POINTS) + "}\n" * 20_000)},
         # a unit that shrinks the level to a point (it said 'no triangle faces')
         "mpu_tiny": lambda: {"level.usda": usd_text(mpu="1e-300")},
         # a sublayer that is a FIFO or a loop of links (they said 'does not exist', 'Symlink
