@@ -883,6 +883,10 @@ class LocalPool:
 
 
 # --------------------------------------------------------------------------- Dask
+#: the transports a Dask scheduler on another machine (or process) is reached by
+_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
+
+
 def _address_checked(address: str) -> None:
     """ConfigError for a scheduler address Dask cannot parse (no port, not a number, no host),
     before a Client is made: a Client that fails on its address leaves a half-made object whose
@@ -898,10 +902,12 @@ def _address_checked(address: str) -> None:
 
     try:
         scheme, loc = parse_address(address)
-        if scheme in ("tcp", "tls", "ws", "wss"):
-            host, _ = parse_host_port(loc)
-            if not host or any(c.isspace() for c in host):
-                raise ValueError(f"no host in {loc!r}")
+        if scheme not in _SCHEMES:  # inproc:// (this process's own) left a half-made Client
+            raise ValueError(f"'{scheme}://' is not a network transport; use one of "
+                             f"{', '.join(s + '://' for s in _SCHEMES)}")
+        host, _ = parse_host_port(loc)
+        if not host or any(c.isspace() for c in host):
+            raise ValueError(f"no host in {loc!r}")
     except ValueError as e:
         raise ConfigError(f"not a Dask scheduler address: {address} ({e}); expected "
                           "tcp://HOST:PORT", where="--scheduler") from None

@@ -456,7 +456,8 @@ def test_jobs_file_error_is_not_cut():
     assert len(format_error(ConfigError("x" * 5000))) <= 410
 
 
-@pytest.mark.parametrize("address", ["not a url", "localhost", "tcp://host:abc", ":8786"])
+@pytest.mark.parametrize("address", ["not a url", "localhost", "tcp://host:abc", ":8786",
+                                     "inproc://x"])     # inproc: this process's own
 def test_a_scheduler_address_dask_cannot_parse_is_one_line(address, tmp_path):
     """Refused before a Dask Client is made: one that failed on its address left a half-made
     object whose clean-up stalled 40 s and printed a traceback after the error line."""
