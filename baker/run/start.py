@@ -14,6 +14,9 @@ from baker.streams import Streams
 AHEAD = 0.25
 #: start points drawn at most until one has a full line behind and room ahead
 START_DRAWS = 8
+#: then at most this many more, out to `spread` or the level's whole extent (a small level's
+#: middle, a tower's stair landing, may have no room for a straight body)
+WIDE_DRAWS = 56
 _BEHIND = np.linspace(0.0, 1.0, 9)
 _AHEAD = -AHEAD * np.arange(1, 5) / 4
 _FULL = len(_BEHIND) * 10 + len(_AHEAD)
@@ -26,7 +29,7 @@ def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None
     straight body line behind the head is as walkable as possible, with room ahead. A point
     with no heading that has both (at an edge: the head would be deflected at once, and its
     trail would kink against the straight start line) is drawn again, up to START_DRAWS times;
-    the best draw is kept.
+    then up to WIDE_DRAWS more out to `spread` (or the level's extent); the best draw is kept.
 
     anchor : the scene's middle_anchor(nav, env) when the caller has it (a crowd's many draws)
     returns (position (3,), heading (3,) unit horizontal)
@@ -47,8 +50,9 @@ def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None
         h = np.array([heading[0], 0.0, heading[2]], dtype=np.float64)
         return start, h / max(np.linalg.norm(h), 1e-12)
     best = (-1, None, None)
-    for _ in range(START_DRAWS):
-        start = nav.random_point_near(anchor, radius, rng)
+    wide = max(radius, min(float(np.max(hi - lo)), spread))
+    for k in range(START_DRAWS + WIDE_DRAWS):
+        start = nav.random_point_near(anchor, radius if k < START_DRAWS else wide, rng)
         start = anchor if start is None else start
         score, h = _best_heading(nav, start, body_length, rng)
         if score > best[0]:
@@ -86,19 +90,23 @@ def spawn_prey(count: int, start: np.ndarray, nav, rig, streams: Streams,
     """`count` prey at reachable points between 1.2 and 2 detection ranges from the start, each
     placed and later fleeing with its own stream. Prey shelter in shade as the centipede does:
     with `shaded` ((n, 3) points -> (n,) bool) each takes the first shaded one of 32 draws,
-    else the first draw in range. `in_cover` is handed to each (Prey)."""
+    else the first draw in range; on a level too small for the range, the farthest draw (it
+    had started on the centipede's head, caught at once). `in_cover` is handed to each
+    (Prey)."""
     preys = []
     r = rig.behaviour.detection_range
     for i in range(count):
         rng = streams.get("prey", i)
-        found = []
+        found, far, far_d = [], start.copy(), 0.0
         for _ in range(32):
             q = nav.random_point_near(start, 2.0 * r, rng)
-            if q is not None and np.linalg.norm(q - start) >= 1.2 * r:
+            d = -1.0 if q is None else float(np.linalg.norm(q - start))
+            if d > far_d:
+                far, far_d = q, d
+            if d >= 1.2 * r:
                 found.append(q)
                 if shaded is None or shaded(q[None])[0]:
                     found = [q]
                     break
-        preys.append(Prey(i, found[0] if found else start.copy(), rig.prey, nav, rng,
-                          in_cover))
+        preys.append(Prey(i, found[0] if found else far, rig.prey, nav, rng, in_cover))
     return preys

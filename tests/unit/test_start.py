@@ -47,6 +47,7 @@ def test_a_start_at_an_edge_is_drawn_again(patch, monkeypatch):
         assert clear(nav, s, h) == (True, True)
     # with a single draw, some starts face an edge (or lie with the body off the surface)
     monkeypatch.setattr(start_mod, "START_DRAWS", 1)
+    monkeypatch.setattr(start_mod, "WIDE_DRAWS", 0)
     once = [clear(nav, s, h) for s, h in starts(env, nav, seeds)]
     assert sum(c != (True, True) for c in once) >= 3
 
@@ -69,3 +70,36 @@ def test_a_given_point_and_heading_are_kept(patch):
                         heading=[2.0, 0.0, 0.0])
     assert np.allclose(h, [1.0, 0.0, 0.0])
     assert np.linalg.norm((s - [0.02, 0.0, 0.3])[[0, 2]]) < 0.05
+
+
+def test_a_cramped_middle_draws_out_to_the_whole_level(patch, monkeypatch):
+    """Where no draw near the middle has a full body line (a tower's stair landing), draws go
+    on out to the level's extent; the body had been laid through what the line crossed."""
+    env, nav = patch
+    anchor = start_mod.middle_anchor(nav, env)
+    heading_of = start_mod._best_heading
+
+    def cramped(nav_, p, length, rng):
+        score, h = heading_of(nav_, p, length, rng)
+        near = np.linalg.norm((p - anchor)[[0, 2]]) < 0.15
+        return (min(score, start_mod._FULL - 10) if near else score), h
+
+    monkeypatch.setattr(start_mod, "_best_heading", cramped)
+    for seed in range(8):
+        s, h = choose_start(nav, env, L, Streams(seed).get("start"), extent_frac=0.2)
+        assert np.linalg.norm((s - anchor)[[0, 2]]) >= 0.15
+        assert clear(nav, s, h) == (True, True)
+    monkeypatch.setattr(start_mod, "WIDE_DRAWS", 0)      # as it was: the best partial line
+    s, _ = choose_start(nav, env, L, Streams(0).get("start"), extent_frac=0.2)
+    assert np.linalg.norm((s - anchor)[[0, 2]]) < 0.15
+
+
+def test_prey_on_a_level_smaller_than_the_detection_range_start_away(patch):
+    """Prey start 1.2 to 2 detection ranges away; where the level is smaller than that, at the
+    farthest of their draws (they had started on the centipede's head)."""
+    env, nav = patch
+    rig = replace(RIG, behaviour=replace(RIG.behaviour, detection_range=2.0))
+    start = start_mod.middle_anchor(nav, env)
+    preys = start_mod.spawn_prey(3, start, nav, rig, Streams(5))
+    for p in preys:
+        assert np.linalg.norm((p.position - start)[[0, 2]]) > 0.15
