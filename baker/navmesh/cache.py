@@ -36,6 +36,7 @@ import logging
 import math
 import mmap
 import os
+import stat
 import struct
 import time
 import zipfile
@@ -313,6 +314,11 @@ class CorruptEntry(Exception):
     """A cache entry exists but cannot be read back (see load)."""
 
 
+def _nonblocking(path, flags: int) -> int:
+    """open()'s opener that does not wait: opening a FIFO to read waits for a writer."""
+    return os.open(path, flags | os.O_NONBLOCK)
+
+
 def load(path, *, strict: bool = False) -> NavSurface | None:
     """Read a surface saved by `save`, its arrays memory-mapped (read-only); None when the file
     is missing or of another layout or format version. A damaged entry (truncated, empty,
@@ -320,8 +326,11 @@ def load(path, *, strict: bool = False) -> NavSurface | None:
     `strict`."""
     path = Path(path)
     try:
-        with open(path, "rb") as fh:
-            size = os.fstat(fh.fileno()).st_size
+        with open(path, "rb", opener=_nonblocking) as fh:
+            st = os.fstat(fh.fileno())
+            if not stat.S_ISREG(st.st_mode):    # a FIFO in its place: the read waited for ever
+                raise ValueError("not a regular file")
+            size = st.st_size
             if size == 0:
                 raise ValueError("empty file")
             mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)

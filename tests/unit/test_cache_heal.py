@@ -164,6 +164,16 @@ def test_inconsistent_entry_is_rebuilt_with_one_warning(case, env, surface, tmp_
     _check_heals(env, surface, tmp_path, p, caplog)
 
 
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
+def test_an_entry_that_is_a_fifo_is_rebuilt_not_waited_for(env, surface, tmp_path, caplog):
+    """A FIFO in an entry's place: opening it to read waited for a writer for ever (the bake
+    hung in its navmesh stage); it is a damaged entry, replaced by a file."""
+    p = cache.cache_path(tmp_path, env, AGENT)
+    os.mkfifo(p)
+    _check_heals(env, surface, tmp_path, p, caplog)
+    assert p.is_file()
+
+
 def _check_heals(env, surface, folder, p, caplog):
     caplog.clear()
     with caplog.at_level(logging.WARNING):
