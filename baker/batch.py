@@ -1011,6 +1011,8 @@ class Manifest:
             {"environment": str(c.environment), "status": "not needed"} for c in plan.nav_groups]
 
     def _read_previous(self) -> dict:
+        if not self.path.is_file():     # none yet, or no file (a FIFO's read waited for ever)
+            return {}
         try:
             doc = json.loads(self.path.read_text())
             jobs = doc.get("jobs", {})

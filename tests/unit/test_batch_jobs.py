@@ -525,3 +525,14 @@ def test_up_and_units_split_navigation_groups(tmp_path):
     assert [j.nav for j in plan.jobs] == [0, 1, 2, 3]
     assert [(c.up_axis, c.units) for c in plan.nav_groups] == [
         ("z", None), (None, None), (None, "mm"), ("y", "m")]
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
+def test_a_manifest_that_is_a_fifo_is_no_previous_run(tmp_path):
+    """A FIFO where the previous manifest would be: reading it waited for a writer for ever
+    (the batch hung before its first job); it holds no previous run."""
+    (tmp_path / "jobs.toml").write_text("[[job]]\nname = 'a'\nseconds = 1\n")
+    plan = batch.load_plan(tmp_path / "jobs.toml", tmp_path / "o")
+    plan.out.mkdir()
+    os.mkfifo(plan.out / batch.MANIFEST)
+    assert batch.Manifest(plan).previous == {}
