@@ -530,13 +530,29 @@ def environment_digest(path) -> str:
         if p in seen:
             continue
         seen.add(p)
-        data = p.read_bytes()
         h.update(p.name.encode() + b"\0" if len(seen) > 1 else b"")
-        h.update(len(data).to_bytes(8, "little") + data)
-        if p.suffix.lower() in _NAMES_FILES:
-            todo += [q for q in sorted(p.parent.iterdir())
-                     if q.is_file() and q not in seen and q.name.encode() in data]
+        others = [q for q in sorted(p.parent.iterdir()) if q.is_file() and q not in seen] \
+            if p.suffix.lower() in _NAMES_FILES else []
+        named = _hash_file(h, p, [q.name.encode() for q in others])
+        todo += [q for q in others if q.name.encode() in named]
     return h.hexdigest()
+
+
+def _hash_file(h, path: Path, names: list[bytes], chunk: int = 1 << 24) -> set[bytes]:
+    """Feed the file's size (8 bytes) and bytes to `h`, in chunks (a .gltf's 3 GB buffer was
+    read whole into memory); the `names` found in its bytes."""
+    found: set[bytes] = set()
+    keep = max(map(len, names), default=1) - 1
+    tail = b""
+    with open(path, "rb") as f:
+        h.update(os.fstat(f.fileno()).st_size.to_bytes(8, "little"))
+        while data := f.read(chunk):
+            h.update(data)
+            if names:
+                window = tail + data
+                found.update(n for n in names if n not in found and n in window)
+                tail = window[len(window) - keep:] if keep else b""
+    return found
 
 
 @functools.lru_cache(maxsize=1)

@@ -536,3 +536,31 @@ def test_a_manifest_that_is_a_fifo_is_no_previous_run(tmp_path):
     plan.out.mkdir()
     os.mkfifo(plan.out / batch.MANIFEST)
     assert batch.Manifest(plan).previous == {}
+
+
+def test_environment_digest_reads_in_chunks(tmp_path):
+    """A .gltf naming a 3 GB buffer (a sparse file here): the job key's digest read it whole
+    into memory; it is hashed in chunks now, with the same digest as the whole bytes'."""
+    import hashlib
+    import tracemalloc
+
+    big = tmp_path / "big.bin"
+    with open(big, "wb") as f:
+        f.truncate(3 << 30)
+    gltf = tmp_path / "level.gltf"
+    gltf.write_text('{"asset": {"version": "2.0"}, "buffers": [{"uri": "big.bin"}]}')
+    tracemalloc.start()
+    try:
+        digest = batch.environment_digest(gltf)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 200 << 20
+    h = hashlib.sha256()
+    text = gltf.read_bytes()
+    h.update(len(text).to_bytes(8, "little") + text + b"big.bin\0"
+             + (3 << 30).to_bytes(8, "little"))
+    zeros = bytes(1 << 24)
+    for _ in range((3 << 30) >> 24):
+        h.update(zeros)
+    assert digest == h.hexdigest()
