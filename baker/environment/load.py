@@ -118,6 +118,7 @@ def load_environment(path: str | Path, sun_override=None, up_axis: str | None = 
                 raw, sun = _read_gltf(path) if ext in GLTF_EXTS else _read_trimesh(path)
                 if up_axis == "z" or (units or "m") != "m":
                     raw, sun = _reframed(raw, sun, up_axis == "z", UNITS[units or "m"])
+        raw = _without_helpers(raw, path)
         total = sum(len(r[2]) for r in raw)
         if total > MAX_TRIANGLES or sum(len(r[1]) for r in raw) > MAX_VERTICES \
                 or len(raw) > MAX_MESHES:
@@ -257,6 +258,26 @@ def _merged_by_material(kept: list) -> list:
         out.append((name, (np.concatenate(vs), faces, n), color, rough, metal))
     names = _unique_names([e[0] for e in out])
     return [(nm, *e[1:]) for nm, e in zip(names, out)]
+
+
+#: meshes that engines' naming conventions mark as helpers rather than level geometry: Godot's
+#: import suffixes for meshes it does not draw (collision only, navigation, occluders, not
+#: imported), Unreal's collision-hull prefixes, and a mesh named navmesh (a navigation overlay
+#: drawn over the floors, as three-pathfinding's levels have: the creature walked on it, a
+#: tenth of a metre over the floor)
+HELPER_NAME = re.compile(r"(-(colonly|convcolonly|navmesh|occonly|noimp)$)|(^u(cx|bx|cp|sp)_)"
+                         r"|(^nav_?mesh([-_. ]?\d*)$)", re.IGNORECASE)
+
+
+def _without_helpers(raw: list, path: Path) -> list:
+    """The raw meshes less those HELPER_NAME names (all of them when that is all there is)."""
+    kept = [r for r in raw if not HELPER_NAME.search(str(r[0]))]
+    if kept and len(kept) < len(raw):
+        left = [str(r[0]) for r in raw if HELPER_NAME.search(str(r[0]))]
+        log.info("environment %s: %d helper mesh(es) left out (%s)", path.name, len(left),
+                 ", ".join(left[:5]) + (", ..." if len(left) > 5 else ""))
+        return kept
+    return raw
 
 
 def _unique_names(names: list[str]) -> list[str]:

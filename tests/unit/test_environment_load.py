@@ -589,3 +589,20 @@ def test_a_usd_sun_brighter_than_white_is_clamped(tmp_path):
     p.write_text(USD_SUN % ("0.5", "3", "2"))
     env = load_environment(p)
     assert env.sun.color == (1.0, 1.0, 1.0) and env.sun.intensity == pytest.approx(3.0)
+
+
+@pytest.mark.parametrize("names, kept", [
+    (["floor", "navmesh", "UCX_floor", "rock-colonly", "sky-noimp"], ["floor"]),
+    (["floor", "floor-col", "navmesh_floor"], ["floor", "floor_col", "navmesh_floor"]),
+    (["NavMesh.001"], ["NavMesh_001"]),              # all there is: kept (names made safe)
+])
+def test_engine_helper_meshes_are_not_level(tmp_path, names, kept):
+    """Meshes engines' naming conventions mark as helpers (a navigation overlay, Unreal's
+    collision hulls, Godot's collision-only and not-imported meshes) are left out of the level,
+    unless they are all it has."""
+    nodes = [{"name": n, "mesh": 0, "_root": True, "translation": [0.0, 0.1 * k, 0.0]}
+             for k, n in enumerate(names)]
+    p = tmp_path / "level.glb"
+    p.write_bytes(_triangle_glb(nodes, QUAD, QUAD_IDX))
+    env = load_environment(p)
+    assert [m.name for m in env.meshes] == kept
