@@ -206,6 +206,20 @@ def check_outputs(paths: Mapping[str, Path] | Path) -> None:
                 raise ExportError(f"cannot write {p}: it is a folder")
 
 
+def check_not_inputs(paths: Mapping[str, Path], inputs: Mapping[str, Path]) -> None:
+    """ExportError when an output would replace an input file (`--out level` beside
+    level.glb wrote the bake over the level it read); inputs: {what: path}."""
+    for what, src in inputs.items():
+        for p in paths.values():
+            try:
+                same = os.path.samefile(p, src)
+            except (OSError, ValueError):   # (either not there: nothing is replaced)
+                continue
+            if same:
+                raise ExportError(f"the output {p} is the {what} file the bake reads: give "
+                                  "--out another name or folder")
+
+
 @contextmanager
 def _folder_lock(folders, shared: bool = False) -> Iterator[None]:
     """flock every folder (sorted, so two processes never wait on each other in a cycle)."""

@@ -65,7 +65,8 @@ from pathlib import Path
 
 import baker
 from baker import signals
-from baker.atomic import atomic_write_bytes, check_outputs, check_writable
+from baker.atomic import (atomic_write_bytes, check_not_inputs, check_outputs,
+                          check_writable)
 from baker.config import (DEFAULT_ENVIRONMENT, DEFAULT_RIG, BakeConfig, load_rig_config,
                           override_rig, read_toml_file, validate_bake)
 from baker.errors import (BakerError, ConfigError, JobsFileError, format_error,
@@ -1323,6 +1324,8 @@ def run(jobs_file, *, out=None, workers: int | None = None, scheduler: str | Non
     plan = load_plan(jobs_file, out, cache)
     check_writable(plan.out)
     check_outputs({f"{j.name}.{k}": p for j in plan.jobs for k, p in j.cfg.output_paths().items()})
+    for j in plan.jobs:     # (a job named after its level, --out its folder: over the level)
+        check_not_inputs(j.cfg.output_paths(), {f"job '{j.name}' environment": j.cfg.environment})
     with _batch_lock(plan.out):
         manifest = Manifest(plan)
         # Step 2: what is up to date is skipped.

@@ -199,7 +199,7 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
 
         check_dependencies("--preview")
     check_rig_overrides(rig_overrides)
-    from baker.atomic import check_outputs, resolve_out
+    from baker.atomic import check_not_inputs, check_outputs, resolve_out
     from baker.config import DEFAULT_ENVIRONMENT, load_rig_config, override_rig
     from baker.navmesh.cache import NavCache
     from baker.pipeline import bake as run_bake
@@ -216,6 +216,7 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
         rotations=rotations, preview=preview,
     )
     check_outputs(cfg.output_paths())
+    check_not_inputs(cfg.output_paths(), {"environment": Path(cfg.environment)})
     result = with_progress(run_bake, cfg)
     m = result.report["metrics"]
     files = ", ".join(str(p) for p in result.outputs.values())

@@ -127,7 +127,7 @@ def bake(cfg: BakeConfig, ctx: Context | None = None) -> BakeResult:
 def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
     from baker.environment import load_environment
     from baker.export import report as report_mod
-    from baker.atomic import OutputSet, check_outputs
+    from baker.atomic import OutputSet, check_not_inputs, check_outputs
     from baker.navmesh import debug as nav_debug
     from baker.rig import build_rig
 
@@ -142,6 +142,7 @@ def _bake(cfg: BakeConfig, ctx: Context | None) -> BakeResult:
     ctx = ctx or Context()
     paths = cfg.output_paths()
     check_outputs(paths)
+    check_not_inputs(paths, {"environment": Path(cfg.environment)})
 
     # Step 1: the environment, in metres, +Y up, with the sun.
     with ctx.stage("load"):

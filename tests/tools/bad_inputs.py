@@ -949,6 +949,9 @@ def _batch_cases():
         _batch_case("out_link_loop", job, "--out", lambda f: f / "loop" / "o", setup=_loop("loop")),
         _batch_case("cache_dir_unknown_user", job, "--cache-dir", "~nosuchuser_baker/cache"),
         _batch_case("out_empty", job, "--out", ""),      # (baked into the working folder)
+        # a job named after its level, written into the level's folder: over the level
+        _batch_case("out_over_environment", BATCH_HEAD + '[[job]]\nname = "{environment}"\n',
+                    "--out", lambda f: f),
         _batch_case("cache_dir_link_loop", job, "--cache-dir", lambda f: f / "loop",
                     setup=_loop("loop")),
     ]
@@ -1010,6 +1013,9 @@ def _option_cases():
                                                          "--sun-path", "90,30;270,30"]))
     # a device as the output prefix: /dev/null.glb, .usd and .json were written beside it
     cases.append(Case("opt_out_device", lambda f: ["--out", "/dev/null"]))
+    # the output named as the level it reads (the bake was written over the level)
+    cases.append(Case("opt_out_over_environment", lambda f: [
+        (f / "level.glb").write_bytes(good_glb()) and f / "level.glb", "--out", f / "level"]))
     for name, args in NAVMESH_OPTION_CASES:
         cases.append(Case(f"opt_navmesh_{name}", (lambda f, a=args: ["navmesh", *a])))
     return cases
