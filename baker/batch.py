@@ -1265,7 +1265,12 @@ def _locked(path: Path, out: Path) -> int:
     import fcntl
 
     while True:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+        try:    # (a folder or a link in its place raised IsADirectoryError, ELOOP: a traceback)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o666)
+        except OSError as e:
+            raise ConfigError(f"cannot open the batch's lock file {path}: {e.strerror or e} "
+                              "(a file baker makes there; remove what is in its place)",
+                              where="--out") from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

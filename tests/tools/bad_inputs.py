@@ -949,6 +949,11 @@ def _batch_cases():
         _batch_case("out_link_loop", job, "--out", lambda f: f / "loop" / "o", setup=_loop("loop")),
         _batch_case("cache_dir_unknown_user", job, "--cache-dir", "~nosuchuser_baker/cache"),
         _batch_case("out_empty", job, "--out", ""),      # (baked into the working folder)
+        # the batch's lock file a folder, or a link (it was IsADirectoryError, ELOOP)
+        _batch_case("lock_is_folder", job, "--out", lambda f: f / "bo",
+                    setup=lambda f: (f / "bo" / ".baker-batch.lock").mkdir(parents=True)),
+        _batch_case("lock_link_loop", job, "--out", lambda f: f / "bo",
+                    setup=lambda f: ((f / "bo").mkdir(), _loop("bo/.baker-batch.lock")(f))),
         # a job named after its level, written into the level's folder: over the level
         _batch_case("out_over_environment", BATCH_HEAD + '[[job]]\nname = "{environment}"\n',
                     "--out", lambda f: f),
