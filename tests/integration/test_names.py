@@ -19,7 +19,7 @@ from glb_read import Glb
 from validator import gltf_validate, issues_summary, usd_validate
 
 #: environment node names that clash, without regard to case, with what baker writes
-CLASHING = ("CENTIPEDE", "Centipede_Mesh", "centipede_skinned", "NavMesh", "Prey_01", "HEAD",
+CLASHING = ("CENTIPEDE", "Centipede_Mesh", "centipede_skinned", "NavMesh_Mesh", "Prey_01", "HEAD",
             "Ground", "ground_MESH", "ground_mat", "sun", "environment", "Looks", "mesh")
 
 
