@@ -1463,10 +1463,13 @@ def _ragged_ply(path: Path, data: bytes) -> tuple:
 
 
 def _check_ascii_ply(data: bytes) -> None:
-    """An ASCII PLY's body must hold exactly the values its header declares (trimesh reads a
-    short or overlong body without a word)."""
+    """A PLY's header must end (end_header); an ASCII PLY's body must hold exactly the values
+    its header declares (trimesh reads a short or overlong body without a word)."""
     end = data.find(b"end_header")
-    if end < 0 or b"format ascii" not in data[:end]:
+    if end < 0:
+        raise EnvironmentLoadError("corrupt PLY: its header has no end_header line (the file is "
+                                   "cut short, or not a PLY)")
+    if b"format ascii" not in data[:end]:
         return
     nl = data.find(b"\n", end)
     header, body = data[:end], (b"" if nl < 0 else data[nl + 1:])

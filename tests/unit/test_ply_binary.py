@@ -82,3 +82,11 @@ def test_row_count_past_the_file_refused_before_reading(tmp_path):
     p.write_bytes(_ply().replace(b"element face 3\n", b"element face 3000000000\n"))
     with pytest.raises(EnvironmentLoadError, match="3,000,000,000 rows"):
         load_environment(p)
+
+
+@pytest.mark.parametrize("cut", [20, 60, 150])
+def test_header_cut_short_says_so(tmp_path, cut):
+    p = tmp_path / "short.ply"
+    p.write_bytes(_ply()[:cut])
+    with pytest.raises(EnvironmentLoadError, match="no end_header"):
+        load_environment(p)
