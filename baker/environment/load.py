@@ -1531,6 +1531,26 @@ def _check_stl_size(path: Path) -> None:
             f"the file has {size:,} bytes")
 
 
+def _check_ascii_stl(data: bytes) -> None:
+    """An ASCII STL must end (endsolid) and each facet hold 3 vertices (trimesh read a cut-off
+    file as no faces and refused a facet of 2 or 4 with 'cannot reshape array')."""
+    head = data[:84]
+    if head.lstrip()[:5].lower() != b"solid" or b"\0" in head or (
+            len(data) >= 84 and len(data) == 84 + 50 * struct.unpack_from("<I", data, 80)[0]):
+        return                                    # binary (its header may say "solid")
+    if not re.search(rb"(?im)^[ \t]*endsolid", data):
+        raise EnvironmentLoadError("corrupt ASCII STL: cut short (no endsolid line)")
+    ends = np.array([m.start() for m in re.finditer(rb"(?im)^[ \t]*endfacet\b", data)],
+                    np.int64)
+    verts = np.array([m.start() for m in re.finditer(rb"(?im)^[ \t]*vertex\b", data)],
+                     np.int64)
+    per = np.diff(np.concatenate([[0], np.searchsorted(verts, ends)]))
+    bad = np.flatnonzero(per != 3)
+    if len(bad):
+        raise EnvironmentLoadError(f"corrupt ASCII STL: facet {int(bad[0]) + 1} has "
+                                   f"{int(per[bad[0]])} vertices (a facet is a triangle: 3)")
+
+
 def _read_trimesh(path: Path):
     import io
 
@@ -1539,6 +1559,8 @@ def _read_trimesh(path: Path):
     if path.suffix.lower() == ".stl":
         _check_stl_size(path)
     data = path.read_bytes()
+    if path.suffix.lower() == ".stl":
+        _check_ascii_stl(data)
     if path.suffix.lower() == ".obj" and b"\x00" in data[: 1 << 16]:
         raise EnvironmentLoadError("corrupt OBJ: binary data in a text format", where=str(path))
     if path.suffix.lower() == ".obj":

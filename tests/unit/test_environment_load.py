@@ -517,6 +517,27 @@ def test_corrupt_ply_and_stl(tmp_path):
             load_environment(p)
 
 
+FACET = "facet normal 0 1 0\nouter loop\n{}endloop\nendfacet\n"
+
+
+@pytest.mark.parametrize("corners, end, message", [
+    (2, "endsolid x\n", "facet 2 has 2 vertices"),
+    (4, "endsolid x\n", "facet 2 has 4 vertices"),
+    (3, "", "cut short"),
+])
+def test_ascii_stl_facets_and_end(tmp_path, corners, end, message):
+    tri = "".join(f"vertex {x} 0 {z}\n" for x, z in [(0, 0), (0, 1), (1, 0), (1, 1)])
+    text = ("solid Part1 - Body\n" + FACET.format("".join(tri.splitlines(True)[:3]))
+            + FACET.format("".join(tri.splitlines(True)[:corners])) + end)
+    p = tmp_path / "level.stl"
+    p.write_text(text)
+    with pytest.raises(EnvironmentLoadError, match=message):
+        load_environment(p)
+    p.write_text("solid Part1 - Body\n" + FACET.format("".join(tri.splitlines(True)[:3]))
+                 + "endsolid Part1 - Body\n")
+    assert len(load_environment(p).mesh.faces) == 1
+
+
 # --------------------------------------------------------------------------- names
 @pytest.mark.parametrize("raw", ["log-A", "rock 1", "ümlaut/ß", "", "9lives", "x" * 100,
                                  "__a__b__"])
