@@ -1813,6 +1813,23 @@ def _usd_diagnostic_text(d) -> str:
     return " ".join(str(text).split())
 
 
+def _check_usd_arrays(prim, points, counts, indices) -> None:
+    """A mesh's points must be 3-vectors of numbers and its face counts and indices integers:
+    a layer may author them with another type than the schema's (the attribute then still says
+    the schema's type; 'invalid literal for int()' was all a string array gave)."""
+    for name, value, kinds, width in (("points", points, "fiu", 3),
+                                      ("faceVertexCounts", counts, "iu", 0),
+                                      ("faceVertexIndices", indices, "iu", 0)):
+        arr = np.asarray(value)
+        if arr.dtype.kind not in kinds or (arr.ndim != 2 or arr.shape[1] != 3 if width else
+                                           arr.ndim != 1):
+            want = "3-vectors of numbers" if width else "integers"
+            got = {"U": "text", "S": "text", "f": "fractional", "b": "true/false", "i": "integer",
+                   "u": "integer"}.get(arr.dtype.kind, arr.dtype.name)
+            raise EnvironmentLoadError(f"mesh {prim.GetPath()}: {name} holds {got} values of "
+                                       f"shape {tuple(arr.shape)}, not {want}")
+
+
 def _usd_mesh(prim, time):
     """A UsdGeom.Mesh's local (points (n, 3) float64, triangles, colour, roughness,
     metalness), or None when it has no points or faces."""
@@ -1824,6 +1841,7 @@ def _usd_mesh(prim, time):
     idx = mesh.GetFaceVertexIndicesAttr().Get(time)
     if pts is None or counts is None or idx is None or len(pts) == 0:
         return None
+    _check_usd_arrays(prim, pts, counts, idx)
     holes = mesh.GetHoleIndicesAttr().Get(time)
     left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
     pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)

@@ -10,6 +10,7 @@ import pytest
 
 from bad_inputs import usd_text, usdz
 from baker.environment.load import load_environment
+from baker.errors import EnvironmentLoadError
 
 BOX = usd_text(points="[(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)]").replace(
     'def Mesh "floor"', 'def Mesh "box"')
@@ -239,3 +240,24 @@ def test_usd_proxy_stand_ins_are_not_drawn_over_the_level(tmp_path, purpose, dra
     p = tmp_path / "set.usda"
     p.write_text(PURPOSES.format(purpose=purpose))
     assert [m.name for m in load_environment(p).meshes] == drawn
+
+
+@pytest.mark.parametrize("swap, message", [
+    (("int[] faceVertexCounts = [3]", 'string[] faceVertexCounts = ["three"]'),
+     "faceVertexCounts holds text values"),
+    (("int[] faceVertexIndices = [0, 1, 2]", "float[] faceVertexIndices = [0.5, 1, 2]"),
+     "faceVertexIndices holds fractional values"),
+    (("point3f[] points = [(0, 0, 0), (0, 0, 1), (1, 0, 0)]", 'string[] points = ["a", "b"]'),
+     "points holds text values"),
+])
+def test_usd_mesh_arrays_of_another_type_refused(tmp_path, swap, message):
+    """A layer may author a mesh's arrays with another type than the schema's (the attribute
+    still reports the schema's): refused by name, not read wrong or as 'invalid literal'."""
+    text = ('#usda 1.0\ndef Mesh "m"\n{\n    int[] faceVertexCounts = [3]\n'
+            "    int[] faceVertexIndices = [0, 1, 2]\n"
+            "    point3f[] points = [(0, 0, 0), (0, 0, 1), (1, 0, 0)]\n}\n")
+    assert swap[0] in text
+    p = tmp_path / "typed.usda"
+    p.write_text(text.replace(*swap))
+    with pytest.raises(EnvironmentLoadError, match=message):
+        load_environment(p)
