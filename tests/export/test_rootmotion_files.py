@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from baker.inspect import read_glb, read_usd
-from tests.tools.validator import gltf_validate, usd_issues, usd_validate
+from validator import gltf_validate, usd_issues, usd_validate
 
 MODES = ("world", "root", "in-place")
 
