@@ -271,9 +271,10 @@ HELPER_NAME = re.compile(r"(-(colonly|convcolonly|navmesh|occonly|noimp)$)|(^u(c
 
 def _without_helpers(raw: list, path: Path) -> list:
     """The raw meshes less those HELPER_NAME names (all of them when that is all there is)."""
-    kept = [r for r in raw if not HELPER_NAME.search(str(r[0]))]
+    helper = [HELPER_NAME.search(str(r[0])) is not None for r in raw]
+    kept = [r for r, h in zip(raw, helper) if not h]
     if kept and len(kept) < len(raw):
-        left = [str(r[0]) for r in raw if HELPER_NAME.search(str(r[0]))]
+        left = [str(r[0]) for r, h in zip(raw, helper) if h]
         log.info("environment %s: %d helper mesh(es) left out (%s)", path.name, len(left),
                  ", ".join(left[:5]) + (", ..." if len(left) > 5 else ""))
         return kept
@@ -1162,10 +1163,15 @@ def _trimesh_color(geom) -> tuple[float, float, float, float]:
         return DEFAULT_COLOR
     if vis.kind in ("vertex", "face") and getattr(vis, "defined", False):
         cols = vis.vertex_colors if vis.kind == "vertex" else vis.face_colors
-        mean = np.asarray(cols, dtype=np.float64).mean(axis=0) / 255.0
-        rgb = _srgb_to_linear(mean[:3])
-        return (float(rgb[0]), float(rgb[1]), float(rgb[2]), float(mean[3]))
+        return _linear_colour(np.asarray(cols, dtype=np.float64).mean(axis=0))
     return DEFAULT_COLOR
+
+
+def _linear_colour(rgba) -> tuple[float, float, float, float]:
+    """An sRGB colour of bytes (r, g, b, a) as linear RGB and alpha from 0 to 1."""
+    mean = np.asarray(rgba, dtype=np.float64) / 255.0
+    rgb = _srgb_to_linear(mean[:3])
+    return (float(rgb[0]), float(rgb[1]), float(rgb[2]), float(mean[3]))
 
 
 def _to_utf8(data: bytes) -> bytes:
@@ -1187,10 +1193,8 @@ def _text_as_utf8(path: Path, data: bytes) -> bytes:
     if ext == ".obj":
         return _to_utf8(data)
     if ext == ".stl":
-        if len(data) >= 84:
-            (n,) = struct.unpack_from("<I", data, 80)
-            if len(data) == 84 + 50 * n:
-                return data  # binary STL
+        if _binary_stl_size(data, len(data)):
+            return data
         if data.lstrip()[:5].lower() == b"solid":
             return _to_utf8(data)
         # (a binary STL whose size is not its count's was refused unread: _check_stl_size)
@@ -1392,7 +1396,7 @@ def _obj_cut(data: bytes) -> bytes:
         if k not in bent:
             continue
         corners = idx[starts[k]:starts[k] + counts[k]]
-        tri = polygons.triangulate(points, counts[k:k + 1], corners)
+        tri = polygons.triangulate(points, counts[k:k + 1], corners, np.ones(1, bool))
         token = dict(zip(corners.tolist(), m.group(1).split()))
         out += [data[at:m.start()], b"\n".join(
             b"f " + b" ".join(token[v] for v in t) + m.group(2) for t in tri.tolist())]
@@ -1430,10 +1434,10 @@ def _ply_cut(geom) -> np.ndarray | None:
     except (TypeError, ValueError):
         return None
     points = np.asarray(geom.vertices, dtype=np.float64)
-    if (counts.max() < 4 or counts.min() < 3 or flat.min() < 0 or flat.max() >= len(points)
-            or not polygons.concave(points, counts, flat).any()):
+    if counts.max() < 4 or counts.min() < 3 or flat.min() < 0 or flat.max() >= len(points):
         return None
-    return polygons.triangulate(points, counts, flat)
+    bent = polygons.concave(points, counts, flat)
+    return polygons.triangulate(points, counts, flat, bent) if bent.any() else None
 
 
 def _ragged_ply(path: Path, data: bytes) -> tuple:
@@ -1453,11 +1457,7 @@ def _ragged_ply(path: Path, data: bytes) -> tuple:
     _check_geometry(v, faces, path.stem)
     geom = trimesh.Trimesh(v, faces, process=False)
     geom.process()
-    color = DEFAULT_COLOR
-    if rgba is not None:
-        mean = np.asarray(rgba, dtype=np.float64) / 255.0
-        rgb = _srgb_to_linear(mean[:3])
-        color = (float(rgb[0]), float(rgb[1]), float(rgb[2]), float(mean[3]))
+    color = DEFAULT_COLOR if rgba is None else _linear_colour(rgba)
     return (path.stem, np.asarray(geom.vertices, dtype=np.float64),
             np.asarray(geom.faces, dtype=np.int64), None, color, 1.0, 0.0)
 
@@ -1516,14 +1516,26 @@ def _check_ascii_ply(data: bytes) -> None:
                                    "header declares")
 
 
+def _ascii_stl_head(head: bytes) -> bool:
+    """Whether an STL's first 84 bytes look like text: 'solid ...' and no NUL (a binary
+    header may say "solid" too)."""
+    return head.lstrip()[:5].lower() == b"solid" and b"\0" not in head
+
+
+def _binary_stl_size(head: bytes, size: int) -> bool:
+    """Whether a file of `size` bytes starting with `head` (at least its first 84 bytes) has
+    a binary STL's size: 84 + 50 times its header's triangle count."""
+    return len(head) >= 84 and size == 84 + 50 * struct.unpack_from("<I", head, 80)[0]
+
+
 def _check_stl_size(path: Path) -> None:
     """A binary STL whose size is not its header's triangle count's, refused from its first
     84 bytes and its size (before a sparse 4 GB file is read whole)."""
     with open(path, "rb") as f:
         head = f.read(84)
         size = os.fstat(f.fileno()).st_size
-    if len(head) < 84 or (head.lstrip()[:5].lower() == b"solid" and b"\0" not in head):
-        return          # short or ASCII (text has no NUL; a binary header may say "solid")
+    if len(head) < 84 or _ascii_stl_head(head):
+        return          # short or ASCII
     (n,) = struct.unpack_from("<I", head, 80)
     if size != 84 + 50 * n:
         raise EnvironmentLoadError(
@@ -1534,9 +1546,7 @@ def _check_stl_size(path: Path) -> None:
 def _check_ascii_stl(data: bytes) -> None:
     """An ASCII STL must end (endsolid) and each facet hold 3 vertices (trimesh read a cut-off
     file as no faces and refused a facet of 2 or 4 with 'cannot reshape array')."""
-    head = data[:84]
-    if head.lstrip()[:5].lower() != b"solid" or b"\0" in head or (
-            len(data) >= 84 and len(data) == 84 + 50 * struct.unpack_from("<I", data, 80)[0]):
+    if not _ascii_stl_head(data[:84]) or _binary_stl_size(data, len(data)):
         return                                    # binary (its header may say "solid")
     if not re.search(rb"(?im)^[ \t]*endsolid", data):
         raise EnvironmentLoadError("corrupt ASCII STL: cut short (no endsolid line)")
@@ -1847,8 +1857,7 @@ def _usd_mesh(prim, time):
     pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
     faces = _usd_triangles(pts, np.asarray(counts), np.asarray(idx),
                            np.asarray(holes if holes is not None else [], dtype=np.int64), left)
-    return (pts, faces,
-            *_usd_color(prim, mesh, time))
+    return (pts, faces, *_usd_color(prim, mesh, time))
 
 
 def _usd_point_instances(instancer, cache, fix, time, path, depth: int = 0) -> list:

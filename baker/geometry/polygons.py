@@ -30,17 +30,18 @@ def fan(counts: np.ndarray, indices: np.ndarray) -> np.ndarray:
     return np.stack([indices[s], indices[s + k], indices[s + k + 1]], axis=1)
 
 
-def triangulate(points: np.ndarray, counts: np.ndarray, indices: np.ndarray) -> np.ndarray:
+def triangulate(points: np.ndarray, counts: np.ndarray, indices: np.ndarray,
+                bent: np.ndarray | None = None) -> np.ndarray:
     """(T, 3) int64 triangles of the polygons counts (P,) >= 3, indices (sum counts,) into
     points (V, 3): the fan of every convex polygon, and mapbox_earcut's triangles of each
     concave one (its corners projected on its plane; wound as the polygon is). Polygon by
     polygon, each's triangles in a row; a concave polygon's triangles that earcut drops (zero
     area: repeated or collinear corners) are left out, and one earcut cannot cut keeps its
-    fan."""
+    fan. bent: concave(points, counts, indices) when the caller has it."""
     counts = np.asarray(counts, dtype=np.int64)
     indices = np.asarray(indices, dtype=np.int64)
     tris = fan(counts, indices)
-    bad = np.flatnonzero(concave(points, counts, indices))
+    bad = np.flatnonzero(concave(points, counts, indices) if bent is None else bent)
     if len(bad) == 0:
         return tris
     keep = np.ones(len(tris), dtype=bool)
