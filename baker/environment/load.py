@@ -1823,14 +1823,18 @@ def _usd_diagnostic_text(d) -> str:
     return " ".join(str(text).split())
 
 
-def _check_usd_arrays(prim, points, counts, indices) -> None:
-    """A mesh's points must be 3-vectors of numbers and its face counts and indices integers:
+def _check_usd_arrays(prim, points, counts, indices, holes=()) -> None:
+    """A mesh's points must be 3-vectors of numbers and its face counts, indices and hole
+    indices integers:
     a layer may author them with another type than the schema's (the attribute then still says
     the schema's type; 'invalid literal for int()' was all a string array gave)."""
     for name, value, kinds, width in (("points", points, "fiu", 3),
                                       ("faceVertexCounts", counts, "iu", 0),
-                                      ("faceVertexIndices", indices, "iu", 0)):
+                                      ("faceVertexIndices", indices, "iu", 0),
+                                      ("holeIndices", holes, "iu", 0)):
         arr = np.asarray(value)
+        if name == "holeIndices" and arr.size == 0:
+            continue
         if arr.dtype.kind not in kinds or (arr.ndim != 2 or arr.shape[1] != 3 if width else
                                            arr.ndim != 1):
             want = "3-vectors of numbers" if width else "integers"
@@ -1851,8 +1855,8 @@ def _usd_mesh(prim, time):
     idx = mesh.GetFaceVertexIndicesAttr().Get(time)
     if pts is None or counts is None or idx is None or len(pts) == 0:
         return None
-    _check_usd_arrays(prim, pts, counts, idx)
     holes = mesh.GetHoleIndicesAttr().Get(time)
+    _check_usd_arrays(prim, pts, counts, idx, holes if holes is not None else ())
     left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
     pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
     faces = _usd_triangles(pts, np.asarray(counts), np.asarray(idx),

@@ -249,6 +249,9 @@ def test_usd_proxy_stand_ins_are_not_drawn_over_the_level(tmp_path, purpose, dra
      "faceVertexIndices holds fractional values"),
     (("point3f[] points = [(0, 0, 0), (0, 0, 1), (1, 0, 0)]", 'string[] points = ["a", "b"]'),
      "points holds text values"),
+    (("int[] faceVertexCounts = [3]",
+      'int[] faceVertexCounts = [3]\n    string[] holeIndices = ["x"]'),
+     "holeIndices holds text values"),
 ])
 def test_usd_mesh_arrays_of_another_type_refused(tmp_path, swap, message):
     """A layer may author a mesh's arrays with another type than the schema's (the attribute
