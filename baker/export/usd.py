@@ -39,6 +39,9 @@ from __future__ import annotations
 
 import json
 import logging
+import os
+import shutil
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -540,6 +543,21 @@ def write_usd(path: Path, env: Environment, rig: Rig, clip: Clip, *, fps: int, e
 def save_stage(stage, tmp: Path, path: Path) -> None:
     """Export `stage` into the (temporary) file `tmp`, in the format `path`'s suffix asks for:
     `.usda` text, `.usd`/`.usdc` crate. ExportError when USD fails."""
+    tmp = Path(tmp)
+    if len(Path(os.path.abspath(tmp)).parts) == 2:
+        # a file right under / : USD's safe output refuses it ("Destination directory ''
+        # does not exist"), so the layer goes into a hidden folder there and is moved up
+        staging = Path(tempfile.mkdtemp(prefix=".baker-usd-", dir=tmp.parent))
+        try:
+            _export_layer(stage, staging / tmp.name, path)
+            os.replace(staging / tmp.name, tmp)
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
+        return
+    _export_layer(stage, tmp, path)
+
+
+def _export_layer(stage, tmp: Path, path: Path) -> None:
     from pxr import Tf
 
     args = {"format": "usdc"} if Path(path).suffix == ".usd" else {}

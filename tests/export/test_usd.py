@@ -1,6 +1,9 @@
 """USD writer: UsdValidation, UsdSkel read-back against the GLB, metadata, determinism."""
 
 import json
+import os
+import secrets
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -155,6 +158,24 @@ def test_write_usd_errors(tmp_path, small_env, rig, clip):
     with pytest.raises(ExportError):
         write_usd(tmp_path / "x.abc", small_env, rig, clip, fps=30, extras={})
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.skipif(not os.access("/", os.W_OK), reason="/ is not writable here")
+@pytest.mark.parametrize("suffix", [".usd", ".usda"])
+def test_a_file_right_under_the_root_folder(tmp_path, small_env, rig, clip, bake_extras, suffix):
+    """`--out /` writes /centipede.*: USD's own safe output refused a file right under /
+    ('Destination directory '' does not exist'); the same bytes as anywhere else, nothing
+    left beside them."""
+    name = f"baker-test-{secrets.token_hex(6)}"
+    before = set(os.listdir("/"))
+    path = Path("/") / f"{name}{suffix}"
+    try:
+        write_usd(path, small_env, rig, clip, fps=30, extras=bake_extras)
+        write_usd(tmp_path / path.name, small_env, rig, clip, fps=30, extras=bake_extras)
+        assert path.read_bytes() == (tmp_path / path.name).read_bytes()
+        assert set(os.listdir("/")) - before == {path.name}
+    finally:
+        path.unlink(missing_ok=True)
 
 
 def test_quaternion_order_round_trips(stage, clip):
