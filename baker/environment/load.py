@@ -1561,6 +1561,27 @@ def _check_ascii_stl(data: bytes) -> None:
                                    f"{int(per[bad[0]])} vertices (a facet is a triangle: 3)")
 
 
+#: a control byte put inside the keywords of an ASCII STL solid's name so that trimesh's reader
+#: does not take them for its own, and taken out of the names it reads (a file that holds this
+#: byte already is read as it is)
+_STL_MARK = b"\x1f"
+
+
+def _stl_hide_keywords(data: bytes) -> bytes:
+    """An ASCII STL with the words trimesh's reader searches the whole text for ("vertex",
+    "normal", "solid", so "endsolid") broken by _STL_MARK where they appear in a `solid` or
+    `endsolid` line's name: `solid vertex_paint` was read as a vertex, `solid a endsolid` as
+    the solid's end, `endsolid floor_solid` as the next solid's start (which lost its name)."""
+    if _STL_MARK in data or not _ascii_stl_head(data[:84]) or _binary_stl_size(data, len(data)):
+        return data
+    words = re.compile(rb"(?i)vertex|normal|solid")
+
+    def hide(m):
+        return m.group(1) + words.sub(lambda w: w[0][:3] + _STL_MARK + w[0][3:], m.group(2))
+
+    return re.sub(rb"(?im)^([ \t]*(?:end)?solid)([^\r\n]*)", hide, data)
+
+
 def _read_trimesh(path: Path):
     import io
 
@@ -1581,6 +1602,8 @@ def _read_trimesh(path: Path):
     data = _text_as_utf8(path, data)
     if path.suffix.lower() == ".obj":
         data = _obj_cut(_obj_absolute(_obj_spaces(data)))
+    if path.suffix.lower() == ".stl":
+        data = _stl_hide_keywords(data)
     try:
         scene = trimesh.load_scene(io.BytesIO(data), file_type=path.suffix.lower()[1:],
                                    resolver=_folder_resolver(path), process=False)
@@ -1596,7 +1619,8 @@ def _read_trimesh(path: Path):
         if faces is None or len(faces) == 0:  # PointCloud, Path3D, empty mesh
             continue
         _check_geometry(np.asarray(geom.vertices, dtype=np.float64),
-                        np.asarray(faces, dtype=np.int64), str(geom_name))
+                        np.asarray(faces, dtype=np.int64),
+                        str(geom_name).replace(_STL_MARK.decode(), ""))
         color, cut = None, _ply_cut(geom)
         if cut is not None:     # a new mesh: the file's face colours do not fit its faces
             color = _trimesh_color(geom)
@@ -1606,6 +1630,7 @@ def _read_trimesh(path: Path):
         v = _transform_points(m, np.asarray(geom.vertices, dtype=np.float64))
         f = _fix_winding(np.asarray(geom.faces, dtype=np.int64), m)
         name = node if node != path.name else (geom_name if geom_name != path.name else path.stem)
+        name = name.replace(_STL_MARK.decode(), "")
         raw.append((name, v, f, None, color or _trimesh_color(geom), 1.0, 0.0))
     return raw, None
 

@@ -173,6 +173,23 @@ def test_unusual_but_valid_gltf_load(name, tmp_path):
         assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
 
 
+@pytest.mark.parametrize("name", sorted(bad_inputs.GOOD_STL_NAMES))
+def test_stl_solid_names_with_keywords_load(name, tmp_path):
+    """A solid named with STL's own words: the floor once per solid, under its own name."""
+    from baker.environment import load_environment
+
+    data, names = bad_inputs.GOOD_STL_NAMES[name]
+    p = tmp_path / name
+    p.write_bytes(data)
+    ref = tmp_path / "plain.stl"
+    ref.write_bytes(bad_inputs.GOOD_LATIN1["latin1.stl"])
+    env, plain = load_environment(p), load_environment(ref)
+    assert [m.name for m in env.meshes] == names
+    for m in env.meshes:
+        assert np.array_equal(m.vertices, plain.mesh.vertices)
+        assert np.array_equal(m.faces, plain.mesh.faces)
+
+
 def test_latin1_obj_bakes(tmp_path, capsys):
     p = tmp_path / "latin1.obj"
     p.write_bytes(bad_inputs.GOOD_LATIN1["latin1.obj"])

@@ -598,6 +598,27 @@ GOOD_UNUSUAL_GLTF = {
     "base64_unpadded.gltf": _gltf_data_uri(lambda t: t.rstrip("="), pad=1),
 }
 
+def _stl_ascii(*solids: tuple[str, str]) -> bytes:
+    """An ASCII STL of the 4 x 4 m floor (2 facets) per (solid name, endsolid name)."""
+    facets = ("facet normal 0 1 0\nouter loop\nvertex -2 0 -2\nvertex 2 0 2\nvertex 2 0 -2\n"
+              "endloop\nendfacet\nfacet normal 0 1 0\nouter loop\nvertex -2 0 -2\n"
+              "vertex -2 0 2\nvertex 2 0 2\nendloop\nendfacet\n")
+    return "".join(f"solid {a}\n{facets}endsolid {b}\n" for a, b in solids).encode()
+
+
+#: ASCII STLs whose solid names hold the words trimesh's reader searches the text for: each
+#: the floor once per solid, and the meshes' names (`solid vertex_paint_test` was refused,
+#: 'unmatched data'; a name with "endsolid" said '`endsolid` precedes `solid`'; a solid after
+#: `endsolid floor_solid` was named geometry_1)
+GOOD_STL_NAMES = {
+    "vertex.stl": (_stl_ascii(("vertex_paint_test", "vertex_paint_test")), ["vertex_paint_test"]),
+    "vertex_numbers.stl": (_stl_ascii(("vertex 1 2 3", "vertex 1 2 3")), ["vertex_1_2_3"]),
+    "endsolid.stl": (_stl_ascii(("a endsolid b", "a endsolid b")), ["a_endsolid_b"]),
+    "words.stl": (_stl_ascii(("Facet Normal Outer Loop EndLoop EndFacet VERTEX", "x")),
+                  ["Facet_Normal_Outer_Loop_EndLoop_EndFacet_VERTEX"]),
+    "two_solids.stl": (_stl_ascii(("a", "floor_solid"), ("b", "b")), ["a", "b"]),
+}
+
 GOOD_LATIN1 = {
     "latin1.obj": b"# Fl\xe4che f\xfcr den Tausendf\xfc\xdfler, \xa9 2026\n" + GOOD_OBJ.encode(),
     "cp1252.obj": b"# caf\xe9 \x93quoted\x94\n" + GOOD_OBJ.encode(),
