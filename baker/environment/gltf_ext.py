@@ -155,6 +155,31 @@ def decode_draco(data: bytes, ext: dict, where: str) -> tuple[np.ndarray, np.nda
     return points, faces
 
 
+def decode_draco_attribute(data: bytes, ext: dict, name: str, where: str,
+                           normalized: bool = False) -> np.ndarray:
+    """A Draco primitive's attribute `name` (a skinned primitive's JOINTS_n or WEIGHTS_n, which
+    gltf-transform and gltfpack compress with the positions): (n, k) int64, or float64 for
+    floats and for integers read as normalized (divided by their type's largest value)."""
+    import DracoPy
+
+    try:
+        mesh = DracoPy.decode(bytes(data))
+        attr = mesh.get_attribute_by_unique_id(int(ext["attributes"][name]))
+    except Exception as e:  # DracoPy raises its own types and plain ValueErrors
+        raise EnvironmentLoadError(f"corrupt glTF: {where}'s Draco data does not decode "
+                                   f"({str(e)[:80]})") from None
+    if attr is None:
+        raise EnvironmentLoadError(f"corrupt glTF: {where}'s Draco data has no attribute "
+                                   f"{ext['attributes'][name]} (its {name[:30]})")
+    out = np.asarray(attr["data"])
+    out = out.reshape(len(out), -1)
+    if out.dtype.kind == "f":
+        return out.astype(np.float64)
+    if normalized:
+        return out.astype(np.float64) / np.iinfo(out.dtype).max
+    return out.astype(np.int64)
+
+
 def instancing_of(node: dict) -> dict | None:
     """A node's EXT_mesh_gpu_instancing object, or None."""
     return _extension(node, INSTANCING)

@@ -11,7 +11,8 @@ Formats
   (matrix or TRS) are applied. glTF is always +Y up, metres. Compressed geometry
   (EXT_/KHR_meshopt_compression bufferViews, KHR_draco_mesh_compression primitives) is decoded
   by environment/gltf_ext.py, which also reads EXT_mesh_gpu_instancing (a mesh placed many
-  times).
+  times). Skinned and morphed meshes are posed as engines draw them with no animation playing
+  (environment/gltf_pose.py: the joints' node transforms, the default morph weights).
 - OBJ, PLY, STL: read with trimesh as a scene; scene-graph transforms are applied. Assumed to be
   metres, +Y up. Concave polygons are ear-cut (geometry/polygons.py: trimesh fans every
   polygon): an OBJ's before trimesh reads it, a PLY's from the faces trimesh keeps as read.
@@ -47,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from baker.environment import gltf_ext, native
+from baker.environment import gltf_ext, gltf_pose, native
 from baker.environment.model import EnvMesh, Environment, Sun
 from baker.errors import EnvironmentLoadError
 from baker.geometry import polygons
@@ -593,6 +594,7 @@ class _GltfReader:
         self._views: dict[int, bytes] = {}
         self._placeholders: set[int] = set()
         self._decoded: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+        self._poser: gltf_pose.Poser | None = None     # made for the first skinned/morphed mesh
         self._sizes = [self._buffer_size(i, b) for i, b in enumerate(d.array("buffers"))]
         self._check_views()
         self._check_accessors()
@@ -842,6 +844,7 @@ class _GltfReader:
                 d.index({"n": r}, "n", f"scenes[{si}].nodes", "nodes")
         if scenes:
             d.index(self.doc, "scene", "document", "scenes") if "scene" in self.doc else None
+        gltf_pose.check(d, self.doc)        # skins, morph targets and weights
 
     def buffer(self, i: int) -> bytes:
         if i not in self._buffers:
@@ -1066,9 +1069,16 @@ class _GltfReader:
             if got is None:
                 continue
             points, faces, normals = got      # (sizes checked by _check_size before reading)
+            place = mats
+            if gltf_pose.needs_pose(node, mesh):    # skinned or morphed: as engines draw it
+                self._poser = self._poser or gltf_pose.Poser(self)
+                points, normals, skinned = self._poser.pose(
+                    node, mesh, prim, points, normals, f"meshes[{node['mesh']}].primitives[{pi}]")
+                if skinned:                 # the joints placed it: the node's transform is not used
+                    place = self.instances(node, np.eye(4))
             color, rough, metal = self.material(prim.get("material"))
             out.append((base if len(prims) == 1 else f"{base}_{pi}",
-                        *_placed(mats, points, faces, normals), color, rough, metal))
+                        *_placed(place, points, faces, normals), color, rough, metal))
         return out
 
     def _mesh_size(self, mi: int) -> tuple[int, int]:

@@ -7,6 +7,8 @@ item is "navmesh", of a `baker navmesh`). Classes:
 - glb_*   : a small good GLB (a floor and a box, a light, a material; built here), its JSON or
             binary mutated: counts, component types, views, strides, buffers, URIs, indices,
             NaN/inf/huge vertices, node transforms, references, required extensions, truncation
+- glb_skin_*, glb_morph_* : the good GLB skinned and morphed (`skinned_gltf`), its skin,
+            weights, joints, inverse bind matrices and morph targets broken
 - gltf_*  : the same scene as .gltf with external and data: buffers, mutated
 - obj_*, stl_*, ply_* : text and binary meshes with bad numbers, indices, structure
 - usd_*   : bad USD layers: missing or outside sublayers, references, payloads, bad topology
@@ -1047,11 +1049,133 @@ def _option_cases():
     return cases
 
 
+# --------------------------------------------------------------------------- skins and morphs
+def skinned_gltf():
+    """(doc, bin) of the good scene skinned and morphed (environment/gltf_pose.py): every vertex
+    on joint 0 ("bone", 1 m up; "bone2" its child), inverse bind matrices of identity, and a
+    morph target lifting it 0.5 m at mesh weight 1. Accessors 3.. are JOINTS_0, WEIGHTS_0, the
+    inverse bind matrices and the target, appended to buffer 0 in that order."""
+    doc, blob = good_gltf()
+    doc = copy.deepcopy(doc)
+    n = len(scene_arrays()[0])
+    parts = [(np.tile(np.uint8([0, 1, 0, 0]), (n, 1)), "VEC4", 5121),
+             (np.tile(np.float32([1, 0, 0, 0]), (n, 1)), "VEC4", 5126),
+             (np.tile(np.eye(4, dtype=np.float32), (2, 1, 1)), "MAT4", 5126),
+             (np.tile(np.float32([0, 0.5, 0]), (n, 1)), "VEC3", 5126)]
+    for a, kind, ctype in parts:
+        doc["bufferViews"].append({"buffer": 0, "byteOffset": len(blob), "byteLength": a.nbytes})
+        doc["accessors"].append({"bufferView": len(doc["bufferViews"]) - 1, "componentType": ctype,
+                                 "count": len(a), "type": kind})
+        blob += a.tobytes()
+    doc["accessors"][6].update(min=[0, 0.5, 0], max=[0, 0.5, 0])
+    doc["buffers"][0]["byteLength"] = len(blob)
+    prim = doc["meshes"][0]["primitives"][0]
+    prim["attributes"].update(JOINTS_0=3, WEIGHTS_0=4)
+    prim["targets"] = [{"POSITION": 6}]
+    doc["meshes"][0]["weights"] = [1.0]
+    doc["nodes"] += [{"name": "bone", "translation": [0.0, 1.0, 0.0], "children": [3]},
+                     {"name": "bone2", "translation": [0.0, 0.5, 0.0]}]
+    doc["scenes"][0]["nodes"].append(2)
+    doc["nodes"][0]["skin"] = 0
+    doc["skins"] = [{"joints": [2, 3], "inverseBindMatrices": 5}]
+    return doc, blob
+
+
+def _acc_float(doc, blob, acc: int, i: int, value: float, fmt: str = "<f") -> None:
+    """Write value as the i-th component of an accessor's data (tightly packed)."""
+    a = doc["accessors"][acc]
+    struct.pack_into(fmt, blob, doc["bufferViews"][a["bufferView"]]["byteOffset"]
+                     + i * struct.calcsize(fmt), value)
+
+
+#: edits of skinned_gltf (doc, bytearray blob) -> None, and a part of each refusal's message
+SKIN_EDITS = {
+    "skin_weight_nan": lambda d, b: _acc_float(d, b, 4, 0, math.nan),
+    "skin_weight_inf": lambda d, b: _acc_float(d, b, 4, 5, math.inf),
+    "skin_weight_negative": lambda d, b: _acc_float(d, b, 4, 13, -0.5),
+    "skin_joint_past": lambda d, b: _acc_float(d, b, 3, 8, 2, "<B"),
+    "skin_joint_255": lambda d, b: _acc_float(d, b, 3, 47, 255, "<B"),
+    "skin_ibm_nan": lambda d, b: _acc_float(d, b, 5, 17, math.nan),
+    "skin_ibm_short": lambda d, b: d["accessors"][5].update(count=1),
+    "skin_ibm_vec4": lambda d, b: d["accessors"][5].update(type="VEC4"),
+    "skin_joints_empty": lambda d, b: d["skins"][0].update(joints=[]),
+    "skin_joints_past": lambda d, b: d["skins"][0].update(joints=[2, 99]),
+    "skin_joints_text": lambda d, b: d["skins"][0].update(joints="bone"),
+    "skin_index_past": lambda d, b: d["nodes"][0].update(skin=5),
+    "skin_joints_vec3": lambda d, b: d["accessors"][3].update(type="VEC3"),
+    "skin_weights_bytes": lambda d, b: d["accessors"][4].update(componentType=5121),
+    "skin_joint_cycle": lambda d, b: d["nodes"][3].update(children=[2]),
+    "morph_weight_nan": lambda d, b: d["meshes"][0].update(weights=[math.nan]),
+    "morph_weights_text": lambda d, b: d["nodes"][0].update(weights="heavy"),
+    "morph_target_nan": lambda d, b: _acc_float(d, b, 6, 4, math.nan),
+    "morph_target_count": lambda d, b: d["accessors"][6].update(count=6),
+    "morph_target_scalar": lambda d, b: d["meshes"][0]["primitives"][0].update(
+        targets=[{"POSITION": 2}]),
+    "morph_targets_object": lambda d, b: d["meshes"][0]["primitives"][0].update(
+        targets={"POSITION": 6}),
+    "morph_target_past": lambda d, b: d["meshes"][0]["primitives"][0].update(
+        targets=[{"POSITION": 99}]),
+}
+SKIN_EXPECT = {
+    "skin_weight_nan": "WEIGHTS_0 holds a non-finite weight",
+    "skin_weight_inf": "WEIGHTS_0 holds a non-finite weight",
+    "skin_weight_negative": "WEIGHTS_0 holds a negative weight",
+    "skin_joint_past": "names joint 2; its skin (skins[0]) has 2 joints",
+    "skin_joint_255": "names joint 255",
+    "skin_ibm_nan": "inverseBindMatrices holds a non-finite number",
+    "skin_ibm_short": "holds 1 matrices for 2 joints",
+    "skin_ibm_vec4": "must be a MAT4 accessor of floats",
+    "skin_joints_empty": "non-empty array of node indices",
+    "skin_joints_past": "skins[0].joints[1] = 99 is not an index into nodes",
+    "skin_joints_text": "non-empty array of node indices",
+    "skin_index_past": "nodes[0].skin = 5 is not an index into skins",
+    "skin_joints_vec3": "JOINTS_0 must be a VEC4 accessor",
+    "skin_weights_bytes": "WEIGHTS_0 must be a VEC4 accessor of floats or normalized",
+    "skin_joint_cycle": "two parents",
+    "morph_weight_nan": "weights must be an array of finite numbers",
+    "morph_weights_text": "weights must be an array of finite numbers",
+    "morph_target_nan": "targets[0].POSITION (accessors[6]) holds a non-finite number",
+    "morph_target_count": "targets[0].POSITION has 6 elements, POSITION 12",
+    "morph_target_scalar": "targets[0].POSITION must be a VEC3 accessor",
+    "morph_targets_object": "targets must be an array of objects",
+    "morph_target_past": "is not an index into accessors",
+}
+
+
+def _skin_case(key):
+    def make(folder: Path):
+        doc, blob = skinned_gltf()
+        b = bytearray(blob)
+        SKIN_EDITS[key](doc, b)
+        p = folder / f"{key}.glb"
+        p.write_bytes(pack_glb(doc, bytes(b)))
+        return [p]
+    return Case(f"glb_{key}", make)
+
+
+def _morph_terms_glb(targets: int = 2000, vertices: int = 80_000) -> bytes:
+    """One zero-filled 80,000-vertex accessor (no bufferView) as a mesh's positions and as each of
+    its 2,000 morph targets, all at weight 1: 160 M vertex x target terms from a 60 kB file."""
+    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+           "nodes": [{"mesh": 0}],
+           "meshes": [{"primitives": [{"attributes": {"POSITION": 0},
+                                       "targets": [{"POSITION": 0}] * targets}],
+                       "weights": [1.0] * targets}],
+           "accessors": [{"componentType": 5126, "count": vertices // 3 * 3, "type": "VEC3"}]}
+    return pack_glb(doc, None)
+
+
+def _skin_cases():
+    return ([_skin_case(k) for k in SKIN_EDITS]
+            + [_glb_raw_case("morph_terms_160M", _morph_terms_glb)])
+
+
 # --------------------------------------------------------------------------- all
 def all_cases() -> list[Case]:
     cases = ([_glb_json_case(n, e) for n, e in GLB_JSON_EDITS]
              + [_glb_blob_case(k) for k in GLB_BLOB_EDITS]
-             + _glb_raw_cases() + _compressed_cases() + _gltf_cases() + _mesh_cases() + _usd_cases()
+             + _glb_raw_cases() + _compressed_cases() + _skin_cases() + _gltf_cases()
+             + _mesh_cases() + _usd_cases()
              + _schema_rig_cases() + _structural_rig_cases() + _rig_path_cases()
              + _option_cases() + _batch_cases())
     ids = [c.id for c in cases]
