@@ -251,10 +251,10 @@ class Poser:
         return self.r.accessor(prim["attributes"][name])
 
     def _influences(self, si: int, prim: dict, attrs: dict, sets: int, n: int, where: str):
-        """(joints (n, 4 sets) int64 checked in range, weights (n, 4 sets) float64 normalized to
+        """(joints (n, 4 sets) uint16 checked in range, weights (n, 4 sets) float64 normalized to
         sum 1; a vertex of no weight has its first joint at weight 1, as three.js makes it)."""
         nj = len(self.doc["skins"][si]["joints"])
-        joints = np.empty((n, 4 * sets), dtype=np.int64)
+        joints = np.empty((n, 4 * sets), dtype=np.uint16)     # (JOINTS_n are bytes or shorts)
         weights = np.empty((n, 4 * sets), dtype=np.float64)
         for s in range(sets):
             j = self._values(prim, f"JOINTS_{s}", where)
@@ -262,8 +262,9 @@ class Poser:
             if j.shape != (n, 4) or w.shape != (n, 4):
                 self.fail(f"{where}'s JOINTS_{s} and WEIGHTS_{s} do not hold 4 values for each "
                           f"of its {n} vertices")
-            if j.size and (j.min() < 0 or j.max() >= nj):
-                bad = int(j.max()) if j.max() >= nj else int(j.min())
+            top = min(nj, 1 << 16)         # (a Draco stream's joints may be wider than shorts)
+            if j.size and (j.min() < 0 or j.max() >= top):
+                bad = int(j.max()) if j.max() >= top else int(j.min())
                 self.fail(f"{where}.attributes.JOINTS_{s} names joint {bad}; its skin "
                           f"(skins[{si}]) has {nj} joints")
             if not np.all(np.isfinite(w)):
@@ -291,7 +292,7 @@ def skin(points: np.ndarray, normals, joints: np.ndarray, weights: np.ndarray,
 
     points  : (n, 3) float64, the mesh's bind-pose vertices
     normals : (n, 3) float64 or None
-    joints  : (n, k) int64 indices into mats; weights : (n, k) float64 summing to 1 per vertex
+    joints  : (n, k) integer indices into mats; weights : (n, k) float64 summing to 1 per vertex
     mats    : (J, 3, 4) float64 joint matrices (world(joint) @ inverse bind matrix)
     returns : (points (n, 3) float64 world, normals (n, 3) float64 (not unit) or None), each
               vertex moved by its blended matrix B = sum_i w_i mats[j_i], a normal by B's
