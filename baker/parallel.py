@@ -376,6 +376,31 @@ def in_background(fn, *args):
     return _on_thread(fn, args)
 
 
+#: threading.stack_size() is the process's: set around one thread's start at a time
+_STACK_LOCK = threading.Lock()
+
+
+def on_own_stack(stack_bytes: int, fn, *args):
+    """fn(*args) on a thread of its own with a stack of `stack_bytes`, this thread waiting for
+    it (its error raised here). For native code that recurses once per level of a file's
+    nesting (USD's readers): how deep a file it reads then does not depend on the calling
+    thread's stack (8 MB for Linux's main thread under the usual `ulimit -s`, less for other
+    threads: 512 KB on macOS). Where such a thread cannot be started (no memory for its
+    stack), fn runs on this thread."""
+    with _STACK_LOCK:
+        try:
+            old = threading.stack_size(stack_bytes)
+        except (ValueError, RuntimeError):  # pragma: no cover - a platform without the setting
+            return fn(*args)
+        try:
+            wait = _on_thread(fn, args)
+        except RuntimeError:        # "can't start new thread"
+            wait = None
+        finally:
+            threading.stack_size(old)
+    return fn(*args) if wait is None else wait()
+
+
 def off_main_thread(fn, *args):
     """fn(*args), run on a thread other than the main one (on this one when it is not the
     main one), the main thread waiting for it. For compiled code (numba) whose results are

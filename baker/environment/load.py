@@ -1746,9 +1746,11 @@ _MAX_USD_LAYERS = 1000
 
 
 #: the deepest nesting of braces a text USD layer may have (prims in prims: a real scene's
-#: tree is tens deep). USD's C++ code recurses once per level: a layer 20,000 prims deep
-#: crashed the process (SIGSEGV) listing its dependencies, one 100,000 deep parsing it
-MAX_USDA_DEPTH = 1000
+#: tree is tens deep). USD's C++ code recurses once per level: on Linux's 8 MB main-thread
+#: stack a layer 18,500 prims deep crashed the process (SIGSEGV) listing its dependencies,
+#: 20,000-30,000 deep computing transforms, 100,000 deep parsing it. The level is read on a
+#: thread of USD_STACK_BYTES (8 times that: some 150,000 levels), so this keeps a margin of 3
+MAX_USDA_DEPTH = 50_000
 
 
 def _usda_depth(path: Path, chunk: int = 1 << 24) -> int:
@@ -1838,19 +1840,43 @@ def _usd_dependency(layer, name: str, dep: str, folder: Path, path: Path) -> str
 MIN_METERS_PER_UNIT = 1e-9
 
 
+#: the stack of the thread a USD level is read on (parallel.on_own_stack): USD's C++ code
+#: recurses once per level of prims in prims, 450 bytes a level where it goes deepest
+#: (listing a layer's dependencies), so this holds some 150,000 levels; MAX_USDA_DEPTH keeps
+#: well below
+USD_STACK_BYTES = 64 << 20
+
+
 def _read_usd(path: Path, up_axis: str | None = None, units: str | None = None):
+    """_read_usd_here on a thread with a known stack (USD_STACK_BYTES), nothing of what USD's
+    C++ code prints itself reaching stderr (native.held_stderr: held here, so that a bake
+    stopped while the thread reads has its error line on stderr)."""
+    from baker.parallel import on_own_stack
+
+    with native.held_stderr(str(path)):
+        return on_own_stack(USD_STACK_BYTES, _read_usd_here, path, up_axis, units)
+
+
+def _read_usd_here(path: Path, up_axis: str | None, units: str | None):
+    import traceback
+
     from pxr import Tf
 
     # USD reports problems as diagnostics on stderr: trap them, refuse the file on any
-    # composition error or error, and print nothing of USD's own (nor what its C++ code
-    # prints itself: native.held_stderr)
-    with native.held_stderr(str(path)), Tf.DiagnosticTrap() as trap:
-        try:
-            return _read_usd_trapped(path, trap, up_axis, units)
-        finally:
-            for w in trap.GetWarnings():
-                log.debug("USD warning while reading %s: %s", path, _usd_diagnostic_text(w))
-            trap.Clear()  # nothing of USD's own reaches stderr
+    # composition error or error, and print nothing of USD's own
+    try:
+        with Tf.DiagnosticTrap() as trap:
+            try:
+                return _read_usd_trapped(path, trap, up_axis, units)
+            finally:
+                for w in trap.GetWarnings():
+                    log.debug("USD warning while reading %s: %s", path, _usd_diagnostic_text(w))
+                trap.Clear()  # nothing of USD's own reaches stderr
+    except BaseException as e:
+        # the stage and its layers are freed here, on the deep stack, not by whoever keeps the
+        # error (USD frees a prim tree recursively too)
+        traceback.clear_frames(e.__traceback__)
+        raise
 
 
 def _usd_diagnostic_text(d) -> str:
@@ -1970,6 +1996,22 @@ def _usd_prototype(root, cache, time, path, depth: int) -> list:
     return out
 
 
+def _usd_inherited(prim, seen: dict, time):
+    """(invisible, purpose info) of `prim`, from its parent's in `seen` (prim path -> state;
+    a traversal visits parents first), kept there for its children: what Imageable's
+    ComputeVisibility and ComputePurpose give, without each walking up to the root (for every
+    prim: quadratic in the depth, 5,000 levels took 15 s)."""
+    from pxr import UsdGeom
+
+    invisible, info = seen.get(prim.GetPath().GetParentPath(), (False, None))
+    img = UsdGeom.Imageable(prim)
+    if not invisible and prim.IsA(UsdGeom.Imageable):
+        invisible = img.GetVisibilityAttr().Get(time) == UsdGeom.Tokens.invisible
+    state = (invisible, img.ComputePurposeInfo(info or UsdGeom.Imageable.PurposeInfo()))
+    seen[prim.GetPath()] = state
+    return state
+
+
 def _usd_traverse(stage, fix: np.ndarray, time, path: Path) -> tuple[list, list]:
     """(raw meshes, suns) of a stage's visible prims, stage space moved by `fix` (4, 4). Guide
     prims are not drawn, nor are proxy prims (stand-ins for render geometry) unless the stage
@@ -1978,16 +2020,16 @@ def _usd_traverse(stage, fix: np.ndarray, time, path: Path) -> tuple[list, list]
     from pxr import Usd, UsdGeom, UsdLux
 
     cache = UsdGeom.XformCache(time)
-    raw, proxies, suns = [], [], []
+    raw, proxies, suns, seen = [], [], [], {}
     prims = iter(Usd.PrimRange.Stage(stage, Usd.TraverseInstanceProxies(
         Usd.PrimDefaultPredicate)))
     for prim in prims:
         purpose = None
+        invisible, info = _usd_inherited(prim, seen, time)
         if prim.IsA(UsdGeom.Imageable):
-            img = UsdGeom.Imageable(prim)
-            if img.ComputeVisibility(time) == UsdGeom.Tokens.invisible:
+            if invisible:
                 continue
-            purpose = img.ComputePurpose()
+            purpose = info.purpose
             if purpose == UsdGeom.Tokens.guide:
                 continue
         if prim.IsA(UsdLux.DistantLight):

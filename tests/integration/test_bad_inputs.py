@@ -39,7 +39,7 @@ SUBPROCESS = [
     "ply_binary_vertex_2e9", "ply_ascii_vertex_2e9", "obj_nan_vertex", "gltf_bin_outside",
     "usd_sublayer_missing", "usd_reference_outside", "usd_syntax_error", "usd_face_index_past",
     "usd_reference_bad_prim", "usd_variant_reference_outside",
-    "usd_crate_section_start", "usd_prims_20000_deep",
+    "usd_crate_section_start", "usd_prims_60000_deep",
     "rig_legs_none", "rig_empty", "opt_sun_0_1e308,0,0",
     "opt_navmesh_from_nan", "opt_seconds_0_nan",
 ]

@@ -656,6 +656,12 @@ def usd_text(counts="[3, 3]", indices="[0, 2, 1, 0, 3, 2]", points=USD_POINTS, m
                                                       points=points))
 
 
+def deep_usd_text(depth: int) -> str:
+    """The floor's mesh at the bottom of `depth` Xforms, each in the one before."""
+    return usd_text(body="".join(f'def Xform "x{i}"\n{{\n' for i in range(depth)) + USD_MESH.format(
+        counts="[3, 3]", indices="[0, 2, 1, 0, 3, 2]", points=USD_POINTS) + "}\n" * depth)
+
+
 #: a file in a case's dict that is a symbolic link to itself
 LOOP = object()
 
@@ -728,10 +734,9 @@ def _usd_cases():
         # a section's start past any file: USD's C++ code printed 'failed call to
         # posix_madvise(...)' on stderr itself, above the error line
         "crate_section_start": lambda: {"level.usdc": crate_section_flipped()},
-        # prims 20,000 deep: USD's C++ code recursed past the stack (SIGSEGV)
-        "prims_20000_deep": lambda: {"level.usda": usd_text(body="".join(
-            f'def Xform "x{i}"\n{{\n' for i in range(20_000)) + USD_MESH.format(
-            counts="[3, 3]", indices="[0, 2, 1, 0, 3, 2]", points=USD_POINTS) + "}\n" * 20_000)},
+        # prims 60,000 deep (over load.MAX_USDA_DEPTH): USD's C++ code recurses per level,
+        # and 20,000 deep crashed the process (SIGSEGV) on the main thread's stack
+        "prims_60000_deep": lambda: {"level.usda": deep_usd_text(60_000)},
         # a unit that shrinks the level to a point (it said 'no triangle faces')
         "mpu_tiny": lambda: {"level.usda": usd_text(mpu="1e-300")},
         # a sublayer that is a FIFO or a loop of links (they said 'does not exist', 'Symlink
