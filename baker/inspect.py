@@ -38,6 +38,7 @@ LIMITS = (
     ("spacing_error_max", "<=", 0.02),
     ("head_slope_max_deg", "<=", 60.0),
     ("spine_inside_geometry", "==", 0),
+    ("spine_bone_hits", "==", 0),
     ("skate_median_pct_bl", "<", 0.2),
     ("skate_ratio", "<", 0.02),
     ("foot_penetration_max_pct_bl", "<", 0.5),
@@ -500,6 +501,9 @@ def judge(scene: BakedScene, usd: BakedScene | None = None,
     inside = inside_geometry(sp.reshape(-1, 3), rays).reshape(F, len(spine))
     m["spine_inside_geometry"] = int(inside.sum())
     worst["spine_inside_geometry"] = _worst(inside.astype(float), sn)
+    crossed = _chords_crossing(sp, rays)
+    m["spine_bone_hits"] = int(crossed.sum())
+    worst["spine_bone_hits"] = _worst(crossed.astype(float), sn[1:])
 
     _judge_feet(scene, rays, bl, spacing, m, worst)
     _judge_bones(scene, rays, bl, m, worst)
@@ -569,6 +573,17 @@ def _judge_feet(scene: BakedScene, rays, bl: float, spacing: float, m: dict, wor
     if gaps:
         worst["neighbour_feet_min_spacing"] = _worst(np.stack(gaps, 1), gnames, largest=False)
         m["neighbour_feet_min_spacing"] = worst["neighbour_feet_min_spacing"]["value"]
+
+
+def _chords_crossing(points: np.ndarray, rays) -> np.ndarray:
+    """(F, N-1) bool: the chord from each of the (F, N, 3) chain's points to the next crosses
+    the environment, cast both ways (a joint inside a block that is not closed, which the
+    inside vote can miss, has its chords leave the block through a face)."""
+    a = points[:, :-1].reshape(-1, 3)
+    v = (points[:, 1:] - points[:, :-1]).reshape(-1, 3)
+    reach = np.linalg.norm(v, axis=1)
+    hit = rays.occluded(a, v, reach) | rays.occluded(a + v, -v, reach)
+    return hit.reshape(len(points), -1)
 
 
 def _judge_bones(scene: BakedScene, rays, bl: float, m: dict, worst: dict) -> None:

@@ -93,3 +93,24 @@ def test_a_flipping_joint_fails_the_rotation_limit(scene):
     loc[5::2, j] = quat_mul(loc[5::2, j], np.array([0.0, 1.0, 0.0, 0.0]))   # 180 deg, every 2nd frame
     m = judge(replace(scene, local=loc))["metrics"]
     assert "rotation_max_deg" in failures(m) and m["rotation_local_antennae_deg"] > 90
+
+
+def test_a_thin_wall_across_the_spine_is_a_spine_bone_hit(scene):
+    # an open quad standing across the chord between two trunk joints at frame 0: no joint is
+    # inside anything, but the body passes through the wall
+    base = judge(scene)["metrics"]
+    assert base["spine_bone_hits"] == 0
+    a, b = (scene.positions[0, scene.index(n)] for n in ("trunk_09", "trunk_10"))
+    mid, along = 0.5 * (a + b), (b - a) / np.linalg.norm(b - a)
+    side = np.cross(along, [0.0, 1.0, 0.0])
+    side /= np.linalg.norm(side)
+    h = 0.05 * base["body_length_m"]
+    quad = np.array([mid - h * side - [0, h, 0], mid + h * side - [0, h, 0],
+                     mid + h * side + [0, h, 0], mid - h * side + [0, h, 0]])
+    n = len(scene.env_vertices)
+    walled = replace(scene, env_vertices=np.concatenate([scene.env_vertices, quad]),
+                     env_faces=np.concatenate([scene.env_faces,
+                                               [[n, n + 1, n + 2], [n, n + 2, n + 3]]]))
+    m = judge(walled)
+    assert m["metrics"]["spine_bone_hits"] >= 1 and m["metrics"]["spine_inside_geometry"] == 0
+    assert m["worst"]["spine_bone_hits"]["frame"] == 0
