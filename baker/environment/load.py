@@ -237,6 +237,8 @@ def _error_text(exc: Exception) -> str:
     m = re.search(r"in file \S+ : (.*?)(?= Error in '|$)", text)
     if m:
         text = m.group(1).strip().strip("'")
+    if isinstance(exc, KeyError) and text:   # (a PLY without an x property said only 'x')
+        text = f"{text} is missing or unknown"
     return text[:200] or type(exc).__name__
 
 
@@ -1553,13 +1555,41 @@ def _check_stl_size(path: Path) -> None:
             f"the file has {size:,} bytes")
 
 
+def _ascii_stl(data: bytes) -> bool:
+    """Whether an STL file's bytes are ASCII STL (a binary one's header may say "solid")."""
+    return _ascii_stl_head(data[:84]) and not _binary_stl_size(data, len(data))
+
+
+def _stl_line_ends(data: bytes) -> bytes:
+    """An ASCII STL whose lines end in a lone CR (classic Mac OS) with LF line ends (it was
+    refused as cut short: no line started with endsolid); other files as they are."""
+    if b"\r" not in data or not _ascii_stl(data):
+        return data
+    return re.sub(rb"\r(?!\n)", b"\n", data)
+
+
+#: a number in an ASCII STL (nan and inf too: the geometry check names them)
+_STL_NUMBER = rb"[-+]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|nan|inf(?:inity)?)"
+#: a `vertex` line without exactly three numbers
+_STL_BAD_VERTEX = re.compile(rb"(?im)^[ \t]*vertex\b(?![ \t]+%s[ \t]+%s[ \t]+%s[ \t]*\r?$)"
+                             rb"([^\r\n]{0,60})" % ((_STL_NUMBER,) * 3))
+
+
 def _check_ascii_stl(data: bytes) -> None:
-    """An ASCII STL must end (endsolid) and each facet hold 3 vertices (trimesh read a cut-off
-    file as no faces and refused a facet of 2 or 4 with 'cannot reshape array')."""
-    if not _ascii_stl_head(data[:84]) or _binary_stl_size(data, len(data)):
+    """An ASCII STL must end (endsolid), each facet hold 3 vertices (trimesh read a cut-off
+    file as no faces and refused a facet of 2 or 4 with 'cannot reshape array') and each
+    vertex line 3 numbers (trimesh read the numbers of all in a row: lines of 2, 3 and 4
+    numbers made a wrong triangle)."""
+    if not _ascii_stl(data):
         return                                    # binary (its header may say "solid")
     if not re.search(rb"(?im)^[ \t]*endsolid", data):
         raise EnvironmentLoadError("corrupt ASCII STL: cut short (no endsolid line)")
+    bad = _STL_BAD_VERTEX.search(data)
+    if bad:
+        line = data.count(b"\n", 0, bad.start()) + 1
+        raise EnvironmentLoadError(f"corrupt ASCII STL: line {line} is 'vertex"
+                                   f"{bad[1].decode('utf-8', 'replace').rstrip()}' (a vertex "
+                                   "is 3 numbers)")
     ends = np.array([m.start() for m in re.finditer(rb"(?im)^[ \t]*endfacet\b", data)],
                     np.int64)
     verts = np.array([m.start() for m in re.finditer(rb"(?im)^[ \t]*vertex\b", data)],
@@ -1601,6 +1631,7 @@ def _read_trimesh(path: Path):
         _check_stl_size(path)
     data = path.read_bytes()
     if path.suffix.lower() == ".stl":
+        data = _stl_line_ends(data)
         _check_ascii_stl(data)
     if path.suffix.lower() == ".obj" and b"\x00" in data[: 1 << 16]:
         raise EnvironmentLoadError("corrupt OBJ: binary data in a text format", where=str(path))

@@ -173,12 +173,13 @@ def test_unusual_but_valid_gltf_load(name, tmp_path):
         assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
 
 
-@pytest.mark.parametrize("name", sorted(bad_inputs.GOOD_STL_NAMES))
-def test_stl_solid_names_with_keywords_load(name, tmp_path):
-    """A solid named with STL's own words: the floor once per solid, under its own name."""
+@pytest.mark.parametrize("name", sorted(bad_inputs.GOOD_ASCII_STL))
+def test_unusual_ascii_stl_load(name, tmp_path):
+    """A solid named with STL's own words, lines ending in a lone CR: the floor once per
+    solid, under its own name."""
     from baker.environment import load_environment
 
-    data, names = bad_inputs.GOOD_STL_NAMES[name]
+    data, names = bad_inputs.GOOD_ASCII_STL[name]
     p = tmp_path / name
     p.write_bytes(data)
     ref = tmp_path / "plain.stl"

@@ -531,6 +531,14 @@ def _mesh_cases():
         _text_case("stl_ascii_garbage", "a.stl", b"solid x\nfacet normal banana\nendsolid\n"),
         _text_case("stl_ascii_nan", "an.stl", b"solid x\nfacet normal 0 1 0\nouter loop\n"
                    b"vertex nan 0 0\nvertex 1 0 0\nvertex 0 0 1\nendloop\nendfacet\nendsolid x\n"),
+        # vertex lines of 2 and 4 numbers (trimesh read the 9 numbers of a facet in a row: a
+        # wrong triangle), a word for a number
+        _text_case("stl_ascii_vertex_2_numbers", "v2.stl", _stl_ascii(("x", "x")).replace(
+            b"vertex -2 0 2\n", b"vertex -2 0\n", 1).replace(b"vertex 2 0 2\n", b"vertex 2 0 2 2\n", 1)),
+        _text_case("stl_ascii_vertex_4_numbers", "v4.stl", _stl_ascii(("x", "x")).replace(
+            b"vertex -2 0 -2\n", b"vertex -2 0 -2 1\n", 1)),
+        _text_case("stl_ascii_vertex_word", "vw.stl", _stl_ascii(("x", "x")).replace(
+            b"vertex 2 0 2\n", b"vertex 2 zero 2\n", 1)),
         _text_case("stl_count_2e9", "c.stl", b"\0" * 80 + struct.pack("<I", 2_000_000_000)
                    + b"\0" * 50),
         _text_case("ply_empty", "e.ply", b""),
@@ -608,11 +616,13 @@ def _stl_ascii(*solids: tuple[str, str]) -> bytes:
     return "".join(f"solid {a}\n{facets}endsolid {b}\n" for a, b in solids).encode()
 
 
-#: ASCII STLs whose solid names hold the words trimesh's reader searches the text for: each
-#: the floor once per solid, and the meshes' names (`solid vertex_paint_test` was refused,
-#: 'unmatched data'; a name with "endsolid" said '`endsolid` precedes `solid`'; a solid after
-#: `endsolid floor_solid` was named geometry_1)
-GOOD_STL_NAMES = {
+#: valid ASCII STLs that were refused or misnamed: each the floor once per solid, and the
+#: meshes' names. Solid names with the words trimesh's reader searches the text for
+#: (`solid vertex_paint_test` was refused, 'unmatched data'; a name with "endsolid" said
+#: '`endsolid` precedes `solid`'; a solid after `endsolid floor_solid` was named
+#: geometry_1); lines ending in a lone CR (classic Mac OS: 'cut short')
+GOOD_ASCII_STL = {
+    "cr_only.stl": (_stl_ascii(("floor", "floor")).replace(b"\n", b"\r"), ["floor"]),
     "vertex.stl": (_stl_ascii(("vertex_paint_test", "vertex_paint_test")), ["vertex_paint_test"]),
     "vertex_numbers.stl": (_stl_ascii(("vertex 1 2 3", "vertex 1 2 3")), ["vertex_1_2_3"]),
     "endsolid.stl": (_stl_ascii(("a endsolid b", "a endsolid b")), ["a_endsolid_b"]),
