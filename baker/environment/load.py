@@ -1689,7 +1689,10 @@ def _usd_light(light, time, path) -> tuple[float, tuple[float, float, float]]:
     inten = light.GetIntensityAttr().Get(time)
     expo = light.GetExposureAttr().Get(time) or 0.0
     col = light.GetColorAttr().Get(time)
-    inten = float(inten if inten is not None else 1.0) * 2.0 ** float(expo)
+    try:
+        inten = float(inten if inten is not None else 1.0) * 2.0 ** float(expo)
+    except OverflowError:   # (an exposure of 1e30 said 'Numerical result out of range')
+        inten = math.inf
     color = tuple(float(c) for c in col) if col is not None else (1.0, 1.0, 1.0)
     if not (math.isfinite(inten) and inten >= 0.0) or not all(
             math.isfinite(c) and c >= 0.0 for c in color):

@@ -747,6 +747,9 @@ def _usd_cases():
         # prims 60,000 deep (over load.MAX_USDA_DEPTH): USD's C++ code recurses per level,
         # and 20,000 deep crashed the process (SIGSEGV) on the main thread's stack
         "prims_60000_deep": lambda: {"level.usda": deep_usd_text(60_000)},
+        # a light's exposure past a float (it said "(34, 'Numerical result out of range')")
+        "light_exposure_1e30": lambda: {"level.usda": good + (
+            'def DistantLight "sun"\n{\n    float inputs:exposure = 1e30\n}\n')},
         # a unit that shrinks the level to a point (it said 'no triangle faces')
         "mpu_tiny": lambda: {"level.usda": usd_text(mpu="1e-300")},
         # a sublayer that is a FIFO or a loop of links (they said 'does not exist', 'Symlink
