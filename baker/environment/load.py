@@ -16,6 +16,8 @@ Formats
 - OBJ, PLY, STL: read with trimesh as a scene; scene-graph transforms are applied. Assumed to be
   metres, +Y up. Concave polygons are ear-cut (geometry/polygons.py: trimesh fans every
   polygon): an OBJ's before trimesh reads it, a PLY's from the faces trimesh keeps as read.
+  A PLY's `tristrips` element is read as triangle strips (environment/ply.py: -1 restarts a
+  strip); a list of float indices loads only when they are whole.
   OBJ `Kd` (through trimesh's material) is taken as a linear colour; PLY vertex or face
   colours (sRGB bytes) are averaged and converted to linear.
 - USD (.usd, .usda, .usdc, .usdz): every visible `UsdGeom.Mesh` of default or render purpose
@@ -1421,12 +1423,12 @@ def _obj_index(field: bytes, defined: int) -> bytes:
     return str(defined + int(field) + 1).encode() if field.startswith(b"-") else field
 
 
-def _ply_cut(geom) -> np.ndarray | None:
-    """A PLY mesh's faces (T, 3) triangulated afresh (geometry.polygons) when the file has a
-    concave polygon, which trimesh fans from its first corner; None otherwise (and for any
-    other mesh). trimesh keeps the file's faces as read in metadata['_ply_raw']."""
-    face = (getattr(geom, "metadata", None) or {}).get("_ply_raw", {}).get("face", {})
-    rows = face.get("data") if isinstance(face, dict) else None
+def _ply_lists(geom, element: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """(counts (m,) int64, items (sum counts,) of the type the file declares) of a PLY mesh's
+    `element` list (vertex_indices or vertex_index) as trimesh read it (it keeps the file's
+    elements in metadata['_ply_raw']); None when there is none (or the mesh is no PLY)."""
+    raw = (getattr(geom, "metadata", None) or {}).get("_ply_raw", {}).get(element, {})
+    rows = raw.get("data") if isinstance(raw, dict) else None
     names = (rows.dtype.names or ()) if isinstance(rows, np.ndarray) else tuple(rows or ())
     key = next((k for k in ("vertex_indices", "vertex_index") if k in names), None)
     if key is None:
@@ -1439,12 +1441,39 @@ def _ply_cut(geom) -> np.ndarray | None:
     try:
         if isinstance(lists, np.ndarray) and lists.dtype != object and lists.ndim == 2:
             counts = np.full(len(lists), lists.shape[1], dtype=np.int64)
-            flat = lists.reshape(-1).astype(np.int64)
-        else:
-            counts = np.array([len(x) for x in lists], dtype=np.int64)
-            flat = np.concatenate([np.asarray(x, dtype=np.int64).reshape(-1) for x in lists])
+            return counts, lists.reshape(-1)
+        counts = np.array([len(x) for x in lists], dtype=np.int64)
+        return counts, np.concatenate([np.asarray(x).reshape(-1) for x in lists])
     except (TypeError, ValueError):
         return None
+
+
+def _ply_strips(geom) -> np.ndarray | None:
+    """The triangles (T, 3) of a PLY mesh's `tristrips` element (environment.ply), None when
+    it has none; its face and strip lists checked (a float list's 2.5 was cut to 2)."""
+    from baker.environment import ply
+
+    n = len(getattr(geom, "vertices", ()))
+    face = _ply_lists(geom, "face")
+    if face is not None and face[1].dtype.kind == "f":
+        ply.list_indices("face", *face, n)
+    strips = _ply_lists(geom, "tristrips")
+    if strips is None:
+        return None
+    return ply.strip_triangles(strips[0], ply.list_indices("tristrips", *strips, n, strips=True))
+
+
+def _ply_cut(geom) -> np.ndarray | None:
+    """A PLY mesh's faces (T, 3) triangulated afresh (geometry.polygons) when the file has a
+    concave polygon, which trimesh fans from its first corner; None otherwise (and for any
+    other mesh). trimesh keeps the file's faces as read in metadata['_ply_raw']."""
+    lists = _ply_lists(geom, "face")
+    if lists is None:
+        return None
+    counts, flat = lists
+    if flat.dtype.kind not in "iuf":
+        return None
+    flat = flat.astype(np.int64)        # (a float list's were checked whole: _ply_strips)
     points = np.asarray(geom.vertices, dtype=np.float64)
     if counts.max() < 4 or counts.min() < 3 or flat.min() < 0 or flat.max() >= len(points):
         return None
@@ -1460,11 +1489,9 @@ def _ragged_ply(path: Path, data: bytes) -> tuple:
 
     from baker.environment import ply
 
-    v, counts, flat, rgba = ply.read(data)
+    v, counts, flat, rgba = ply.read(data)       # (indices checked inside the vertices)
     keep = np.repeat(counts >= 3, counts)
     counts, flat = counts[counts >= 3], flat[keep]
-    if len(flat) and (flat.min() < 0 or flat.max() >= len(v)):
-        raise EnvironmentLoadError(f"PLY face index outside its {len(v):,} vertices")
     faces = polygons.triangulate(v, counts, flat) if len(counts) else np.zeros((0, 3), np.int64)
     _check_geometry(v, faces, path.stem)
     geom = trimesh.Trimesh(v, faces, process=False)
@@ -1472,6 +1499,15 @@ def _ragged_ply(path: Path, data: bytes) -> tuple:
     color = DEFAULT_COLOR if rgba is None else _linear_colour(rgba)
     return (path.stem, np.asarray(geom.vertices, dtype=np.float64),
             np.asarray(geom.faces, dtype=np.int64), None, color, 1.0, 0.0)
+
+
+def _binary_ply_strips(data: bytes) -> bool:
+    """Whether a PLY is binary with a `tristrips` element (its strips vary in length: trimesh
+    reads every row's list as the first's, environment.ply reads it)."""
+    end = data.find(b"end_header")
+    header = data[:max(end, 0)]
+    return b"format binary" in header and re.search(rb"(?m)^element[ \t]+tristrips\b",
+                                                    header) is not None
 
 
 def _check_ascii_ply(data: bytes) -> None:
@@ -1645,6 +1681,8 @@ def _read_trimesh(path: Path):
         data = _obj_cut(_obj_absolute(_obj_spaces(data)))
     if path.suffix.lower() == ".stl":
         data = _stl_hide_keywords(data)
+    if path.suffix.lower() == ".ply" and _binary_ply_strips(data):
+        return [_ragged_ply(path, data)], None      # strips vary in length: trimesh cannot
     try:
         scene = trimesh.load_scene(io.BytesIO(data), file_type=path.suffix.lower()[1:],
                                    resolver=_folder_resolver(path), process=False)
@@ -1656,16 +1694,21 @@ def _read_trimesh(path: Path):
     for node in scene.graph.nodes_geometry:
         transform, geom_name = scene.graph[node]
         geom = scene.geometry[geom_name]
-        faces = getattr(geom, "faces", None)
+        faces, strips = getattr(geom, "faces", None), _ply_strips(geom)
+        if strips is not None:  # (a PLY of strips alone is a PointCloud to trimesh)
+            faces = strips if faces is None else np.concatenate(
+                [np.asarray(faces, dtype=np.int64).reshape(-1, 3), strips])
         if faces is None or len(faces) == 0:  # PointCloud, Path3D, empty mesh
             continue
         _check_geometry(np.asarray(geom.vertices, dtype=np.float64),
                         np.asarray(faces, dtype=np.int64),
                         str(geom_name).replace(_STL_MARK.decode(), ""))
         color, cut = None, _ply_cut(geom)
-        if cut is not None:     # a new mesh: the file's face colours do not fit its faces
-            color = _trimesh_color(geom)
-            geom = trimesh.Trimesh(geom.vertices, cut, process=False)
+        if cut is not None and strips is not None:
+            cut = np.concatenate([cut, strips])
+        if cut is not None or strips is not None:   # a new mesh: the file's face colours do
+            color = _trimesh_color(geom)            # not fit its faces
+            geom = trimesh.Trimesh(geom.vertices, faces if cut is None else cut, process=False)
         geom.process()  # merge vertices as trimesh does on load (solids are found by them)
         m = np.asarray(transform, dtype=np.float64)
         v = _transform_points(m, np.asarray(geom.vertices, dtype=np.float64))

@@ -1,4 +1,5 @@
-"""Binary PLY files whose list properties vary in length from row to row.
+"""Binary PLY files whose list properties vary in length from row to row, and the index lists of
+any PLY: faces and triangle strips.
 
 trimesh reads a binary PLY's list property (a face's vertex_indices) as if every row had the
 first row's length, and refuses a file whose faces mix sizes ("PLY is unexpected length!"):
@@ -6,6 +7,10 @@ Blender's PLY export (binary, polygons as modelled) of a level of triangles and 
 reads such a file itself: each element in the header's order, the rows of one without lists in
 one go, the rows of one with lists walked row by row for their offsets, then every property
 gathered at once.
+
+A `tristrips` element (old Stanford files) holds triangle strips: strip_triangles makes them
+triangles. A face or strip list declared with a float type is read only when every index is a
+whole number within the vertices (list_indices).
 """
 
 from __future__ import annotations
@@ -22,9 +27,10 @@ _COLOURS = ("red", "green", "blue", "alpha")
 
 
 def read(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple | None]:
-    """(vertices (n, 3) float64, face corner counts (m,), their vertex indices (sum counts,),
-    the mean colour of the vertices (else of the faces) as sRGB bytes (r, g, b, a) or None) of
-    a binary PLY."""
+    """(vertices (n, 3) float64, face corner counts (m,), their vertex indices (sum counts,)
+    int64, the mean colour of the vertices (else of the faces) as sRGB bytes (r, g, b, a) or
+    None) of a binary PLY. The triangles of a `tristrips` element come as faces of 3 corners
+    after the face element's."""
     elements, pos, order = _header(data)
     read_ = {}
     for name, count, props in elements:
@@ -37,9 +43,77 @@ def read(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple | None]
         raise EnvironmentLoadError("PLY has no vertex x, y, z")
     v = np.stack([vertex[k].astype(np.float64) for k in "xyz"], axis=1)
     face = read_.get("face", {})
-    lists = face.get("vertex_indices", face.get("vertex_index"))
-    counts, flat = lists if isinstance(lists, tuple) else (np.zeros(0, np.int64),) * 2
+    counts, flat = _lists(face)
+    flat = list_indices("face", counts, flat, len(v))
+    strips = _lists(read_.get("tristrips", {}))
+    if len(strips[1]):
+        tris = strip_triangles(strips[0], list_indices("tristrips", *strips, len(v),
+                                                       strips=True))
+        counts = np.concatenate([counts, np.full(len(tris), 3, np.int64)])
+        flat = np.concatenate([flat, tris.reshape(-1)])
     return v, counts, flat, _colour(vertex) or _colour(face)
+
+
+def _lists(props: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(counts (m,) int64, items (sum counts,) as read) of an element's vertex_indices (or
+    vertex_index) list; empty when it has none."""
+    lists = props.get("vertex_indices", props.get("vertex_index"))
+    if isinstance(lists, tuple):
+        return lists
+    return np.zeros(0, np.int64), np.zeros(0, np.int64)
+
+
+def list_indices(element: str, counts: np.ndarray, items: np.ndarray, n_vertices: int,
+                 strips: bool = False) -> np.ndarray:
+    """A face or strip list's vertex indices (`items`, `counts` per row) as int64; refused,
+    naming the element and row, when one is not a whole number (a list declared float: 2.5
+    was cut to 2) or lies outside the `n_vertices` vertices (a strip's -1 restarts it)."""
+    items = np.asarray(items).reshape(-1)
+    if items.dtype.kind == "f":
+        bad = np.flatnonzero(~np.isfinite(items) | (items != np.trunc(items)))
+        if len(bad):
+            raise EnvironmentLoadError(
+                f"PLY {element} {_row(counts, bad[0])} has vertex index "
+                f"{_number(items[bad[0]])}, not a whole number")
+    low = -1 if strips else 0
+    bad = np.flatnonzero((items < low) | (items >= n_vertices))
+    if len(bad):
+        raise EnvironmentLoadError(
+            f"PLY {element} {_row(counts, bad[0])} has vertex index {_number(items[bad[0]])}, "
+            f"outside its {n_vertices:,} vertices" + (" (-1 restarts a strip)" if strips else ""))
+    return items.astype(np.int64)
+
+
+def _number(x) -> str:
+    return f"{float(x):.9g}" if np.asarray(x).dtype.kind == "f" else str(int(x))
+
+
+def _row(counts: np.ndarray, at: int) -> str:
+    """'row k' (from 0) of the list item at flat position `at`."""
+    return f"row {int(np.searchsorted(np.cumsum(counts), at, side='right'))}"
+
+
+def strip_triangles(counts: np.ndarray, items: np.ndarray) -> np.ndarray:
+    """(T, 3) int64 triangles of triangle strips (a PLY `tristrips` element, Stanford's
+    convention): each row one or more strips, a -1 ending one and starting the next; strip
+    corners a b c d ... make (a, b, c), (c, b, d), ...: every other triangle is reversed so
+    that all are wound as the first. Degenerate triangles (a corner twice: the joins strips
+    are stitched with) are left out; the parity counts through them."""
+    items = np.asarray(items, dtype=np.int64).reshape(-1)
+    counts = np.asarray(counts, dtype=np.int64).reshape(-1)
+    n = len(items)
+    if n == 0:
+        return np.zeros((0, 3), np.int64)
+    at = np.arange(n)
+    start = np.zeros(n, dtype=bool)                 # where a strip starts: a row, after a -1
+    start[(np.cumsum(counts) - counts)[counts > 0]] = True
+    start[1:] |= items[:-1] == -1
+    pos = at - np.maximum.accumulate(np.where(start, at, 0))     # corner number in its strip
+    end = np.flatnonzero((pos >= 2) & (items != -1))            # each triangle's last corner
+    a, b, c = items[end - 2], items[end - 1], items[end]
+    odd = pos[end] % 2 == 1
+    tris = np.stack([np.where(odd, b, a), np.where(odd, a, b), c], axis=1)
+    return tris[(a != b) & (b != c) & (a != c)]
 
 
 def _header(data: bytes) -> tuple[list, int, str]:
@@ -122,7 +196,7 @@ def _element(data: bytes, pos: int, count: int, props: list, order: str) -> tupl
         n = lengths[k] if kind is not None else np.ones(count, np.int64)
         at = np.repeat(starts[k], n) + size * (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n))
         values = buf[at[:, None] + np.arange(size)].copy().view(order + t).reshape(-1)
-        out[name] = (n, values.astype(np.int64)) if kind is not None else values
+        out[name] = (n, values) if kind is not None else values   # (indices: list_indices)
     return out, pos
 
 

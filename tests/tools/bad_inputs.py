@@ -465,6 +465,8 @@ def _gltf_cases():
 
 # --------------------------------------------------------------------------- OBJ / STL / PLY
 GOOD_OBJ = ("v -2 0 -2\nv 2 0 -2\nv 2 0 2\nv -2 0 2\nf 1 3 2\nf 1 4 3\n")
+#: GOOD_OBJ's vertices
+_GOOD_FLOOR = [[-2, 0, -2], [2, 0, -2], [2, 0, 2], [-2, 0, 2]]
 
 
 def _text_case(cid, name, data: bytes):
@@ -482,18 +484,23 @@ def _stl_binary(tris: np.ndarray, count=None) -> bytes:
     return b"\0" * 80 + struct.pack("<I", n) + body
 
 
-def _ply(vertices, faces, fmt="ascii", nverts=None, extra_header=b"") -> bytes:
+def _ply(vertices, faces, fmt="ascii", nverts=None, extra_header=b"", element="face",
+         index="int") -> bytes:
+    """A PLY of `vertices` and the lists `faces` (any lengths) of an `element` (face or
+    tristrips) whose items are of PLY type `index` (int or float)."""
     v = np.asarray(vertices, np.float32)
     head = (b"ply\nformat " + (b"ascii" if fmt == "ascii" else b"binary_little_endian")
             + b" 1.0\n" + extra_header + b"element vertex %d\nproperty float x\n"
-            b"property float y\nproperty float z\nelement face %d\n"
-            b"property list uchar int vertex_indices\nend_header\n"
-            % (len(v) if nverts is None else nverts, len(faces)))
+            b"property float y\nproperty float z\nelement %s %d\n"
+            b"property list uchar %s vertex_indices\nend_header\n"
+            % (len(v) if nverts is None else nverts, element.encode(), len(faces),
+               index.encode()))
     if fmt == "ascii":
         body = "".join(f"{a} {b} {c}\n" for a, b, c in v.tolist())
-        body += "".join("3 " + " ".join(map(str, f)) + "\n" for f in faces)
+        body += "".join(f"{len(f)} " + " ".join(map(str, f)) + "\n" for f in faces)
         return head + body.encode()
-    body = v.tobytes() + b"".join(struct.pack("<B3i", 3, *f) for f in faces)
+    item = {"int": "i", "float": "f"}[index]
+    body = v.tobytes() + b"".join(struct.pack(f"<B{len(f)}{item}", len(f), *f) for f in faces)
     return head + body
 
 
@@ -561,6 +568,22 @@ def _mesh_cases():
         _text_case("ply_ascii_vertex_short", "vs.ply",
                    _ply(floor, [[0, 2, 1]]).replace(b"\n2.0 0.0 2.0", b"\n2.0 0.0")),
         _text_case("ply_huge", "hg.ply", _ply(np.array(floor) * 1e12, [[0, 2, 1], [0, 3, 2]])),
+        # a face list declared float: 2.5 was cut to 2 (a whole 2.0 loads: GOOD_UNUSUAL)
+        _text_case("ply_face_float_index", "ff.ply", _ply(floor, [[0, 2, 1], [0, 3, 2.5]],
+                                                        index="float")),
+        _text_case("ply_binary_face_float_index", "bf.ply", _ply(
+            floor, [[0, 2, 1], [0, 3, 2.5]], fmt="binary", index="float")),
+        _text_case("ply_face_float_index_huge", "fh.ply", _ply(floor, [[0, 2, 1], [0, 3, 1e30]],
+                                                             index="float")),
+        _text_case("ply_face_float_index_nan", "fn.ply", _ply(floor, [[0, 2, 1], [0, 3, "nan"]],
+                                                            index="float")),
+        # triangle strips: an index past the vertices, a negative one other than -1 (restart)
+        _text_case("ply_tristrips_index_past", "tp.ply", _ply(floor, [[0, 1, 3, 9]],
+                                                            element="tristrips")),
+        _text_case("ply_binary_tristrips_index_minus_2", "tm.ply", _ply(
+            floor, [[0, 1, 3, -2, 2]], fmt="binary", element="tristrips")),
+        _text_case("ply_tristrips_float_index", "tf.ply", _ply(
+            floor, [[0, 1, 3, 2.5]], element="tristrips", index="float")),
     ]
     return c
 
@@ -579,6 +602,14 @@ GOOD_UNUSUAL = {
     # backslash continues nothing
     "continued.obj": b"# saved in C:\\levels\\\n" + GOOD_OBJ.replace(
         "v 2 0 2", "v 2 \\\n0 \\\r\n2").replace("f 1 4 3", "f 1 \\\n4 3").encode(),
+    # a PLY's triangles as strips (old Stanford files; -1 restarts a strip), a face list
+    # declared float of whole numbers
+    "tristrips.ply": _ply(_GOOD_FLOOR, [[0, 2, 1, -1, 0, 3, 2]], element="tristrips"),
+    "tristrips_binary.ply": _ply(_GOOD_FLOOR, [[0, 2, 1, -1, 0, 3, 2]], fmt="binary",
+                                 element="tristrips"),
+    "face_float.ply": _ply(_GOOD_FLOOR, [[0.0, 2.0, 1.0], [0.0, 3.0, 2.0]], index="float"),
+    "face_float_binary.ply": _ply(_GOOD_FLOOR, [[0, 2, 1], [0, 3, 2]], fmt="binary",
+                                  index="float"),
 }
 
 def _gltf_data_uri(payload=lambda b64: b64, pad: int = 0, bom: bool = False) -> bytes:
