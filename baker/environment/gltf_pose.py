@@ -165,7 +165,7 @@ class Poser:
             for p, node in enumerate(nodes):
                 for c in node.get("children", []):
                     if parent[c] >= 0:
-                        self.fail(f"node {c} has two parents")
+                        self.fail(f"node {c} has two parents, nodes {parent[c]} and {p}")
                     parent[c] = p
             self._parent = parent
         chain, j = [], i

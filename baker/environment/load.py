@@ -574,6 +574,32 @@ class _Doc:
         return v
 
 
+def _listed_twice(items: list):
+    """The first item of a glTF index list that it holds twice, else None (a scene's nodes and
+    a node's children are sets: glTF's uniqueItems)."""
+    seen = set()
+    for x in items:
+        if x in seen:
+            return x
+        seen.add(x)
+    return None
+
+
+def _reached_twice(i: int, first: int, then: int) -> str:
+    """What is wrong when the scene walk reaches node i a second time: first as a child of
+    node `first`, then of node `then` (-1: as a root of the scene)."""
+    if first < 0 and then < 0:
+        return f"the scene lists node {i} twice"
+    if i in (first, then):
+        return f"node {i} is its own child"
+    if first < 0 or then < 0:
+        return (f"node {i} is a root of the scene and also a child of node "
+                f"{max(first, then)} (a root has no parent)")
+    if first == then:
+        return f"node {first} lists child {i} twice"
+    return f"node {i} has two parents, nodes {first} and {then}"
+
+
 class _GltfReader:
     def __init__(self, doc: dict, bin_chunk: bytes | None, path: Path, file_size: int = 0):
         d = _Doc(doc, path)
@@ -816,6 +842,9 @@ class _GltfReader:
                 d.fail(f"{w}.children must be an array")
             for c in kids:
                 d.index({"c": c}, "c", f"{w}.children", "nodes")
+            twice = _listed_twice(kids)
+            if twice is not None:
+                d.fail(f"{w}.children lists node {twice} twice")
             d.numbers(node, "matrix", w, 16)
             d.numbers(node, "translation", w, 3)
             d.numbers(node, "rotation", w, 4)
@@ -846,6 +875,9 @@ class _GltfReader:
                 d.fail(f"scenes[{si}].nodes must be an array")
             for r in roots:
                 d.index({"n": r}, "n", f"scenes[{si}].nodes", "nodes")
+            twice = _listed_twice(roots)
+            if twice is not None:   # (it said 'node 0 has two parents')
+                d.fail(f"scenes[{si}].nodes lists node {twice} twice")
         if scenes:
             d.index(self.doc, "scene", "document", "scenes") if "scene" in self.doc else None
         gltf_pose.check(d, self.doc)        # skins, morph targets and weights
@@ -955,17 +987,18 @@ class _GltfReader:
             if nodes and not roots:
                 raise EnvironmentLoadError("corrupt glTF: no scene, and every node has a parent "
                                            "(the nodes form a cycle)", where=str(self.path))
-        stack = [(r, np.eye(4)) for r in reversed(roots)]
-        seen = set()
+        stack = [(r, np.eye(4), -1) for r in reversed(roots)]
+        came = {}       # node -> the node whose child it was reached as (-1: a scene root)
         while stack:
-            i, parent = stack.pop()
-            if i in seen:
-                raise EnvironmentLoadError(f"corrupt glTF: node {i} has two parents (or is its own ancestor)")
-            seen.add(i)
+            i, parent, by = stack.pop()
+            if i in came:
+                raise EnvironmentLoadError(f"corrupt glTF: {_reached_twice(i, came[i], by)}",
+                                           where=str(self.path))
+            came[i] = by
             world = parent @ self.local_matrix(nodes[i]) if matrices else None
             yield i, world
             for c in reversed(nodes[i].get("children", [])):
-                stack.append((c, world))
+                stack.append((c, world, i))
 
     def material(self, idx):
         if idx is None:

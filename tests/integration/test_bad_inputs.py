@@ -133,6 +133,20 @@ def test_bad_input_subprocess(cid, tmp_path, previous):
     assert not [x for x in tmp_path.iterdir() if x.name.startswith(".") or "tmp" in x.name]
 
 
+@pytest.mark.parametrize("cid", sorted(bad_inputs.GLB_EXPECT))
+def test_node_hierarchy_messages_say_what_is_wrong(cid, tmp_path):
+    """A scene listing a node twice said 'node 0 has two parents'."""
+    from baker.environment import load_environment
+    from baker.errors import EnvironmentLoadError
+
+    (tmp_path / "in").mkdir()
+    (path,) = CASES[f"glb_{cid}"].make(tmp_path / "in")
+    with pytest.raises(EnvironmentLoadError) as e:
+        load_environment(path)
+    assert bad_inputs.GLB_EXPECT[cid] in str(e.value), str(e.value)
+    assert "two parents" not in str(e.value)
+
+
 @pytest.mark.parametrize("name", sorted(bad_inputs.GOOD_LATIN1))
 def test_files_in_other_encodings_load(name, tmp_path):
     from baker.environment import load_environment

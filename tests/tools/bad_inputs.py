@@ -183,6 +183,11 @@ GLB_JSON_EDITS = [
     ("node_child_cycle", [("nodes.0.children", [1]), ("nodes.1.children", [0])]),
     ("node_cycle_no_scene", [("nodes.0.children", [1]), ("nodes.1.children", [0]),
                              ("scenes", DELETE), ("scene", DELETE)]),
+    # a node listed twice where glTF asks for a set (the scene's said 'node 0 has two
+    # parents'), a scene root that is also a child: GLB_EXPECT
+    ("scene_node_twice", [("scenes.0.nodes", [0, 0, 1])]),
+    ("node_child_twice", [("nodes.1.children", [0, 0]), ("scenes.0.nodes", [1])]),
+    ("node_root_is_child", [("nodes.1.children", [0])]),
     ("node_matrix_15", [("nodes.0.matrix", [1.0] * 15)]),
     ("node_matrix_strings", [("nodes.0.matrix", ["1"] * 16)]),
     ("node_rotation_3", [("nodes.1.rotation", [0, 0, 1])]),
@@ -235,6 +240,16 @@ GLB_JSON_EDITS = [
                                 "count": 1, "indices": {"bufferView": 2, "componentType": 5125},
                                 "values": {"bufferView": 0}})]),
 ]
+
+#: a part of the message of GLB_JSON_EDITS cases whose message was misleading
+GLB_EXPECT = {
+    "scene_node_twice": "scenes[0].nodes lists node 0 twice",
+    "node_child_twice": "nodes[1].children lists node 0 twice",
+    "node_root_is_child": "node 0 is a root of the scene and also a child of node 1",
+    "node_child_self": "node 0 is its own child",
+    "node_child_cycle": "node 0 is a root of the scene and also a child of node 1",
+}
+
 
 #: edits of the binary data (positions are floats 0..35 bytes per vertex; indices at the end)
 def _blob_edit(kind: str):
@@ -1180,7 +1195,7 @@ SKIN_EXPECT = {
     "skin_index_past": "nodes[0].skin = 5 is not an index into skins",
     "skin_joints_vec3": "JOINTS_0 must be a VEC4 accessor",
     "skin_weights_bytes": "WEIGHTS_0 must be a VEC4 accessor of floats or normalized",
-    "skin_joint_cycle": "two parents",
+    "skin_joint_cycle": "node 2 is a root of the scene and also a child of node 3",
     "morph_weight_nan": "weights must be an array of finite numbers",
     "morph_weights_text": "weights must be an array of finite numbers",
     "morph_target_nan": "targets[0].POSITION (accessors[6]) holds a non-finite number",
