@@ -474,6 +474,24 @@ def leg_bones(traj: Trajectory, legs_cfg) -> tuple[np.ndarray, np.ndarray, list[
     return starts, np.concatenate([p[:, tp], ends], axis=1), uppers + tips
 
 
+def limb_bones(traj: Trajectory, legs_cfg) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """leg_bones and the antennae's bones after them: (starts (F, B, 3), ends (F, B, 3), B bone
+    names), metres, world; an antenna bone runs from its joint along its own +Y by the rig's
+    antenna length (antenna_L_1 to antenna_L_2, antenna_L_2 to antenna_L_tip)."""
+    from baker.geometry.transforms import quat_rotate
+
+    starts, ends, names = leg_bones(traj, legs_cfg)
+    ant = [n for n in traj.joint_names if n.startswith("antenna_")]
+    if not ant:
+        return starts, ends, names
+    idx = [traj.joint_names.index(n) for n in ant]
+    p = traj.joint_positions[:, idx]
+    tip = np.broadcast_to([0.0, legs_cfg.antenna_length, 0.0], p.shape)
+    return (np.concatenate([starts, p], axis=1),
+            np.concatenate([ends, p + quat_rotate(traj.joint_rotations[:, idx], tip)], axis=1),
+            names + ant)
+
+
 def legs_through_others(trajs, legs_cfg, radius: float) -> dict:
     """Leg bones of one creature passing through another creature's body: each other body is a
     chain of capsules of `radius` metres around its spine segments (neighbouring spine joints),

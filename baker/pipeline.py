@@ -468,15 +468,16 @@ def feet_crowded(cfg: BakeConfig, skel, clip, tol: float):
 
 
 def limbs_near(cfg: BakeConfig, skel, traj, env, tol: float):
-    """(F, J) bool or None: the frames at which a leg or ultimate-leg bone of the simulation
-    (metrics.leg_bones) passes within `tol` of the environment (export.reduce.bones_near),
-    marked on both of its joints; for clips played in the world (not --root-motion in-place)."""
+    """(F, J) bool or None: the frames at which a leg, ultimate-leg or antenna bone of the
+    simulation (metrics.limb_bones) passes within `tol` of the environment
+    (export.reduce.bones_near), marked on both of its joints; for clips played in the world
+    (not --root-motion in-place)."""
     from baker.export.reduce import bones_near
-    from baker.metrics import leg_bones
+    from baker.metrics import limb_bones
 
     if env is None or tol <= 0 or not cfg.rig.legs.enabled or cfg.root_motion == "in-place":
         return None
-    starts, ends, names = leg_bones(traj, cfg.rig.legs)
+    starts, ends, names = limb_bones(traj, cfg.rig.legs)
     # the rays reach 2 tolerances past the part of the bone that is judged (all but its last
     # LIMB_END_GAP), as the reduced pose may move the bone's end by up to the tolerance (a
     # swinging foot grazing the ground just inside the judged part was moved into it)
@@ -486,11 +487,13 @@ def limbs_near(cfg: BakeConfig, skel, traj, env, tol: float):
 
 
 def _bone_joints(skel, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
-    """(first, last) joint indices of metrics.leg_bones' bones: a bone is named by its start
-    joint; an upper bone ends at its tip joint, a tip bone at its foot end joint."""
+    """(first, last) joint indices of metrics.limb_bones' bones: a bone is named by its start
+    joint; an upper bone ends at its tip joint, a tip bone at its foot end joint, an antenna
+    bone at its joint's child (the next antenna joint, or its tip)."""
     first = [skel.index(n) for n in names]
-    last = [skel.index(n[: -len("upper")] + "tip" if n.endswith("_upper")
-                       else n[: -len("tip")] + "foot") for n in names]
+    last = [int(np.flatnonzero(skel.parents == j)[0]) if n.startswith("antenna_")
+            else skel.index(n[: -len("upper")] + "tip" if n.endswith("_upper")
+                            else n[: -len("tip")] + "foot") for n, j in zip(names, first)]
     return np.asarray(first, dtype=np.int64), np.asarray(last, dtype=np.int64)
 
 
@@ -509,8 +512,8 @@ GRAZE_ROUNDS = 2
 
 
 def limbs_grazed(cfg: BakeConfig, skel, traj, env, clip, reduced):
-    """(F, J) bool or None: the frames at which a leg or ultimate-leg bone as the reduced clip
-    plays it (export.reduce.played_joints) passes through the environment where the
+    """(F, J) bool or None: the frames at which a leg, ultimate-leg or antenna bone as the
+    reduced clip plays it (export.reduce.played_joints) passes through the environment where the
     simulation's bone does not, marked on both of its joints (None: nowhere). The bone is
     judged as inspect judges a file: one ray along it, all but its last LIMB_END_GAP.
     limbs_near's offset rays sample the tolerance round a bone and can miss an edge between
@@ -518,13 +521,13 @@ def limbs_grazed(cfg: BakeConfig, skel, traj, env, clip, reduced):
     limbs_near, for clips played in the world: an in-place clip's joints move in its root's
     frame, which turns with the walk."""
     from baker.export.reduce import played_joints
-    from baker.metrics import leg_bones
+    from baker.metrics import limb_bones
     from baker.rig.skeleton import forward_kinematics
 
     if env is None or reduced.keys is None or not cfg.rig.legs.enabled \
             or cfg.root_motion == "in-place":
         return None
-    starts, ends, names = leg_bones(traj, cfg.rig.legs)
+    starts, ends, names = limb_bones(traj, cfg.rig.legs)
     if not names:
         return None
     first, last = _bone_joints(skel, names)

@@ -40,14 +40,16 @@ def setup():
     return cfg, skel, clip, env, (starts, ends, ["leg_L_01_tip"])
 
 
-def _grazed(setup, monkeypatch, foot_drop: np.ndarray, keys=True, root_motion="world"):
-    """limbs_grazed with the reduced clip's foot end joint of leg_L_01 lowered by foot_drop
-    (F,) metres at each frame."""
-    cfg, skel, clip, env, bones = setup
+def _grazed(setup, monkeypatch, foot_drop: np.ndarray, keys=True, root_motion="world",
+            bone=("leg_L_01_tip", "leg_L_01_foot")):
+    """limbs_grazed with the reduced clip's end joint of the bone (its name, its end joint's:
+    by default leg_L_01's tip bone, ending at its foot) lowered by foot_drop (F,) metres at
+    each frame."""
+    cfg, skel, clip, env, (starts, ends, _) = setup
     cfg = replace(cfg, root_motion=root_motion)
-    monkeypatch.setattr(metrics, "leg_bones", lambda traj, legs: bones)
+    monkeypatch.setattr(metrics, "limb_bones", lambda traj, legs: (starts, ends, [bone[0]]))
     t = clip.translations.copy()
-    t[:, skel.index("leg_L_01_foot"), 1] -= foot_drop
+    t[:, skel.index(bone[1]), 1] -= foot_drop
     monkeypatch.setattr(red, "played_joints", lambda c: (t, clip.rotations, None))
     reduced = SimpleNamespace(keys=object() if keys else None)
     return skel, limbs_grazed(cfg, skel, SimpleNamespace(), env, clip, reduced)
@@ -69,3 +71,32 @@ def test_nothing_is_marked_where_the_reduced_bones_clear_as_simulated(setup, mon
     assert _grazed(setup, monkeypatch, np.full(F, 0.0005), keys=False)[1] is None  # --tolerance 0
     # an in-place clip's joints move in its root's frame (as limbs_near: not checked)
     assert _grazed(setup, monkeypatch, np.full(F, 0.0005), root_motion="in-place")[1] is None
+
+
+def test_an_antenna_bone_the_reduction_moves_into_the_environment_is_marked(setup, monkeypatch):
+    # antennae are limbs too: an antenna tip 2 cm along its bone inside a wall met at a
+    # grazing angle (tower-big at 8x, seed 12017432, frame 330), where the simulation's
+    # antenna was clear
+    skel, got = _grazed(setup, monkeypatch, np.array([0.0005, 0.0005, 0.0001, 0.0005]),
+                        bone=("antenna_L_2", "antenna_L_tip"))
+    assert np.flatnonzero(got.any(axis=1)).tolist() == [0]
+    assert np.flatnonzero(got[0]).tolist() == sorted(
+        [skel.index("antenna_L_2"), skel.index("antenna_L_tip")])
+
+
+def test_limb_bones_are_the_leg_bones_then_the_antennae_along_their_own_y():
+    from baker.geometry.transforms import quat_rotate
+
+    cfg = load_rig_config(DEFAULT_RIG)
+    names = ["leg_L_01_upper", "leg_L_01_tip", "antenna_L_1", "antenna_L_2"]
+    rng = np.random.default_rng(3)
+    q = rng.normal(size=(2, 4, 4))
+    q /= np.linalg.norm(q, axis=2, keepdims=True)
+    traj = SimpleNamespace(joint_names=names, joint_positions=rng.normal(size=(2, 4, 3)),
+                           joint_rotations=q, n_frames=2)
+    starts, ends, got = metrics.limb_bones(traj, cfg.legs)
+    assert got == ["leg_L_01_upper", "leg_L_01_tip", "antenna_L_1", "antenna_L_2"]
+    assert np.allclose(starts[:, 2:], traj.joint_positions[:, 2:])
+    along = quat_rotate(q[:, 2:], np.broadcast_to([0.0, cfg.legs.antenna_length, 0.0], (2, 2, 3)))
+    assert np.allclose(ends[:, 2:] - starts[:, 2:], along)
+    assert np.allclose(np.linalg.norm(ends[:, 2:] - starts[:, 2:], axis=2), cfg.legs.antenna_length)
