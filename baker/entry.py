@@ -39,6 +39,8 @@ def main(argv=None) -> int:
             sys.stderr.flush()
         except (OSError, ValueError):
             pass
+        if signals.native_busy():   # a USD read still running: finalization would crash
+            signals.exit_now(e.exit_code)
         return e.exit_code
 
 

@@ -32,7 +32,7 @@ import sys
 import threading
 import warnings
 
-from baker.signals import HANDLED
+from baker.signals import HANDLED, native_thread
 
 #: the function the forked children call (set just before the pool forks them)
 _TASK = None
@@ -386,14 +386,19 @@ def on_own_stack(stack_bytes: int, fn, *args):
     nesting (USD's readers): how deep a file it reads then does not depend on the calling
     thread's stack (8 MB for Linux's main thread under the usual `ulimit -s`, less for other
     threads: 512 KB on macOS). Where such a thread cannot be started (no memory for its
-    stack), fn runs on this thread."""
+    stack), fn runs on this thread.
+
+    A signal's exception (baker.signals) is raised here while fn still runs: the thread is
+    noted as native (signals.native_thread: the `baker` command then ends without Python's
+    finalization, which the thread crashed in) and is not a daemon (elsewhere the interpreter
+    waits for it at exit instead of tearing it down in the middle of native code)."""
     with _STACK_LOCK:
         try:
             old = threading.stack_size(stack_bytes)
         except (ValueError, RuntimeError):  # pragma: no cover - a platform without the setting
             return fn(*args)
         try:
-            wait = _on_thread(fn, args)
+            wait = _on_thread(fn, args, native=True)
         except RuntimeError:        # "can't start new thread"
             wait = None
         finally:
@@ -490,28 +495,43 @@ if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_forget_worker)
 
 
-def _on_thread(fn, args):
-    """Start fn(*args) on a daemon thread; returns the callable that waits for its result."""
+def _on_thread(fn, args, native: bool = False):
+    """Start fn(*args) on a daemon thread (`native`: a thread of native code that cannot be
+    stopped, on_own_stack's); returns the callable that waits for its result. The wait is for
+    an event the thread sets as it ends, not Thread.join: Python 3.11's join, interrupted by
+    a signal's exception, marks the thread as stopped while it still runs (and the interpreter
+    then does not wait for it at exit)."""
     one_malloc_arena()
     box: dict = {}
-    thread = threading.Thread(target=_into, args=(box, fn, args), name="baker-background",
-                              daemon=True)
-    thread.start()
+    finished = threading.Event()
+    thread = threading.Thread(target=_into, args=(box, fn, args, finished),
+                              name="baker-background", daemon=not native)
+    if native:
+        native_thread(finished)
+    try:
+        thread.start()
+    except RuntimeError:    # "can't start new thread": nothing runs (a signal's exception
+        finished.set()      # here comes once the thread has started)
+        raise
 
     def wait():
+        finished.wait()
         thread.join()
         return _out_of(box)
 
     return wait
 
 
-def _into(box: dict, fn, args) -> None:
+def _into(box: dict, fn, args, finished=None) -> None:
     """box["value"] = fn(*args), or box["error"] its exception (for _out_of, on the thread
-    that waits for it)."""
+    that waits for it); then `finished` set."""
     try:
         box["value"] = fn(*args)
     except BaseException as exc:  # handed to the waiting thread by _out_of
         box["error"] = exc
+    finally:
+        if finished is not None:
+            finished.set()
 
 
 def _out_of(box: dict):

@@ -12,6 +12,13 @@ A signal that arrives while a module is being imported is not raised there (a ha
 module, and libraries that catch BaseException around optional imports, would turn it into a
 traceback): the handler sends it again RETRY_S later, until no import is in progress.
 
+A stop while a thread runs native code that nothing can stop (`native_thread`: USD's reader,
+parallel.on_own_stack) does not wait for it: once the bake has unwound (its temporaries
+deleted) and the line is printed, the entry point ends the process at once (`exit_now`).
+Python's finalization would otherwise run beside that thread, and the thread, reaching for the
+interpreter as it went, aborted the process ("terminate called without an active exception",
+signal 6) after the line was printed.
+
 `deferred()` holds signals back around a critical section (the renames of a commit): a signal
 that arrives inside it is raised when it ends, so the outputs are either all old or all new.
 
@@ -24,6 +31,8 @@ Test hook (harmless when unset; read at every checkpoint):
                                   phase.
     BAKER_TEST_MARKS=1            print "baker-test: at <phase>" at every checkpoint, no sleep.
     With either set, a signal that stops the process prints "baker-test: at interrupted".
+`mark(name)` prints the same line from any thread, without a phase or a pause: "read:usd" and
+"read:usd:done" around the USD read on its thread.
 Phases: "start" (handlers installed, nothing heavy imported), every pipeline stage as it starts
 ("load", "navmesh", "rig", "simulate", "pose", "metrics", "export"), "write:<format>" before each
 file is written to its temporary, and "commit" (every temporary written, nothing renamed yet);
@@ -164,6 +173,42 @@ def finished() -> None:
             signal.signal(s, signal.SIG_IGN)
 
 
+#: the "finished" events (threading.Event) of threads running native code (native_thread)
+_NATIVE: list = []
+
+
+def native_thread(finished) -> None:
+    """Note a thread that runs native code which cannot be interrupted (a USD read), by the
+    threading.Event it sets as it ends: a signal that stops the process before then ends the
+    process without Python's finalization (native_busy, exit_now). (Not Thread.is_alive:
+    Python 3.11's Thread.join, interrupted by a signal's exception, marks a thread that is
+    still running as stopped.)"""
+    _NATIVE[:] = [e for e in _NATIVE if not e.is_set()] + [finished]
+
+
+def native_busy() -> bool:
+    """Whether a thread noted by native_thread is still running."""
+    return any(not e.is_set() for e in _NATIVE)
+
+
+def exit_now(code: int) -> None:
+    """End the process with `code` at once: standard streams and logging flushed, no atexit
+    hooks and no interpreter finalization (a native_thread still running would crash in it).
+    For the entry point, after an interrupted command has unwound and its line is printed."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (AttributeError, OSError, ValueError):
+            pass
+    logging = sys.modules.get("logging")
+    if logging is not None:
+        try:
+            logging.shutdown()
+        except Exception:  # pragma: no cover - a handler that fails to flush
+            pass
+    os._exit(code)
+
+
 def stopping() -> int:
     """The signal number once one has interrupted the process, else 0."""
     return _state["raised"]
@@ -202,6 +247,14 @@ def deferred():
         signum, _state["pending"] = _state["pending"], 0
         _state["raised"] = signum
         raise Interrupted(signum, _state["phase"])
+
+
+def mark(name: str) -> None:
+    """The test hook's line for `name` ("baker-test: at <name>", when BAKER_TEST_MARKS or
+    BAKER_TEST_PAUSE_AT is set), with no phase change and no pause: for work on a thread of
+    its own (the USD read's, "read:usd" as it starts and "read:usd:done" as it ends)."""
+    if os.environ.get("BAKER_TEST_PAUSE_AT") or os.environ.get("BAKER_TEST_MARKS"):
+        os.write(1, f"baker-test: at {name}\n".encode())
 
 
 def checkpoint(name: str) -> None:

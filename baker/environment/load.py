@@ -1968,6 +1968,21 @@ def _read_usd(path: Path, up_axis: str | None = None, units: str | None = None):
 
 
 def _read_usd_here(path: Path, up_axis: str | None, units: str | None):
+    import importlib
+
+    from baker import signals
+
+    for module in ("pxr.Tf", "pxr.Usd", "pxr.UsdGeom"):     # before the test hook's mark
+        importlib.import_module(module)
+
+    signals.mark("read:usd")            # (the test hook: a signal lands in the read from here)
+    try:
+        return _read_usd_marked(path, up_axis, units)
+    finally:
+        signals.mark("read:usd:done")
+
+
+def _read_usd_marked(path: Path, up_axis: str | None, units: str | None):
     import traceback
 
     from pxr import Tf

@@ -162,3 +162,35 @@ def test_a_signal_after_the_command_returned_changes_nothing(tmp_path, signum):
                        timeout=120, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert r.stderr == "" and "version" in r.stdout
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_signal_while_a_usd_level_is_read_on_its_thread(sig, good, tmp_path):
+    """A USD level is read on a thread of its own (parallel.on_own_stack), in native code no
+    signal stops. A signal then stops the bake as any other (the line, 130/143, the previous
+    outputs as they were) and the process ends at once: the interpreter's finalization ran
+    beside the still-reading thread, which aborted the process (signal 6, "terminate called
+    without an active exception") after the line. The signal is sent once the thread has
+    announced the read (the test hook's "read:usd"); the read of 20,000 nested prims goes on
+    for a second or more after it, and the test checks that it had not ended."""
+    import bad_inputs
+
+    level = tmp_path / "deep.usda"
+    level.write_text(bad_inputs.deep_usd_text(20_000))
+    out = tmp_path / "out"
+    shutil.copytree(good, out)
+    before = snapshot(out)
+    b = Bake(["bake", level, "--seconds", "1", "--seed", "9", "--out", out / "centipede",
+              "--no-cache"], marks=True)
+    assert b.wait_marker("read:usd"), "the bake ended before the USD read"
+    b.signal(sig)
+    done = b.wait()
+    marks = [ln.strip() for ln in done.stdout.splitlines() if ln.startswith("baker-test:")]
+    assert "baker-test: at interrupted" in marks, done.stdout
+    assert "baker-test: at read:usd:done" not in marks[:marks.index("baker-test: at interrupted")]
+    assert done.code == CODES[sig], (done.code, done.stderr)
+    assert "Traceback" not in done.stderr
+    assert done.err_lines == [f"Error: interrupted by {signal.Signals(sig).name} (during load)"], \
+        done.stderr
+    assert snapshot(out) == before

@@ -190,6 +190,52 @@ def test_an_interrupted_process_does_not_wait_for_its_background_work():
     assert done.returncode == 3
 
 
+def test_a_signal_while_waiting_for_a_stack_thread_leaves_it_known_to_run():
+    """on_own_stack (the USD read's thread): a signal's exception raised while the caller
+    waits leaves the thread noted as running (signals.native_busy, which the `baker` command
+    reads to end at once instead of finalizing beside it) until it ends; the thread is not a
+    daemon, so elsewhere the interpreter waits for it at exit. (The wait was Thread.join,
+    which Python 3.11 marks stopped when a signal interrupts it: the thread ran on through the
+    interpreter's finalization and aborted the process.)"""
+    import subprocess
+    import sys
+
+    code = ("import os, signal, sys, threading, time\n"
+            "from baker import parallel, signals\n"
+            "class Stop(BaseException):\n"
+            "    pass\n"
+            "def stop(s, f):\n"
+            "    raise Stop()\n"
+            "signal.signal(signal.SIGUSR2, stop)\n"
+            "started, release = threading.Event(), threading.Event()\n"
+            "def work():\n"
+            "    started.set()\n"
+            "    release.wait()\n"
+            "def waiting():\n"      # the main thread in on_own_stack's wait for the thread
+            "    f = sys._current_frames().get(threading.main_thread().ident)\n"
+            "    names = []\n"
+            "    while f is not None:\n"
+            "        names, f = names + [f.f_code.co_name], f.f_back\n"
+            "    return 'on_own_stack' in names and 'wait' in names and 'start' not in names\n"
+            "def kick():\n"
+            "    started.wait()\n"
+            "    while not waiting():\n"
+            "        time.sleep(0.001)\n"
+            "    os.kill(os.getpid(), signal.SIGUSR2)\n"
+            "threading.Thread(target=kick, daemon=True).start()\n"
+            "try:\n"
+            "    parallel.on_own_stack(1 << 20, work)\n"
+            "except Stop:\n"
+            "    pass\n"
+            "print(signals.native_busy(), [(t.daemon, t.is_alive()) for t in threading.enumerate()\n"
+            "                              if t.name == 'baker-background'])\n"
+            "release.set()\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "True [(False, True)]", done.stdout
+
+
 def test_in_background_runs_on_a_daemon_thread(monkeypatch):
     import threading
 
