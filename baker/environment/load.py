@@ -1534,13 +1534,20 @@ def _ragged_ply(path: Path, data: bytes) -> tuple:
             np.asarray(geom.faces, dtype=np.int64), None, color, 1.0, 0.0)
 
 
-def _binary_ply_strips(data: bytes) -> bool:
-    """Whether a PLY is binary with a `tristrips` element (its strips vary in length: trimesh
-    reads every row's list as the first's, environment.ply reads it)."""
+def _binary_ply_ragged(data: bytes) -> bool:
+    """Whether a PLY is binary with a `tristrips` element (strips vary in length) or with list
+    rows of more than one length (faces of mixed sizes: environment.ply.uniform_lists). trimesh
+    reads every row's list as the first's: such files are read by environment.ply. (A mix whose
+    sizes add up to as many bytes as uniform rows did not fail in trimesh: its faces were read
+    misaligned, silently where the misread indices fell within the vertices.)"""
+    from baker.environment import ply
+
     end = data.find(b"end_header")
     header = data[:max(end, 0)]
-    return b"format binary" in header and re.search(rb"(?m)^element[ \t]+tristrips\b",
-                                                    header) is not None
+    if b"format binary" not in header:
+        return False
+    return (re.search(rb"(?m)^element[ \t]+tristrips\b", header) is not None
+            or not ply.uniform_lists(data))
 
 
 def _check_ascii_ply(data: bytes) -> None:
@@ -1714,8 +1721,8 @@ def _read_trimesh(path: Path):
         data = _obj_cut(_obj_absolute(_obj_spaces(data)))
     if path.suffix.lower() == ".stl":
         data = _stl_hide_keywords(data)
-    if path.suffix.lower() == ".ply" and _binary_ply_strips(data):
-        return [_ragged_ply(path, data)], None      # strips vary in length: trimesh cannot
+    if path.suffix.lower() == ".ply" and _binary_ply_ragged(data):
+        return [_ragged_ply(path, data)], None      # lists vary in length: trimesh cannot
     try:
         scene = trimesh.load_scene(io.BytesIO(data), file_type=path.suffix.lower()[1:],
                                    resolver=_folder_resolver(path), process=False)

@@ -54,6 +54,40 @@ def read(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple | None]
     return v, counts, flat, _colour(vertex) or _colour(face)
 
 
+def uniform_lists(data: bytes) -> bool:
+    """Whether each element of a binary PLY with a list property has one list, of the same
+    length in every row (as trimesh reads a binary list: every row as long as the first; a file
+    whose rows vary is misread by it, or refused when the sizes do not add up). The rows are
+    parsed in order, so a list whose every row, laid out at the first row's size, begins with
+    the first row's length is that file's parse: the answer is exact. False also where the
+    elements run past the file (read then raises its error)."""
+    elements, pos, order = _header(data)
+    for _, count, props in elements:
+        lists = [k for k, (_, _, kind) in enumerate(props) if kind is not None]
+        items = [np.dtype(order + t).itemsize for _, t, _ in props]
+        if not lists:
+            pos += count * sum(items)
+            continue
+        if len(lists) > 1:
+            return False
+        k = lists[0]
+        kind = np.dtype(order + props[k][2])
+        at = pos + sum(items[:k])                     # the first row's list length
+        if count == 0:
+            continue
+        if at + kind.itemsize > len(data):
+            return False
+        first = int(np.frombuffer(data, kind, 1, at)[0])
+        size = sum(items) - items[k] + kind.itemsize + max(first, 0) * items[k]
+        if first < 0 or pos + count * size > len(data):
+            return False
+        lengths = np.ndarray((count,), kind, data, at, (size,))
+        if not (lengths == first).all():
+            return False
+        pos += count * size
+    return True
+
+
 def _lists(props: dict) -> tuple[np.ndarray, np.ndarray]:
     """(counts (m,) int64, items (sum counts,) as read) of an element's vertex_indices (or
     vertex_index) list; empty when it has none."""

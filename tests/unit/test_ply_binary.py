@@ -90,3 +90,27 @@ def test_header_cut_short_says_so(tmp_path, cut):
     p.write_bytes(_ply()[:cut])
     with pytest.raises(EnvironmentLoadError, match="no end_header"):
         load_environment(p)
+
+
+@pytest.mark.parametrize("order", ["<", ">"])
+def test_mixed_sizes_adding_up_to_uniform_rows_load_as_modelled(tmp_path, order):
+    """A quad, a triangle and a pentagon take as many bytes as three quads (the lists' rows:
+    17 + 13 + 21 = 3 x 17 bytes with the quality float): trimesh took them for three quads,
+    read misaligned, with no error of size to send the file here."""
+    faces = [(0, 1, 2, 3), (3, 2, 4), (5, 10, 9, 8, 6)]      # the pentagon: 4 m^2 less 0.5
+    p = tmp_path / "level.ply"
+    p.write_bytes(_ply(order, faces=faces))
+    env = load_environment(p)
+    up = _covered(env)
+    assert len(env.mesh.faces) == 2 + 1 + 3
+    assert np.all(up > 0) and np.isclose(up.sum(), 1.0 + 0.5 + 3.5)
+
+
+def test_uniform_lists_is_exact():
+    from baker.environment.ply import uniform_lists
+
+    assert uniform_lists(_ply(faces=[(0, 1, 2), (0, 2, 3)]))
+    assert uniform_lists(_ply(">", colours=True, faces=[(0, 1, 2, 3)] * 3))
+    assert not uniform_lists(_ply(faces=[(0, 1, 2, 3), (3, 2, 4), (5, 10, 9, 8, 6)]))
+    assert not uniform_lists(_ply())
+    assert not uniform_lists(_ply(faces=[(0, 1, 2), (0, 2, 3)], cut=3))   # past the file
