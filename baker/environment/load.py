@@ -1561,7 +1561,7 @@ def _check_ascii_ply(data: bytes) -> None:
         return
     nl = data.find(b"\n", end)
     header, body = data[:end], (b"" if nl < 0 else data[nl + 1:])
-    elements: list[tuple[str, int, list[bool]]] = []   # name, count, [is a list property]
+    elements: list[tuple[str, int, list]] = []  # name, count, [list item type or None]
     for line in header.splitlines():
         w = line.split()
         if len(w) >= 3 and w[0] == b"element":
@@ -1572,28 +1572,30 @@ def _check_ascii_ply(data: bytes) -> None:
                                            "a count that is not an integer") from None
             elements.append((w[1].decode("latin-1")[:20], n, []))
         elif len(w) >= 2 and w[0] == b"property" and elements:
-            elements[-1][2].append(w[1] == b"list")
+            elements[-1][2].append(w[3] if w[1] == b"list" and len(w) >= 4 else None)
     tokens = body.split()
     i = 0
     for name, count, props in elements:
         if count < 0 or count > len(tokens):
             raise EnvironmentLoadError(f"PLY declares {count:,} {name} elements but its body "
                                        f"has only {len(tokens):,} values")
-        if not any(props):
+        if not any(t is not None for t in props):
             i += count * len(props)
         else:
-            for _ in range(count):
-                for is_list in props:
+            for row in range(count):
+                for item in props:
                     if i >= len(tokens):
                         raise EnvironmentLoadError(
                             f"PLY body ends inside the {name} elements (truncated)")
-                    if is_list:
+                    if item is not None:
                         try:
                             n = int(tokens[i])
                         except ValueError:
                             raise EnvironmentLoadError(
                                 f"PLY {name} list length '{tokens[i][:20].decode('latin-1')}' "
                                 "is not an integer") from None
+                        if item not in _PLY_FLOATS:
+                            _ply_whole(tokens[i + 1:i + 1 + max(n, 0)], name, row)
                         i += 1 + max(n, 0)
                     else:
                         i += 1
@@ -1602,6 +1604,18 @@ def _check_ascii_ply(data: bytes) -> None:
     if i != len(tokens):
         raise EnvironmentLoadError(f"PLY body has {len(tokens) - i:,} values more than its "
                                    "header declares")
+
+
+_PLY_FLOATS = (b"float", b"float32", b"double", b"float64")
+
+
+def _ply_whole(items: list, name: str, row: int) -> None:
+    """The items of an ASCII PLY list declared of an integer type must be written as integers
+    (trimesh read '2.5' as 2, silently)."""
+    for t in items:
+        if not t.lstrip(b"+-").isdigit():
+            raise EnvironmentLoadError(
+                f"PLY {name} row {row} has '{t[:20].decode('latin-1')}' in a list of integers")
 
 
 def _ascii_stl_head(head: bytes) -> bool:

@@ -592,6 +592,11 @@ def _mesh_cases():
                                                              index="float")),
         _text_case("ply_face_float_index_nan", "fn.ply", _ply(floor, [[0, 2, 1], [0, 3, "nan"]],
                                                             index="float")),
+        # a face list declared int holding 2.5 as text (trimesh read it as 2)
+        _text_case("ply_ascii_int_list_holds_2p5", "fi.ply",
+                   _ply(floor, [[0, 2, 1], [0, 3, 2.5]])),
+        _text_case("ply_ascii_int_list_holds_word", "fw.ply",
+                   _ply(floor, [[0, 2, 1], [0, 3, "two"]])),
         # triangle strips: an index past the vertices, a negative one other than -1 (restart)
         _text_case("ply_tristrips_index_past", "tp.ply", _ply(floor, [[0, 1, 3, 9]],
                                                             element="tristrips")),
