@@ -1738,8 +1738,11 @@ def _read_trimesh(path: Path):
     if path.suffix.lower() == ".ply" and _binary_ply_ragged(data):
         return [_ragged_ply(path, data)], None      # lists vary in length: trimesh cannot
     try:
+        # an OBJ's objects (`o`) are meshes of their own, as Blender imports them (trimesh
+        # merged them into the first's: a `navmesh` or UCX_ object was walked on)
+        split = {"split_objects": True} if path.suffix.lower() == ".obj" else {}
         scene = trimesh.load_scene(io.BytesIO(data), file_type=path.suffix.lower()[1:],
-                                   resolver=_folder_resolver(path), process=False)
+                                   resolver=_folder_resolver(path), process=False, **split)
     except ValueError as exc:
         if path.suffix.lower() != ".ply" or "unexpected length" not in str(exc):
             raise

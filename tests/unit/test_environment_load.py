@@ -627,3 +627,23 @@ def test_engine_helper_meshes_are_not_level(tmp_path, names, kept):
     p.write_bytes(_triangle_glb(nodes, QUAD, QUAD_IDX))
     env = load_environment(p)
     assert [m.name for m in env.meshes] == kept
+
+
+def test_an_obj_s_objects_are_meshes_of_their_own(tmp_path):
+    """Each `o` of an OBJ is a mesh, named by it, as Blender imports it (trimesh merged them
+    into the first object's mesh): a collision hull or navigation overlay among them is then
+    left out as in any other format."""
+    quad = "v -2 {y} -2\nv 2 {y} -2\nv 2 {y} 2\nv -2 {y} 2\nf {a} {c} {b}\nf {a} {d} {c}\n"
+
+    def obj(names):
+        return "".join(f"o {n}\n" + quad.format(y=0.1 * k, a=4 * k + 1, b=4 * k + 2, c=4 * k + 3,
+                                                 d=4 * k + 4) for k, n in enumerate(names))
+
+    p = tmp_path / "level.obj"
+    p.write_text(obj(["Floor", "UCX_Floor_00", "navmesh"]))
+    env = load_environment(p)
+    assert [m.name for m in env.meshes] == ["Floor"]
+    assert np.allclose(env.meshes[0].vertices[:, 1] + env.origin[1], 0.0)
+    p.write_text(obj(["Floor", "Deck"]))
+    env = load_environment(p)
+    assert sorted((m.name, len(m.faces)) for m in env.meshes) == [("Deck", 2), ("Floor", 2)]
