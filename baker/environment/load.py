@@ -1653,9 +1653,7 @@ def _ascii_stl(data: bytes) -> bool:
 def _stl_line_ends(data: bytes) -> bytes:
     """An ASCII STL whose lines end in a lone CR (classic Mac OS) with LF line ends (it was
     refused as cut short: no line started with endsolid); other files as they are."""
-    if b"\r" not in data or not _ascii_stl(data):
-        return data
-    return re.sub(rb"\r(?!\n)", b"\n", data)
+    return re.sub(rb"\r(?!\n)", b"\n", data) if b"\r" in data else data
 
 
 #: a number in an ASCII STL (nan and inf too: the geometry check names them)
@@ -1670,8 +1668,6 @@ def _check_ascii_stl(data: bytes) -> None:
     file as no faces and refused a facet of 2 or 4 with 'cannot reshape array') and each
     vertex line 3 numbers (trimesh read the numbers of all in a row: lines of 2, 3 and 4
     numbers made a wrong triangle)."""
-    if not _ascii_stl(data):
-        return                                    # binary (its header may say "solid")
     if not re.search(rb"(?im)^[ \t]*endsolid", data):
         raise EnvironmentLoadError("corrupt ASCII STL: cut short (no endsolid line)")
     bad = _STL_BAD_VERTEX.search(data)
@@ -1702,7 +1698,7 @@ def _stl_hide_keywords(data: bytes) -> bytes:
     "normal", "solid", so "endsolid") broken by _STL_MARK where they appear in a `solid` or
     `endsolid` line's name: `solid vertex_paint` was read as a vertex, `solid a endsolid` as
     the solid's end, `endsolid floor_solid` as the next solid's start (which lost its name)."""
-    if _STL_MARK in data or not _ascii_stl_head(data[:84]) or _binary_stl_size(data, len(data)):
+    if _STL_MARK in data:
         return data
     words = re.compile(rb"(?i)vertex|normal|solid")
 
@@ -1720,7 +1716,9 @@ def _read_trimesh(path: Path):
     if path.suffix.lower() == ".stl":
         _check_stl_size(path)
     data = path.read_bytes()
-    if path.suffix.lower() == ".stl":
+    # an ASCII STL (a binary one's header may say "solid" too), told once
+    stl_text = path.suffix.lower() == ".stl" and _ascii_stl(data)
+    if stl_text:
         data = _stl_line_ends(data)
         _check_ascii_stl(data)
     if path.suffix.lower() == ".obj" and b"\x00" in data[: 1 << 16]:
@@ -1733,7 +1731,7 @@ def _read_trimesh(path: Path):
     data = _text_as_utf8(path, data)
     if path.suffix.lower() == ".obj":
         data = _obj_cut(_obj_absolute(_obj_spaces(data)))
-    if path.suffix.lower() == ".stl":
+    if stl_text:
         data = _stl_hide_keywords(data)
     if path.suffix.lower() == ".ply" and _binary_ply_ragged(data):
         return [_ragged_ply(path, data)], None      # lists vary in length: trimesh cannot
@@ -1761,11 +1759,11 @@ def _read_trimesh(path: Path):
                         np.asarray(faces, dtype=np.int64),
                         str(geom_name).replace(_STL_MARK.decode(), ""))
         color, cut = None, _ply_cut(geom)
-        if cut is not None and strips is not None:
-            cut = np.concatenate([cut, strips])
+        if cut is not None:
+            faces = cut if strips is None else np.concatenate([cut, strips])
         if cut is not None or strips is not None:   # a new mesh: the file's face colours do
             color = _trimesh_color(geom)            # not fit its faces
-            geom = trimesh.Trimesh(geom.vertices, faces if cut is None else cut, process=False)
+            geom = trimesh.Trimesh(geom.vertices, faces, process=False)
         geom.process()  # merge vertices as trimesh does on load (solids are found by them)
         m = np.asarray(transform, dtype=np.float64)
         v = _transform_points(m, np.asarray(geom.vertices, dtype=np.float64))
