@@ -647,3 +647,22 @@ def test_an_obj_s_objects_are_meshes_of_their_own(tmp_path):
     p.write_text(obj(["Floor", "Deck"]))
     env = load_environment(p)
     assert sorted((m.name, len(m.faces)) for m in env.meshes) == [("Deck", 2), ("Floor", 2)]
+
+
+def test_an_obj_of_many_objects_is_split_only_for_its_helpers(tmp_path):
+    """Over MERGE_ABOVE objects the meshes are merged again by material, so they are split
+    (about half a millisecond an object in trimesh) only to leave a helper out."""
+    from baker.environment.load import MERGE_ABOVE, _obj_split
+
+    n = MERGE_ABOVE + 1
+    tiles = "".join(f"o tile_{k}\nv {k} 0 0\nv {k + 1} 0 0\nv {k} 0 1\nf {3 * k + 1} {3 * k + 3} "
+                    f"{3 * k + 2}\n" for k in range(n))
+    assert _obj_split(b"o a\nv 0 0 0\no b\n") and not _obj_split(b"o only\nv 0 0 0\n")
+    assert not _obj_split(tiles.encode())
+    helper = f"o navmesh\nv 0 0.1 0\nv {n} 0.1 0\nv 0 0.1 1\nf {3 * n + 1} {3 * n + 3} {3 * n + 2}\n"
+    assert _obj_split((tiles + helper).encode())
+    p = tmp_path / "level.obj"
+    p.write_text(tiles + helper)
+    env = load_environment(p)
+    assert sum(len(m.faces) for m in env.meshes) == n
+    assert np.allclose(np.concatenate([m.vertices[:, 1] for m in env.meshes]) + env.origin[1], 0)
