@@ -166,6 +166,9 @@ def _header(data: bytes) -> tuple[list, int, str]:
             elements.append((w[1], _count(w[2]), []))
         elif len(w) >= 3 and w[0] == "property" and elements:
             if w[1] == "list" and len(w) >= 5:
+                if _type(w[2])[0] == "f":     # (trimesh said "'(' was never closed")
+                    raise EnvironmentLoadError(f"PLY list {w[4][:20]} has its lengths of type "
+                                               f"{w[2][:20]}, not an integer type")
                 elements[-1][2].append((w[4], _type(w[3]), _type(w[2])))
             else:
                 elements[-1][2].append((w[2], _type(w[1]), None))

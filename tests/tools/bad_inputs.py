@@ -592,6 +592,9 @@ def _mesh_cases():
                                                              index="float")),
         _text_case("ply_face_float_index_nan", "fn.ply", _ply(floor, [[0, 2, 1], [0, 3, "nan"]],
                                                             index="float")),
+        # a binary face list whose lengths are floats (trimesh: "'(' was never closed")
+        _text_case("ply_binary_list_length_float", "lf.ply", _ply(
+            floor, [[0, 2, 1], [0, 3, 2]], fmt="binary").replace(b"list uchar", b"list float")),
         # a face list declared int holding 2.5 as text (trimesh read it as 2)
         _text_case("ply_ascii_int_list_holds_2p5", "fi.ply",
                    _ply(floor, [[0, 2, 1], [0, 3, 2.5]])),
