@@ -171,8 +171,11 @@ STANCE_ROUNDS = 4
 #: keeps its touchdown)
 HANG_SWINGS = 2.0
 #: the legs are planned at most this many times over, each time lifting the feet whose planted
-#: leg goes through something (_lift_stuck)
-STUCK_ROUNDS = 3
+#: leg goes through something (_lift_stuck), until no stance is shortened: nearly every solve
+#: needs one round; a foot lifted from under a step's edge can land under it again, and a
+#: crowd creature on the multi-storey level needed four (three left 2 bone-frames through the
+#: step)
+STUCK_ROUNDS = 6
 #: [Hz] the ultimate legs' slow sway: yaw and pitch frequencies
 ULTIMATE_SWAY_HZ = (0.35, 0.22)
 
