@@ -925,9 +925,46 @@ def _address_checked(address: str) -> None:
         host, _ = parse_host_port(loc)
         if not host or any(c.isspace() for c in host):
             raise ValueError(f"no host in {loc!r}")
+        _host_name_checked(host)
     except ValueError as e:
-        raise ConfigError(f"not a Dask scheduler address: {address} ({e}); expected "
-                          "tcp://HOST:PORT", where="--scheduler") from None
+        raise ConfigError(f"not a Dask scheduler address: {short_path(address)} ({e}); "
+                          "expected tcp://HOST:PORT", where="--scheduler") from None
+    _transport_checked(scheme)
+
+
+def _host_name_checked(host: str) -> None:
+    """ValueError for a host name the resolver cannot be asked about (a label over 63
+    characters or empty, a name over 253): Dask's Client raised UnicodeError from the idna
+    codec half made, and its clean-up stalled 40 s and printed a traceback at exit."""
+    if ":" in host:                     # an IPv6 address (its brackets taken off)
+        return
+    try:
+        name = host.encode("idna")
+    except UnicodeError:
+        raise ValueError(f"'{short_path(host)}' is not a host name (each dot-separated label "
+                         "1 to 63 characters)") from None
+    if len(name.rstrip(b".")) > 253:
+        raise ValueError(f"the host name is {len(name)} characters; at most 253")
+
+
+def _transport_checked(scheme: str) -> None:
+    """ConfigError for a transport this installation cannot use: ucx:// without its package
+    (Dask's connector raised TypeError inside the Client), tls:// without Dask's TLS
+    configuration (TypeError: 'TLS expects a ssl_context'); both left a half-made Client."""
+    from distributed.comm.registry import get_backend
+
+    try:
+        get_backend(scheme).get_connector()
+    except Exception as e:      # (ImportError, TypeError: whatever the backend's import says)
+        raise ConfigError(f"the {scheme}:// transport cannot be used here ({type(e).__name__}: "
+                          f"{str(e).splitlines()[0] if str(e) else ''}); use tcp://HOST:PORT",
+                          where="--scheduler") from None
+    if scheme == "tls":
+        from distributed.security import Security
+
+        if Security().get_connection_args("client").get("ssl_context") is None:
+            raise ConfigError("tls:// needs Dask's TLS configuration (distributed.comm.tls: "
+                              "ca-file, client cert and key); none is set", where="--scheduler")
 
 
 class DaskPool:
@@ -944,8 +981,8 @@ class DaskPool:
         try:
             self.client = Client(address, timeout=f"{connect_timeout}s", set_as_default=False)
         except (OSError, TimeoutError, ValueError) as e:
-            raise ConfigError(f"cannot reach the Dask scheduler at {address}: {e}",
-                              where="--scheduler") from None
+            raise ConfigError(f"cannot reach the Dask scheduler at {short_path(address)}: "
+                              f"{short_path(str(e), 200)}", where="--scheduler") from None
         try:
             self.client.wait_for_workers(1, timeout=60)
         except (TimeoutError, OSError):

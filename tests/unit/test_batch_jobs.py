@@ -456,9 +456,18 @@ def test_jobs_file_error_is_not_cut():
     assert len(format_error(ConfigError("x" * 5000))) <= 410
 
 
-@pytest.mark.parametrize("address", ["not a url", "localhost", "tcp://host:abc", ":8786",
-                                     "inproc://x"])     # inproc: this process's own
-def test_a_scheduler_address_dask_cannot_parse_is_one_line(address, tmp_path):
+@pytest.mark.parametrize("address, word", [
+    ("not a url", "not a Dask scheduler address"), ("localhost", "not a Dask scheduler address"),
+    ("tcp://host:abc", "not a Dask scheduler address"), (":8786", "not a Dask scheduler address"),
+    ("inproc://x", "not a Dask scheduler address"),     # inproc: this process's own
+    # a host label over 63 characters, an empty one, a name over 253 (the Client raised
+    # UnicodeError from the idna codec half made)
+    ("tcp://" + "a" * 70 + ":8786", "not a host name"), ("tcp://a..b:8786", "not a host name"),
+    ("tcp://" + ("a" * 60 + ".") * 5 + "a:8786", "at most 253"),
+    # a transport this installation cannot use (TypeError inside the Client)
+    ("ucx://127.0.0.1:8786", "cannot be used here"), ("tls://127.0.0.1:8786", "TLS configuration"),
+])
+def test_a_scheduler_address_dask_cannot_parse_is_one_line(address, word, tmp_path):
     """Refused before a Dask Client is made: one that failed on its address left a half-made
     object whose clean-up stalled 40 s and printed a traceback after the error line."""
     pytest.importorskip("distributed")
@@ -468,7 +477,7 @@ def test_a_scheduler_address_dask_cannot_parse_is_one_line(address, tmp_path):
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 2, r.stderr
     assert r.stderr.strip().splitlines() == [r.stderr.strip()], r.stderr
-    assert "not a Dask scheduler address" in r.stderr
+    assert word in r.stderr and "(--scheduler)" in r.stderr
     assert not (tmp_path / "o").exists()          # refused before the output folder is made
 
 
