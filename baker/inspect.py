@@ -119,8 +119,13 @@ def _not_json(name: str):
 
 def strict_json(text):
     """json.loads, refusing NaN, Infinity and -Infinity (Python's reader takes them; they are
-    not JSON, and a report printed with --json must be JSON): ValueError."""
-    return json.loads(text, parse_constant=_not_json)
+    not JSON, and a report printed with --json must be JSON): ValueError, as for arrays or
+    objects nested deeper than Python's reader recurses (a GLB's JSON chunk of 100,000 '['
+    was a RecursionError traceback)."""
+    try:
+        return json.loads(text, parse_constant=_not_json)
+    except RecursionError:
+        raise ValueError("JSON nested too deeply") from None
 
 
 class GlbFile:
@@ -345,15 +350,72 @@ def read_glb(path: str | Path, animation: str | int = 0,
 # ---------------------------------------------------------------- USD
 
 
+#: the most layers a USD file inspected may bring in (sublayers, references, payloads)
+MAX_USD_LAYERS = 1000
+
+
 def open_stage(path: str | Path):
     """Usd.Stage.Open(path), or None; what USD's C++ code prints itself (a corrupt crate's
-    'failed call to posix_madvise') is held back from stderr (environment.native)."""
-    from pxr import Usd
-
+    'failed call to posix_madvise') is held back from stderr (environment.native). The stage
+    is opened on a thread with the stack a USD level is read on (load.USD_STACK_BYTES), after
+    _check_layers: USD's C++ code recurses once per level of prims in prims, and a text
+    layer 200,000 levels deep crashed the process (SIGSEGV)."""
+    from baker.environment.load import USD_STACK_BYTES
     from baker.environment.native import held_stderr
+    from baker.parallel import on_own_stack
 
     with held_stderr(str(path)):
-        return Usd.Stage.Open(str(path))
+        return on_own_stack(USD_STACK_BYTES, _open_checked, str(path))
+
+
+def _open_checked(path: str):
+    from pxr import Usd
+
+    _check_layers(path)
+    return Usd.Stage.Open(path)
+
+
+def _check_layers(path: str) -> None:
+    """InspectError for a layer the file brings in (sublayers, references, payloads,
+    recursively) that USD must not be let open: a FIFO, a device or a folder (a FIFO's read
+    waited for ever for a writer), a text layer nesting prims deeper than load.MAX_USDA_DEPTH,
+    more than MAX_USD_LAYERS layers. What is missing or corrupt is left to Usd.Stage.Open."""
+    import stat
+
+    from pxr import Ar, Sdf
+
+    from baker.environment.load import MAX_USDA_DEPTH, _usda_depth
+
+    todo, seen = [str(Path(path).resolve())], set()
+    while todo:
+        p = todo.pop()
+        if p in seen:
+            continue
+        seen.add(p)
+        if len(seen) > MAX_USD_LAYERS:
+            raise InspectError(f"USD brings in more than {MAX_USD_LAYERS} layers", where=path)
+        if _usda_depth(Path(p)) > MAX_USDA_DEPTH:
+            raise InspectError(f"USD layer {Path(p).name} nests more than {MAX_USDA_DEPTH} "
+                               "levels deep (prims in prims)", where=path)
+        try:
+            layer = Sdf.Layer.FindOrOpen(p)
+        except Exception:           # pxr's Tf.ErrorException: Usd.Stage.Open says it
+            layer = None
+        for dep in (layer.GetCompositionAssetDependencies() if layer else ()):
+            dep = str(dep)
+            if not dep or "://" in dep:
+                continue
+            target = layer.ComputeAbsolutePath(dep)
+            outer = Ar.SplitPackageRelativePathOuter(target)[0]
+            try:
+                mode = os.stat(outer).st_mode
+            except (OSError, ValueError):   # missing, a loop, a name too long: Open says it
+                continue
+            if not stat.S_ISREG(mode):
+                raise InspectError(f"USD layer {Path(p).name} refers to '{dep[:80]}', which is "
+                                   "not a file", where=path)
+            if not Ar.IsPackageRelativePath(target):
+                todo.append(str(Path(outer).resolve()))
 
 
 def read_usd(path: str | Path, creature: int = 0) -> BakedScene:

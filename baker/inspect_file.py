@@ -38,6 +38,9 @@ GLB, USD, REPORT = (".glb",), (".usd", ".usdc", ".usda"), (".json",)
 #: Godot's importer (and baker's cycles) take a clip as looping when its name, less trailing
 #: digits, spaces and underscores, ends with `_loop`/`-loop`/`_cycle`/`-cycle` or contains
 #: `$loop`/`$cycle`, in any case (`walk_loop`, `Walk-Cycle`, `walk_loop_2`)
+#: the highest frame rate a file may say it has (a GLB's extras fps, a USD's
+#: timeCodesPerSecond): beyond it the report's frame counts mean nothing
+MAX_FPS = 100_000
 LOOP_RULE = re.compile(r"([_-](loop|cycle)$)|(\$(loop|cycle))", re.IGNORECASE)
 _JOINT_PATHS = ("translation", "rotation", "scale")
 _COMP_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
@@ -182,6 +185,8 @@ def _read_glb(path: Path) -> tuple[dict, int, int]:
 def _glb_skeleton(doc: dict) -> tuple[dict, list[int]]:
     nodes = doc["nodes"]
     joints = list(doc["skins"][0]["joints"])
+    if not joints:
+        raise ValueError("skin 0 has no joints")
     parent = {c: i for i, n in enumerate(nodes) for c in n.get("children", [])}
     index = {j: k for k, j in enumerate(joints)}
     parents = [index.get(parent.get(j), -1) for j in joints]
@@ -198,7 +203,10 @@ def _accessor_max(doc: dict, i: int) -> float:
 def _glb_clips(doc: dict, joints: list[int], fps: int | None) -> list[dict]:
     jset = set(joints)
     clips = []
-    for a in doc.get("animations", []):
+    for i, a in enumerate(doc.get("animations", [])):
+        name = a.get("name", "")
+        if not isinstance(name, str):   # (a number's went through to the text report's len())
+            raise TypeError(f"animations[{i}].name is {type(name).__name__}, not a string")
         samplers = a["samplers"]
         chans = a["channels"]
         counts = [doc["accessors"][samplers[c["sampler"]]["input"]]["count"] for c in chans]
@@ -208,7 +216,7 @@ def _glb_clips(doc: dict, joints: list[int], fps: int | None) -> list[dict]:
         by_path = {p: sum(c["target"]["path"] == p for c in joint_chans) for p in _JOINT_PATHS}
         extras = a.get("extras") if isinstance(a.get("extras"), dict) else {}
         clips.append(_clip_entry(
-            a.get("name", ""), duration, fps, extras, channels=len(chans),
+            name, duration, fps, extras, channels=len(chans),
             joint_channels=by_path, node_channels=len(chans) - len(joint_chans),
             keys=counts, n_joints=len(joints)))
     return clips
@@ -217,7 +225,11 @@ def _glb_clips(doc: dict, joints: list[int], fps: int | None) -> list[dict]:
 def _clip_entry(name: str, duration: float, fps: int | None, extras: dict, *, channels: int,
                 joint_channels: dict, node_channels: int, keys: list[int],
                 n_joints: int) -> dict:
-    """One clip's line of the report (shared by GLB and USD)."""
+    """One clip's line of the report (shared by GLB and USD); ValueError for a duration that is
+    negative or not finite (a clip's last time, or a USD's timeCodesPerSecond, out of range:
+    reported as '-2.000 s', 'inf s')."""
+    if not (math.isfinite(duration) and duration >= 0):
+        raise ValueError(f"clip {name!r} lasts {duration:g} s")
     loop_extra = extras.get("loop") is True
     events = extras.get("events")
     n_events = (len(events) if isinstance(events, list) else
@@ -297,13 +309,18 @@ def _glb_report(path: Path, validate: bool) -> dict:
     doc, jlen, _ = _read_glb(path)
     if not doc.get("skins"):
         raise InspectError("a glTF without a skin: not a baker bake", where=str(path))
+    if not doc.get("animations"):       # (was summarized as a bake of no clip)
+        raise InspectError("a glTF with a skin but no animation: not a baker bake",
+                           where=str(path))
     try:
         extras = glb_extras(doc)
-        fps = extras.get("fps") if isinstance(extras.get("fps"), int) else None
+        fps = extras.get("fps")
+        fps = fps if isinstance(fps, int) and not isinstance(fps, bool) and 0 < fps <= MAX_FPS \
+            else None
         skeleton, joints = _glb_skeleton(doc)
         clips = _glb_clips(doc, joints, fps)
         sizes = _glb_sizes(doc, path.stat().st_size, jlen, joints)
-    except (KeyError, IndexError, TypeError, ValueError, AttributeError) as e:
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError, OverflowError) as e:
         raise InspectError(f"malformed glTF ({type(e).__name__}: {e})", where=str(path)) from None
     return _with_creatures(
         {"file": str(path), "format": "glb", "bytes": path.stat().st_size,
@@ -330,6 +347,8 @@ def _open_stage(path: Path):
     with Tf.DiagnosticTrap() as trap:
         try:
             stage = open_stage(path)
+        except InspectError:            # a layer it brings in refused (inspect._check_layers)
+            raise
         except Exception as e:          # pxr raises Tf.ErrorException (an Exception subclass)
             raise InspectError(f"cannot open the USD stage: {_pxr_text(e)}",
                                where=str(path)) from None
@@ -355,6 +374,9 @@ def _usd_skeleton(stage) -> tuple[dict, object]:
         raise InspectError("no UsdSkel Skeleton: not a baker bake",
                            where=str(stage.GetRootLayer().realPath))
     paths = [str(j) for j in (UsdSkel.Skeleton(skel).GetJointsAttr().Get() or [])]
+    if not paths:
+        raise InspectError(f"the Skeleton {skel.GetPath()} has no joints: not a baker bake",
+                           where=str(stage.GetRootLayer().realPath))
     index = {j: k for k, j in enumerate(paths)}
     parents = [index.get(j.rsplit("/", 1)[0], -1) if "/" in j else -1 for j in paths]
     return skeleton_summary([j.rsplit("/", 1)[-1] for j in paths], parents), skel
@@ -427,13 +449,22 @@ def _usd_report(path: Path, validate: bool) -> dict:
     stage = _open_stage(path)
     skeleton, skel = _usd_skeleton(stage)
     fps = stage.GetTimeCodesPerSecond()
+    if not (math.isfinite(fps) and 0 < fps <= MAX_FPS):     # (0: ZeroDivisionError, nan, inf:
+        raise InspectError(f"timeCodesPerSecond = {fps:g}: expected a frame rate in "   # tracebacks)
+                           f"(0, {MAX_FPS}]", where=str(path))
     from pxr import UsdSkel
 
+    try:
+        clips = _usd_clips(stage, skel, fps)
+    except ValueError as e:
+        raise InspectError(f"malformed USD ({e})", where=str(path)) from None
+    if not clips:           # (was summarized as a bake of no clip)
+        raise InspectError("no UsdSkel SkelAnimation: not a baker bake", where=str(path))
     custom = _custom_data(stage.GetDefaultPrim()) if stage.GetDefaultPrim() else {}
     return _with_creatures(
         {"file": str(path), "format": path.suffix.lower().lstrip("."),
          "bytes": path.stat().st_size, "skeleton": skeleton,
-         "clips": _usd_clips(stage, skel, fps), "sizes": _usd_sizes(stage),
+         "clips": clips, "sizes": _usd_sizes(stage),
          "sizes_exact": False,
          "validator": usd_validate(stage) if validate else {"skipped": True},
          "metadata": metadata_summary(custom)},
@@ -452,8 +483,8 @@ def _usd_plain(custom: dict) -> dict:
     out = {}
     for k, v in custom.items():
         if isinstance(v, str) and v[:1] in "[{":
-            try:
-                v = json.loads(v)
+            try:        # (strict: a string nested 100,000 deep was a RecursionError traceback)
+                v = strict_json(v)
             except ValueError:
                 pass
         out[k] = _usd_plain(dict(v)) if hasattr(v, "items") else v
@@ -499,8 +530,11 @@ def find_gltf_validator() -> Path | None:
     the test tools of a baker checkout, or npm's global folder; None when there is none."""
     def package(folder: Path) -> Path | None:
         for p in (folder, folder / "node_modules" / "gltf-validator"):
-            if (p / "package.json").is_file() and p.name == "gltf-validator":
-                return p
+            try:        # (a $BAKER_GLTF_VALIDATOR too long for the file system: ENAMETOOLONG
+                if (p / "package.json").is_file() and p.name == "gltf-validator":   # refused
+                    return p                                                        # the file)
+            except (OSError, ValueError):
+                continue
         return None
 
     env = os.environ.get("BAKER_GLTF_VALIDATOR")
@@ -635,11 +669,12 @@ def _json_report(path: Path) -> dict:
         doc = strict_json(path.read_bytes())
     except (UnicodeDecodeError, ValueError) as e:
         raise InspectError(f"not JSON: {e}", where=str(path)) from None
-    except RecursionError:
-        raise InspectError("not a baker report: JSON nested too deeply", where=str(path)) from None
     if not isinstance(doc, dict) or not isinstance(doc.get("metrics"), dict) \
             or not isinstance(doc.get("parameters"), dict):
         raise InspectError("not a baker report (no parameters and metrics)", where=str(path))
+    for key in ("outputs", "timings_s"):   # (a number's went through to the text's .items())
+        if not isinstance(doc.get(key, {}), dict):
+            raise InspectError(f"not a baker report: its {key} is not an object", where=str(path))
     prm = doc["parameters"]
     rig = prm.get("rig")
     return {"file": str(path), "format": "json", "bytes": path.stat().st_size,

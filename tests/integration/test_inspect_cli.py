@@ -4,6 +4,7 @@ corpus of broken files built here: every one of those exits with 2 and one line,
 from __future__ import annotations
 
 import json
+import re
 import struct
 import subprocess
 import sys
@@ -172,6 +173,14 @@ def test_no_validate_and_a_missing_validator(bakes, capsys, monkeypatch):
     assert code == 0 and "Khronos glTF-Validator not available: node is not on PATH" in out
 
 
+def test_a_validator_folder_too_long_for_the_file_system_is_no_validator(bakes, capsys,
+                                                                           monkeypatch):
+    """$BAKER_GLTF_VALIDATOR naming a path the file system refuses as too long: the report
+    (the validator found elsewhere, or not available), not 'Error: path is too long'."""
+    monkeypatch.setenv("BAKER_GLTF_VALIDATOR", str(bakes / ("v" * 5000)))
+    code, out, err = run([bakes / "c.glb"], capsys)
+    assert code == 0 and "validator: " in out, err
+
 @pytest.mark.parametrize("name,loops", [
     ("walk_loop", True), ("Walk-Cycle", True), ("walk_loop_2", True), ("turn_left_walk_loop", True),
     ("walk$loop", True), ("RUN_CYCLE", True), ("walkloop", False), ("loop_walk", False),
@@ -294,7 +303,49 @@ BROKEN = {
     "other_json": (lambda d, b: _put(d / "o.json", b'{"a": 1}'), "not a baker report"),
     "deep_json": (lambda d, b: _put(d / "deep.json", b"[" * 100_000 + b"]" * 100_000),
                   "nested too deeply"),
+    # a fuzz round's (each was a traceback, a hang, a crash or a report of no bake)
+    "skin_no_animation": (lambda d, b: _put(d / "s.glb", _skinned_glb()), "no animation"),
+    "glb_json_deep": (lambda d, b: _put(d / "deep.glb", _glb_raw(b"[" * 100_000 + b"]" * 100_000,
+                                                                 b"")), "nested too deeply"),
+    "animation_name_number": (lambda d, b: _put(d / "n.glb", _glb_with(
+        b / "c.glb", lambda doc: doc["animations"][0].update(name=5))), "not a string"),
+    "report_outputs_number": (lambda d, b: _put(d / "r.json", json.dumps(
+        {**json.loads((b / "c.json").read_text()), "outputs": 5}).encode()), "outputs"),
+    "usd_no_animation": (lambda d, b: _put(d / "n.usda", _usda_of(b, lambda t: t.replace(
+        'def SkelAnimation "', 'def Xform "'))), "no UsdSkel SkelAnimation"),
+    "usd_skeleton_no_joints": (lambda d, b: _put(d / "n.usda", _usda_of(b, lambda t: re.sub(
+        r'(def Skeleton ".*?uniform token\[\] joints = )\[[^\]]*\]', r"\1[]", t, count=1,
+        flags=re.S))), "no joints"),
+    **{f"usd_time_codes_{v}": (lambda d, b, v=v: _put(d / "n.usda", _usda_of(b, lambda t: re.sub(
+        r"timeCodesPerSecond = \S+", f"timeCodesPerSecond = {v}", t, count=1))),
+        "timeCodesPerSecond") for v in ("0", "-30", "nan", "inf")},
+    "usd_layer_fifo": (lambda d, b: _fifo_layer(d), "not a file"),
+    "usd_layer_device": (lambda d, b: _put(d / "z.usda", b"#usda 1.0\n(\n    subLayers = "
+                                                     b"[@/dev/zero@]\n)\n"), "not a file"),
+    "usda_200000_deep": (lambda d, b: _put(d / "deep.usda", bad_inputs.deep_usd_text(
+        200_000).encode()), "levels deep"),
 }
+
+
+def _skinned_glb() -> bytes:
+    """A skinned glTF (bad_inputs.skinned_gltf) with no animation."""
+    doc, blob = bad_inputs.skinned_gltf()
+    return bad_inputs.pack_glb(doc, bytes(blob))
+
+
+def _usda_of(bakes: Path, edit) -> bytes:
+    """The bake's USD as text, edited by edit(text)."""
+    from pxr import Sdf
+
+    return edit(Sdf.Layer.FindOrOpen(str(bakes / "c.usd")).ExportToString()).encode()
+
+
+def _fifo_layer(d: Path) -> Path:
+    """A USDA whose sublayer is a FIFO: USD's read of it waited for ever for a writer."""
+    import os
+
+    os.mkfifo(d / "pipe.usda")
+    return _put(d / "f.usda", b"#usda 1.0\n(\n    subLayers = [@pipe.usda@]\n)\n")
 
 
 def _glb_raw(json_bytes: bytes, rest: bytes) -> bytes:
