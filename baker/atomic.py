@@ -204,6 +204,9 @@ def check_outputs(paths: Mapping[str, Path] | Path) -> None:
         for p in paths.values():
             if _folder(p) == folder and _isdir(p):
                 raise ExportError(f"cannot write {p}: it is a folder")
+            if _folder(p) == folder and _special(p):    # (a FIFO there was renamed over)
+                raise ExportError(f"cannot write {p}: it is a device, pipe or socket, not a "
+                                  "file")
 
 
 def check_not_inputs(paths: Mapping[str, Path], inputs: Mapping[str, Path]) -> None:

@@ -385,6 +385,15 @@ def job_config(opts: dict, out: Path, cache=None) -> BakeConfig:
 _RIGS: dict[Path, object] = {}
 
 
+def rig_file(rig) -> Path:
+    """The file a job's rig was read from (RigConfig.source: relative to the project's folder
+    for a bundled rig, else absolute: batch resolves every path)."""
+    from baker.config import REPO_ROOT
+
+    source = Path(rig.source)
+    return source if source.is_absolute() else REPO_ROOT / source
+
+
 def _rig_config(path: Path):
     """load_rig_config, once per file and process."""
     path = Path(path)
@@ -1366,8 +1375,11 @@ def run(jobs_file, *, out=None, workers: int | None = None, scheduler: str | Non
     plan = load_plan(jobs_file, out, cache)
     check_writable(plan.out)
     check_outputs({f"{j.name}.{k}": p for j in plan.jobs for k, p in j.cfg.output_paths().items()})
-    for j in plan.jobs:     # (a job named after its level, --out its folder: over the level)
-        check_not_inputs(j.cfg.output_paths(), {f"job '{j.name}' environment": j.cfg.environment})
+    for j in plan.jobs:     # (a job named after its level, --out its folder: over the level;
+        # after a jobs file j.json or a rig r.json, the same: the job's JSON report over it)
+        check_not_inputs(j.cfg.output_paths(), {f"job '{j.name}' environment": j.cfg.environment,
+                                                f"job '{j.name}' rig": rig_file(j.cfg.rig),
+                                                "jobs": plan.jobs_file})
     with _batch_lock(plan.out):
         manifest = Manifest(plan)
         # Step 2: what is up to date is skipped.

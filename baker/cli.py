@@ -216,7 +216,9 @@ def bake(environment, seconds, fps, seed, rig_path, out, fmt, usda, sun, debug_n
         rotations=rotations, preview=preview,
     )
     check_outputs(cfg.output_paths())
-    check_not_inputs(cfg.output_paths(), {"environment": Path(cfg.environment)})
+    # (--rig r.json or r.usd with --out r: the bake was written over the rig it read)
+    check_not_inputs(cfg.output_paths(), {"environment": Path(cfg.environment),
+                                          "rig": Path(rig_path)})
     result = with_progress(run_bake, cfg)
     m = result.report["metrics"]
     files = ", ".join(str(p) for p in result.outputs.values())

@@ -56,12 +56,18 @@ def preview_paths(prefix: Path, gif: bool = False) -> dict[str, Path]:
 def resolve_prefix(glb: Path, out: Path | str | None) -> Path:
     """The pictures' path prefix: beside the GLB (its path less the suffix) by default; an
     existing folder or a value ending in a separator means <folder>/<GLB stem>."""
+    from baker.atomic import _isdir, _special
+    from baker.errors import ExportError
+
     glb = Path(glb)
     if out is None:
         return glb.with_suffix("")
     text = os.fspath(out)
-    if text.endswith(os.sep) or Path(text).is_dir():
+    if text.endswith(os.sep) or _isdir(Path(text)):
         return Path(text) / glb.stem
+    if _special(Path(text)):    # (--out /dev/null wrote /dev/null_map.png beside the device)
+        raise ExportError(f"--out {text!r} is a device, pipe or socket, not a path: give a "
+                          "folder or a path prefix, e.g. outputs/centipede", where="--out")
     return Path(text)
 
 
@@ -204,12 +210,13 @@ def write_preview(glb: Path | str, out: Path | str | None = None, frames: int = 
                   gif: bool = False) -> dict[str, Path]:
     """Write the pictures of a GLB (see preview_paths, resolve_prefix), all or none.
     Returns {"map", "sheet"[, "gif"]: path}."""
-    from baker.atomic import OutputSet, check_outputs
+    from baker.atomic import OutputSet, check_not_inputs, check_outputs
 
     frames = check_frames(frames)
     check_dependencies()
     paths = preview_paths(resolve_prefix(Path(glb), out), gif)
     check_outputs(paths)
+    check_not_inputs(paths, {"GLB": Path(glb)})     # (a GLB named x_map.png, --out x: over it)
     images = preview_images(Path(glb), frames=frames, gif=gif)
     with OutputSet(paths) as files:
         for key, data in images.items():

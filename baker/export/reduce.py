@@ -828,8 +828,10 @@ def _refine(x: _Target, keep_t: np.ndarray, keep_r: np.ndarray, player: _Player)
             if added == 0:      # only rounding is left: key the offending chains there
                 added = _key_chains(keep_t, keep_r, chains, viol)
         if added == 0:
-            raise ExportError(f"keyframe reduction cannot reach {x.tol:g} m: the stored "
-                              f"values alone are off by {player.err.max():.3g} m")
+            raise ExportError(f"keyframe reduction cannot reach the --tolerance of {x.tol:g} "
+                              f"m: the stored values alone are off by {player.err.max():.3g} "
+                              "m; give --tolerance 0 (every key kept) or a larger one",
+                              where="--tolerance")
     raise ExportError("keyframe reduction did not converge")
 
 

@@ -274,6 +274,27 @@ def test_bad_files_exit_2_with_one_line(tmp_path, capsys, monkeypatch, small_env
     assert sorted(p.name for p in tmp_path.iterdir()) == before
 
 
+def test_outputs_that_would_replace_what_is_not_a_picture_are_refused(baked, tmp_path, capsys):
+    """Refused before anything is drawn, one line, nothing written or replaced: --out a device
+    (wrote /dev/null_map.png beside it), an output that is the GLB read (a GLB named
+    x_map.png, --out x: the map was written over it), an output that is a FIFO (renamed over)."""
+    import os
+    import shutil
+
+    glb = tmp_path / "x_map.png"
+    shutil.copy(baked, glb)
+    os.mkfifo(tmp_path / "q_map.png")
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    for argv, word in ((["--out", "/dev/null"], "device"),
+                       (["--out", str(tmp_path / "x")], "the GLB file"),
+                       (["--out", str(tmp_path / "q")], "pipe")):
+        code, out, err = _run(["preview", str(glb), *argv], capsys)
+        assert code == 2 and out == "" and err.count("\n") == 1, err
+        assert err.startswith("Error: ") and word in err, err
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["q_map.png", "x_map.png"]
+
+
 @pytest.mark.slow
 def test_bake_preview_writes_the_pictures_of_its_glb(tmp_path, capsys, nav_cache_dir):
     """`bake --preview` writes PATH_map.png and PATH_sheet.png with the other files, the same

@@ -16,7 +16,8 @@ item is "navmesh", of a `baker navmesh`). Classes:
             type, each bound crossed, NaN) plus structural cases (not a table, unknown key, ...)
 - opt_*   : bad option values (every numeric option: NaN, inf, out of range, not a number)
 - batch_* : `baker batch` of a jobs file (the first item "batch") whose paths cannot be
-            resolved: a '~user' with no home, a NUL character, a loop of symbolic links
+            resolved: a '~user' with no home, a NUL character, a loop of symbolic links; or
+            whose outputs would replace what it reads (a level, a rig, the jobs file)
 
 `GOOD_LATIN1` are files in other encodings that must load.
 """
@@ -1009,14 +1010,14 @@ def _structural_rig_cases():
 BATCH_HEAD = '[defaults]\nenvironment = "scene.glb"\nseconds = 1\n'
 
 
-def _batch_case(cid, text, *extra, setup=None):
+def _batch_case(cid, text, *extra, setup=None, jobs_name="jobs.toml"):
     """`baker batch` of a jobs file beside the good scene (the first item "batch": see
     test_bad_inputs.bake_args); `setup(folder)` adds what the file names."""
     def make(folder: Path):
         (folder / "scene.glb").write_bytes(good_glb())
         if setup:
             setup(folder)
-        p = folder / "jobs.toml"
+        p = folder / jobs_name
         p.write_text(text)
         return ["batch", p, *(x(folder) if callable(x) else x for x in extra)]
     return Case(f"batch_{cid}", make)
@@ -1054,6 +1055,12 @@ def _batch_cases():
                     "--out", lambda f: f),
         _batch_case("cache_dir_link_loop", job, "--cache-dir", lambda f: f / "loop",
                     setup=_loop("loop")),
+        # a job's JSON report over its rig (r.json), or over the jobs file itself (jobs.json
+        # holding TOML), --out their folder: written over them
+        _batch_case("out_over_rig", BATCH_HEAD + '[[job]]\nname = "r"\nrig = "r.json"\n',
+                    "--out", lambda f: f, setup=lambda f: _copy_rig(f / "r.json")),
+        _batch_case("out_over_jobs_file", job + 'name = "jobs"\n', "--out", lambda f: f,
+                    jobs_name="jobs.json"),
     ]
 
 
@@ -1116,9 +1123,25 @@ def _option_cases():
     # the output named as the level it reads (the bake was written over the level)
     cases.append(Case("opt_out_over_environment", lambda f: [
         (f / "level.glb").write_bytes(good_glb()) and f / "level.glb", "--out", f / "level"]))
+    # the output named as the rig it reads (a rig file r.json or r.usd, --out r: written over)
+    for ext in ("json", "usd"):
+        cases.append(Case(f"opt_out_over_rig_{ext}", lambda f, e=ext: [
+            "--rig", _copy_rig(f / f"r.{e}"), "--out", f / "r"]))
+    # an output that is a FIFO (the bake was renamed over it)
+    cases.append(Case("opt_out_glb_fifo", lambda f: [
+        os.mkfifo(f / "q.glb"), "--out", f / "q"][1:]))
+    # a tolerance under what the stored values can hold: refused after the bake, naming it
+    # (the line said neither the option nor where)
+    cases.append(Case("opt_tolerance_1e-300", lambda f: [
+        (f / "level.glb").write_bytes(good_glb()) and f / "level.glb", "--tolerance", "1e-300"]))
     for name, args in NAVMESH_OPTION_CASES:
         cases.append(Case(f"opt_navmesh_{name}", (lambda f, a=args: ["navmesh", *a])))
     return cases
+
+
+def _copy_rig(path: Path) -> Path:
+    path.write_bytes(DEFAULT_RIG.read_bytes())
+    return path
 
 
 # --------------------------------------------------------------------------- skins and morphs
