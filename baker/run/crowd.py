@@ -32,6 +32,7 @@ from __future__ import annotations
 import functools
 import itertools
 import logging
+import math
 
 import numpy as np
 
@@ -67,6 +68,16 @@ def crowd_separation(rig) -> float:
     """[m] how far a head keeps from other creatures' body points: two agent radii (the
     agent radius covers the body and most of the legs' reach)."""
     return 2.0 * rig.navigation.radius
+
+
+def crowd_band(rig, reach: float) -> float:
+    """[m] how far above or below a head another body's points within `reach` of it can lie on
+    the same walkable surface: the rise of the steepest walkable slope over `reach`, a step,
+    a raised cobra's lift and an agent height to spare. Farther, they are on another storey
+    (a floor above or below, a bridge over a passage) and not in the head's way."""
+    nav = rig.navigation
+    return (reach * math.tan(nav.max_slope) + nav.step_height + rig.cobra.height
+            + nav.height)
 
 
 def crowd_starts(nav, env, rig, streams: list[Streams], separation: float, at=None,
@@ -179,7 +190,7 @@ class Bodies:
         self.count = np.full(n, m - 1)     # index of each path's current (last) point
         self._row = np.arange(n) * self.cum.shape[1]        # each path's first flat index
         self._key = np.full((n, 2), np.nan)          # (arc length, cobra) of the points kept
-        self._points = np.zeros((n, self.size, 2))
+        self._points = np.zeros((n, self.size, 3))
 
     def advance(self, heads: np.ndarray) -> None:
         """The heads after a step (n, 3), for all creatures at once: each becomes its path's current
@@ -198,7 +209,7 @@ class Bodies:
 
     def points(self, rows: np.ndarray, cobra: np.ndarray | None = None
                ) -> tuple[np.ndarray, np.ndarray]:
-        """(len(rows) * size, 2) the body points of creatures `rows` (every joint's, and
+        """(len(rows) * size, 3) the body points of creatures `rows` (every joint's, and
         `tail` more behind the last) and (same,) their creature.
         cobra : (n,) every creature's cobra amount 0..1 (None: all down)"""
         amount = (np.zeros(len(rows)) if cobra is None or self.lift is None
@@ -208,11 +219,11 @@ class Bodies:
         if moved.any():
             self._points[rows[moved]] = self._place(rows[moved], amount[moved])
             self._key[rows[moved]] = key[moved]
-        return (self._points[rows].reshape(-1, 2),
+        return (self._points[rows].reshape(-1, 3),
                 np.repeat(rows, self.size))
 
     def _place(self, rows: np.ndarray, amount: np.ndarray) -> np.ndarray:
-        """(len(rows), size, 2) the body points of creatures `rows`."""
+        """(len(rows), size, 3) the body points of creatures `rows`."""
         ends = self.count[rows]
         starts = first_at_or_above(self.cum, rows, ends, self.cum[rows, ends] - self.window)
         # each path from its window's start to its head, read where it is kept
@@ -221,7 +232,7 @@ class Bodies:
         lift = np.zeros((len(rows), self.size))
         for r in np.flatnonzero(amount > 0.0):
             lift[r, :self.segments] = self.lift(float(amount[r]))
-        return chain_on(trails, lift, self.spacing, self.res)[..., [0, 2]]
+        return chain_on(trails, lift, self.spacing, self.res)
 
 
 def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
@@ -263,6 +274,7 @@ def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
     cobra = np.array([w.cobra for w in wants])
     reach = sep + 0.25 * max(f.turn_radius for f in follows) + 4.0 * AVOID_EVERY * clock.dt * (
         rig.locomotion.max_speed * rig.behaviour.onslaught_speed)
+    band = crowd_band(rig, reach)
     group = Followers(follows, clock.dt, workers, lazy=isinstance(nav, LazyNav))
     state = group.states
     sample(0, recs, prey_rec, holder, wants, preys, brains, cobra, state)
@@ -271,7 +283,7 @@ def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
             t = (k - 1) * clock.dt
             others = None
             if (k - 1) % AVOID_EVERY == 0 and n > 1:
-                others = neighbours(bodies, heads[:, k - 1], state.speeds, reach, cobra)
+                others = neighbours(bodies, heads[:, k - 1], state.speeds, reach, cobra, band)
             told = senses(t, state)
             due = [i for i in range(n) if brains[i].perceives(t)]
             if due:                     # what the brains perceiving this step sense, at once
@@ -299,23 +311,26 @@ def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
 
 
 def neighbours(bodies: Bodies, heads: np.ndarray, speeds: np.ndarray, reach: float,
-               cobra: np.ndarray | None = None) -> list[tuple]:
-    """Every creature's (the other creatures' body points within `reach` of its head, or None;
-    whether those creatures all walk), from one tree and one ball query for all heads; speeds:
-    (n,) the heads' speeds, cobra: (n,) the cobra amounts. Only the bodies of creatures whose
-    heads are near another's are placed: a body lies within bodies.extent of its head."""
+               cobra: np.ndarray | None = None, band: float = np.inf) -> list[tuple]:
+    """Every creature's (the other creatures' body points (x, z) within `reach` of its head
+    and within `band` above or below it (crowd_band: a body on another storey is not in the
+    way), or None; whether those creatures all walk), from one tree and one ball query for all
+    heads; speeds: (n,) the heads' speeds, cobra: (n,) the cobra amounts. Only the bodies of
+    creatures whose heads are near another's are placed: a body lies within bodies.extent of
+    its head."""
     out = [(None, False)] * len(heads)
     xz = heads[:, [0, 2]]
     need = unique(cKDTree(xz).query_pairs(bodies.extent + reach, output_type="ndarray"))
     if not len(need):
         return out
-    pts, owner = bodies.points(need, cobra)
+    pts3, owner = bodies.points(need, cobra)
+    pts = pts3[:, [0, 2]]
     near = cKDTree(pts).query_ball_point(xz[need], reach)
     # every head's points in one flat array (in the tree's order), the head's own body's out
     lens = np.fromiter(map(len, near), np.intp, len(near))
     idx = np.fromiter(itertools.chain.from_iterable(near), np.intp, int(lens.sum()))
     who = np.repeat(np.arange(len(need)), lens)
-    keep = owner[idx] != need[who]
+    keep = (owner[idx] != need[who]) & (np.abs(pts3[idx, 1] - heads[need[who], 1]) <= band)
     idx, who = idx[keep], who[keep]
     count = np.bincount(who, minlength=len(need))
     # the bodies near move on (their heads walk): a head they corner may wait for them

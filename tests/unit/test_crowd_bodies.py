@@ -107,8 +107,9 @@ def test_bodies_keep_the_head_last_and_place_only_what_moved():
         bodies.advance(np.stack([p, line[-1] + [1.0, 0.0, 0.0]]))   # the second stands
     assert bodies.count[0] < len(line) + len(path) // 2                # sparse, not every step
     np.testing.assert_array_equal(bodies.path[0, bodies.count[0]], path[-1])
-    pts, owner = bodies.points(np.array([0, 1]), np.array([0.0, 1.0]))
-    assert pts.shape == (2 * (S + 1), 2) and list(owner) == [0] * (S + 1) + [1] * (S + 1)
+    pts3, owner = bodies.points(np.array([0, 1]), np.array([0.0, 1.0]))
+    assert pts3.shape == (2 * (S + 1), 3) and list(owner) == [0] * (S + 1) + [1] * (S + 1)
+    pts = pts3[:, [0, 2]]
     np.testing.assert_allclose(pts[:S], model(np.vstack([line, path])), atol=2e-3)
     np.testing.assert_allclose(pts[0], [0.0, 0.2], atol=1e-9)
     assert np.all(np.diff(pts[S + 1:2 * S + 1, 1]) < 0)             # the raised one, behind
@@ -166,3 +167,35 @@ def test_signals_during_the_compiled_placement_stop_cleanly():
         """, """
         chain_on(trails, lift, 0.0125)
         """)
+
+
+def storey_walk(x: float, y: float) -> np.ndarray:
+    """A head path along +z at x, on a floor at height y."""
+    path = walk((x, -0.3), (x, 0.0))
+    path[:, 1] = y
+    return path
+
+
+@pytest.mark.parametrize("rise, seen", [(0.0, True), (0.1, True), (2.0, False), (-2.0, False)])
+def test_a_body_on_another_storey_is_not_in_a_head_s_way(rise, seen):
+    """Two creatures side by side (0.04 m apart, closer than `reach`), the second's floor
+    `rise` metres above the first's: its body points are the first head's obstacles on the
+    same floor or a step up (within crowd_band), and not on a floor above or below (they
+    were: a crowd on the multi-storey level avoided bodies on the other storey)."""
+    from baker.run.crowd import crowd_band, crowd_separation, neighbours
+
+    a, b = storey_walk(0.0, 0.0), storey_walk(0.04, rise)
+    bodies = Bodies([a, b], 1, SPACING, S)
+    heads = np.stack([a[-1], b[-1]])
+    bodies.advance(heads)
+    reach = 2.0 * crowd_separation(RIG)
+    band = crowd_band(RIG, reach)
+    assert 0.1 < band < 2.0
+    out = neighbours(bodies, heads, np.zeros(2), reach, band=band)
+    for i in (0, 1):
+        pts, _ = out[i]
+        assert (pts is not None) == seen
+        if seen:
+            assert pts.shape[1] == 2 and np.all(np.abs(pts[:, 0] - heads[1 - i, 0]) < 1e-9)
+    # with no band (or an infinite one), every storey's points, as before
+    assert all(p is not None for p, _ in neighbours(bodies, heads, np.zeros(2), reach))
