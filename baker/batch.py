@@ -79,6 +79,9 @@ MANIFEST = "manifest.json"
 LOCK_FILE = ".baker-batch.lock"
 #: the largest jobs file read (a matrix of MAX_JOBS jobs fits in a few kB)
 MAX_JOBS_FILE_BYTES = 16 << 20
+#: the largest previous manifest read (MAX_JOBS entries of a few kB each); a larger file is
+#: not one a batch wrote, and its jobs are baked again
+MAX_MANIFEST_BYTES = 256 << 20
 #: The most jobs one file may expand to, and the most errors listed.
 MAX_JOBS = 10_000
 MAX_ERRORS = 100
@@ -1077,11 +1080,13 @@ class Manifest:
         if not self.path.is_file():     # none yet, or no file (a FIFO's read waited for ever)
             return {}
         try:
+            if self.path.stat().st_size > MAX_MANIFEST_BYTES:   # not one a batch wrote
+                return {}
             doc = json.loads(self.path.read_text())
             jobs = doc.get("jobs", {})
             return jobs if isinstance(jobs, dict) else {}
-        except (OSError, ValueError, AttributeError):
-            return {}
+        except (OSError, ValueError, AttributeError, RecursionError):
+            return {}       # (JSON nested 100,000 deep was a RecursionError traceback)
 
     def up_to_date(self, job: Job) -> dict | None:
         """The previous entry when the job's outputs are there with the same key, unchanged
@@ -1374,7 +1379,8 @@ def run(jobs_file, *, out=None, workers: int | None = None, scheduler: str | Non
     # Step 1: the whole jobs file, and every output path, checked before any work.
     plan = load_plan(jobs_file, out, cache)
     check_writable(plan.out)
-    check_outputs({f"{j.name}.{k}": p for j in plan.jobs for k, p in j.cfg.output_paths().items()})
+    check_outputs({"manifest": plan.out / MANIFEST,     # (a FIFO there was renamed over)
+                   **{f"{j.name}.{k}": p for j in plan.jobs for k, p in j.cfg.output_paths().items()}})
     for j in plan.jobs:     # (a job named after its level, --out its folder: over the level;
         # after a jobs file j.json or a rig r.json, the same: the job's JSON report over it)
         check_not_inputs(j.cfg.output_paths(), {f"job '{j.name}' environment": j.cfg.environment,

@@ -268,6 +268,10 @@ def cycles(rig_path, out, speeds, fps):
         raise ConfigError("--out must be a folder (it names a file)", where=str(out))
     cfg = CyclesConfig(rig=load_rig_config(rig_path), out=out, fps=fps, walk_speed=walk,
                        run_speed=run)
+    from baker.atomic import check_not_inputs
+
+    # (--rig cycles.json in the --out folder: the summary was written over the rig read)
+    check_not_inputs(cfg.output_paths(), {"rig": Path(rig_path)})
     result = with_progress(bake_cycles, cfg)
     clips = result.summary["clips"]
     loops = [c for c in clips if c["loop"]]
@@ -569,6 +573,11 @@ def run_command(argv=None) -> int:
                     error = format_error(ConfigError(
                         f"permission denied: {short_path(os.fsdecode(e.filename))}",
                         where="path"))
+                elif e.errno in (errno.ENOENT, errno.ENOTDIR) and e.filename is not None:
+                    # a file checked, then gone (or its folder replaced) before it was read
+                    error = format_error(ConfigError(
+                        f"{e.strerror or 'no such file'}: {short_path(os.fsdecode(e.filename))}"
+                        " (removed or replaced while baker ran)", where="path"))
                 else:
                     raise
             except MemoryError as e:    # the input asks for more than the machine gives

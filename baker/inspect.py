@@ -203,9 +203,10 @@ def environment_nodes(doc: dict, world: dict[int, np.ndarray]) -> list[int]:
     nodes = doc.get("nodes", [])
     env = [i for i, n in enumerate(nodes) if n.get("name") == "Environment"]
     if env:
-        out, stack = [], list(env)
+        out, stack, seen = [], list(env), set()
         while stack:
             i = stack.pop()
+            _first_visit(seen, i)
             if "mesh" in nodes[i]:
                 out.append(i)
             stack.extend(nodes[i].get("children", []))
@@ -240,9 +241,23 @@ def static_world(doc: dict) -> dict[int, np.ndarray]:
     stack = [(i, np.eye(4)) for i in doc["scenes"][doc.get("scene", 0)]["nodes"]]
     while stack:
         i, pm = stack.pop()
+        _first_visit(world, i)
         world[i] = pm @ node_matrix(nodes[i])
         stack.extend((c, world[i]) for c in nodes[i].get("children", []))
     return world
+
+
+def _first_visit(seen, i) -> None:
+    """Note node i as visited (seen: a set, or a dict it is then put in); ValueError when it
+    was already: a node its own descendant (a cycle: the walk went on for ever, --judge and
+    preview hung) or listed under two parents, which glTF forbids."""
+    if not isinstance(i, int) or isinstance(i, bool) or i < 0:
+        raise ValueError(f"node index {i!r} is not a node")
+    if i in seen:
+        raise ValueError(f"node {i} is reached twice in the node hierarchy (a cycle or two "
+                         "parents)")
+    if isinstance(seen, set):
+        seen.add(i)
 
 
 def frame_times(n_frames: int, fps: int) -> np.ndarray:

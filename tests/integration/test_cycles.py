@@ -232,6 +232,22 @@ def test_bad_options_are_one_line_errors(args, word, tmp_path, capsys):
     assert not (tmp_path / "c").exists()
 
 
+def test_out_over_the_rig_read_is_an_error(tmp_path, capsys):
+    """A rig file named cycles.json (or .usd) in the --out folder: the library was written
+    over the rig it read."""
+    from baker.config import DEFAULT_RIG
+
+    for name in ("cycles.json", "cycles.usd"):
+        rig = tmp_path / name
+        rig.write_bytes(DEFAULT_RIG.read_bytes())
+        assert main(["cycles", "--out", str(tmp_path), "--rig", str(rig)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "is the rig file" in err, err
+        assert rig.read_bytes() == DEFAULT_RIG.read_bytes()
+        rig.unlink()
+    assert not list(tmp_path.iterdir())
+
+
 def test_out_naming_a_file_is_an_error(tmp_path, capsys):
     f = tmp_path / "file"
     f.write_text("x")

@@ -3,6 +3,7 @@ corpus of broken files built here: every one of those exits with 2 and one line,
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import re
 import struct
@@ -171,6 +172,34 @@ def test_no_validate_and_a_missing_validator(bakes, capsys, monkeypatch):
                  "reason": "node is not on PATH"}
     code, out, _ = run([bakes / "c.glb"], capsys)
     assert code == 0 and "Khronos glTF-Validator not available: node is not on PATH" in out
+
+
+@pytest.mark.parametrize("name", ["c.glb", "c.usd", "c.json"])
+def test_a_file_that_vanishes_once_checked_is_one_line(name, bakes, tmp_path, capsys,
+                                                       monkeypatch):
+    """The file removed between inspect's checks (there, a file) and its read: one line, exit
+    2 (FileNotFoundError was a traceback)."""
+    import shutil
+
+    import baker.inspect_file as inspect_file_mod
+
+    path = tmp_path / name
+    shutil.copy(bakes / name, path)
+    real = inspect_file_mod.Path.stat
+    calls = []
+
+    def stat_then_gone(self, *a, **k):     # exists, is_file, the size: then the file is gone
+        st = real(self, *a, **k)
+        if self == path:
+            calls.append(1)
+            if len(calls) == 3:
+                path.unlink()
+        return st
+
+    monkeypatch.setattr(inspect_file_mod.Path, "stat", stat_then_gone)
+    code, out, err = run([path], capsys)
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert err.startswith("Error: ") and path.name in err, err
 
 
 def test_a_validator_folder_too_long_for_the_file_system_is_no_validator(bakes, capsys,
@@ -435,17 +464,31 @@ def _set_extras_fps(doc):
     doc.setdefault("extras", {})["fps"] = "thirty"
 
 
+def _environment_node_its_own_child(doc):
+    env = next(i for i, n in enumerate(doc["nodes"]) if n.get("name") == "Environment")
+    doc["nodes"][env]["children"] = [env]
+
+
 @pytest.mark.parametrize("edit", [
     _set_extras_fps,
     lambda doc: doc["skins"][0].update(joints=[]),
-], ids=["fps_not_a_number", "skin_without_joints"])
+    # the walk of the node hierarchy went on for ever (--judge and preview hung)
+    _environment_node_its_own_child,
+    lambda doc: doc["nodes"][doc["scenes"][0]["nodes"][0]].update(children=[True]),
+], ids=["fps_not_a_number", "skin_without_joints", "node_its_own_child", "child_true"])
 def test_judge_of_a_glb_it_cannot_play_is_one_line(edit, bakes, capsys, tmp_path):
-    """A GLB plain inspect reads, whose motion --judge cannot play: one line, exit 2."""
+    """A GLB plain inspect reads, whose motion --judge cannot play: one line, exit 2 (and
+    `baker preview`'s the same)."""
     bad = tmp_path / "bad.glb"
     bad.write_bytes(_glb_with(bakes / "c.glb", edit))
     code, out, err = run([bad, "--judge", "--no-validate"], capsys)
     assert code == 2 and out == "", err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    if importlib.util.find_spec("matplotlib") and edit is not _set_extras_fps:
+        code = main(["preview", str(bad), "--out", str(tmp_path / "p")])
+        err = capsys.readouterr().err
+        assert code == 2 and len(err.strip().splitlines()) == 1, err
+        assert not list(tmp_path.glob("p*"))
 
 
 def _timeline_start_text(doc):

@@ -1061,6 +1061,9 @@ def _batch_cases():
                     "--out", lambda f: f, setup=lambda f: _copy_rig(f / "r.json")),
         _batch_case("out_over_jobs_file", job + 'name = "jobs"\n', "--out", lambda f: f,
                     jobs_name="jobs.json"),
+        # a FIFO where the manifest goes (it was renamed over)
+        _batch_case("manifest_fifo", job, "--out", lambda f: f / "bo",
+                    setup=lambda f: ((f / "bo").mkdir(), os.mkfifo(f / "bo" / "manifest.json"))),
     ]
 
 
@@ -1136,6 +1139,9 @@ def _option_cases():
         (f / "level.glb").write_bytes(good_glb()) and f / "level.glb", "--tolerance", "1e-300"]))
     for name, args in NAVMESH_OPTION_CASES:
         cases.append(Case(f"opt_navmesh_{name}", (lambda f, a=args: ["navmesh", *a])))
+    # a --png that is a FIFO (the map was renamed over it)
+    cases.append(Case("opt_navmesh_png_fifo", lambda f: [
+        os.mkfifo(f / "m.png"), "navmesh", "--png", f / "m.png"][1:]))
     return cases
 
 

@@ -547,6 +547,18 @@ def test_a_manifest_that_is_a_fifo_is_no_previous_run(tmp_path):
     assert batch.Manifest(plan).previous == {}
 
 
+@pytest.mark.parametrize("text", [b"[" * 100_000 + b"]" * 100_000,
+                                  b'{"jobs": ' + b'{"a": ' * 100_000 + b"1" + b"}" * 100_001])
+def test_a_manifest_nested_too_deeply_is_no_previous_run(tmp_path, text):
+    """A previous manifest.json of JSON nested 100,000 deep (a RecursionError traceback before
+    the first job): it holds no previous run, and the batch bakes every job."""
+    (tmp_path / "jobs.toml").write_text("[[job]]\nname = 'a'\nseconds = 1\n")
+    plan = batch.load_plan(tmp_path / "jobs.toml", tmp_path / "o")
+    plan.out.mkdir()
+    (plan.out / batch.MANIFEST).write_bytes(text)
+    assert batch.Manifest(plan).previous == {}
+
+
 def test_environment_digest_reads_in_chunks(tmp_path):
     """A .gltf naming a 3 GB buffer (a sparse file here): the job key's digest read it whole
     into memory; it is hashed in chunks now, with the same digest as the whole bytes'."""
