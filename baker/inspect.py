@@ -399,7 +399,7 @@ def _check_layers(path: str) -> None:
 
     from pxr import Ar, Sdf
 
-    from baker.environment.load import MAX_USDA_DEPTH, _usda_depth
+    from baker.environment.load import MAX_USDA_DEPTH, usda_depth
 
     todo, seen = [str(Path(path).resolve())], set()
     while todo:
@@ -409,7 +409,7 @@ def _check_layers(path: str) -> None:
         seen.add(p)
         if len(seen) > MAX_USD_LAYERS:
             raise InspectError(f"USD brings in more than {MAX_USD_LAYERS} layers", where=path)
-        if _usda_depth(Path(p)) > MAX_USDA_DEPTH:
+        if usda_depth(Path(p)) > MAX_USDA_DEPTH:
             raise InspectError(f"USD layer {Path(p).name} nests more than {MAX_USDA_DEPTH} "
                                "levels deep (prims in prims)", where=path)
         try:

@@ -1896,7 +1896,7 @@ _MAX_USD_LAYERS = 1000
 MAX_USDA_DEPTH = 50_000
 
 
-def _usda_depth(path: Path, chunk: int = 1 << 24) -> int:
+def usda_depth(path: Path, chunk: int = 1 << 24) -> int:
     """The deepest nesting of `{` in a text USD layer (0 for a crate or another file), read
     in chunks (braces in strings count too: an over-estimate)."""
     depth = deepest = 0
@@ -1935,7 +1935,7 @@ def _check_usd_layers(path: Path) -> None:
                                        where=str(path))
         outer, inner = Ar.SplitPackageRelativePathInner(p)
         name = Path(outer).name + (f"[{inner}]" if inner else "")
-        if not inner and _usda_depth(Path(outer)) > MAX_USDA_DEPTH:
+        if not inner and usda_depth(Path(outer)) > MAX_USDA_DEPTH:
             raise EnvironmentLoadError(f"USD layer {name} nests more than {MAX_USDA_DEPTH} "
                                        "levels deep (prims in prims)", where=str(path))
         layer = Sdf.Layer.FindOrOpen(p)
