@@ -42,7 +42,8 @@ ALLOWED = {
     "export": {"clip", "rig", "solve", "environment", "config", "navmesh", "atomic",
                "inspect",                  # export/preview.py draws a bake read back from its GLB
                "parallel"},                # the reduction's compiled kernels off the main thread
-    "inspect": {"environment", "metrics"},     # reads a bake's files back to judge them
+    "inspect": {"environment", "metrics",      # reads a bake's files back to judge them
+                "parallel"},                   # a USD opened on a thread with a large stack
     "inspect_file": {"inspect"},               # `baker inspect`: a file's summary
     "memory": {"navmesh", "config"},                     # a bake's memory, against the same RAM reading
 }
