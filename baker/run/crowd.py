@@ -5,7 +5,9 @@ on shade spots and prey (behaviour.claims: a spot holds one creature, a prey has
 Local avoidance: every AVOID_EVERY steps one cKDTree holds every creature's body points (its
 head and its head path sampled a spacing apart over a body length, with the path's kinks
 rounded as the body's trail rounds them, and the straight start line before it has walked
-one) and one ball query finds, for all heads at once, the other creatures' points near each.
+one) and one ball query finds, for all heads at once, the other creatures' points near each
+(in plan; those higher or lower than the head by more than crowd_band are on another storey
+and left out).
 Each head then treats those points as obstacles on its walkable surface, keeping `separation`
 metres from them (run.follow.Follower._surface_test): it turns or slides along another body as it
 does along an edge. A body only ever lies on its own head's trail, so a head that never comes
