@@ -42,7 +42,7 @@ def _why(e: OSError) -> str:
     return e.strerror or str(e)
 
 
-def _isdir(p: Path) -> bool:
+def is_folder(p: Path) -> bool:
     """Path.is_dir() that says False instead of raising (a name too long, a loop)."""
     try:
         return Path(p).is_dir()
@@ -56,9 +56,9 @@ def _folder(path: Path) -> Path:
 
 def _check_folder(path: Path) -> Path:
     folder = _folder(path)
-    if not _isdir(folder):
+    if not is_folder(folder):
         raise ExportError(f"cannot write {path}: folder {folder} does not exist")
-    if _isdir(path):
+    if is_folder(path):
         raise ExportError(f"cannot write {path}: it is a folder")
     return folder
 
@@ -143,10 +143,10 @@ def resolve_out(out) -> Path:
         raise ExportError("--out is empty: give an output path without extension, "
                           "e.g. outputs/centipede")
     text = str(text)
-    if text.endswith(os.sep) or (os.altsep and text.endswith(os.altsep)) or _isdir(Path(text)):
+    if text.endswith(os.sep) or (os.altsep and text.endswith(os.altsep)) or is_folder(Path(text)):
         return Path(text) / DEFAULT_NAME
     path = Path(text)
-    if _special(path):
+    if is_special(path):
         raise ExportError(f"--out {text!r} is a device, pipe or socket, not a path: give a "
                           "folder or a path without extension, e.g. outputs/centipede")
     if path.name.lower() in OUT_EXTENSIONS:
@@ -157,7 +157,7 @@ def resolve_out(out) -> Path:
     return path
 
 
-def _special(path: Path) -> bool:
+def is_special(path: Path) -> bool:
     """Whether `path` is there and is neither a folder nor a regular file (`--out /dev/null`
     wrote /dev/null.glb, /dev/null.usd and /dev/null.json beside the device)."""
     try:
@@ -202,9 +202,9 @@ def check_outputs(paths: Mapping[str, Path] | Path) -> None:
                 raise ExportError(f"output name is too long for its temporary file ({p.name[:40]}...)")
         check_writable(folder)
         for p in paths.values():
-            if _folder(p) == folder and _isdir(p):
+            if _folder(p) == folder and is_folder(p):
                 raise ExportError(f"cannot write {p}: it is a folder")
-            if _folder(p) == folder and _special(p):    # (a FIFO there was renamed over)
+            if _folder(p) == folder and is_special(p):    # (a FIFO there was renamed over)
                 raise ExportError(f"cannot write {p}: it is a device, pipe or socket, not a "
                                   "file")
 
@@ -323,7 +323,7 @@ class OutputSet:
                 # Checked again under the lock: a target that became a folder (or a vanished
                 # folder) fails the whole set before anything is renamed.
                 for key, path in self.paths.items():
-                    if _isdir(path):
+                    if is_folder(path):
                         raise ExportError(f"cannot write {path}: it is a folder")
                     if not self._tmp[key].is_file():
                         raise ExportError(f"cannot write {path}: its temporary file vanished")

@@ -239,25 +239,25 @@ def static_world(doc: dict) -> dict[int, np.ndarray]:
     nodes = doc.get("nodes", [])
     world: dict[int, np.ndarray] = {}
     stack = [(i, np.eye(4)) for i in doc["scenes"][doc.get("scene", 0)]["nodes"]]
+    seen = set()
     while stack:
         i, pm = stack.pop()
-        _first_visit(world, i)
+        _first_visit(seen, i)
         world[i] = pm @ node_matrix(nodes[i])
         stack.extend((c, world[i]) for c in nodes[i].get("children", []))
     return world
 
 
-def _first_visit(seen, i) -> None:
-    """Note node i as visited (seen: a set, or a dict it is then put in); ValueError when it
-    was already: a node its own descendant (a cycle: the walk went on for ever, --judge and
-    preview hung) or listed under two parents, which glTF forbids."""
+def _first_visit(seen: set, i) -> None:
+    """Add node i to the nodes `seen`; ValueError when it was there already: a node its own
+    descendant (a cycle: the walk went on for ever, --judge and preview hung) or listed under
+    two parents, which glTF forbids."""
     if not isinstance(i, int) or isinstance(i, bool) or i < 0:
         raise ValueError(f"node index {i!r} is not a node")
     if i in seen:
         raise ValueError(f"node {i} is reached twice in the node hierarchy (a cycle or two "
                          "parents)")
-    if isinstance(seen, set):
-        seen.add(i)
+    seen.add(i)
 
 
 def frame_times(n_frames: int, fps: int) -> np.ndarray:
@@ -365,10 +365,6 @@ def read_glb(path: str | Path, animation: str | int = 0,
 # ---------------------------------------------------------------- USD
 
 
-#: the most layers a USD file inspected may bring in (sublayers, references, payloads)
-MAX_USD_LAYERS = 1000
-
-
 def open_stage(path: str | Path):
     """Usd.Stage.Open(path), or None; what USD's C++ code prints itself (a corrupt crate's
     'failed call to posix_madvise') is held back from stderr (environment.native). The stage
@@ -393,44 +389,34 @@ def _open_checked(path: str):
 def _check_layers(path: str) -> None:
     """InspectError for a layer the file brings in (sublayers, references, payloads,
     recursively) that USD must not be let open: a FIFO, a device or a folder (a FIFO's read
-    waited for ever for a writer), a text layer nesting prims deeper than load.MAX_USDA_DEPTH,
-    more than MAX_USD_LAYERS layers. What is missing or corrupt is left to Usd.Stage.Open."""
+    waited for ever for a writer), and the level reader's bounds (load.walk_usd_layers: the
+    layers' count and depth). What is missing or corrupt is left to Usd.Stage.Open."""
+    from baker.environment.load import walk_usd_layers
+
+    walk_usd_layers(Path(path), lambda layer, name, dep: _layer_file(path, layer, name, dep),
+                    lambda text: InspectError(text, where=path), must_open=False)
+
+
+def _layer_file(path: str, layer, name: str, dep: str) -> str | None:
+    """The resolved file of a layer's dependency `dep` to walk next (walk_usd_layers), None
+    for one that is not a file of its own (a URL, a layer inside a package, what does not
+    exist: Usd.Stage.Open says it); InspectError for a FIFO, a device or a folder."""
     import stat
 
-    from pxr import Ar, Sdf
+    from pxr import Ar
 
-    from baker.environment.load import MAX_USDA_DEPTH, usda_depth
-
-    todo, seen = [str(Path(path).resolve())], set()
-    while todo:
-        p = todo.pop()
-        if p in seen:
-            continue
-        seen.add(p)
-        if len(seen) > MAX_USD_LAYERS:
-            raise InspectError(f"USD brings in more than {MAX_USD_LAYERS} layers", where=path)
-        if usda_depth(Path(p)) > MAX_USDA_DEPTH:
-            raise InspectError(f"USD layer {Path(p).name} nests more than {MAX_USDA_DEPTH} "
-                               "levels deep (prims in prims)", where=path)
-        try:
-            layer = Sdf.Layer.FindOrOpen(p)
-        except Exception:           # pxr's Tf.ErrorException: Usd.Stage.Open says it
-            layer = None
-        for dep in (layer.GetCompositionAssetDependencies() if layer else ()):
-            dep = str(dep)
-            if not dep or "://" in dep:
-                continue
-            target = layer.ComputeAbsolutePath(dep)
-            outer = Ar.SplitPackageRelativePathOuter(target)[0]
-            try:
-                mode = os.stat(outer).st_mode
-            except (OSError, ValueError):   # missing, a loop, a name too long: Open says it
-                continue
-            if not stat.S_ISREG(mode):
-                raise InspectError(f"USD layer {Path(p).name} refers to '{dep[:80]}', which is "
-                                   "not a file", where=path)
-            if not Ar.IsPackageRelativePath(target):
-                todo.append(str(Path(outer).resolve()))
+    if "://" in dep:
+        return None
+    target = layer.ComputeAbsolutePath(dep)
+    outer = Ar.SplitPackageRelativePathOuter(target)[0]
+    try:
+        mode = os.stat(outer).st_mode
+    except (OSError, ValueError):   # missing, a loop, a name too long: Open says it
+        return None
+    if not stat.S_ISREG(mode):
+        raise InspectError(f"USD layer {name} refers to '{dep[:80]}', which is not a file",
+                           where=path)
+    return None if Ar.IsPackageRelativePath(target) else str(Path(outer).resolve())
 
 
 def read_usd(path: str | Path, creature: int = 0) -> BakedScene:

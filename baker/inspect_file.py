@@ -35,12 +35,12 @@ from baker.inspect import InspectError, glb_extras, open_stage, strict_json
 
 #: file types, by suffix
 GLB, USD, REPORT = (".glb",), (".usd", ".usdc", ".usda"), (".json",)
-#: Godot's importer (and baker's cycles) take a clip as looping when its name, less trailing
-#: digits, spaces and underscores, ends with `_loop`/`-loop`/`_cycle`/`-cycle` or contains
-#: `$loop`/`$cycle`, in any case (`walk_loop`, `Walk-Cycle`, `walk_loop_2`)
 #: the highest frame rate a file may say it has (a GLB's extras fps, a USD's
 #: timeCodesPerSecond): beyond it the report's frame counts mean nothing
 MAX_FPS = 100_000
+#: Godot's importer (and baker's cycles) take a clip as looping when its name, less trailing
+#: digits, spaces and underscores, ends with `_loop`/`-loop`/`_cycle`/`-cycle` or contains
+#: `$loop`/`$cycle`, in any case (`walk_loop`, `Walk-Cycle`, `walk_loop_2`)
 LOOP_RULE = re.compile(r"([_-](loop|cycle)$)|(\$(loop|cycle))", re.IGNORECASE)
 _JOINT_PATHS = ("translation", "rotation", "scale")
 _COMP_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
@@ -449,8 +449,8 @@ def _usd_report(path: Path, validate: bool) -> dict:
     stage = _open_stage(path)
     skeleton, skel = _usd_skeleton(stage)
     fps = stage.GetTimeCodesPerSecond()
-    if not (math.isfinite(fps) and 0 < fps <= MAX_FPS):     # (0: ZeroDivisionError, nan, inf:
-        raise InspectError(f"timeCodesPerSecond = {fps:g}: expected a frame rate in "   # tracebacks)
+    if not (math.isfinite(fps) and 0 < fps <= MAX_FPS):     # (0, nan, inf were tracebacks)
+        raise InspectError(f"timeCodesPerSecond = {fps:g}: expected a frame rate in "
                            f"(0, {MAX_FPS}]", where=str(path))
     from pxr import UsdSkel
 
@@ -530,9 +530,10 @@ def find_gltf_validator() -> Path | None:
     the test tools of a baker checkout, or npm's global folder; None when there is none."""
     def package(folder: Path) -> Path | None:
         for p in (folder, folder / "node_modules" / "gltf-validator"):
-            try:        # (a $BAKER_GLTF_VALIDATOR too long for the file system: ENAMETOOLONG
-                if (p / "package.json").is_file() and p.name == "gltf-validator":   # refused
-                    return p                                                        # the file)
+            # (a $BAKER_GLTF_VALIDATOR too long for the file system: is_file's ENAMETOOLONG)
+            try:
+                if (p / "package.json").is_file() and p.name == "gltf-validator":
+                    return p
             except (OSError, ValueError):
                 continue
         return None

@@ -1921,9 +1921,21 @@ def _check_usd_layers(path: Path) -> None:
     """Before the stage is composed: every layer the file brings in (sublayers, references,
     payloads, recursively) must be a file inside the environment's folder that opens, or a
     layer inside a .usdz package that is such a file."""
+    folder = path.parent.resolve()
+    walk_usd_layers(path, lambda layer, name, dep: _usd_dependency(layer, name, dep, folder,
+                                                                   path),
+                    lambda text: EnvironmentLoadError(text, where=str(path)))
+
+
+def walk_usd_layers(path: Path, follow, error, must_open: bool = True) -> None:
+    """Walk the layers the USD file at `path` brings in (sublayers, references, payloads,
+    recursively) before USD composes them: at most _MAX_USD_LAYERS of them, none nesting
+    prims deeper than MAX_USDA_DEPTH, each one opening (unless not `must_open`: one that does
+    not is then left to Usd.Stage.Open to say). follow(layer, name, dep) is the absolute path
+    of a layer's dependency `dep` to walk next (None: not walked), or raises; error(text) is
+    the exception raised here."""
     from pxr import Ar, Sdf
 
-    folder = path.parent.resolve()
     todo, seen = [str(path.resolve())], set()
     while todo:
         p = todo.pop()
@@ -1931,20 +1943,27 @@ def _check_usd_layers(path: Path) -> None:
             continue
         seen.add(p)
         if len(seen) > _MAX_USD_LAYERS:
-            raise EnvironmentLoadError(f"USD composes more than {_MAX_USD_LAYERS} layers",
-                                       where=str(path))
+            raise error(f"USD composes more than {_MAX_USD_LAYERS} layers")
         outer, inner = Ar.SplitPackageRelativePathInner(p)
         name = Path(outer).name + (f"[{inner}]" if inner else "")
         if not inner and usda_depth(Path(outer)) > MAX_USDA_DEPTH:
-            raise EnvironmentLoadError(f"USD layer {name} nests more than {MAX_USDA_DEPTH} "
-                                       "levels deep (prims in prims)", where=str(path))
-        layer = Sdf.Layer.FindOrOpen(p)
+            raise error(f"USD layer {name} nests more than {MAX_USDA_DEPTH} levels deep (prims "
+                        "in prims)")
+        try:
+            layer = Sdf.Layer.FindOrOpen(p)
+        except Exception:           # pxr's Tf.ErrorException
+            if must_open:
+                raise
+            layer = None
         if layer is None:
-            raise EnvironmentLoadError(f"cannot open USD layer {name}", where=str(path))
+            if must_open:
+                raise error(f"cannot open USD layer {name}")
+            continue
         for dep in layer.GetCompositionAssetDependencies():
             dep = str(dep)
-            if dep:
-                todo.append(_usd_dependency(layer, name, dep, folder, path))
+            target = follow(layer, name, dep) if dep else None
+            if target is not None:
+                todo.append(target)
 
 
 def _usd_dependency(layer, name: str, dep: str, folder: Path, path: Path) -> str:

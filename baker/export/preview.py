@@ -56,16 +56,16 @@ def preview_paths(prefix: Path, gif: bool = False) -> dict[str, Path]:
 def resolve_prefix(glb: Path, out: Path | str | None) -> Path:
     """The pictures' path prefix: beside the GLB (its path less the suffix) by default; an
     existing folder or a value ending in a separator means <folder>/<GLB stem>."""
-    from baker.atomic import _isdir, _special
+    from baker.atomic import is_folder, is_special
     from baker.errors import ExportError
 
     glb = Path(glb)
     if out is None:
         return glb.with_suffix("")
     text = os.fspath(out)
-    if text.endswith(os.sep) or _isdir(Path(text)):
+    if text.endswith(os.sep) or is_folder(Path(text)):
         return Path(text) / glb.stem
-    if _special(Path(text)):    # (--out /dev/null wrote /dev/null_map.png beside the device)
+    if is_special(Path(text)):    # (--out /dev/null wrote /dev/null_map.png beside the device)
         raise ExportError(f"--out {text!r} is a device, pipe or socket, not a path: give a "
                           "folder or a path prefix, e.g. outputs/centipede", where="--out")
     return Path(text)

@@ -63,9 +63,9 @@ def run(environment, agent, cache_dir=None, *, png=None, path_from=None, path_to
             raise ConfigError("--png needs matplotlib: pip install 'baker[debug]'") from None
         if png.parent.exists() and not png.parent.is_dir():
             raise ConfigError(f"--png folder is not a folder: {png.parent}")
-        from baker.atomic import _special
+        from baker.atomic import is_special
 
-        if _special(png):       # (a FIFO there was renamed over)
+        if is_special(png):       # (a FIFO there was renamed over)
             raise ConfigError(f"--png {png.name} is a device, pipe or socket, not a file",
                               where="--png")
     env = load_environment(Path(environment), up_axis=up_axis, units=units)
