@@ -49,11 +49,11 @@ from baker.locomotion.body import ROUND, chain_on, trail_ends
 from baker.locomotion.cobra import lift_profile
 from baker.locomotion.trail_kernels import first_at_or_above
 from baker.navmesh.lazy import LazyNav
-from baker.run.follow import Follower
+from baker.run.follow import Follower, turn_radius
 from baker.run.group import Followers, States
 from baker.run.loop import Clock, make_prey, make_sun, record, start_line
 from baker.run.record import Recorder, RunRecord
-from baker.run.start import choose_start, middle_anchor
+from baker.run.start import FULL_BEHIND, choose_start, middle_anchor, start_score
 from baker.streams import Streams
 
 log = logging.getLogger(__name__)
@@ -64,6 +64,10 @@ AVOID_EVERY = 4
 LIFT_CACHE = 64
 #: start draws per creature before the one farthest from the others is taken
 START_TRIES = 48
+#: walkable samples (evenly taken over the start's component) and headings a creature's
+#: start is searched over when no draw keeps apart from the others (_free_start)
+FREE_SAMPLES = 4096
+FREE_HEADINGS = 16
 
 
 def crowd_separation(rig) -> float:
@@ -82,16 +86,26 @@ def crowd_band(rig, reach: float) -> float:
             + nav.height)
 
 
+def crowd_reach(rig, separation: float, dt: float) -> float:
+    """[m] how far from a head the neighbour query looks for other bodies: `separation`, a
+    quarter of the head's turning radius and how far the fastest head (an onslaught) walks
+    between two queries."""
+    return separation + 0.25 * turn_radius(rig) + 4.0 * AVOID_EVERY * dt * (
+        rig.locomotion.max_speed * rig.behaviour.onslaught_speed)
+
+
 def crowd_starts(nav, env, rig, streams: list[Streams], separation: float, at=None,
-                 heading=None):
+                 heading=None, band: float = np.inf):
     """A start (point, heading) per creature whose straight start body line keeps `separation`
-    from every earlier creature's: draws from the creature's own start stream, near the middle
-    of the scene and farther out as draws fail (the first creature's first draw is a lone
-    creature's start; `at` and `heading`, the bake's --start, apply to it alone).
+    in plan from every earlier creature's on the same storey (within `band` above or below,
+    crowd_band: the neighbour query's; a line on a floor above or below is not in the way):
+    draws from the creature's own start stream, near the middle of the scene and farther out
+    as draws fail (the first creature's first draw is a lone creature's start; `at` and
+    `heading`, the bake's --start, apply to it alone).
     returns [(start (3,), heading (3,))]"""
     length = rig.body.length
     back = np.linspace(length * 1.05, 0, 22)
-    taken = _Taken()
+    taken = _Taken(band)
     out = []
     anchor = middle_anchor(nav, env)
     close = []                      # (creature, gap) of the starts nearer than `separation`
@@ -105,14 +119,20 @@ def crowd_starts(nav, env, rig, streams: list[Streams], separation: float, at=No
                                        spread=rig.wander.radius * (1.0 + attempt / 4.0),
                                        extent_frac=0.2 + 0.3 * attempt / START_TRIES,
                                        anchor=anchor)
-            line = (start[None, :] - head[None, :] * back[:, None])[:, [0, 2]]
-            gap = taken.gap(line)
+            line = start[None, :] - head[None, :] * back[:, None]
+            gap = taken.gap(line, separation)
             if gap > best_gap:
                 best, best_gap = (start, head, line), gap
             if gap >= separation:
                 break
-        if best_gap < separation:
+        # the draws found no room: search the whole level (once it has none, the creatures
+        # after have none either)
+        free = None
+        if best_gap < separation and not close:
+            free = _free_start(nav, anchor, length, back, taken, separation)
+        if best_gap < separation and free is None:
             close.append((len(out), best_gap))
+        best = best if free is None else free
         out.append(best[:2])
         taken.add(best[2])
     if close:                       # one line, however many (a big crowd on a small level)
@@ -122,29 +142,93 @@ def crowd_starts(nav, env, rig, streams: list[Streams], separation: float, at=No
     return out
 
 
+def _free_start(nav, anchor: np.ndarray, length: float, back: np.ndarray, taken: "_Taken",
+                separation: float):
+    """(start, heading, line) of a start that keeps `separation` from every line taken (on the
+    same storey), or None: over FREE_SAMPLES walkable samples of the anchor's component and
+    FREE_HEADINGS headings each, one whose straight body line behind is walkable all along
+    (run.start.start_score), the most room ahead first, then the nearest the anchor. Where
+    the draws near the middle found no room (a small level's few roomy spots, a tower's
+    floors), this finds any that is left."""
+    comp = nav.component_of(anchor)
+    idx = np.flatnonzero(nav.component == comp)
+    if not len(idx):
+        return None
+    idx = idx[np.unique(np.linspace(0, len(idx) - 1, min(len(idx), FREE_SAMPLES)).astype(int))]
+    starts = nav.positions[idx].astype(np.float64)
+    angles = np.linspace(0.0, 2.0 * np.pi, FREE_HEADINGS, endpoint=False)
+    dirs = np.stack([np.sin(angles), np.zeros_like(angles), np.cos(angles)], axis=1)
+    score = start_score(nav, starts, dirs, length)                    # (k, headings)
+    k, h = np.divmod(np.arange(score.size), FREE_HEADINGS)
+    lines = starts[k][:, None, :] - dirs[h][:, None, :] * back[None, :, None]   # (c, m, 3)
+    free = taken.clear(lines.reshape(-1, 3), separation).reshape(len(k), len(back)).all(axis=1)
+    free &= score.reshape(-1) >= FULL_BEHIND
+    if not free.any():
+        return None
+    far = np.linalg.norm(starts[k] - anchor[None, :], axis=1)
+    c = np.flatnonzero(free)
+    c = c[np.lexsort((far[c], -score.reshape(-1)[c]))[0]]
+    return starts[k[c]], dirs[h[c]], lines[c]
+
+
 class _Taken:
     """The start lines of the creatures placed so far (crowd_starts): a tree over most of
-    them, rebuilt as RECENT more points gather, and the newest measured one by one."""
+    them (in plan), rebuilt as RECENT more points gather, and the newest measured one by one.
+    Points more than `band` above or below a line's point are on another storey: not near it.
+    """
 
     RECENT = 512
 
-    def __init__(self):
-        self.points = np.zeros((0, 2))
+    def __init__(self, band: float = np.inf):
+        self.band = float(band)
+        self.points = np.zeros((0, 3))
         self.tree, self.in_tree = None, 0
 
     def add(self, line: np.ndarray) -> None:
         self.points = np.vstack([self.points, line])
         if len(self.points) - self.in_tree > self.RECENT:
-            self.tree, self.in_tree = cKDTree(self.points), len(self.points)
+            self.tree, self.in_tree = cKDTree(self.points[:, [0, 2]]), len(self.points)
 
-    def gap(self, line: np.ndarray) -> float:
-        """The least distance from a point of `line` (k, 2) to a point taken (inf: none)."""
-        gap = np.inf if self.tree is None else float(self.tree.query(line)[0].min())
+    def gap(self, line: np.ndarray, limit: float = np.inf) -> float:
+        """The least plan distance from a point of `line` (k, 3) to a point taken within
+        `band` of its height, when under `limit` (inf: none nearer)."""
+        plan = line[:, [0, 2]]
+        gap = np.inf
+        if self.tree is not None:
+            near = self.tree.query_ball_point(plan, limit) if np.isfinite(limit) else [
+                list(range(self.in_tree))] * len(line)
+            lens = np.fromiter(map(len, near), np.intp, len(near))
+            if lens.sum():
+                idx = np.fromiter(itertools.chain.from_iterable(near), np.intp, int(lens.sum()))
+                gap = _least(line[np.repeat(np.arange(len(line)), lens)], self.points[idx],
+                             self.band, limit)
         recent = self.points[self.in_tree:]
         if len(recent):
-            d = line[:, None, :] - recent[None, :, :]
-            gap = min(gap, float(np.sqrt((d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]).min())))
+            a = np.repeat(line, len(recent), axis=0)
+            gap = min(gap, _least(a, np.tile(recent, (len(line), 1)), self.band, limit))
         return gap
+
+    def clear(self, points: np.ndarray, separation: float) -> np.ndarray:
+        """(n,) bool: no point taken within `band` of each point's height is nearer than
+        `separation` to it in plan (points (n, 3))."""
+        taken = self.points
+        if not len(taken):
+            return np.ones(len(points), bool)
+        near = cKDTree(taken[:, [0, 2]]).query_ball_point(points[:, [0, 2]], separation)
+        lens = np.fromiter(map(len, near), np.intp, len(near))
+        idx = np.fromiter(itertools.chain.from_iterable(near), np.intp, int(lens.sum()))
+        who = np.repeat(np.arange(len(points)), lens)
+        d = np.hypot(points[who, 0] - taken[idx, 0], points[who, 2] - taken[idx, 2])
+        close = (np.abs(points[who, 1] - taken[idx, 1]) <= self.band) & (d < separation)
+        return np.bincount(who[close], minlength=len(points)) == 0
+
+
+def _least(a: np.ndarray, b: np.ndarray, band: float, limit: float) -> float:
+    """The least plan distance between paired points a[i], b[i] (m, 3) within `band` of each
+    other's height and under `limit` (inf: none)."""
+    d = np.sqrt((a[:, 0] - b[:, 0]) ** 2 + (a[:, 2] - b[:, 2]) ** 2)
+    d = d[(np.abs(a[:, 1] - b[:, 1]) <= band) & (d < limit)]
+    return float(d.min()) if len(d) else np.inf
 
 
 def tail_points(rig) -> int:
@@ -246,8 +330,11 @@ def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
     (cfg.prey, spawned around creature 0 from its prey streams, as for a lone creature)."""
     rig = cfg.rig
     sep = crowd_separation(rig) if separation is None else float(separation)
+    clock = Clock(cfg)
+    reach = crowd_reach(rig, sep, clock.dt)
+    band = crowd_band(rig, reach)
     streams = [Streams(seed, creature=i) for i in range(n)]
-    starts = crowd_starts(nav, env, rig, streams, sep, cfg.start, cfg.start_heading)
+    starts = crowd_starts(nav, env, rig, streams, sep, cfg.start, cfg.start_heading, band)
     sun = make_sun(cfg, env)
     claims = Claims(rig.behaviour.shade_spot_spacing)
     follows = [Follower(nav, env.rays, s, h, rig, fps=cfg.fps) for s, h in starts]
@@ -256,7 +343,6 @@ def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
     preys = make_prey(cfg, env, nav, streams[0], sun, starts[0][0])
     brains = [Brain(rig, nav, env.rays, sun, st.get("brain"), preys, mode=cfg.behaviour,
                     cobra_mode=cfg.cobra, claims=claims, who=i) for i, st in enumerate(streams)]
-    clock = Clock(cfg)
     lines = [start_line(nav, rig, s, h) for s, h in starts]
     # a raised cobra's amount stays at 1 (and the bodies are placed every few steps): the
     # profiles of the last amounts are kept (Bodies copies them)
@@ -274,9 +360,6 @@ def run_crowd(cfg: BakeConfig, env, nav, seed: int, n: int, ctx: Context,
     ramp = clock.dt / rig.cobra.ramp_time
     wants = [b.intent() for b in brains]
     cobra = np.array([w.cobra for w in wants])
-    reach = sep + 0.25 * max(f.turn_radius for f in follows) + 4.0 * AVOID_EVERY * clock.dt * (
-        rig.locomotion.max_speed * rig.behaviour.onslaught_speed)
-    band = crowd_band(rig, reach)
     group = Followers(follows, clock.dt, workers, lazy=isinstance(nav, LazyNav))
     state = group.states
     sample(0, recs, prey_rec, holder, wants, preys, brains, cobra, state)

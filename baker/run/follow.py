@@ -81,6 +81,12 @@ SLOPE_PROBE = 0.05
 _DOWN = np.array([[0.0, -1.0, 0.0]])
 
 
+def turn_radius(rig: RigConfig) -> float:
+    """[m] the head's turning radius (its pure pursuit's lead too): the agent's radius, at
+    least three spacings."""
+    return max(rig.navigation.radius, 3.0 * rig.body.spacing)
+
+
 class Follower:
     """The navigation agent and the head that follows it.
 
@@ -94,7 +100,7 @@ class Follower:
         body, loco, navc = rig.body, rig.locomotion, rig.navigation
         self.nav, self.rays = nav, rays
         self.max_speed = loco.max_speed
-        self.turn_radius = max(navc.radius, 3.0 * body.spacing)
+        self.turn_radius = turn_radius(rig)
         self.tol = 0.5 * navc.height     # vertical reach of a layer lookup
         self.max_grade = math.tan(navc.max_slope) + 1e-9    # the steepest walkable rise a metre
         self.probe = 0.5 * navc.height   # floor search above and below the head off the surface

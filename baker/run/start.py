@@ -20,6 +20,8 @@ WIDE_DRAWS = 56
 _BEHIND = np.linspace(0.0, 1.0, 9)
 _AHEAD = -AHEAD * np.arange(1, 5) / 4
 _FULL = len(_BEHIND) * 10 + len(_AHEAD)
+#: the least start_score of a start whose body line behind is walkable all along
+FULL_BEHIND = len(_BEHIND) * 10
 
 
 def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None, heading=None,
@@ -67,12 +69,18 @@ def _best_heading(nav, start: np.ndarray, body_length: float, rng) -> tuple[int,
     the body line behind, then ahead. returns (score, heading (3,))"""
     angles = rng.uniform(0, 2 * np.pi) + np.linspace(0, 2 * np.pi, 16, endpoint=False)
     dirs = np.stack([np.sin(angles), np.zeros_like(angles), np.cos(angles)], axis=1)
-    d = body_length * np.concatenate([_BEHIND, _AHEAD])
-    pts = start[None, None, :] - dirs[:, None, :] * d[None, :, None]
-    ok = nav.is_walkable(pts.reshape(-1, 3)).reshape(len(dirs), len(d))
-    score = ok[:, :len(_BEHIND)].sum(axis=1) * 10 + ok[:, len(_BEHIND):].sum(axis=1)
+    score = start_score(nav, start[None, :], dirs, body_length)[0]
     i = int(np.argmax(score))
     return int(score[i]), dirs[i]
+
+
+def start_score(nav, starts: np.ndarray, dirs: np.ndarray, body_length: float) -> np.ndarray:
+    """(k, h) how walkable each start (k, 3) is with each heading (h, 3): ten a walkable
+    sample of the straight body line behind, one a sample of the room ahead (_FULL: all)."""
+    d = body_length * np.concatenate([_BEHIND, _AHEAD])
+    pts = starts[:, None, None, :] - dirs[None, :, None, :] * d[None, None, :, None]
+    ok = nav.is_walkable(pts.reshape(-1, 3)).reshape(len(starts), len(dirs), len(d))
+    return ok[..., :len(_BEHIND)].sum(axis=-1) * 10 + ok[..., len(_BEHIND):].sum(axis=-1)
 
 
 def middle_anchor(nav, env) -> np.ndarray | None:

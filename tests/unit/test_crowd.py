@@ -113,6 +113,75 @@ def test_a_crowd_too_big_for_its_level_is_one_warning(caplog):
     assert len(records) == 1 and records[0].getMessage().split()[2] == "40"
 
 
+def _start_lines(starts) -> list[np.ndarray]:
+    back = np.linspace(1.05 * RIG.body.length, 0, 22)
+    return [s[None] - h[None] * back[:, None] for s, h in starts]
+
+
+def _plan_gap(a: np.ndarray, b: np.ndarray) -> float:
+    return float(cdist(a[:, [0, 2]], b[:, [0, 2]]).min())
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_starts_on_a_floor_above_another_are_not_in_its_way(seed, caplog):
+    """A two-storey scene (a floor 0.4 m over the lower one, a ramp between): ten creatures
+    start apart on each storey, some over one another, and no warning. The start lines were
+    kept apart in plan only, so a line on the other floor was in the way: the starts said the
+    level had little room for them (on every seed here), and on Three.js's tower level at 8x a
+    crowd of 6 started two creatures side by side (0.23 m apart, 2 m bodies) that stayed
+    locked together, each one's legs through the other's body in every frame."""
+    from baker.run.crowd import crowd_band, crowd_reach
+    from test_navmesh_scenes import quad
+
+    env = env_of(floor(0.0, 0.4, 0.0, 0.6),
+                 quad((0.4, 0, 0), (0.4, 0, 0.2), (1.1, 0.4, 0.2), (1.1, 0.4, 0)),
+                 floor(1.1, 1.3, 0.0, 0.6, y=0.4), box((0.0, 0.38, 0.25), (1.1, 0.4, 0.6)))
+    sep = crowd_separation(RIG)
+    band = crowd_band(RIG, crowd_reach(RIG, sep, 1.0 / SIM_RATE_HZ))
+    assert band < 0.38
+    starts = crowd_starts(nav_of(env), env, RIG, [Streams(seed, creature=i) for i in range(10)],
+                          sep, band=band)
+    assert not [r for r in caplog.records if "start nearer another" in r.getMessage()]
+    lines = _start_lines(starts)
+    stacked = 0
+    for i in range(len(lines)):
+        for j in range(i):
+            storey = abs(lines[i][0, 1] - lines[j][0, 1]) <= band
+            assert not storey or _plan_gap(lines[i], lines[j]) >= sep
+            stacked += not storey and _plan_gap(lines[i], lines[j]) < sep
+    assert stacked
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_where_the_draws_find_no_room_the_level_is_searched_for_it(seed, caplog):
+    """Twelve creatures in a 0.9 m room: the draws near the middle run out of room before the
+    room does (the last creatures took the nearest of their draws, beside another, and the
+    bake said the level had little room); the starts are then searched for over the whole
+    surface (run.crowd._free_start), and every creature starts apart with its body line on
+    walkable ground."""
+    from baker.run import crowd
+
+    env = env_of(floor(0.0, 0.9, 0.0, 0.9))
+    nav = nav_of(env)
+    sep = crowd_separation(RIG)
+    streams = [Streams(seed, creature=i) for i in range(12)]
+    starts = crowd_starts(nav, env, RIG, streams, sep)
+    assert not [r for r in caplog.records if "start nearer another" in r.getMessage()]
+    lines = _start_lines(starts)
+    for i in range(len(lines)):
+        assert nav.is_walkable(lines[i][1:]).all()
+        for j in range(i):
+            assert _plan_gap(lines[i], lines[j]) >= sep
+    # the draws alone leave one near another
+    free_start = crowd._free_start
+    try:
+        crowd._free_start = lambda *a, **k: None
+        crowd_starts(nav, env, RIG, streams, sep)
+    finally:
+        crowd._free_start = free_start
+    assert [r for r in caplog.records if "start nearer another" in r.getMessage()]
+
+
 def test_the_first_creature_starts_where_a_lone_creature_does(plane):
     env, nav = plane
     from baker.run.start import choose_start
@@ -337,20 +406,32 @@ def test_the_avoidance_test_is_every_point_measured_while_the_base_moves_on():
 
 def test_the_start_gap_is_the_nearest_taken_point_over_every_line_taken():
     """crowd_starts measures a candidate start line against the lines already taken in a tree
-    rebuilt every _Taken.RECENT points and the newest one by one: the gap is the least
-    distance to any point taken, bit for bit, as the tree over all of them gives it."""
-    from scipy.spatial import cKDTree
-
+    rebuilt every _Taken.RECENT points and the newest one by one: the gap is the least plan
+    distance to any point taken within the storey band of its height (under the limit asked
+    for; none: inf), as the distances to all of them give it."""
     rng = np.random.default_rng(4)
-    taken = _Taken()
-    points = np.zeros((0, 2))
+    band, limit = 0.5, 0.4
+    taken, wide = _Taken(band), _Taken()
+    points = np.zeros((0, 3))
+    seen = set()
     for k in range(120):
-        line = rng.uniform(0.0, 3.0, (23, 2))
+        # a straight line a metre long on one of three storeys 3 m apart, a little sloped
+        a, h = rng.uniform(0.0, 2.0 * np.pi), 3.0 * rng.integers(0, 3)
+        line = (rng.uniform(0.0, 6.0, 3) * [1.0, 0.0, 1.0] + [0.0, h, 0.0]
+                + np.linspace(0.0, 1.0, 23)[:, None] * [np.cos(a), rng.uniform(-0.3, 0.3),
+                                                        np.sin(a)])
         if k:
-            want = float(cKDTree(points).query(line)[0].min())
-            assert taken.gap(line) == want
+            d = cdist(line[:, [0, 2]], points[:, [0, 2]])
+            same = np.abs(line[:, 1][:, None] - points[:, 1][None, :]) <= band
+            assert wide.gap(line) == pytest.approx(float(d.min()), abs=1e-12)
+            d = d[same & (d < limit)]
+            want = float(d.min()) if len(d) else np.inf
+            assert taken.gap(line, limit) == pytest.approx(want, abs=1e-12)
+            seen.add(np.isfinite(want))
         else:
-            assert taken.gap(line) == np.inf
+            assert taken.gap(line, limit) == np.inf and wide.gap(line) == np.inf
         taken.add(line)
+        wide.add(line)
         points = np.vstack([points, line])
+    assert seen == {True, False}
     assert taken.tree is not None and 0 < taken.in_tree < len(points)
