@@ -313,6 +313,19 @@ def _azimuth_rate(light: dict) -> float:
     return math.radians(max(-360.0, min(360.0, float(rate))))
 
 
+def light_direction(world: np.ndarray) -> np.ndarray | None:
+    """The unit direction a light node's world matrix (4, 4) turns its +Z to, or None when it
+    has none (a zero or non-finite scale). A scale whose square passes a float (1e300) still
+    has its direction: the norm overflowed to inf and the direction came out 0 (a traceback
+    when the sun was written)."""
+    d = world[:3, :3] @ np.array([0.0, 0.0, 1.0])
+    n = float(np.linalg.norm(d))
+    if math.isinf(n) and np.all(np.isfinite(d)):
+        d = d / np.max(np.abs(d))
+        n = float(np.linalg.norm(d))
+    return d / n if math.isfinite(n) and n > 1e-12 else None
+
+
 def _unit_direction(d, path, what) -> np.ndarray:
     d = np.asarray(d, dtype=np.float64).reshape(-1)
     n = float(np.linalg.norm(d)) if d.shape == (3,) else 0.0
@@ -1164,9 +1177,9 @@ class _GltfReader:
             if light_ref is not None:
                 light = lights[light_ref["light"]]
                 if light.get("type") == "directional":
-                    d = world[:3, :3] @ np.array([0.0, 0.0, 1.0])
-                    if np.linalg.norm(d) > 1e-12:
-                        suns.append(Sun(direction=d / np.linalg.norm(d),
+                    d = light_direction(world)
+                    if d is not None:
+                        suns.append(Sun(direction=d,
                                         intensity=float(light.get("intensity", 1.0)),
                                         color=tuple(float(c) for c in
                                                     light.get("color", [1.0, 1.0, 1.0])),
@@ -2212,10 +2225,10 @@ def _usd_traverse(stage, fix: np.ndarray, time, path: Path) -> tuple[list, list]
         if prim.IsA(UsdLux.DistantLight):
             light = UsdLux.DistantLight(prim)
             world = fix @ _usd_matrix(cache.GetLocalToWorldTransform(prim))
-            d = world[:3, :3] @ np.array([0.0, 0.0, 1.0])
-            if np.linalg.norm(d) > 1e-12:
+            d = light_direction(world)
+            if d is not None:
                 inten, color = _usd_light(light, time, path)
-                suns.append(Sun(direction=d / np.linalg.norm(d), intensity=inten, color=color))
+                suns.append(Sun(direction=d, intensity=inten, color=color))
             continue
         into = proxies if purpose == UsdGeom.Tokens.proxy else raw
         if prim.IsA(UsdGeom.PointInstancer):   # its prototypes are drawn only where it places them

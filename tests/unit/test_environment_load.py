@@ -166,6 +166,30 @@ def test_glb_directional_light_gives_sun(tmp_path):
     assert env2.sun.intensity == pytest.approx(2.5)
 
 
+@pytest.mark.parametrize("scale", [1.0, 1e200, 1e300])
+def test_a_light_scaled_past_a_float_keeps_its_direction(scale, tmp_path):
+    """A sun node, or a DistantLight, scaled 1e300: the length of its +Z overflowed to inf and
+    the sun's direction came out (0, 0, 0), a traceback when the GLB's light was written."""
+    a = np.radians(-60.0)
+    q = [np.sin(a / 2), 0.0, 0.0, np.cos(a / 2)]
+    expect = [0.0, np.sin(np.pi / 3), np.cos(np.pi / 3)]
+    nodes = [{"name": "ground", "mesh": 0, "_root": True},
+             {"name": "sun", "rotation": q, "scale": [scale] * 3, "_root": True,
+              "extensions": {"KHR_lights_punctual": {"light": 0}}}]
+    p = tmp_path / "lit.glb"
+    p.write_bytes(_triangle_glb(nodes, QUAD, QUAD_IDX, lights=[{"type": "directional"}]))
+    np.testing.assert_allclose(load_environment(p).sun.direction, expect, atol=1e-9)
+    u = tmp_path / "lit.usda"
+    u.write_text('#usda 1.0\n(\n    upAxis = "Y"\n    metersPerUnit = 1\n)\n'
+                 'def Mesh "floor"\n{\n    int[] faceVertexCounts = [3, 3]\n'
+                 '    int[] faceVertexIndices = [0, 2, 1, 0, 3, 2]\n'
+                 '    point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 0, 1), (0, 0, 1)]\n}\n'
+                 'def DistantLight "sun"\n{\n    float3 xformOp:rotateXYZ = (-60, 0, 0)\n'
+                 f'    double3 xformOp:scale = ({scale}, {scale}, {scale})\n'
+                 '    uniform token[] xformOpOrder = ["xformOp:rotateXYZ", "xformOp:scale"]\n}\n')
+    np.testing.assert_allclose(load_environment(u).sun.direction, expect, atol=1e-6)
+
+
 def test_sun_override_without_light(tmp_path):
     p = tmp_path / "a.stl"
     _tri_mesh().export(p)
