@@ -29,7 +29,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from baker import signals
-from baker.errors import ExportError
+from baker.errors import ExportError, utf8_text
 
 #: File name used when `--out` names a folder.
 DEFAULT_NAME = "centipede"
@@ -157,6 +157,11 @@ def resolve_out(out) -> Path:
     return path
 
 
+#: the outputs USD writes: it takes their paths as UTF-8 text (a name holding a byte that is
+#: not, which Linux allows, was a UnicodeEncodeError traceback once the bake was done)
+USD_EXTENSIONS = (".usd", ".usda", ".usdc")
+
+
 def is_special(path: Path) -> bool:
     """Whether `path` is there and is neither a folder nor a regular file (`--out /dev/null`
     wrote /dev/null.glb, /dev/null.usd and /dev/null.json beside the device)."""
@@ -189,6 +194,9 @@ def check_outputs(paths: Mapping[str, Path] | Path) -> None:
     for p in paths.values():
         if not p.name or p.name in (".", ".."):
             raise ExportError(f"output path {str(p)!r} has no file name")
+        if p.suffix.lower() in USD_EXTENSIONS and utf8_text(str(p)) != str(p):
+            raise ExportError(f"cannot write {p}: USD writes only paths that are UTF-8 text "
+                              "(a byte of this one is not)")
     for folder in sorted({_folder(p) for p in paths.values()}):
         limit = _name_max(folder)
         for p in paths.values():

@@ -65,6 +65,24 @@ class JobsFileError(ConfigError):
     max_line = 20_000
 
 
+def exception_text(exc: BaseException) -> str:
+    """str(exc), or a sentence saying the message could not be read: pxr's Tf.ErrorException
+    decodes USD's messages as UTF-8 in str(), and a layer holding Latin-1 text (a prim named
+    "fl\\xe9or") made that raise UnicodeDecodeError, a traceback in place of the error line."""
+    try:
+        return str(exc)
+    except UnicodeError:
+        return "the reader's message is not UTF-8 text (does the file hold text in another " \
+               "encoding than UTF-8?)"
+
+
+def utf8_text(s: str) -> str:
+    """s with what UTF-8 cannot encode written as its escape: a file name's undecodable byte
+    (Linux allows any; Python holds it as a lone surrogate) becomes \\udcff, as a JSON report
+    writes it."""
+    return s.encode("utf-8", "backslashreplace").decode("utf-8")
+
+
 def one_line(text: str, limit: int = _MAX_LINE) -> str:
     """Whitespace (newlines included) collapsed to single spaces, cut at `limit` characters."""
     s = " ".join(str(text).split())
@@ -79,12 +97,12 @@ def short_path(name: str, limit: int = 60) -> str:
 
 
 def format_error(exc: BaseException, where: str | None = None) -> str:
-    """The single stderr line for a user error: `Error: <what> (<where>)`."""
-    what = exc.what if isinstance(exc, BakerError) else str(exc)
+    """The single stderr line for a user error: `Error: <what> (<where>)`, in UTF-8 text
+    (utf8_text: a stream that encodes strictly raised UnicodeEncodeError on a path's
+    undecodable byte)."""
+    what = exc.what if isinstance(exc, BakerError) else exception_text(exc)
     what = one_line(what, getattr(exc, "max_line", _MAX_LINE)) or type(exc).__name__
     where = where if where is not None else getattr(exc, "where", None)
-    if where:
-        w = one_line(where)
-        if w and f"({w})" not in what:
-            return f"Error: {what} ({w})"
-    return f"Error: {what}"
+    w = one_line(where) if where else ""
+    line = f"Error: {what} ({w})" if w and f"({w})" not in what else f"Error: {what}"
+    return utf8_text(line)

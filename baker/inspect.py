@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from baker.errors import BakerError
+from baker.errors import BakerError, exception_text
 from baker.geometry.transforms import quat_conj, quat_mul
 
 #: a foot within this many body lengths of the surface is touching it
@@ -428,7 +428,7 @@ def read_usd(path: str | Path, creature: int = 0) -> BakedScene:
     try:
         stage = open_stage(path)
     except Tf.ErrorException as e:  # a corrupt file (--judge's USD beside the GLB: a traceback)
-        reason = " ".join(str(e).split()).rpartition(" : ")[2].strip("'") or "USD error"
+        reason = " ".join(exception_text(e).split()).rpartition(" : ")[2].strip("'") or "USD error"
         raise InspectError(f"cannot open the USD stage: {reason[:200]}", where=str(path)) \
             from None
     if stage is None:

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from baker.errors import exception_text
 from baker.inspect import InspectError, glb_extras, open_stage, strict_json
 
 #: file types, by suffix
@@ -361,7 +362,7 @@ def _open_stage(path: Path):
 
 def _pxr_text(exc: Exception) -> str:
     """One short line from a pxr exception (its text carries C++ source locations)."""
-    text = " ".join(str(exc).split())
+    text = " ".join(exception_text(exc).split())
     m = re.search(r"in file \S+ : (.*?)(?= Error in '|$)", text)
     return (m.group(1).strip().strip("'") if m else text)[:200] or type(exc).__name__
 

@@ -52,7 +52,7 @@ import numpy as np
 
 from baker.environment import gltf_ext, gltf_pose, native
 from baker.environment.model import EnvMesh, Environment, Sun
-from baker.errors import EnvironmentLoadError
+from baker.errors import EnvironmentLoadError, exception_text
 from baker.geometry import polygons
 from baker.geometry.transforms import cross, length
 
@@ -235,7 +235,7 @@ def _quiet():
 
 def _error_text(exc: Exception) -> str:
     """One short line from a parser exception (pxr's messages carry C++ source locations)."""
-    text = " ".join(str(exc).split())
+    text = " ".join(exception_text(exc).split())
     m = re.search(r"in file \S+ : (.*?)(?= Error in '|$)", text)
     if m:
         text = m.group(1).strip().strip("'")

@@ -49,7 +49,7 @@ import numpy as np
 
 from baker.clip import Clip
 from baker.environment.model import Environment
-from baker.errors import ExportError
+from baker.errors import ExportError, exception_text, utf8_text
 from baker.export import checked_mesh, creature_label, environment_parts, jsonable, safe_name
 from baker.geometry.transforms import light_rotation
 from baker.atomic import atomic_output
@@ -72,15 +72,19 @@ def _matrices(m: np.ndarray):
 
 
 def _custom_data_value(v):
-    """USD customData holds dict/str/int/float/bool; anything else becomes a JSON string."""
+    """USD customData holds dict/str/int/float/bool; anything else becomes a JSON string. Text
+    is stored as UTF-8 (utf8_text: a --rig path holding a byte that is not was a
+    UnicodeEncodeError traceback)."""
     if isinstance(v, bool) or v is None:
         return v if v is not None else "null"
     if isinstance(v, int):
         return v if -2 ** 63 <= v < 2 ** 63 else str(v)
-    if isinstance(v, (float, str)):
+    if isinstance(v, float):
         return v
+    if isinstance(v, str):
+        return utf8_text(v)
     if isinstance(v, dict):
-        return {str(k): _custom_data_value(x) for k, x in v.items()}
+        return {utf8_text(str(k)): _custom_data_value(x) for k, x in v.items()}
     return json.dumps(v, separators=(",", ":"), allow_nan=False)
 
 
@@ -572,7 +576,7 @@ def _export_layer(stage, tmp: Path, path: Path) -> None:
 def usd_error_reason(error: Exception) -> str:
     """The first reason in a pxr Tf.ErrorException (its text lists every error USD posted,
     each as "Error in '<function>' at line <n> in file <file> : '<reason>'")."""
-    for line in str(error).splitlines():
+    for line in exception_text(error).splitlines():
         reason = line.partition(" : ")[2].strip().strip("'")
         if reason:
             return reason

@@ -214,6 +214,25 @@ def test_latin1_obj_bakes(tmp_path, capsys):
     assert (tmp_path / "o" / "c.glb").stat().st_size > 0
 
 
+def test_a_rig_whose_name_is_not_utf8_bakes(tmp_path, capsys):
+    """A --rig path holding a byte that is not UTF-8 (Linux allows it): the USD's custom data
+    keeps the path, and USD raised UnicodeEncodeError on it (a traceback after the bake). The
+    byte is stored as its escape, as in the JSON report."""
+    from baker.config import DEFAULT_RIG
+
+    scene, rig = tmp_path / "scene.glb", tmp_path / os.fsdecode(b"r\xff.toml")
+    scene.write_bytes(bad_inputs.good_glb())
+    rig.write_bytes(DEFAULT_RIG.read_bytes())
+    code = main(["bake", str(scene), "--rig", str(rig), "--out", str(tmp_path / "o" / "c"),
+                 "--seconds", "1", "--no-cache"])
+    assert code == 0, capsys.readouterr().err
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(str(tmp_path / "o" / "c.usd"))
+    source = stage.GetPrimAtPath("/World").GetCustomData()["rig"]["source"]
+    assert source.endswith("r\\udcff.toml"), source
+
+
 def test_one_key_sun_path_is_a_fixed_sun(tmp_path):
     """A --sun-path of one key is a fixed sun: used by the creature and written to both files
     like --sun."""

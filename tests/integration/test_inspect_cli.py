@@ -328,6 +328,9 @@ BROKEN = {
     "crate_section_start": (lambda d, b: _put(d / "s.usdc", bad_inputs.crate_section_flipped()),
                             "USD"),
     "no_skeleton_usd": (lambda d, b: _env_only_usd(d), "no UsdSkel Skeleton"),
+    # a prim named in Latin-1: pxr's error could not be turned into text (UnicodeDecodeError)
+    "latin1_usda": (lambda d, b: _put(d / "l.usda", b'#usda 1.0\ndef Xform "fl\xe9"\n{\n}\n'),
+                    "not UTF-8 text"),
     "garbage_json": (lambda d, b: _put(d / "g.json", b"\xff\xfe{"), "not JSON"),
     "other_json": (lambda d, b: _put(d / "o.json", b'{"a": 1}'), "not a baker report"),
     "deep_json": (lambda d, b: _put(d / "deep.json", b"[" * 100_000 + b"]" * 100_000),

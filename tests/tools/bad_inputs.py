@@ -813,6 +813,10 @@ def _usd_cases():
                                   "p.usda": None},
         "sublayer_link_loop": lambda: {"level.usda": usd_text(
             extra="    subLayers = [@l.usda@]\n"), "l.usda": LOOP},
+        # a prim named in Latin-1 (USD takes UTF-8): USD's error message could not be decoded
+        # (UnicodeDecodeError in str() of pxr's exception: a traceback)
+        "prim_name_latin1": lambda: {"level.usda": usd_text().encode().replace(
+            b'"floor"', b'"fl\xe9or"')},
     }
     def inside(sub):
         return usd_text(extra=f"    subLayers = [@{sub}@]\n")
@@ -1133,6 +1137,11 @@ def _option_cases():
     # an output that is a FIFO (the bake was renamed over it)
     cases.append(Case("opt_out_glb_fifo", lambda f: [
         os.mkfifo(f / "q.glb"), "--out", f / "q"][1:]))
+    # an output name holding a byte that is not UTF-8 (Linux allows it; USD takes UTF-8
+    # paths: a UnicodeEncodeError traceback once the bake was done)
+    cases.append(Case("opt_out_not_utf8", lambda f: [
+        (f / "level.glb").write_bytes(good_glb()) and f / "level.glb",
+        "--out", f / os.fsdecode(b"c\xff")]))
     # a tolerance under what the stored values can hold: refused after the bake, naming it
     # (the line said neither the option nor where)
     cases.append(Case("opt_tolerance_1e-300", lambda f: [
