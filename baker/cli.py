@@ -93,11 +93,28 @@ units_option = click.option(
          "file's own]")
 
 
+def check_numba_threads() -> None:
+    """NUMBA_NUM_THREADS, which numba reads when baker's kernels are first imported, must be a
+    whole number of at least 1: 0 was a ValueError traceback, a word a warning of many lines
+    (numba's own traceback among them) before the bake went on."""
+    text = os.environ.get("NUMBA_NUM_THREADS")
+    if text is None:
+        return
+    try:
+        ok = int(text) >= 1
+    except ValueError:
+        ok = False
+    if not ok:
+        raise ConfigError(f"NUMBA_NUM_THREADS = {text[:40]!r}: expected a whole number of at "
+                          "least 1, or leave it unset", where="environment variable")
+
+
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="baker")
 @click.option("-v", "--verbose", count=True, help="More log output (-vv for debug).")
 def cli(verbose: int):
     """baker: bake a procedural centipede walking over an environment into GLB and USD."""
+    check_numba_threads()
     level = logging.WARNING - 10 * min(verbose, 2)
     logging.getLogger().setLevel(level)
     if verbose:  # asked for: logs go out as they come (not held back until the end)

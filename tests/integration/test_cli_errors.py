@@ -160,3 +160,17 @@ def test_standard_output_on_a_full_disk_is_one_line(args, tmp_path, nav_cache_di
     assert len(lines) == 1 and lines[0].startswith("Error: cannot write to standard output"), lines
     if args[0] == "bake":
         assert out.with_suffix(".glb").stat().st_size > 0 and out.with_suffix(".json").exists()
+
+
+@pytest.mark.parametrize("value", ["0", "-2", "abc", ""])
+def test_a_bad_numba_thread_count_is_one_line(value, tmp_path):
+    """NUMBA_NUM_THREADS, read by numba as baker's kernels are imported: 0 was a ValueError
+    traceback, a word a warning of many lines (numba's traceback in it) before the bake went on.
+    Refused before any work, nothing written."""
+    import os
+
+    r = subprocess.run([sys.executable, "-m", "baker", "bake", "--seconds", "1", "--out",
+                        str(tmp_path / "o" / "c"), "--no-cache"], capture_output=True, text=True,
+                       env={**os.environ, "NUMBA_NUM_THREADS": value}, timeout=600)
+    assert_user_error(r.returncode, r.stderr, "NUMBA_NUM_THREADS")
+    assert listing(tmp_path) == []
