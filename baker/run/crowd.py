@@ -53,7 +53,8 @@ from baker.run.follow import Follower, turn_radius
 from baker.run.group import Followers, States
 from baker.run.loop import Clock, make_prey, make_sun, record, start_line
 from baker.run.record import Recorder, RunRecord
-from baker.run.start import FULL_BEHIND, choose_start, middle_anchor, start_score
+from baker.run.start import (choose_start, full_behind, middle_anchor, start_score,
+                              tail_reach)
 from baker.streams import Streams
 
 log = logging.getLogger(__name__)
@@ -118,7 +119,7 @@ def crowd_starts(nav, env, rig, streams: list[Streams], separation: float, at=No
                                        heading if first else None,
                                        spread=rig.wander.radius * (1.0 + attempt / 4.0),
                                        extent_frac=0.2 + 0.3 * attempt / START_TRIES,
-                                       anchor=anchor)
+                                       anchor=anchor, tail=tail_reach(rig))
             line = start[None, :] - head[None, :] * back[:, None]
             gap = taken.gap(line, separation)
             if gap > best_gap:
@@ -129,7 +130,7 @@ def crowd_starts(nav, env, rig, streams: list[Streams], separation: float, at=No
         # after have none either)
         free = None
         if best_gap < separation and not close:
-            free = _free_start(nav, anchor, length, back, taken, separation)
+            free = _free_start(nav, anchor, length, back, taken, separation, tail_reach(rig))
         if best_gap < separation and free is None:
             close.append((len(out), best_gap))
         best = best if free is None else free
@@ -143,7 +144,7 @@ def crowd_starts(nav, env, rig, streams: list[Streams], separation: float, at=No
 
 
 def _free_start(nav, anchor: np.ndarray, length: float, back: np.ndarray, taken: "_Taken",
-                separation: float):
+                separation: float, tail: float = 0.0):
     """(start, heading, line) of a start that keeps `separation` from every line taken (on the
     same storey), or None: over FREE_SAMPLES walkable samples of the anchor's component and
     FREE_HEADINGS headings each, one whose straight body line behind is walkable all along
@@ -158,11 +159,11 @@ def _free_start(nav, anchor: np.ndarray, length: float, back: np.ndarray, taken:
     starts = nav.positions[idx].astype(np.float64)
     angles = np.linspace(0.0, 2.0 * np.pi, FREE_HEADINGS, endpoint=False)
     dirs = np.stack([np.sin(angles), np.zeros_like(angles), np.cos(angles)], axis=1)
-    score = start_score(nav, starts, dirs, length)                    # (k, headings)
+    score = start_score(nav, starts, dirs, length, tail)              # (k, headings)
     k, h = np.divmod(np.arange(score.size), FREE_HEADINGS)
     lines = starts[k][:, None, :] - dirs[h][:, None, :] * back[None, :, None]   # (c, m, 3)
     free = taken.clear(lines.reshape(-1, 3), separation).reshape(len(k), len(back)).all(axis=1)
-    free &= score.reshape(-1) >= FULL_BEHIND
+    free &= score.reshape(-1) >= full_behind(tail)
     if not free.any():
         return None
     far = np.linalg.norm(starts[k] - anchor[None, :], axis=1)

@@ -21,7 +21,7 @@ from baker.config import BakeConfig, parse_sun_path
 from baker.context import Context
 from baker.run.follow import Follower
 from baker.run.record import Recorder, RunRecord
-from baker.run.start import choose_start, spawn_prey
+from baker.run.start import choose_start, spawn_prey, tail_reach
 from baker.streams import Streams
 
 
@@ -43,7 +43,8 @@ def run(cfg: BakeConfig, env, nav, streams: Streams, ctx: Context, intent=None) 
     rig = cfg.rig
     body = rig.body
     start, heading = choose_start(nav, env, body.length, streams.get("start"), cfg.start,
-                                  cfg.start_heading, spread=rig.wander.radius)
+                                  cfg.start_heading, spread=rig.wander.radius,
+                                  tail=tail_reach(rig))
     follow = Follower(nav, env.rays, start, heading, rig, fps=cfg.fps)
     sun = make_sun(cfg, env)
     if intent is None:

@@ -20,12 +20,33 @@ WIDE_DRAWS = 56
 _BEHIND = np.linspace(0.0, 1.0, 9)
 _AHEAD = -AHEAD * np.arange(1, 5) / 4
 _FULL = len(_BEHIND) * 10 + len(_AHEAD)
-#: the least start_score of a start whose body line behind is walkable all along
-FULL_BEHIND = len(_BEHIND) * 10
+#: shares of the ultimate legs' reach behind the tail sampled on the start line too
+_TAIL = np.array([0.5, 1.0])
+
+
+def tail_reach(rig) -> float:
+    """[m] how far the ultimate legs trail behind the last spine joint (their two bones; 0
+    without legs): the start line is sampled out to there, so the tail does not start against
+    a wall or a riser the legs would trail into."""
+    legs = rig.legs
+    return float(legs.ultimate_upper + legs.ultimate_tip) if legs.enabled else 0.0
+
+
+def full_behind(tail: float = 0.0) -> int:
+    """The least start_score of a start whose body line behind (and the tail's reach) is
+    walkable all along."""
+    return 10 * (len(_BEHIND) + (len(_TAIL) if tail > 0.0 else 0))
+
+
+def full_score(tail: float = 0.0) -> int:
+    """start_score of a start walkable all along its line (and the tail's reach), with room
+    ahead."""
+    return full_behind(tail) + len(_AHEAD)
 
 
 def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None, heading=None,
-                 spread: float = np.inf, extent_frac: float = 0.2, anchor=None):
+                 spread: float = np.inf, extent_frac: float = 0.2, anchor=None,
+                 tail: float = 0.0):
     """A walkable start point near the middle of the scene (within `extent_frac` of its extent,
     at most `spread` metres; or the one nearest to `at`), and a heading (or `heading`) whose
     straight body line behind the head is as walkable as possible, with room ahead. A point
@@ -34,6 +55,7 @@ def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None
     then up to WIDE_DRAWS more out to `spread` (or the level's extent); the best draw is kept.
 
     anchor : the scene's middle_anchor(nav, env) when the caller has it (a crowd's many draws)
+    tail   : [m] the line is sampled this far past the body's length too (tail_reach)
     returns (position (3,), heading (3,) unit horizontal)
     """
     lo, hi = env.bounds
@@ -48,7 +70,7 @@ def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None
         start = anchor if at is not None else nav.random_point_near(anchor, radius, rng)
         start = anchor if start is None else start
         if heading is None:
-            return start, _best_heading(nav, start, body_length, rng)[1]
+            return start, _best_heading(nav, start, body_length, rng, tail)[1]
         h = np.array([heading[0], 0.0, heading[2]], dtype=np.float64)
         return start, h / max(np.linalg.norm(h), 1e-12)
     best = (-1, None, None)
@@ -56,31 +78,37 @@ def choose_start(nav, env, body_length: float, rng: np.random.Generator, at=None
     for k in range(START_DRAWS + WIDE_DRAWS):
         start = nav.random_point_near(anchor, radius if k < START_DRAWS else wide, rng)
         start = anchor if start is None else start
-        score, h = _best_heading(nav, start, body_length, rng)
+        score, h = _best_heading(nav, start, body_length, rng, tail)
         if score > best[0]:
             best = (score, start, h)
-        if score == _FULL:
+        if score == full_score(tail):
             break
     return best[1], best[2]
 
 
-def _best_heading(nav, start: np.ndarray, body_length: float, rng) -> tuple[int, np.ndarray]:
+def _best_heading(nav, start: np.ndarray, body_length: float, rng,
+                  tail: float = 0.0) -> tuple[int, np.ndarray]:
     """The best of 16 headings (a random first one) at `start`: the most walkable samples on
     the body line behind, then ahead. returns (score, heading (3,))"""
     angles = rng.uniform(0, 2 * np.pi) + np.linspace(0, 2 * np.pi, 16, endpoint=False)
     dirs = np.stack([np.sin(angles), np.zeros_like(angles), np.cos(angles)], axis=1)
-    score = start_score(nav, start[None, :], dirs, body_length)[0]
+    score = start_score(nav, start[None, :], dirs, body_length, tail)[0]
     i = int(np.argmax(score))
     return int(score[i]), dirs[i]
 
 
-def start_score(nav, starts: np.ndarray, dirs: np.ndarray, body_length: float) -> np.ndarray:
+def start_score(nav, starts: np.ndarray, dirs: np.ndarray, body_length: float,
+                tail: float = 0.0) -> np.ndarray:
     """(k, h) how walkable each start (k, 3) is with each heading (h, 3): ten a walkable
-    sample of the straight body line behind, one a sample of the room ahead (_FULL: all)."""
-    d = body_length * np.concatenate([_BEHIND, _AHEAD])
+    sample of the straight body line behind (and of the `tail` metres past it, tail_reach),
+    one a sample of the room ahead (full_score: all)."""
+    behind = body_length * _BEHIND
+    if tail > 0.0:
+        behind = np.concatenate([behind, body_length + tail * _TAIL])
+    d = np.concatenate([behind, body_length * _AHEAD])
     pts = starts[:, None, None, :] - dirs[None, :, None, :] * d[None, None, :, None]
     ok = nav.is_walkable(pts.reshape(-1, 3)).reshape(len(starts), len(dirs), len(d))
-    return ok[..., :len(_BEHIND)].sum(axis=-1) * 10 + ok[..., len(_BEHIND):].sum(axis=-1)
+    return ok[..., :len(behind)].sum(axis=-1) * 10 + ok[..., len(behind):].sum(axis=-1)
 
 
 def middle_anchor(nav, env) -> np.ndarray | None:

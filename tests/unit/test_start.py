@@ -79,8 +79,8 @@ def test_a_cramped_middle_draws_out_to_the_whole_level(patch, monkeypatch):
     anchor = start_mod.middle_anchor(nav, env)
     heading_of = start_mod._best_heading
 
-    def cramped(nav_, p, length, rng):
-        score, h = heading_of(nav_, p, length, rng)
+    def cramped(nav_, p, length, rng, tail=0.0):
+        score, h = heading_of(nav_, p, length, rng, tail)
         near = np.linalg.norm((p - anchor)[[0, 2]]) < 0.15
         return (min(score, start_mod._FULL - 10) if near else score), h
 
@@ -103,3 +103,27 @@ def test_prey_on_a_level_smaller_than_the_detection_range_start_away(patch):
     preys = start_mod.spawn_prey(3, start, nav, rig, Streams(5))
     for p in preys:
         assert np.linalg.norm((p.position - start)[[0, 2]]) > 0.15
+
+
+def test_the_start_line_leaves_room_behind_the_tail_for_the_ultimate_legs():
+    """A floor with a riser too tall to climb across one side: a start whose body line ends
+    just short of the riser has its ultimate legs, trailing behind the tail, in the riser. The
+    start line is sampled out to their reach (run.start.tail_reach), so the chosen heading
+    leaves them room. Without it (a crowd on Recast's dungeon at 4x, seed 15300000): a tail
+    started 2 cm from an 11 cm riser, its ultimate leg's base 0.5 mm inside it, and the leg
+    jumped 32 degrees in a frame when the body walked it out."""
+    from test_navmesh_scenes import box
+
+    env = env_of(floor(-0.5, 0.5, -0.5, 0.5), box((-0.5, 0.0, -0.5), (0.5, 0.05, -0.2)))
+    nav = build(env, RIG.navigation)
+    tail = start_mod.tail_reach(RIG)
+    assert tail > 0.1 * L
+    where = [0.0, 0.0, -0.16 + 0.98 * L]        # a body length from the walkable edge
+    reach = np.linspace(0.0, L + tail, 12)[:, None]
+    old = []
+    for seed in range(12):
+        s, h = choose_start(nav, env, L, Streams(seed).get("start"), at=where, tail=tail)
+        assert nav.is_walkable(s - h * reach).all()
+        s, h = choose_start(nav, env, L, Streams(seed).get("start"), at=where)
+        old.append(bool(nav.is_walkable(s - h * reach).all()))
+    assert not all(old)        # the body line alone took headings with the legs in the riser
